@@ -1,0 +1,781 @@
+//! Typed Brax v1 system configs: the subset MeBen's morphologies use.
+//!
+//! [`SystemConfig::from_message`] converts a parsed text-format tree
+//! ([`super::prototext::Message`]) into [`SystemConfig`], checking every field and the
+//! structure of the agent (one connected tree of bodies). Errors name the source, the line and
+//! column, the field path and the offending value.
+//!
+//! What happens to each field (see also `docs/ARCHITECTURE.md`, "Brax v1 configs"):
+//!
+//! | message | kept and used | kept, unused | ignored on purpose | refused |
+//! |---|---|---|---|---|
+//! | top level | `bodies`, `joints`, `actuators` | | scene and solver settings ([`IGNORED_TOP_LEVEL`]) | `forces`, `frozen` |
+//! | body | `name`, `mass`, `colliders` | `inertia` (always 1,1,1: an artefact of Brax's spring solver) | | `frozen` |
+//! | collider | `position`, `rotation`, `sphere`, `capsule` (`end` kept, unused) | | `material` | other shapes, `no_contact` |
+//! | joint | `name`, `parent`, `child`, offsets, `rotation`, `reference_rotation`, `angle_limit`, `angular_damping` | `stiffness` | `spring_damping`, `limit_strength` | |
+//! | actuator | `name`, `joint`, `strength`, `torque {}` | | | `angle {}` (position servos) |
+//!
+//! Any other field name is an error, so that typos do not pass silently.
+
+use super::error::{BraxError, Location};
+use super::prototext::{Field, Message, Value};
+use super::rotation::Vec3;
+
+/// Top-level fields of Brax v1's `Config` that describe the scene or Brax's own solver
+/// (friction, gravity, time step, ...). The project's simulator sets these itself, so they
+/// are accepted and ignored.
+pub const IGNORED_TOP_LEVEL: &[&str] = &[
+    "friction",
+    "gravity",
+    "angular_damping",
+    "velocity_damping",
+    "baumgarte_erp",
+    "spring_baumgarte_erp",
+    "elasticity",
+    "collide_include",
+    "dt",
+    "substeps",
+    "defaults",
+    "dynamics_mode",
+    "solver_scale_pos",
+    "solver_scale_ang",
+    "solver_scale_collide",
+];
+
+/// A whole agent: bodies, the joints between them and the motors on the joints.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SystemConfig {
+    /// Where the config came from (file path or built-in name), for messages.
+    pub source: String,
+    /// Bodies in file order.
+    pub bodies: Vec<BodyConfig>,
+    /// Joints in file order.
+    pub joints: Vec<JointConfig>,
+    /// Actuators in file order.
+    pub actuators: Vec<ActuatorConfig>,
+}
+
+/// A rigid body.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BodyConfig {
+    /// Unique name.
+    pub name: String,
+    /// Mass in kg (used as is).
+    pub mass: f64,
+    /// Collision shapes, which also give the inertia (see `to_model`).
+    pub colliders: Vec<ColliderConfig>,
+    /// Brax's `inertia` field when present; kept for completeness but never used (it is
+    /// always (1, 1, 1) in these files, an artefact of Brax's spring solver).
+    pub inertia: Option<Vec3>,
+    /// Line of the `bodies` field.
+    pub line: usize,
+}
+
+/// A collision shape attached to a body.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ColliderConfig {
+    /// Centre in the body frame (m).
+    pub position: Vec3,
+    /// Orientation in the body frame: Euler angles in degrees, intrinsic x-y'-z''.
+    pub rotation: Vec3,
+    /// The shape.
+    pub shape: ColliderShape,
+    /// Line of the `colliders` field.
+    pub line: usize,
+}
+
+/// The shape of a collider.
+#[derive(Clone, Debug, PartialEq)]
+pub enum ColliderShape {
+    /// A sphere.
+    Sphere {
+        /// Radius (m).
+        radius: f64,
+    },
+    /// A capsule along the collider frame's local z axis.
+    Capsule {
+        /// Radius (m).
+        radius: f64,
+        /// Total length including both caps (m); at least 2 * radius.
+        length: f64,
+        /// Brax's `end`: 0 both caps collide with the ground, 1 only the +z cap, -1 only the
+        /// -z cap. Kept but not used: the simulator collides the whole capsule.
+        end: i32,
+    },
+}
+
+/// A joint of 1 or 2 rotational degrees of freedom between two bodies.
+#[derive(Clone, Debug, PartialEq)]
+pub struct JointConfig {
+    /// Unique name.
+    pub name: String,
+    /// Parent body name.
+    pub parent: String,
+    /// Child body name.
+    pub child: String,
+    /// The joint point in the parent frame (m).
+    pub parent_offset: Vec3,
+    /// The joint point in the child frame (m).
+    pub child_offset: Vec3,
+    /// Joint frame in the child frame: Euler degrees, intrinsic x-y'-z''. The 1st DoF turns
+    /// about this frame's x axis, the 2nd about its y axis.
+    pub rotation: Vec3,
+    /// The child's orientation relative to the parent at zero joint angles (Euler degrees).
+    pub reference_rotation: Vec3,
+    /// One range per DoF, in degrees.
+    pub angle_limits: Vec<AngleLimit>,
+    /// Brax's relative angular velocity damping (N m s / rad).
+    pub angular_damping: f64,
+    /// Brax's joint spring stiffness; kept but meaningless in reduced coordinates.
+    pub stiffness: f64,
+    /// Line of the `joints` field.
+    pub line: usize,
+}
+
+/// The range of one joint DoF, in degrees (a missing bound is 0).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AngleLimit {
+    /// Lower bound (degrees).
+    pub min: f64,
+    /// Upper bound (degrees).
+    pub max: f64,
+}
+
+/// A torque motor on every DoF of one joint.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ActuatorConfig {
+    /// Name.
+    pub name: String,
+    /// The joint driven.
+    pub joint: String,
+    /// Torque at action 1 (N m), the same for each DoF of the joint.
+    pub strength: f64,
+    /// Line of the `actuators` field.
+    pub line: usize,
+}
+
+impl SystemConfig {
+    /// Converts a parsed tree into a checked config. `source` names the text in errors.
+    pub fn from_message(message: &Message, source: &str) -> Result<SystemConfig, BraxError> {
+        let top = Reader {
+            msg: message,
+            source,
+            path: String::new(),
+        };
+        top.check_names(
+            &["bodies", "joints", "actuators"],
+            IGNORED_TOP_LEVEL,
+            &["forces", "frozen"],
+        )?;
+        let mut config = SystemConfig {
+            source: source.to_string(),
+            bodies: Vec::new(),
+            joints: Vec::new(),
+            actuators: Vec::new(),
+        };
+        for (i, f) in message.fields_named("bodies").enumerate() {
+            config
+                .bodies
+                .push(read_body(&top.child(f, "bodies", i)?, f)?);
+        }
+        for (i, f) in message.fields_named("joints").enumerate() {
+            config
+                .joints
+                .push(read_joint(&top.child(f, "joints", i)?, f)?);
+        }
+        for (i, f) in message.fields_named("actuators").enumerate() {
+            config
+                .actuators
+                .push(read_actuator(&top.child(f, "actuators", i)?, f)?);
+        }
+        config.check_structure()?;
+        Ok(config)
+    }
+
+    /// Index of the body with this name.
+    pub fn body_index(&self, name: &str) -> Option<usize> {
+        self.bodies.iter().position(|b| b.name == name)
+    }
+
+    /// Index of the joint with this name.
+    pub fn joint_index(&self, name: &str) -> Option<usize> {
+        self.joints.iter().position(|j| j.name == name)
+    }
+
+    /// Index of the root body: the only body that is no joint's child (checked on load).
+    pub fn root_body(&self) -> usize {
+        (0..self.bodies.len())
+            .find(|&b| !self.joints.iter().any(|j| j.child == self.bodies[b].name))
+            .unwrap_or(0)
+    }
+
+    /// Total number of joint DoFs (hinges).
+    pub fn dof(&self) -> usize {
+        self.joints.iter().map(|j| j.angle_limits.len()).sum()
+    }
+
+    /// Number of actuated DoFs: the length of the action vector.
+    pub fn actuated_dof(&self) -> usize {
+        self.actuators
+            .iter()
+            .filter_map(|a| self.joint_index(&a.joint))
+            .map(|j| self.joints[j].angle_limits.len())
+            .sum()
+    }
+
+    /// Checks that the bodies and joints form one tree and that actuators name joints.
+    fn check_structure(&self) -> Result<(), BraxError> {
+        let err = |line: usize, field: String, value: Option<String>, message: String| {
+            BraxError::Config {
+                location: Location {
+                    source: self.source.clone(),
+                    line,
+                    column: 1,
+                },
+                field,
+                value,
+                message,
+            }
+        };
+        if self.bodies.is_empty() {
+            return Err(err(
+                1,
+                "bodies".into(),
+                None,
+                "the config has no bodies".into(),
+            ));
+        }
+        for (i, b) in self.bodies.iter().enumerate() {
+            if let Some(first) = self.bodies[..i].iter().find(|o| o.name == b.name) {
+                return Err(err(
+                    b.line,
+                    "bodies.name".into(),
+                    Some(format!("{:?}", b.name)),
+                    format!("duplicate body name (first defined at line {})", first.line),
+                ));
+            }
+        }
+        let known_bodies = || {
+            self.bodies
+                .iter()
+                .map(|b| format!("{:?}", b.name))
+                .collect::<Vec<_>>()
+                .join(", ")
+        };
+        let mut parent_joint: Vec<Vec<usize>> = vec![Vec::new(); self.bodies.len()];
+        for (ji, j) in self.joints.iter().enumerate() {
+            if let Some(first) = self.joints[..ji].iter().find(|o| o.name == j.name) {
+                return Err(err(
+                    j.line,
+                    format!("joints[{:?}].name", j.name),
+                    Some(format!("{:?}", j.name)),
+                    format!(
+                        "duplicate joint name (first defined at line {})",
+                        first.line
+                    ),
+                ));
+            }
+            let index = |field: &str, name: &str| {
+                self.body_index(name).ok_or_else(|| {
+                    err(
+                        j.line,
+                        format!("joints[{:?}].{field}", j.name),
+                        Some(format!("{name:?}")),
+                        format!("unknown body name; known bodies: {}", known_bodies()),
+                    )
+                })
+            };
+            let p = index("parent", &j.parent)?;
+            let c = index("child", &j.child)?;
+            if p == c {
+                return Err(err(
+                    j.line,
+                    format!("joints[{:?}].child", j.name),
+                    Some(format!("{:?}", j.child)),
+                    "a joint cannot connect a body to itself".into(),
+                ));
+            }
+            if let Some(&other) = parent_joint[c].first() {
+                let o = &self.joints[other];
+                let reason = if o.parent != j.parent {
+                    Some(format!(
+                        "body has two parents: it is already the child of joint {:?} (line {}) whose parent is {:?}",
+                        o.name, o.line, o.parent
+                    ))
+                } else if !same(o.parent_offset, j.parent_offset)
+                    || !same(o.child_offset, j.child_offset)
+                    || !same(o.reference_rotation, j.reference_rotation)
+                {
+                    Some(format!(
+                        "body is already the child of joint {:?} (line {}) from the same parent: several joints on one child must share parent_offset, child_offset and reference_rotation",
+                        o.name, o.line
+                    ))
+                } else {
+                    None
+                };
+                if let Some(message) = reason {
+                    return Err(err(
+                        j.line,
+                        format!("joints[{:?}].child", j.name),
+                        Some(format!("{:?}", j.child)),
+                        message,
+                    ));
+                }
+            }
+            parent_joint[c].push(ji);
+        }
+        let roots: Vec<usize> = (0..self.bodies.len())
+            .filter(|&b| parent_joint[b].is_empty())
+            .collect();
+        if roots.len() != 1 {
+            let names: Vec<String> = roots
+                .iter()
+                .map(|&b| format!("{:?}", self.bodies[b].name))
+                .collect();
+            let (line, message) = match roots.first() {
+                Some(&b) => (
+                    self.bodies[b].line,
+                    format!(
+                        "a config must describe one connected agent, but several bodies have no parent joint: {}",
+                        names.join(", ")
+                    ),
+                ),
+                None => (
+                    1,
+                    "every body has a parent joint: the joints form a cycle".into(),
+                ),
+            };
+            return Err(err(line, "joints".into(), None, message));
+        }
+        // Every body must reach the root by following parents (no cycle).
+        for start in 0..self.bodies.len() {
+            let mut b = start;
+            let mut steps = 0;
+            while let Some(&j) = parent_joint[b].first() {
+                b = self.body_index(&self.joints[j].parent).unwrap_or(roots[0]);
+                steps += 1;
+                if steps > self.bodies.len() {
+                    return Err(err(
+                        self.joints[j].line,
+                        format!("joints[{:?}].parent", self.joints[j].name),
+                        Some(format!("{:?}", self.joints[j].parent)),
+                        format!(
+                            "the joints form a cycle: body {:?} is its own ancestor",
+                            self.bodies[start].name
+                        ),
+                    ));
+                }
+            }
+        }
+        for (ai, a) in self.actuators.iter().enumerate() {
+            if self.joint_index(&a.joint).is_none() {
+                let known: Vec<String> = self
+                    .joints
+                    .iter()
+                    .map(|j| format!("{:?}", j.name))
+                    .collect();
+                return Err(err(
+                    a.line,
+                    format!("actuators[{:?}].joint", a.name),
+                    Some(format!("{:?}", a.joint)),
+                    format!("unknown joint name; known joints: {}", known.join(", ")),
+                ));
+            }
+            if let Some(first) = self.actuators[..ai].iter().find(|o| o.joint == a.joint) {
+                return Err(err(
+                    a.line,
+                    format!("actuators[{:?}].joint", a.name),
+                    Some(format!("{:?}", a.joint)),
+                    format!(
+                        "joint already driven by actuator {:?} (line {})",
+                        first.name, first.line
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Whether two vectors agree to 1e-9 (offsets and angles written by the same generator).
+fn same(a: Vec3, b: Vec3) -> bool {
+    a.iter().zip(&b).all(|(x, y)| (x - y).abs() <= 1e-9)
+}
+
+/// Reads a `bodies` message.
+fn read_body(r: &Reader<'_>, field: &Field) -> Result<BodyConfig, BraxError> {
+    r.check_names(&["name", "mass", "colliders", "inertia"], &[], &["frozen"])?;
+    let name = r.string(r.required("name")?)?;
+    let r = r.renamed(&name);
+    let mass_field = r.required("mass")?;
+    let mass = r.number(mass_field)?;
+    if mass <= 0.0 {
+        return Err(r.bad(mass_field, "mass must be positive"));
+    }
+    let mut colliders = Vec::new();
+    for (i, f) in r.msg.fields_named("colliders").enumerate() {
+        colliders.push(read_collider(&r.child(f, "colliders", i)?, f)?);
+    }
+    let inertia = r.optional("inertia")?.map(|f| r.vec3(f)).transpose()?;
+    Ok(BodyConfig {
+        name,
+        mass,
+        colliders,
+        inertia,
+        line: field.line,
+    })
+}
+
+/// Reads a `colliders` message.
+fn read_collider(r: &Reader<'_>, field: &Field) -> Result<ColliderConfig, BraxError> {
+    r.check_names(
+        &["position", "rotation", "sphere", "capsule"],
+        &["material"],
+        &[
+            "box",
+            "plane",
+            "heightMap",
+            "mesh",
+            "clipped_plane",
+            "no_contact",
+        ],
+    )?;
+    let position = r.vec3_or_zero("position")?;
+    let rotation = r.vec3_or_zero("rotation")?;
+    let sphere = r.optional("sphere")?;
+    let capsule = r.optional("capsule")?;
+    let shape = match (sphere, capsule) {
+        (Some(s), None) => {
+            let s = r.child(s, "sphere", 0)?;
+            s.check_names(&["radius"], &[], &[])?;
+            let radius = s.positive(s.required("radius")?)?;
+            ColliderShape::Sphere { radius }
+        }
+        (None, Some(c)) => {
+            let c = r.child(c, "capsule", 0)?;
+            c.check_names(&["radius", "length", "end"], &[], &[])?;
+            let radius = c.positive(c.required("radius")?)?;
+            let length_field = c.required("length")?;
+            let length = c.positive(length_field)?;
+            if length < 2.0 * radius * (1.0 - 1e-9) {
+                return Err(c.bad(
+                    length_field,
+                    &format!(
+                        "capsule length (total, caps included) must be at least 2 * radius = {}",
+                        2.0 * radius
+                    ),
+                ));
+            }
+            let end = match c.optional("end")? {
+                None => 0,
+                Some(f) => {
+                    let v = c.number(f)?;
+                    if v != 0.0 && v != 1.0 && v != -1.0 {
+                        return Err(c.bad(f, "capsule `end` must be -1, 0 or 1"));
+                    }
+                    v as i32
+                }
+            };
+            ColliderShape::Capsule {
+                radius,
+                length,
+                end,
+            }
+        }
+        (Some(_), Some(c)) => {
+            return Err(r.bad(
+                c,
+                "a collider has exactly one shape, found both `sphere` and `capsule`",
+            ));
+        }
+        (None, None) => {
+            return Err(r.missing("sphere` or `capsule"));
+        }
+    };
+    Ok(ColliderConfig {
+        position,
+        rotation,
+        shape,
+        line: field.line,
+    })
+}
+
+/// Reads a `joints` message.
+fn read_joint(r: &Reader<'_>, field: &Field) -> Result<JointConfig, BraxError> {
+    r.check_names(
+        &[
+            "name",
+            "parent",
+            "child",
+            "parent_offset",
+            "child_offset",
+            "rotation",
+            "reference_rotation",
+            "angle_limit",
+            "angular_damping",
+            "stiffness",
+        ],
+        &["spring_damping", "limit_strength"],
+        &[],
+    )?;
+    let name = r.string(r.required("name")?)?;
+    let r = r.renamed(&name);
+    let parent = r.string(r.required("parent")?)?;
+    let child = r.string(r.required("child")?)?;
+    let mut angle_limits = Vec::new();
+    for (i, f) in r.msg.fields_named("angle_limit").enumerate() {
+        let l = r.child(f, "angle_limit", i)?;
+        l.check_names(&["min", "max"], &[], &[])?;
+        let min = l
+            .optional("min")?
+            .map(|f| l.number(f))
+            .transpose()?
+            .unwrap_or(0.0);
+        let max_field = l.optional("max")?;
+        let max = max_field.map(|f| l.number(f)).transpose()?.unwrap_or(0.0);
+        if min > max {
+            return Err(l.bad(
+                max_field.unwrap_or(f),
+                &format!("angle limit has min {min} > max {max}"),
+            ));
+        }
+        angle_limits.push(AngleLimit { min, max });
+    }
+    if angle_limits.is_empty() || angle_limits.len() > 2 {
+        let message = format!(
+            "a joint needs 1 or 2 `angle_limit` entries (one per DoF; 3-DoF spherical joints are not supported), found {}",
+            angle_limits.len()
+        );
+        return Err(BraxError::Config {
+            location: r.location(field.line, field.column),
+            field: format!("{}.angle_limit", r.path),
+            value: None,
+            message,
+        });
+    }
+    let angular_damping = r.non_negative_or_zero("angular_damping")?;
+    let stiffness = r.non_negative_or_zero("stiffness")?;
+    Ok(JointConfig {
+        name,
+        parent,
+        child,
+        parent_offset: r.vec3_or_zero("parent_offset")?,
+        child_offset: r.vec3_or_zero("child_offset")?,
+        rotation: r.vec3_or_zero("rotation")?,
+        reference_rotation: r.vec3_or_zero("reference_rotation")?,
+        angle_limits,
+        angular_damping,
+        stiffness,
+        line: field.line,
+    })
+}
+
+/// Reads an `actuators` message.
+fn read_actuator(r: &Reader<'_>, field: &Field) -> Result<ActuatorConfig, BraxError> {
+    r.check_names(&["name", "joint", "strength", "torque"], &[], &["angle"])?;
+    let joint = r.string(r.required("joint")?)?;
+    let name = match r.optional("name")? {
+        Some(f) => r.string(f)?,
+        None => joint.clone(),
+    };
+    let r = r.renamed(&name);
+    if let Some(t) = r.optional("torque")? {
+        r.message(t)?;
+    }
+    let strength = r.non_negative(r.required("strength")?)?;
+    Ok(ActuatorConfig {
+        name,
+        joint,
+        strength,
+        line: field.line,
+    })
+}
+
+/// A message being read, with its source and dotted path for error messages.
+struct Reader<'a> {
+    msg: &'a Message,
+    source: &'a str,
+    path: String,
+}
+
+impl<'a> Reader<'a> {
+    fn location(&self, line: usize, column: usize) -> Location {
+        Location {
+            source: self.source.to_string(),
+            line,
+            column,
+        }
+    }
+
+    fn field_path(&self, name: &str) -> String {
+        if self.path.is_empty() {
+            name.to_string()
+        } else {
+            format!("{}.{name}", self.path)
+        }
+    }
+
+    /// An error about the value of `field`.
+    fn bad(&self, field: &Field, message: &str) -> BraxError {
+        BraxError::Config {
+            location: self.location(field.line, field.column),
+            field: self.field_path(&field.name),
+            value: Some(field.value.describe()),
+            message: message.to_string(),
+        }
+    }
+
+    /// An error about a missing field `name` in this message.
+    fn missing(&self, name: &str) -> BraxError {
+        BraxError::Config {
+            location: self.location(self.msg.line, self.msg.column),
+            field: self.field_path(name),
+            value: None,
+            message: format!("missing required field `{name}`"),
+        }
+    }
+
+    /// The reader of the nested message in `field` (the i-th of its name).
+    fn child(&self, field: &'a Field, name: &str, i: usize) -> Result<Reader<'a>, BraxError> {
+        let msg = self.message(field)?;
+        Ok(Reader {
+            msg,
+            source: self.source,
+            path: format!("{}[{i}]", self.field_path(name)),
+        })
+    }
+
+    /// The same reader with the last path element's index replaced by a name.
+    fn renamed(&self, name: &str) -> Reader<'a> {
+        let base = match self.path.rfind('[') {
+            Some(k) => &self.path[..k],
+            None => &self.path,
+        };
+        Reader {
+            msg: self.msg,
+            source: self.source,
+            path: format!("{base}[{name:?}]"),
+        }
+    }
+
+    /// Rejects unknown and unsupported field names; `ignored` names are accepted.
+    fn check_names(
+        &self,
+        known: &[&str],
+        ignored: &[&str],
+        refused: &[&str],
+    ) -> Result<(), BraxError> {
+        for f in &self.msg.fields {
+            let name = f.name.as_str();
+            if known.contains(&name) || ignored.contains(&name) {
+                continue;
+            }
+            let message = if refused.contains(&name) {
+                format!("`{name}` is a Brax feature this loader does not support")
+            } else {
+                format!(
+                    "unknown field `{name}`; expected one of: {}",
+                    known.join(", ")
+                )
+            };
+            return Err(BraxError::Config {
+                location: self.location(f.line, f.column),
+                field: self.field_path(name),
+                value: Some(f.value.describe()),
+                message,
+            });
+        }
+        Ok(())
+    }
+
+    /// The field `name` if present; an error if it is given more than once.
+    fn optional(&self, name: &str) -> Result<Option<&'a Field>, BraxError> {
+        let mut it = self.msg.fields.iter().filter(|f| f.name == name);
+        let first = it.next();
+        if let (Some(first), Some(second)) = (first, it.next()) {
+            return Err(self.bad(
+                second,
+                &format!("field given twice (first at line {})", first.line),
+            ));
+        }
+        Ok(first)
+    }
+
+    /// The field `name`; an error if it is absent or repeated.
+    fn required(&self, name: &str) -> Result<&'a Field, BraxError> {
+        self.optional(name)?.ok_or_else(|| self.missing(name))
+    }
+
+    fn message(&self, field: &'a Field) -> Result<&'a Message, BraxError> {
+        match &field.value {
+            Value::Message(m) => Ok(m),
+            _ => Err(self.bad(field, "expected a message `{ ... }`")),
+        }
+    }
+
+    fn string(&self, field: &Field) -> Result<String, BraxError> {
+        match &field.value {
+            Value::String(s) => Ok(s.clone()),
+            _ => Err(self.bad(field, "expected a quoted string")),
+        }
+    }
+
+    fn number(&self, field: &Field) -> Result<f64, BraxError> {
+        match &field.value {
+            Value::Number { value, .. } if value.is_finite() => Ok(*value),
+            Value::Number { .. } => Err(self.bad(field, "expected a finite number")),
+            _ => Err(self.bad(field, "expected a number")),
+        }
+    }
+
+    fn positive(&self, field: &Field) -> Result<f64, BraxError> {
+        let v = self.number(field)?;
+        if v > 0.0 {
+            Ok(v)
+        } else {
+            Err(self.bad(field, "expected a positive number"))
+        }
+    }
+
+    fn non_negative(&self, field: &Field) -> Result<f64, BraxError> {
+        let v = self.number(field)?;
+        if v >= 0.0 {
+            Ok(v)
+        } else {
+            Err(self.bad(field, "expected a number >= 0"))
+        }
+    }
+
+    fn non_negative_or_zero(&self, name: &str) -> Result<f64, BraxError> {
+        Ok(self
+            .optional(name)?
+            .map(|f| self.non_negative(f))
+            .transpose()?
+            .unwrap_or(0.0))
+    }
+
+    /// A `{ x: .. y: .. z: .. }` message; missing components are 0.
+    fn vec3(&self, field: &'a Field) -> Result<Vec3, BraxError> {
+        let v = self.child(field, &field.name, 0)?;
+        let v = Reader {
+            path: self.field_path(&field.name),
+            ..v
+        };
+        v.check_names(&["x", "y", "z"], &[], &[])?;
+        let mut out = [0.0; 3];
+        for (k, axis) in ["x", "y", "z"].iter().enumerate() {
+            if let Some(f) = v.optional(axis)? {
+                out[k] = v.number(f)?;
+            }
+        }
+        Ok(out)
+    }
+
+    fn vec3_or_zero(&self, name: &str) -> Result<Vec3, BraxError> {
+        Ok(self
+            .optional(name)?
+            .map(|f| self.vec3(f))
+            .transpose()?
+            .unwrap_or([0.0; 3]))
+    }
+}

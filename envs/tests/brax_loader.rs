@@ -1,0 +1,395 @@
+//! Tests of the Brax v1 config loader: the seven MeBen morphologies, the parser's robustness
+//! and every error path.
+
+use envs::brax::config::{AngleLimit, ColliderShape};
+use envs::brax::morphologies::{MORPHOLOGIES, known_names};
+use envs::brax::{BraxError, load_config_file, load_morphology, morphology, parse_config};
+
+/// Expected actuated DoF (MEBEN.md section 1; the two sumo unimals counted from their files).
+const ACTUATED_DOF: [(&str, usize); 7] = [
+    ("ant", 8),
+    ("claw", 16),
+    ("centipede", 14),
+    ("unimal_5506-10-14-17-10-38-34", 13),
+    ("unimal_5506-12-11-17-05-56-16", 10),
+    ("unimal_5506-13-5-02-21-35-41", 13),
+    ("unimal_5506-15-11-01-10-04-14", 10),
+];
+
+#[test]
+fn all_seven_morphologies_load_with_their_actuated_dof() {
+    assert_eq!(MORPHOLOGIES.len(), 7);
+    for (name, dof) in ACTUATED_DOF {
+        let config = load_morphology(name).unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert_eq!(config.actuated_dof(), dof, "{name}");
+        // Every joint is actuated in these files.
+        assert_eq!(config.dof(), dof, "{name}");
+        // One connected tree: every body but the root is some joint's child.
+        let children: std::collections::BTreeSet<&str> =
+            config.joints.iter().map(|j| j.child.as_str()).collect();
+        assert_eq!(children.len() + 1, config.bodies.len(), "{name}");
+    }
+}
+
+#[test]
+fn morphologies_are_found_by_name_stem_and_alias() {
+    let by_stem = morphology("5506-10-14-17-10-38-34").unwrap();
+    assert_eq!(by_stem.name, "unimal_5506-10-14-17-10-38-34");
+    assert_eq!(morphology("unimal_1").unwrap().name, by_stem.name);
+    assert_eq!(
+        morphology("unimal_2").unwrap().name,
+        "unimal_5506-12-11-17-05-56-16"
+    );
+    assert_eq!(morphology("claw.txt").unwrap().name, "claw");
+    let names = known_names();
+    for m in &MORPHOLOGIES {
+        assert!(names.contains(&m.name));
+        assert!(names.contains(&m.file_stem));
+    }
+}
+
+#[test]
+fn unknown_morphology_lists_the_known_names() {
+    let err = load_morphology("spider").unwrap_err();
+    let BraxError::UnknownMorphology { name, known } = &err else {
+        panic!("{err:?}")
+    };
+    assert_eq!(name, "spider");
+    assert_eq!(known.len(), known_names().len());
+    let text = err.to_string();
+    for n in [
+        "ant",
+        "claw",
+        "centipede",
+        "unimal_5506-15-11-01-10-04-14",
+        "unimal_1",
+    ] {
+        assert!(text.contains(n), "{text}");
+    }
+}
+
+#[test]
+fn ant_config_matches_the_mujoco_ant_design() {
+    let ant = load_morphology("ant").unwrap();
+    let torso = &ant.bodies[ant.root_body()];
+    assert_eq!(torso.name, "torso");
+    assert_eq!(torso.mass, 10.0);
+    // A capsule of total length 2r is MuJoCo's sphere of radius 0.25.
+    assert_eq!(
+        torso.colliders[0].shape,
+        ColliderShape::Capsule {
+            radius: 0.25,
+            length: 0.5,
+            end: 1
+        }
+    );
+    let mut hips = 0;
+    let mut ankles = 0;
+    for j in &ant.joints {
+        if j.parent == "torso" {
+            hips += 1;
+            assert_eq!(
+                j.angle_limits,
+                vec![AngleLimit {
+                    min: -30.0,
+                    max: 30.0
+                }]
+            );
+        } else {
+            ankles += 1;
+            assert_eq!(
+                j.angle_limits,
+                vec![AngleLimit {
+                    min: 30.0,
+                    max: 70.0
+                }]
+            );
+        }
+        assert_eq!(j.angular_damping, 35.0);
+    }
+    assert_eq!((hips, ankles), (4, 4));
+    for b in ant.bodies.iter().filter(|b| b.name != "torso") {
+        let ColliderShape::Capsule { radius, .. } = b.colliders[0].shape else {
+            panic!("{} has no capsule", b.name)
+        };
+        assert_eq!(radius, 0.08);
+    }
+    assert!(ant.actuators.iter().all(|a| a.strength == 350.0));
+}
+
+#[test]
+fn missing_bounds_of_an_angle_limit_are_zero() {
+    // unimal_1's joint limby_16: `angle_limit { }` then `angle_limit { max: 30.0 }`.
+    let u = load_morphology("unimal_1").unwrap();
+    let j = &u.joints[u.joint_index("limby_16").unwrap()];
+    assert_eq!(
+        j.angle_limits,
+        vec![
+            AngleLimit { min: 0.0, max: 0.0 },
+            AngleLimit {
+                min: 0.0,
+                max: 30.0
+            }
+        ]
+    );
+    let j = &u.joints[u.joint_index("limbx_18").unwrap()];
+    assert_eq!(
+        j.angle_limits,
+        vec![AngleLimit {
+            min: -45.0,
+            max: 0.0
+        }]
+    );
+}
+
+#[test]
+fn loads_from_a_user_file_and_reports_unreadable_ones() {
+    let dir = std::env::temp_dir().join(format!("brax_loader_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("ant_copy.txt");
+    std::fs::write(&path, morphology("ant").unwrap().text).unwrap();
+    let from_file = load_config_file(&path).unwrap();
+    let built_in = load_morphology("ant").unwrap();
+    assert_eq!(from_file.bodies, built_in.bodies);
+    assert_eq!(from_file.source, path.display().to_string());
+
+    let bad = dir.join("bad.txt");
+    std::fs::write(&bad, "bodies {\n  name: \"a\"\n  mass: 1\n\n").unwrap();
+    let err = load_config_file(&bad).unwrap_err();
+    let text = err.to_string();
+    assert!(text.starts_with(&format!("{}:5:", bad.display())), "{text}");
+    assert!(
+        text.contains("expected `}` to close `bodies` opened at line 1"),
+        "{text}"
+    );
+
+    let missing = dir.join("does_not_exist.txt");
+    let err = load_config_file(&missing).unwrap_err();
+    assert!(matches!(err, BraxError::Io { .. }), "{err:?}");
+    assert!(err.to_string().contains("does_not_exist.txt"));
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// A minimal valid two-body config, edited by the error tests.
+const TWO_BODIES: &str = r#"
+bodies { name: "a" mass: 1 colliders { sphere { radius: 0.1 } } }
+bodies { name: "b" mass: 1 colliders { capsule { radius: 0.05 length: 0.3 } } }
+joints {
+  name: "j"
+  parent: "a"
+  child: "b"
+  angle_limit { min: -10 max: 10 }
+}
+actuators { name: "m" joint: "j" strength: 100 torque {} }
+"#;
+
+/// Loads `text` and returns the error message, checking it names the source and `line`.
+fn config_error(text: &str, line: usize) -> String {
+    let err = parse_config(text, "cfg.txt").expect_err("the config should be rejected");
+    let location = err.location().expect("errors in a text have a location");
+    assert_eq!(location.source, "cfg.txt");
+    assert_eq!(location.line, line, "{err}");
+    err.to_string()
+}
+
+#[test]
+fn the_minimal_config_is_valid() {
+    let c = parse_config(TWO_BODIES, "cfg.txt").unwrap();
+    assert_eq!(
+        (c.bodies.len(), c.joints.len(), c.actuated_dof()),
+        (2, 1, 1)
+    );
+}
+
+#[test]
+fn malformed_syntax_names_file_line_and_expectation() {
+    let text = TWO_BODIES.replace("parent: \"a\"", "parent \"a\"");
+    let m = config_error(&text, 6);
+    // Line 6, column 10: where the string stands instead of `:`.
+    assert!(m.contains("cfg.txt:6:10: syntax error"), "{m}");
+    assert!(
+        m.contains("expected `:` or `{` after field name `parent`"),
+        "{m}"
+    );
+}
+
+#[test]
+fn unknown_body_in_a_joint_is_reported_with_known_bodies() {
+    let text = TWO_BODIES.replace("child: \"b\"", "child: \"c\"");
+    let m = config_error(&text, 4);
+    assert!(m.contains("joints[\"j\"].child"), "{m}");
+    assert!(m.contains("\"c\""), "{m}");
+    assert!(
+        m.contains("unknown body name; known bodies: \"a\", \"b\""),
+        "{m}"
+    );
+}
+
+#[test]
+fn a_body_with_two_parents_is_rejected() {
+    let text = format!(
+        "{TWO_BODIES}\nbodies {{ name: \"c\" mass: 1 colliders {{ sphere {{ radius: 0.1 }} }} }}\njoints {{ name: \"k\" parent: \"c\" child: \"b\" angle_limit {{ }} }}\n"
+    );
+    let m = config_error(&text, 13);
+    assert!(m.contains("body has two parents"), "{m}");
+    assert!(m.contains("\"j\""), "{m}");
+}
+
+#[test]
+fn two_joints_on_one_child_must_share_the_joint_point() {
+    // The sumo unimal 5506-13-5-02-21-35-41 gives limb_end_3 two joints from torso_0 at the
+    // same point (limbx_1 and limby_1): accepted. Different points are not.
+    let u = load_morphology("unimal_5506-13-5-02-21-35-41").unwrap();
+    let on_limb: Vec<&str> = u
+        .joints
+        .iter()
+        .filter(|j| j.child == "limb_end_3")
+        .map(|j| j.name.as_str())
+        .collect();
+    assert_eq!(on_limb, vec!["limbx_1", "limby_1"]);
+    let text = format!(
+        "{TWO_BODIES}\njoints {{ name: \"k\" parent: \"a\" child: \"b\" parent_offset {{ x: 0.1 }} angle_limit {{ }} }}\n"
+    );
+    let m = config_error(&text, 12);
+    assert!(m.contains("must share parent_offset"), "{m}");
+    let same_point = format!(
+        "{TWO_BODIES}\njoints {{ name: \"k\" parent: \"a\" child: \"b\" angle_limit {{ }} }}\n"
+    );
+    assert_eq!(parse_config(&same_point, "cfg.txt").unwrap().dof(), 2);
+}
+
+#[test]
+fn missing_required_fields_are_named() {
+    let m = config_error(
+        &TWO_BODIES.replace("mass: 1 colliders { capsule", "colliders { capsule"),
+        3,
+    );
+    assert!(
+        m.contains("field `bodies[\"b\"].mass`: missing required field `mass`"),
+        "{m}"
+    );
+    let m = config_error(&TWO_BODIES.replace("  child: \"b\"\n", ""), 4);
+    assert!(m.contains("missing required field `child`"), "{m}");
+    let m = config_error(&TWO_BODIES.replace(" length: 0.3", ""), 3);
+    assert!(m.contains("capsule[0].length"), "{m}");
+    let m = config_error(&TWO_BODIES.replace("strength: 100 ", ""), 10);
+    assert!(m.contains("missing required field `strength`"), "{m}");
+}
+
+#[test]
+fn wrong_counts_and_values_are_rejected() {
+    let three = TWO_BODIES.replace(
+        "angle_limit { min: -10 max: 10 }",
+        "angle_limit { } angle_limit { } angle_limit { }",
+    );
+    let m = config_error(&three, 4);
+    assert!(m.contains("1 or 2 `angle_limit` entries"), "{m}");
+    assert!(m.contains("found 3"), "{m}");
+    let none = TWO_BODIES.replace("angle_limit { min: -10 max: 10 }", "");
+    assert!(config_error(&none, 4).contains("found 0"));
+    let reversed = TWO_BODIES.replace("min: -10 max: 10", "min: 10 max: -10");
+    let m = config_error(&reversed, 8);
+    assert!(m.contains("min 10 > max -10"), "{m}");
+    let text_mass = TWO_BODIES.replace("name: \"a\" mass: 1", "name: \"a\" mass: \"heavy\"");
+    let m = config_error(&text_mass, 2);
+    assert!(
+        m.contains("bodies[\"a\"].mass` = \"heavy\": expected a number"),
+        "{m}"
+    );
+    let twice = TWO_BODIES.replace("name: \"a\" mass: 1", "name: \"a\" mass: 1 mass: 2");
+    assert!(config_error(&twice, 2).contains("field given twice"));
+    let short = TWO_BODIES.replace("length: 0.3", "length: 0.05");
+    assert!(config_error(&short, 3).contains("at least 2 * radius"));
+    let inf = TWO_BODIES.replace("radius: 0.1", "radius: inf");
+    assert!(config_error(&inf, 2).contains("finite"));
+    let end = TWO_BODIES.replace("length: 0.3", "length: 0.3 end: 2");
+    assert!(config_error(&end, 3).contains("`end` must be -1, 0 or 1"));
+}
+
+#[test]
+fn unknown_and_unsupported_fields_are_rejected_and_scene_settings_ignored() {
+    let typo = TWO_BODIES.replace("strength: 100", "strenght: 100");
+    let m = config_error(&typo, 10);
+    assert!(m.contains("unknown field `strenght`"), "{m}");
+    let servo = TWO_BODIES.replace("torque {}", "angle {}");
+    assert!(config_error(&servo, 10).contains("does not support"));
+    let bx = TWO_BODIES.replace("sphere { radius: 0.1 }", "box { halfsize { x: 1 } }");
+    assert!(config_error(&bx, 2).contains("`box` is a Brax feature"));
+    let scene =
+        format!("friction: 0.6\ngravity {{ z: -9.8 }}\ndt: 0.05\nsubsteps: 10\n{TWO_BODIES}");
+    assert!(parse_config(&scene, "cfg.txt").is_ok());
+}
+
+#[test]
+fn structure_errors_unknown_joint_duplicates_and_disconnected_bodies() {
+    let m = config_error(&TWO_BODIES.replace("joint: \"j\"", "joint: \"x\""), 10);
+    assert!(m.contains("unknown joint name; known joints: \"j\""), "{m}");
+    let dup = TWO_BODIES.replace("name: \"b\"", "name: \"a\"");
+    assert!(config_error(&dup, 3).contains("duplicate body name"));
+    let loose = format!("{TWO_BODIES}\nbodies {{ name: \"c\" mass: 1 }}\n");
+    let m = config_error(&loose, 2);
+    assert!(
+        m.contains("several bodies have no parent joint: \"a\", \"c\""),
+        "{m}"
+    );
+    let self_joint = TWO_BODIES.replace("child: \"b\"", "child: \"a\"");
+    assert!(config_error(&self_joint, 4).contains("to itself"));
+}
+
+/// A tiny deterministic generator (xorshift) for the fuzz test.
+fn next(state: &mut u64) -> u64 {
+    *state ^= *state << 13;
+    *state ^= *state >> 7;
+    *state ^= *state << 17;
+    *state
+}
+
+#[test]
+fn fuzzed_truncated_and_mutated_inputs_never_panic() {
+    let alphabet: Vec<char> = "{}<>[]:;,-#\"'\\ \n0123456789.eExyz_abc".chars().collect();
+    let mut state = 0x9E37_79B9_7F4A_7C15u64;
+    let mut rejected = 0;
+    let mut total = 0;
+    for m in &MORPHOLOGIES {
+        let chars: Vec<char> = m.text.chars().collect();
+        // Truncations at many points (a parse either succeeds or errors, never panics).
+        for cut in (0..chars.len()).step_by(37) {
+            let text: String = chars[..cut].iter().collect();
+            total += 1;
+            if load_morphology_text(&text).is_err() {
+                rejected += 1;
+            }
+        }
+        // Random mutations: replace, insert or delete a few characters.
+        for _ in 0..200 {
+            let mut c = chars.clone();
+            for _ in 0..1 + next(&mut state) % 4 {
+                let at = (next(&mut state) as usize) % c.len();
+                let ch = alphabet[(next(&mut state) as usize) % alphabet.len()];
+                match next(&mut state) % 3 {
+                    0 => c[at] = ch,
+                    1 => c.insert(at, ch),
+                    _ => {
+                        c.remove(at);
+                    }
+                }
+            }
+            total += 1;
+            if load_morphology_text(&c.iter().collect::<String>()).is_err() {
+                rejected += 1;
+            }
+        }
+    }
+    // Most damaged inputs must be rejected (the test fails if the loader accepts anything).
+    assert!(
+        rejected * 2 > total,
+        "only {rejected} of {total} damaged inputs rejected"
+    );
+}
+
+/// Parses text and, if it is a valid config, runs the queries a caller would make.
+fn load_morphology_text(text: &str) -> Result<(), BraxError> {
+    let c = parse_config(text, "fuzz")?;
+    let _ = (c.dof(), c.actuated_dof(), c.root_body());
+    Ok(())
+}
