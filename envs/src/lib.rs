@@ -1,16 +1,22 @@
+//! `envs`: an articulated-body physics simulator in reduced coordinates (f64), with MuJoCo's
+//! Model/Data split, and the MeBen environments built on it.
+//!
+//! - [`ModelBuilder`] builds an immutable [`Model`]; [`Data`] holds one environment's state;
+//! - `step` advances one `Data` by one time step; `step_batch` many in parallel;
+//! - `mjcf` loads MuJoCo XML files.
+
 pub mod brax;
+pub mod builder;
+pub mod crba;
+pub mod data;
+pub mod kinematics;
+pub mod math;
+pub mod model;
+pub mod rne;
 
-pub fn add(left: u64, right: u64) -> u64 {
-    left + right
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn it_works() {
-        let result = add(2, 2);
-        assert_eq!(result, 4);
-    }
-}
+pub use builder::{GeomSpec, HingeSpec, ModelBuilder};
+pub use data::{Contact, Data};
+pub use model::{
+    ActuatorId, BodyId, CapsuleEnds, GeomId, Integrator, JointId, JointKind, Model, ModelError,
+    Options, Shape,
+};

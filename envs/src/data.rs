@@ -1,0 +1,201 @@
+//! The per-environment state (MuJoCo's `mjData`): the state proper (`time`, `qpos`, `qvel`,
+//! `ctrl`, contact warm starts) plus scratch buffers, all sized once from the [`Model`] by
+//! [`Data::new`] so that stepping does not allocate (the constraint buffers grow only when a
+//! scene produces more simultaneous contacts than ever before, and then keep their capacity).
+
+use crate::math::{Mat3, Quat, SpatialInertia, Vec3, Vec6};
+use crate::model::Model;
+
+/// One contact point found by collision detection.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Contact {
+    /// Contact point (world), midway between the two surfaces.
+    pub pos: Vec3,
+    /// Unit normal pointing from `geom1` towards `geom2`.
+    pub normal: Vec3,
+    /// Signed distance between the surfaces (negative: penetration).
+    pub dist: f64,
+    /// First geom.
+    pub geom1: usize,
+    /// Second geom.
+    pub geom2: usize,
+    /// Friction coefficient of the contact.
+    pub friction: f64,
+    /// Warm-start slot.
+    pub slot: usize,
+}
+
+/// Per-environment simulation state and scratch space.
+#[derive(Clone, Debug)]
+pub struct Data {
+    /// Simulation time (s).
+    pub time: f64,
+    /// Generalised positions (`Model::nq`).
+    pub qpos: Vec<f64>,
+    /// Generalised velocities (`Model::nv`).
+    pub qvel: Vec<f64>,
+    /// Actuator controls (`Model::nu()`).
+    pub ctrl: Vec<f64>,
+    /// Generalised accelerations of the last step.
+    pub qacc: Vec<f64>,
+    /// External generalised forces applied by the user (kept between steps).
+    pub qfrc_applied: Vec<f64>,
+
+    /// Body positions (world) from the last kinematics pass.
+    pub xpos: Vec<Vec3>,
+    /// Body orientations (world).
+    pub xquat: Vec<Quat>,
+    /// Body rotation matrices (world).
+    pub xmat: Vec<Mat3>,
+    /// Body centres of mass (world).
+    pub xipos: Vec<Vec3>,
+    /// Geom centres (world).
+    pub geom_xpos: Vec<Vec3>,
+    /// Geom rotation matrices (world).
+    pub geom_xmat: Vec<Mat3>,
+    /// Hinge axes (world), per joint.
+    pub xaxis: Vec<Vec3>,
+    /// Hinge anchors (world), per joint.
+    pub xanchor: Vec<Vec3>,
+    /// Reference point of each tree's spatial quantities: the root body's origin.
+    pub tree_ref: Vec<Vec3>,
+
+    /// Body spatial inertias about their tree's reference point.
+    pub cinert: Vec<SpatialInertia>,
+    /// Composite (subtree) inertias.
+    pub crb: Vec<SpatialInertia>,
+    /// Dof motion axes (world, about the tree reference point).
+    pub cdof: Vec<Vec6>,
+    /// Time derivative of `cdof` (times nothing: multiply by qvel).
+    pub cdof_dot: Vec<Vec6>,
+    /// Body spatial velocities.
+    pub cvel: Vec<Vec6>,
+    /// Body spatial accelerations (scratch of the Newton-Euler pass).
+    pub cacc: Vec<Vec6>,
+    /// Body spatial forces (scratch of the Newton-Euler pass).
+    pub cfrc: Vec<Vec6>,
+
+    /// Mass matrix, dense `nv x nv` row-major; only entries (i, j) with j an ancestor dof of
+    /// i (or i itself) are written (lower triangle of the tree pattern).
+    pub qm: Vec<f64>,
+    /// `L^T D L` factor of `M + h D_damping` in the same pattern (strict lower part: L).
+    pub qh: Vec<f64>,
+    /// Bias forces `C(q, qdot) qdot + g(q)`.
+    pub qfrc_bias: Vec<f64>,
+    /// Actuator forces.
+    pub qfrc_actuator: Vec<f64>,
+    /// Passive (damping) forces.
+    pub qfrc_passive: Vec<f64>,
+    /// Unconstrained acceleration `(M + h D)^-1 (tau - c - D qvel)`.
+    pub qacc_smooth: Vec<f64>,
+    /// Constraint forces in joint space of the last step.
+    pub qfrc_constraint: Vec<f64>,
+
+    /// Contacts of the last step.
+    pub contacts: Vec<Contact>,
+    /// Warm-start forces of the contact slots (one per pyramid facet).
+    pub(crate) warm: Vec<[f64; 4]>,
+    /// Warm-start forces of the joint limits, per joint.
+    pub(crate) warm_limit: Vec<f64>,
+    /// Constraint scratch.
+    pub(crate) efc: Efc,
+    /// Generic nv-sized scratch.
+    pub(crate) scratch: Vec<f64>,
+}
+
+/// Constraint rows of one step (scratch; capacities persist).
+#[derive(Clone, Debug, Default)]
+pub(crate) struct Efc {
+    /// Number of rows.
+    pub n: usize,
+    /// Jacobian rows, `n x nv`.
+    pub j: Vec<f64>,
+    /// `(M + hD)^-1 J^T`, stored row per constraint (`n x nv`).
+    pub y: Vec<f64>,
+    /// `A = J (M + hD)^-1 J^T`, `n x n`.
+    pub a: Vec<f64>,
+    /// Reference acceleration.
+    pub aref: Vec<f64>,
+    /// Regulariser.
+    pub r: Vec<f64>,
+    /// Unconstrained acceleration in constraint space.
+    pub a0: Vec<f64>,
+    /// Force.
+    pub f: Vec<f64>,
+    /// Where to store the force afterwards: slot * 4 + facet, or `LIMIT_BASE + joint`.
+    pub dst: Vec<usize>,
+    /// First and one-past-last dof touched by the row (for sparse loops).
+    pub span: Vec<(usize, usize)>,
+}
+
+impl Data {
+    /// A fresh state at the model's default pose (`Model::qpos0`), at rest, controls zero.
+    pub fn new(m: &Model) -> Self {
+        let (nb, nv) = (m.bodies.len(), m.nv);
+        let z3 = [0.0; 3];
+        let z6 = [0.0; 6];
+        let i3 = crate::math::MAT3_IDENTITY;
+        Data {
+            time: 0.0,
+            qpos: m.qpos0.clone(),
+            qvel: vec![0.0; nv],
+            ctrl: vec![0.0; m.nu()],
+            qacc: vec![0.0; nv],
+            qfrc_applied: vec![0.0; nv],
+            xpos: vec![z3; nb],
+            xquat: vec![crate::math::QUAT_IDENTITY; nb],
+            xmat: vec![i3; nb],
+            xipos: vec![z3; nb],
+            geom_xpos: vec![z3; m.geoms.len()],
+            geom_xmat: vec![i3; m.geoms.len()],
+            xaxis: vec![z3; m.joints.len()],
+            xanchor: vec![z3; m.joints.len()],
+            tree_ref: vec![z3; m.trees.len()],
+            cinert: vec![SpatialInertia::default(); nb],
+            crb: vec![SpatialInertia::default(); nb],
+            cdof: vec![z6; nv],
+            cdof_dot: vec![z6; nv],
+            cvel: vec![z6; nb],
+            cacc: vec![z6; nb],
+            cfrc: vec![z6; nb],
+            qm: vec![0.0; nv * nv],
+            qh: vec![0.0; nv * nv],
+            qfrc_bias: vec![0.0; nv],
+            qfrc_actuator: vec![0.0; nv],
+            qfrc_passive: vec![0.0; nv],
+            qacc_smooth: vec![0.0; nv],
+            qfrc_constraint: vec![0.0; nv],
+            contacts: Vec::with_capacity(16 + 2 * m.plane_pairs.len()),
+            warm: vec![[0.0; 4]; m.nslot],
+            warm_limit: vec![0.0; m.joints.len()],
+            efc: Efc::default(),
+            scratch: vec![0.0; nv],
+        }
+    }
+
+    /// Puts the state back to `qpos` at rest: velocities, accelerations, applied forces and
+    /// contact warm starts are cleared, time set to 0. Errors if `qpos` has the wrong length
+    /// or a non-finite entry.
+    pub fn reset_to(&mut self, m: &Model, qpos: &[f64]) -> Result<(), String> {
+        if qpos.len() != m.nq {
+            return Err(format!("qpos has {} entries, the model has nq = {}", qpos.len(), m.nq));
+        }
+        if let Some(i) = qpos.iter().position(|x| !x.is_finite()) {
+            return Err(format!("qpos[{i}] = {} is not finite", qpos[i]));
+        }
+        self.qpos.copy_from_slice(qpos);
+        self.qvel.iter_mut().for_each(|x| *x = 0.0);
+        self.qacc.iter_mut().for_each(|x| *x = 0.0);
+        self.qfrc_applied.iter_mut().for_each(|x| *x = 0.0);
+        self.warm.iter_mut().for_each(|x| *x = [0.0; 4]);
+        self.warm_limit.iter_mut().for_each(|x| *x = 0.0);
+        self.contacts.clear();
+        self.time = 0.0;
+        Ok(())
+    }
+
+    /// Whether every entry of the state (qpos, qvel) is finite.
+    pub fn is_finite(&self) -> bool {
+        self.qpos.iter().chain(self.qvel.iter()).all(|x| x.is_finite())
+    }
+}
