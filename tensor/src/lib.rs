@@ -1,14 +1,36 @@
-pub fn add(left: u64, right: u64) -> u64 {
-    left + right
-}
+//! `tensor`: n-dimensional arrays and reverse-mode automatic differentiation, written for
+//! the SHNN / MeBen library.
+//!
+//! - [`Tensor`] is a plain value: contiguous row-major storage of `f32` or `f64`
+//!   ([`Float`]), shared and immutable.
+//! - A [`Tape`] records operations on [`Var`]s in a flat, append-only list;
+//!   [`Tape::backward`] walks it backwards once and returns [`Gradients`] for every leaf
+//!   created with [`Tape::var`].
+//! - Gradient rules live in one file (`backprop.rs`); forward kernels in `kernels/`.
+//! - [`gradcheck`] compares gradients with central finite differences (in `f64`).
+//!
+//! ```
+//! use tensor::{Tape, Tensor};
+//! let tape = Tape::<f64>::new();
+//! let x = tape.var(Tensor::from_f64(&[1.0, 2.0, 3.0], &[3]).unwrap());
+//! let loss = x.square().sum_all();
+//! let grads = tape.backward(loss).unwrap();
+//! assert_eq!(grads.get(x).unwrap().data(), &[2.0, 4.0, 6.0]);
+//! ```
 
-#[cfg(test)]
-mod tests {
-    use super::*;
+mod backprop;
+pub mod element;
+pub mod error;
+pub mod gradcheck;
+pub mod kernels;
+pub mod op;
+pub mod shape;
+mod tape;
+mod tensor;
+mod var_ops;
 
-    #[test]
-    fn it_works() {
-        let result = add(2, 2);
-        assert_eq!(result, 4);
-    }
-}
+pub use element::Float;
+pub use error::{Result, TensorError};
+pub use op::{Activation, BinaryOp, ReduceOp, UnaryOp};
+pub use tape::{Gradients, NoGradGuard, Tape, Var};
+pub use tensor::Tensor;

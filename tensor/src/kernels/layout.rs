@@ -1,0 +1,118 @@
+//! Layout kernels: permute, narrow (and its adjoint, pad), concatenate, expand.
+
+use crate::element::Float;
+use crate::error::{Result, TensorError, check_axis, invalid, mismatch};
+use crate::shape::{broadcast_shapes, broadcast_strides, for_each_run2, numel, split_at_axis, strides};
+use crate::tensor::Tensor;
+
+/// Reorders the axes: output axis `i` is input axis `perm[i]` (copies into row-major order).
+pub fn permute<T: Float>(x: &Tensor<T>, perm: &[usize]) -> Result<Tensor<T>> {
+    let r = x.rank();
+    let mut seen = vec![false; r];
+    if perm.len() != r || perm.iter().any(|&p| p >= r || std::mem::replace(&mut seen[p], true)) {
+        return Err(invalid(
+            "permute",
+            format!("{perm:?} is not a permutation of the {r} axes of shape {:?}", x.shape()),
+        ));
+    }
+    let shape: Vec<usize> = perm.iter().map(|&p| x.shape()[p]).collect();
+    let st = strides(x.shape());
+    let src_strides: Vec<usize> = perm.iter().map(|&p| st[p]).collect();
+    let zero = vec![0; r];
+    let xd = x.data();
+    let mut out = vec![T::ZERO; x.numel()];
+    for_each_run2(&shape, &src_strides, &zero, |o, oa, _, len, da, _| {
+        for k in 0..len {
+            out[o + k] = xd[oa + k * da];
+        }
+    });
+    Ok(Tensor::from_parts(out, shape))
+}
+
+/// The inverse permutation of `perm`.
+pub fn inverse_permutation(perm: &[usize]) -> Vec<usize> {
+    let mut inv = vec![0; perm.len()];
+    for (i, &p) in perm.iter().enumerate() {
+        inv[p] = i;
+    }
+    inv
+}
+
+/// Entries `start..start+len` of `axis`.
+pub fn narrow<T: Float>(x: &Tensor<T>, axis: usize, start: usize, len: usize) -> Result<Tensor<T>> {
+    check_axis("narrow", axis, x.shape())?;
+    let (outer, n, inner) = split_at_axis(x.shape(), axis);
+    if start + len > n {
+        return Err(invalid(
+            "narrow",
+            format!("range {start}..{} is past the end of axis {axis} of shape {:?}", start + len, x.shape()),
+        ));
+    }
+    let mut out = Vec::with_capacity(outer * len * inner);
+    let xd = x.data();
+    for o in 0..outer {
+        out.extend_from_slice(&xd[(o * n + start) * inner..(o * n + start + len) * inner]);
+    }
+    let mut shape = x.shape().to_vec();
+    shape[axis] = len;
+    Ok(Tensor::from_parts(out, shape))
+}
+
+/// Adds `g` (the gradient of a narrow) into `dst` (shaped like the narrowed input).
+pub fn narrow_backward_into<T: Float>(dst: &mut [T], dst_shape: &[usize], g: &[T], axis: usize, start: usize) {
+    let (outer, n, inner) = split_at_axis(dst_shape, axis);
+    let len = g.len() / (outer * inner).max(1);
+    for o in 0..outer {
+        let d = &mut dst[(o * n + start) * inner..(o * n + start + len) * inner];
+        for (a, &b) in d.iter_mut().zip(&g[o * len * inner..(o + 1) * len * inner]) {
+            *a += b;
+        }
+    }
+}
+
+/// Concatenates along `axis`; all other dims must agree.
+pub fn cat<T: Float>(xs: &[&Tensor<T>], axis: usize) -> Result<Tensor<T>> {
+    let first = xs.first().ok_or_else(|| invalid("cat", "needs at least one tensor"))?;
+    check_axis("cat", axis, first.shape())?;
+    for x in xs {
+        let ok = x.rank() == first.rank()
+            && x.shape().iter().zip(first.shape()).enumerate().all(|(d, (a, b))| d == axis || a == b);
+        if !ok {
+            return Err(mismatch("cat", &[first.shape(), x.shape()], format!("all dims but axis {axis} must agree")));
+        }
+    }
+    let (outer, _, inner) = split_at_axis(first.shape(), axis);
+    let total: usize = xs.iter().map(|x| x.shape()[axis]).sum();
+    let mut out = Vec::with_capacity(outer * total * inner);
+    for o in 0..outer {
+        for x in xs {
+            let l = x.shape()[axis] * inner;
+            out.extend_from_slice(&x.data()[o * l..(o + 1) * l]);
+        }
+    }
+    let mut shape = first.shape().to_vec();
+    shape[axis] = total;
+    Ok(Tensor::from_parts(out, shape))
+}
+
+/// Broadcasts `x` to `shape` (copies).
+pub fn expand<T: Float>(x: &Tensor<T>, shape: &[usize]) -> Result<Tensor<T>> {
+    let b = broadcast_shapes("expand", x.shape(), shape)?;
+    if b != shape {
+        return Err(TensorError::ShapeMismatch {
+            op: "expand",
+            shapes: vec![x.shape().to_vec(), shape.to_vec()],
+            detail: "the first shape does not broadcast to the second".into(),
+        });
+    }
+    let sx = broadcast_strides(x.shape(), shape);
+    let zero = vec![0; shape.len()];
+    let xd = x.data();
+    let mut out = vec![T::ZERO; numel(shape)];
+    for_each_run2(shape, &sx, &zero, |o, oa, _, len, da, _| {
+        for k in 0..len {
+            out[o + k] = xd[oa + k * da];
+        }
+    });
+    Ok(Tensor::from_parts(out, shape.to_vec()))
+}

@@ -1,0 +1,205 @@
+//! Batched matrix products over the last two dims, with broadcasting of the batch dims and
+//! transposed operands read through strides (no copies).
+//!
+//! Large matrices go through `faer::linalg::matmul::matmul` (single-threaded per call; rayon
+//! splits batches or fixed blocks of rows). Tiny matrices — the 3x32 by 32x32 products of
+//! the subequivariant layers — go through a direct loop, because a general matmul call per
+//! 3x32 block costs more than the arithmetic.
+
+use faer::{Accum, MatMut, MatRef, Par};
+use rayon::prelude::*;
+
+use crate::element::Float;
+use crate::error::{Result, mismatch};
+use crate::shape::{broadcast_shapes, broadcast_strides, numel};
+use crate::tensor::Tensor;
+
+/// Products with fewer multiply-adds than this use the direct loop.
+const SMALL_WORK: usize = 16 * 1024;
+/// Rows per parallel block when one large product is split.
+const ROW_BLOCK: usize = 128;
+
+/// The logical problem: `op(A)` is `m x k`, `op(B)` is `k x n`, per batch entry.
+#[derive(Clone, Debug)]
+pub struct MatMulPlan {
+    /// Rows of the output.
+    pub m: usize,
+    /// Shared inner dimension.
+    pub k: usize,
+    /// Columns of the output.
+    pub n: usize,
+    /// Broadcast batch shape.
+    pub batch: Vec<usize>,
+    /// Offsets (in elements) of each batch entry's A and B matrices.
+    pub offsets: Vec<(usize, usize)>,
+}
+
+impl MatMulPlan {
+    /// Plans `op(a) @ op(b)` for stored shapes `a` and `b`.
+    pub fn new(a: &[usize], b: &[usize], ta: bool, tb: bool) -> Result<Self> {
+        if a.len() < 2 || b.len() < 2 {
+            return Err(mismatch("matmul", &[a, b], "both operands need at least 2 dims"));
+        }
+        let (ar, ac) = (a[a.len() - 2], a[a.len() - 1]);
+        let (br, bc) = (b[b.len() - 2], b[b.len() - 1]);
+        let (m, k) = if ta { (ac, ar) } else { (ar, ac) };
+        let (k2, n) = if tb { (bc, br) } else { (br, bc) };
+        if k != k2 {
+            return Err(mismatch(
+                "matmul",
+                &[a, b],
+                format!("inner dims differ ({k} vs {k2}; transposes: {ta}, {tb})"),
+            ));
+        }
+        let (ba, bb) = (&a[..a.len() - 2], &b[..b.len() - 2]);
+        let batch = broadcast_shapes("matmul", ba, bb)
+            .map_err(|_| mismatch("matmul", &[a, b], "batch dims do not broadcast"))?;
+        let nb = numel(&batch);
+        let sa = broadcast_strides(ba, &batch);
+        let sb = broadcast_strides(bb, &batch);
+        let mut offsets = Vec::with_capacity(nb);
+        let mut idx = vec![0usize; batch.len()];
+        for _ in 0..nb {
+            let oa: usize = idx.iter().zip(&sa).map(|(i, s)| i * s).sum();
+            let ob: usize = idx.iter().zip(&sb).map(|(i, s)| i * s).sum();
+            offsets.push((oa * ar * ac, ob * br * bc));
+            for d in (0..batch.len()).rev() {
+                idx[d] += 1;
+                if idx[d] < batch[d] {
+                    break;
+                }
+                idx[d] = 0;
+            }
+        }
+        Ok(Self { m, k, n, batch, offsets })
+    }
+
+    /// Output shape `[batch.., m, n]`.
+    pub fn out_shape(&self) -> Vec<usize> {
+        let mut s = self.batch.clone();
+        s.extend([self.m, self.n]);
+        s
+    }
+}
+
+/// `op(a) @ op(b)` as a new tensor.
+pub fn matmul<T: Float>(a: &Tensor<T>, b: &Tensor<T>, ta: bool, tb: bool) -> Result<Tensor<T>> {
+    let plan = MatMulPlan::new(a.shape(), b.shape(), ta, tb)?;
+    let mut out = vec![T::ZERO; numel(&plan.out_shape())];
+    matmul_into(&mut out, false, a.data(), ta, b.data(), tb, &plan);
+    Ok(Tensor::from_parts(out, plan.out_shape()))
+}
+
+/// Writes (or, with `accumulate`, adds) `op(a) @ op(b)` into `out` following `plan`.
+pub fn matmul_into<T: Float>(out: &mut [T], accumulate: bool, a: &[T], ta: bool, b: &[T], tb: bool, plan: &MatMulPlan) {
+    let (m, k, n) = (plan.m, plan.k, plan.n);
+    let mn = m * n;
+    if mn == 0 {
+        return;
+    }
+    let work = m * n * k;
+    let one = |o: &mut [T], &(oa, ob): &(usize, usize)| {
+        let am = &a[oa..oa + m * k];
+        let bm = &b[ob..ob + k * n];
+        if work < SMALL_WORK {
+            small_matmul(o, accumulate, am, ta, bm, tb, m, k, n);
+        } else {
+            faer_matmul(o, accumulate, am, ta, bm, tb, m, k, n, 0, m);
+        }
+    };
+    let nb = plan.offsets.len();
+    if nb > 1 && work * nb >= 1 << 16 {
+        out.par_chunks_mut(mn).zip(plan.offsets.par_iter()).for_each(|(o, off)| one(o, off));
+    } else if nb == 1 && work >= 1 << 22 && m >= 2 * ROW_BLOCK {
+        let (oa, ob) = plan.offsets[0];
+        let am = &a[oa..oa + m * k];
+        let bm = &b[ob..ob + k * n];
+        out.par_chunks_mut(ROW_BLOCK * n).enumerate().for_each(|(blk, o)| {
+            let r0 = blk * ROW_BLOCK;
+            let rows = o.len() / n;
+            faer_matmul(o, accumulate, am, ta, bm, tb, m, k, n, r0, rows);
+        });
+    } else {
+        out.chunks_mut(mn).zip(plan.offsets.iter()).for_each(|(o, off)| one(o, off));
+    }
+}
+
+/// Rows `r0..r0+rows` of `op(A) @ op(B)` through faer, single-threaded.
+#[allow(clippy::too_many_arguments)]
+fn faer_matmul<T: Float>(
+    out: &mut [T],
+    accumulate: bool,
+    a: &[T],
+    ta: bool,
+    b: &[T],
+    tb: bool,
+    m: usize,
+    k: usize,
+    n: usize,
+    r0: usize,
+    rows: usize,
+) {
+    let lhs: MatRef<'_, T> =
+        if ta { MatRef::from_row_major_slice(a, k, m).transpose() } else { MatRef::from_row_major_slice(a, m, k) };
+    let lhs = lhs.subrows(r0, rows);
+    let rhs: MatRef<'_, T> =
+        if tb { MatRef::from_row_major_slice(b, n, k).transpose() } else { MatRef::from_row_major_slice(b, k, n) };
+    let dst: MatMut<'_, T> = MatMut::from_row_major_slice_mut(out, rows, n);
+    let accum = if accumulate { Accum::Add } else { Accum::Replace };
+    faer::linalg::matmul::matmul(dst, accum, lhs, rhs, T::ONE, Par::Seq);
+}
+
+/// Direct loops for tiny products; the inner loop runs over contiguous memory.
+#[allow(clippy::too_many_arguments)]
+fn small_matmul<T: Float>(
+    out: &mut [T],
+    accumulate: bool,
+    a: &[T],
+    ta: bool,
+    b: &[T],
+    tb: bool,
+    m: usize,
+    k: usize,
+    n: usize,
+) {
+    if !accumulate {
+        out.iter_mut().for_each(|v| *v = T::ZERO);
+    }
+    let a_at = |i: usize, p: usize| if ta { a[p * m + i] } else { a[i * k + p] };
+    if !tb {
+        // out[i, :] += a[i, p] * b[p, :]
+        for i in 0..m {
+            let row = &mut out[i * n..(i + 1) * n];
+            for p in 0..k {
+                let s = a_at(i, p);
+                let br = &b[p * n..(p + 1) * n];
+                for (o, &bv) in row.iter_mut().zip(br) {
+                    *o += s * bv;
+                }
+            }
+        }
+    } else if !ta {
+        // out[i, j] += dot(a[i, :], b[j, :])
+        for i in 0..m {
+            let ar = &a[i * k..(i + 1) * k];
+            for j in 0..n {
+                let br = &b[j * k..(j + 1) * k];
+                let mut acc = T::ZERO;
+                for (&x, &y) in ar.iter().zip(br) {
+                    acc += x * y;
+                }
+                out[i * n + j] += acc;
+            }
+        }
+    } else {
+        for i in 0..m {
+            for j in 0..n {
+                let mut acc = T::ZERO;
+                for p in 0..k {
+                    acc += a[p * m + i] * b[j * k + p];
+                }
+                out[i * n + j] += acc;
+            }
+        }
+    }
+}

@@ -1,0 +1,88 @@
+//! Fused kernels for network layers: softmax over the last axis and `act(x @ w + b)`.
+
+use super::for_rows;
+use super::matmul::{MatMulPlan, matmul_into};
+use crate::element::Float;
+use crate::error::{Result, mismatch};
+use crate::op::Activation;
+use crate::tensor::Tensor;
+
+/// Softmax over the last axis (max-shifted for stability).
+pub fn softmax<T: Float>(x: &Tensor<T>) -> Tensor<T> {
+    let n = x.shape().last().copied().unwrap_or(1);
+    let xd = x.data();
+    let mut out = vec![T::ZERO; x.numel()];
+    for_rows(&mut out, n, |r, row| {
+        let src = &xd[r * n..(r + 1) * n];
+        let mx = src.iter().copied().fold(T::neg_infinity(), T::max);
+        let mut s = T::ZERO;
+        for (o, &v) in row.iter_mut().zip(src) {
+            *o = (v - mx).exp();
+            s += *o;
+        }
+        let inv = T::ONE / s;
+        row.iter_mut().for_each(|v| *v *= inv);
+    });
+    Tensor::from_parts(out, x.shape().to_vec())
+}
+
+/// Gradient of softmax: `dx = y * (g - sum(g * y))` row by row.
+pub fn softmax_backward<T: Float>(y: &[T], g: &[T], n: usize) -> Vec<T> {
+    let mut out = vec![T::ZERO; y.len()];
+    for_rows(&mut out, n, |r, row| {
+        let (yr, gr) = (&y[r * n..(r + 1) * n], &g[r * n..(r + 1) * n]);
+        let dot: T = yr.iter().zip(gr).map(|(&a, &b)| a * b).sum();
+        for ((o, &yv), &gv) in row.iter_mut().zip(yr).zip(gr) {
+            *o = yv * (gv - dot);
+        }
+    });
+    out
+}
+
+/// Checks shapes of a linear layer: `x [.., in]`, `w [in, out]`, `b [out]`; returns the
+/// output shape and the row count.
+pub fn linear_shapes(x: &[usize], w: &[usize], b: Option<&[usize]>) -> Result<(Vec<usize>, usize)> {
+    let ok = !x.is_empty() && w.len() == 2 && x[x.len() - 1] == w[0] && b.is_none_or(|b| b == [w[1]]);
+    if !ok {
+        let mut shapes = vec![x, w];
+        if let Some(b) = b {
+            shapes.push(b);
+        }
+        return Err(mismatch("linear", &shapes, "expected x [.., in], w [in, out], b [out]"));
+    }
+    let mut out = x.to_vec();
+    *out.last_mut().expect("non-empty") = w[1];
+    Ok((out, x[..x.len() - 1].iter().product()))
+}
+
+/// `act(x @ w + b)` with the bias and activation applied in one pass over the output.
+pub fn linear<T: Float>(x: &Tensor<T>, w: &Tensor<T>, b: Option<&Tensor<T>>, act: Activation) -> Result<Tensor<T>> {
+    let (shape, rows) = linear_shapes(x.shape(), w.shape(), b.map(|b| b.shape()))?;
+    let (k, n) = (w.shape()[0], w.shape()[1]);
+    let plan = MatMulPlan::new(&[rows, k], &[k, n], false, false)?;
+    let mut out = vec![T::ZERO; rows * n];
+    matmul_into(&mut out, false, x.data(), false, w.data(), false, &plan);
+    let bias = b.map(|b| b.data());
+    for_rows(&mut out, n, |_, row| {
+        if let Some(bias) = bias {
+            for (o, &bv) in row.iter_mut().zip(bias) {
+                *o += bv;
+            }
+        }
+        match act {
+            Activation::Identity => {}
+            Activation::Relu => row.iter_mut().for_each(|v| *v = v.max(T::ZERO)),
+            Activation::Tanh => row.iter_mut().for_each(|v| *v = v.tanh()),
+        }
+    });
+    Ok(Tensor::from_parts(out, shape))
+}
+
+/// `g * act'(pre)` expressed through the output `y` of the activation.
+pub fn activation_backward<T: Float>(y: &[T], g: &[T], act: Activation) -> Vec<T> {
+    match act {
+        Activation::Identity => g.to_vec(),
+        Activation::Relu => g.iter().zip(y).map(|(&g, &y)| if y > T::ZERO { g } else { T::ZERO }).collect(),
+        Activation::Tanh => g.iter().zip(y).map(|(&g, &y)| g * (T::ONE - y * y)).collect(),
+    }
+}

@@ -1,0 +1,245 @@
+//! The closed set of recorded operations. Each tape node stores one [`Op`]: which inputs it
+//! read and the few constants its gradient rule needs. Forward kernels live in `kernels/`,
+//! gradient rules in `backprop.rs`.
+
+use std::sync::Arc;
+
+use crate::element::Float;
+
+/// Element-wise functions of one tensor. `apply` is the forward value, `derivative` is
+/// dy/dx given the input `x` and the output `y` (whichever is cheaper is used).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum UnaryOp {
+    /// -x
+    Neg,
+    /// e^x
+    Exp,
+    /// ln x
+    Log,
+    /// sqrt x
+    Sqrt,
+    /// x^2
+    Square,
+    /// tanh x
+    Tanh,
+    /// 1 / (1 + e^-x)
+    Sigmoid,
+    /// max(x, 0)
+    Relu,
+    /// ln(1 + e^x), computed as max(x, 0) + ln(1 + e^-|x|)
+    Softplus,
+    /// |x|
+    Abs,
+    /// x^p
+    Powf(f64),
+    /// min(max(x, lo), hi)
+    Clamp(f64, f64),
+    /// c * x
+    Scale(f64),
+    /// x + c
+    AddScalar(f64),
+}
+
+impl UnaryOp {
+    /// The forward value of one element.
+    #[inline(always)]
+    pub fn apply<T: Float>(self, x: T) -> T {
+        match self {
+            UnaryOp::Neg => -x,
+            UnaryOp::Exp => x.exp(),
+            UnaryOp::Log => x.ln(),
+            UnaryOp::Sqrt => x.sqrt(),
+            UnaryOp::Square => x * x,
+            UnaryOp::Tanh => x.tanh(),
+            UnaryOp::Sigmoid => sigmoid(x),
+            UnaryOp::Relu => x.max(T::ZERO),
+            UnaryOp::Softplus => softplus(x),
+            UnaryOp::Abs => x.abs(),
+            UnaryOp::Powf(p) => x.powf(T::from_f64(p)),
+            UnaryOp::Clamp(lo, hi) => x.max(T::from_f64(lo)).min(T::from_f64(hi)),
+            UnaryOp::Scale(c) => x * T::from_f64(c),
+            UnaryOp::AddScalar(c) => x + T::from_f64(c),
+        }
+    }
+
+    /// dy/dx at input `x` with output `y`.
+    #[inline(always)]
+    pub fn derivative<T: Float>(self, x: T, y: T) -> T {
+        let two = T::from_f64(2.0);
+        match self {
+            UnaryOp::Neg => -T::ONE,
+            UnaryOp::Exp => y,
+            UnaryOp::Log => T::ONE / x,
+            UnaryOp::Sqrt => T::ONE / (two * y),
+            UnaryOp::Square => two * x,
+            UnaryOp::Tanh => T::ONE - y * y,
+            UnaryOp::Sigmoid => y * (T::ONE - y),
+            UnaryOp::Relu => {
+                if x > T::ZERO {
+                    T::ONE
+                } else {
+                    T::ZERO
+                }
+            }
+            UnaryOp::Softplus => sigmoid(x),
+            UnaryOp::Abs => {
+                if x > T::ZERO {
+                    T::ONE
+                } else if x < T::ZERO {
+                    -T::ONE
+                } else {
+                    T::ZERO
+                }
+            }
+            UnaryOp::Powf(p) => T::from_f64(p) * x.powf(T::from_f64(p - 1.0)),
+            // Gradient flows where the input is inside [lo, hi], boundaries included
+            // (PyTorch's convention).
+            UnaryOp::Clamp(lo, hi) => {
+                if x >= T::from_f64(lo) && x <= T::from_f64(hi) {
+                    T::ONE
+                } else {
+                    T::ZERO
+                }
+            }
+            UnaryOp::Scale(c) => T::from_f64(c),
+            UnaryOp::AddScalar(_) => T::ONE,
+        }
+    }
+}
+
+/// Numerically stable logistic function.
+#[inline(always)]
+pub fn sigmoid<T: Float>(x: T) -> T {
+    if x >= T::ZERO {
+        T::ONE / (T::ONE + (-x).exp())
+    } else {
+        let e = x.exp();
+        e / (T::ONE + e)
+    }
+}
+
+/// Numerically stable softplus, ln(1 + e^x).
+#[inline(always)]
+pub fn softplus<T: Float>(x: T) -> T {
+    x.max(T::ZERO) + (-x.abs()).exp().ln_1p()
+}
+
+/// Element-wise functions of two broadcast tensors.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BinaryOp {
+    /// a + b
+    Add,
+    /// a - b
+    Sub,
+    /// a * b
+    Mul,
+    /// a / b
+    Div,
+    /// min(a, b); on ties the gradient goes to `a`.
+    Minimum,
+    /// max(a, b); on ties the gradient goes to `a`.
+    Maximum,
+}
+
+impl BinaryOp {
+    /// The forward value of one pair.
+    #[inline(always)]
+    pub fn apply<T: Float>(self, a: T, b: T) -> T {
+        match self {
+            BinaryOp::Add => a + b,
+            BinaryOp::Sub => a - b,
+            BinaryOp::Mul => a * b,
+            BinaryOp::Div => a / b,
+            BinaryOp::Minimum => {
+                if a <= b {
+                    a
+                } else {
+                    b
+                }
+            }
+            BinaryOp::Maximum => {
+                if a >= b {
+                    a
+                } else {
+                    b
+                }
+            }
+        }
+    }
+
+    /// Name for error messages.
+    pub fn name(self) -> &'static str {
+        match self {
+            BinaryOp::Add => "add",
+            BinaryOp::Sub => "sub",
+            BinaryOp::Mul => "mul",
+            BinaryOp::Div => "div",
+            BinaryOp::Minimum => "minimum",
+            BinaryOp::Maximum => "maximum",
+        }
+    }
+}
+
+/// The activation fused into [`Op::Linear`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Activation {
+    /// No activation.
+    Identity,
+    /// max(x, 0)
+    Relu,
+    /// tanh x
+    Tanh,
+}
+
+/// Reductions over one axis or over everything.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ReduceOp {
+    /// Sum.
+    Sum,
+    /// Arithmetic mean.
+    Mean,
+    /// Maximum; the gradient goes to the first maximal element.
+    Max,
+}
+
+/// Node identifier on a tape (its position).
+pub type NodeId = usize;
+
+/// One recorded operation: the inputs (node ids) and the constants its gradient rule needs.
+#[derive(Clone, Debug)]
+pub enum Op {
+    /// A leaf: a constant or a parameter.
+    Leaf,
+    /// Element-wise unary function.
+    Unary(NodeId, UnaryOp),
+    /// Broadcasting binary function.
+    Binary(NodeId, NodeId, BinaryOp),
+    /// Reduction over `axis` (None: all elements).
+    Reduce { x: NodeId, op: ReduceOp, axis: Option<usize>, keepdim: bool },
+    /// Batched matrix product of the last two dims, with optional transposes read as strides.
+    MatMul { a: NodeId, b: NodeId, ta: bool, tb: bool },
+    /// Fused `act(x @ w + b)` over the last dim of `x`.
+    Linear { x: NodeId, w: NodeId, b: Option<NodeId>, act: Activation },
+    /// Same data, new shape.
+    Reshape(NodeId),
+    /// Axis permutation.
+    Permute(NodeId, Vec<usize>),
+    /// Broadcast to a larger shape.
+    Expand(NodeId),
+    /// `len` entries of `axis` starting at `start`.
+    Narrow { x: NodeId, axis: usize, start: usize },
+    /// Concatenation along `axis`.
+    Cat { xs: Vec<NodeId>, axis: usize },
+    /// Selection of entries of `axis` by index (repeats allowed).
+    IndexSelect { x: NodeId, axis: usize, idx: Arc<Vec<usize>> },
+    /// `x` with `src` entries added at `idx` along `axis` (duplicates accumulate).
+    IndexAdd { x: NodeId, src: NodeId, axis: usize, idx: Arc<Vec<usize>> },
+    /// Element-wise gather along `axis` with an index array shaped like the output.
+    Gather { x: NodeId, axis: usize, idx: Arc<Vec<usize>> },
+    /// Sums (or means) of rows grouped by a sorted segment id (axis 0).
+    Segment { x: NodeId, seg: Arc<Vec<usize>>, mean: bool },
+    /// `mask ? a : b` with broadcasting.
+    Where { a: NodeId, b: NodeId, mask: Arc<Vec<bool>> },
+    /// Softmax along the last axis.
+    Softmax(NodeId),
+}

@@ -1,0 +1,211 @@
+//! The tape: a flat, append-only list of nodes, one per operation, in the order they ran.
+//!
+//! A [`Var`] is a cheap handle (tape reference + position). Because a node can only read
+//! nodes recorded before it, walking the list backwards visits every node after all of its
+//! consumers: reverse-mode differentiation needs no graph sort and no reference counting.
+//! Gradient rules live in `backprop.rs`.
+
+use std::cell::{Cell, Ref, RefCell};
+
+use crate::backprop::{GradStore, propagate};
+use crate::element::Float;
+use crate::error::{Result, invalid};
+use crate::op::{NodeId, Op};
+use crate::tensor::Tensor;
+
+/// One recorded value with the operation that produced it.
+pub(crate) struct Node<T: Float> {
+    pub(crate) value: Tensor<T>,
+    pub(crate) op: Op,
+    pub(crate) requires_grad: bool,
+}
+
+/// A recording of operations for reverse-mode differentiation.
+///
+/// Create one per forward pass; it owns every intermediate value until dropped.
+pub struct Tape<T: Float> {
+    nodes: RefCell<Vec<Node<T>>>,
+    grad_enabled: Cell<bool>,
+}
+
+impl<T: Float> Default for Tape<T> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+/// Restores gradient recording when dropped; see [`Tape::no_grad`].
+pub struct NoGradGuard<'t, T: Float> {
+    tape: &'t Tape<T>,
+    previous: bool,
+}
+
+impl<T: Float> Drop for NoGradGuard<'_, T> {
+    fn drop(&mut self) {
+        self.tape.grad_enabled.set(self.previous);
+    }
+}
+
+impl<T: Float> Tape<T> {
+    /// An empty tape with gradient recording on.
+    pub fn new() -> Self {
+        Self { nodes: RefCell::new(Vec::new()), grad_enabled: Cell::new(true) }
+    }
+
+    /// Number of recorded nodes.
+    pub fn len(&self) -> usize {
+        self.nodes.borrow().len()
+    }
+
+    /// Whether nothing has been recorded.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// A leaf whose gradient [`Tape::backward`] will report (a parameter or an input of a
+    /// gradient check). Inside a no-grad scope it is a constant.
+    pub fn var(&self, value: Tensor<T>) -> Var<'_, T> {
+        self.push(value, Op::Leaf, self.grad_enabled.get())
+    }
+
+    /// A leaf that never receives a gradient.
+    pub fn constant(&self, value: Tensor<T>) -> Var<'_, T> {
+        self.push(value, Op::Leaf, false)
+    }
+
+    /// Turns gradient recording off until the returned guard is dropped: values computed in
+    /// the scope are constants.
+    pub fn no_grad(&self) -> NoGradGuard<'_, T> {
+        let previous = self.grad_enabled.replace(false);
+        NoGradGuard { tape: self, previous }
+    }
+
+    /// Whether operations are currently recorded for differentiation.
+    pub fn grad_enabled(&self) -> bool {
+        self.grad_enabled.get()
+    }
+
+    /// Appends a node; its gradient is wanted if `requires_grad` and recording is on.
+    pub(crate) fn push(&self, value: Tensor<T>, op: Op, requires_grad: bool) -> Var<'_, T> {
+        let requires_grad = requires_grad && self.grad_enabled.get();
+        let op = if requires_grad { op } else { Op::Leaf };
+        let mut nodes = self.nodes.borrow_mut();
+        nodes.push(Node { value, op, requires_grad });
+        Var { tape: self, id: nodes.len() - 1 }
+    }
+
+    /// Records the result of an op whose inputs are `inputs`.
+    pub(crate) fn record(&self, value: Tensor<T>, op: Op, inputs: &[NodeId]) -> Var<'_, T> {
+        let rg = {
+            let nodes = self.nodes.borrow();
+            inputs.iter().any(|&i| nodes[i].requires_grad)
+        };
+        self.push(value, op, rg)
+    }
+
+    /// The value of node `id` (shares storage).
+    pub(crate) fn value(&self, id: NodeId) -> Tensor<T> {
+        self.nodes.borrow()[id].value.clone()
+    }
+
+    /// Reverse-mode differentiation of the scalar `loss` with respect to every leaf created
+    /// with [`Tape::var`] that it depends on.
+    pub fn backward(&self, loss: Var<'_, T>) -> Result<Gradients<T>> {
+        self.check_same(loss);
+        let nodes: Ref<'_, Vec<Node<T>>> = self.nodes.borrow();
+        let root = &nodes[loss.id];
+        if root.value.numel() != 1 {
+            return Err(invalid(
+                "backward",
+                format!("the loss must be a single value, got shape {:?}", root.value.shape()),
+            ));
+        }
+        let mut store = GradStore::new(&nodes[..=loss.id]);
+        if root.requires_grad {
+            store.add(loss.id, vec![T::ONE]);
+        }
+        for id in (0..=loss.id).rev() {
+            if matches!(nodes[id].op, Op::Leaf) {
+                continue;
+            }
+            if let Some(g) = store.take(id) {
+                propagate(&nodes, id, g, &mut store);
+            }
+        }
+        Ok(Gradients { grads: store.into_leaf_grads(&nodes[..=loss.id]) })
+    }
+
+    /// Asserts that `v` belongs to this tape (mixing tapes is a programming error).
+    pub(crate) fn check_same(&self, v: Var<'_, T>) {
+        assert!(std::ptr::eq(self, v.tape), "a Var from another tape was used");
+    }
+}
+
+/// Gradients of the leaves of one backward pass, indexed by [`Var`].
+#[derive(Debug)]
+pub struct Gradients<T: Float> {
+    grads: Vec<Option<Tensor<T>>>,
+}
+
+impl<T: Float> Gradients<T> {
+    /// The gradient of a leaf, or `None` if the loss does not depend on it (or it is a
+    /// constant).
+    pub fn get(&self, v: Var<'_, T>) -> Option<&Tensor<T>> {
+        self.grads.get(v.id).and_then(|g| g.as_ref())
+    }
+
+    /// The gradient of a leaf, or zeros shaped like it when the loss does not depend on it.
+    pub fn get_or_zeros(&self, v: Var<'_, T>) -> Tensor<T> {
+        self.get(v).cloned().unwrap_or_else(|| Tensor::zeros(v.shape().as_slice()))
+    }
+}
+
+/// A value on a tape: a handle that is `Copy` and cheap to pass around.
+#[derive(Clone, Copy)]
+pub struct Var<'t, T: Float> {
+    pub(crate) tape: &'t Tape<T>,
+    pub(crate) id: NodeId,
+}
+
+impl<'t, T: Float> Var<'t, T> {
+    /// The tape this value lives on.
+    pub fn tape(&self) -> &'t Tape<T> {
+        self.tape
+    }
+
+    /// Position on the tape.
+    pub fn id(&self) -> NodeId {
+        self.id
+    }
+
+    /// The value (shares storage, no copy).
+    pub fn value(&self) -> Tensor<T> {
+        self.tape.value(self.id)
+    }
+
+    /// The shape.
+    pub fn shape(&self) -> Vec<usize> {
+        self.tape.nodes.borrow()[self.id].value.shape().to_vec()
+    }
+
+    /// The number of dimensions.
+    pub fn rank(&self) -> usize {
+        self.tape.nodes.borrow()[self.id].value.rank()
+    }
+
+    /// Whether a gradient flows back through this value.
+    pub fn requires_grad(&self) -> bool {
+        self.tape.nodes.borrow()[self.id].requires_grad
+    }
+
+    /// The same value as a constant: no gradient flows back through the result.
+    pub fn detach(&self) -> Var<'t, T> {
+        self.tape.constant(self.value())
+    }
+}
+
+impl<T: Float> std::fmt::Debug for Var<'_, T> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "Var#{} {:?}", self.id, self.value())
+    }
+}

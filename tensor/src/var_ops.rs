@@ -1,0 +1,319 @@
+//! The differentiable operations on [`Var`]: each computes its value with a kernel and
+//! records one [`Op`] node. Calls that a user can get wrong return `Result`; errors name the
+//! op and the shapes.
+
+use std::sync::Arc;
+
+use crate::element::Float;
+use crate::error::{Result, check_axis, invalid, mismatch};
+use crate::kernels::{elementwise, index, layout, matmul, nnops, reduce};
+use crate::op::{Activation, BinaryOp, Op, ReduceOp, UnaryOp};
+use crate::shape::{broadcast_shapes, numel};
+use crate::tape::{Tape, Var};
+use crate::tensor::Tensor;
+
+// The arithmetic methods share the names of std's operator traits but return `Result`
+// (broadcasting can fail), so they cannot implement those traits.
+#[allow(clippy::should_implement_trait)]
+impl<'t, T: Float> Var<'t, T> {
+    fn unary(self, op: UnaryOp) -> Var<'t, T> {
+        let y = elementwise::unary(&self.value(), op);
+        self.tape.record(y, Op::Unary(self.id, op), &[self.id])
+    }
+
+    /// -x
+    pub fn neg(self) -> Self {
+        self.unary(UnaryOp::Neg)
+    }
+    /// e^x
+    pub fn exp(self) -> Self {
+        self.unary(UnaryOp::Exp)
+    }
+    /// ln x
+    pub fn log(self) -> Self {
+        self.unary(UnaryOp::Log)
+    }
+    /// sqrt x
+    pub fn sqrt(self) -> Self {
+        self.unary(UnaryOp::Sqrt)
+    }
+    /// x^2
+    pub fn square(self) -> Self {
+        self.unary(UnaryOp::Square)
+    }
+    /// tanh x
+    pub fn tanh(self) -> Self {
+        self.unary(UnaryOp::Tanh)
+    }
+    /// 1 / (1 + e^-x)
+    pub fn sigmoid(self) -> Self {
+        self.unary(UnaryOp::Sigmoid)
+    }
+    /// max(x, 0)
+    pub fn relu(self) -> Self {
+        self.unary(UnaryOp::Relu)
+    }
+    /// ln(1 + e^x), numerically stable.
+    pub fn softplus(self) -> Self {
+        self.unary(UnaryOp::Softplus)
+    }
+    /// |x|
+    pub fn abs(self) -> Self {
+        self.unary(UnaryOp::Abs)
+    }
+    /// x^p
+    pub fn powf(self, p: f64) -> Self {
+        self.unary(UnaryOp::Powf(p))
+    }
+    /// min(max(x, lo), hi)
+    pub fn clamp(self, lo: f64, hi: f64) -> Self {
+        self.unary(UnaryOp::Clamp(lo, hi))
+    }
+    /// c * x
+    pub fn scale(self, c: f64) -> Self {
+        self.unary(UnaryOp::Scale(c))
+    }
+    /// x + c
+    pub fn add_scalar(self, c: f64) -> Self {
+        self.unary(UnaryOp::AddScalar(c))
+    }
+
+    fn binary(self, other: Var<'t, T>, op: BinaryOp) -> Result<Var<'t, T>> {
+        self.tape.check_same(other);
+        let y = elementwise::binary(&self.value(), &other.value(), op)?;
+        Ok(self.tape.record(y, Op::Binary(self.id, other.id, op), &[self.id, other.id]))
+    }
+
+    /// a + b (broadcasting)
+    pub fn add(self, other: Var<'t, T>) -> Result<Self> {
+        self.binary(other, BinaryOp::Add)
+    }
+    /// a - b (broadcasting)
+    pub fn sub(self, other: Var<'t, T>) -> Result<Self> {
+        self.binary(other, BinaryOp::Sub)
+    }
+    /// a * b (broadcasting)
+    pub fn mul(self, other: Var<'t, T>) -> Result<Self> {
+        self.binary(other, BinaryOp::Mul)
+    }
+    /// a / b (broadcasting)
+    pub fn div(self, other: Var<'t, T>) -> Result<Self> {
+        self.binary(other, BinaryOp::Div)
+    }
+    /// Element-wise minimum (broadcasting); ties send the gradient to `self`.
+    pub fn minimum(self, other: Var<'t, T>) -> Result<Self> {
+        self.binary(other, BinaryOp::Minimum)
+    }
+    /// Element-wise maximum (broadcasting); ties send the gradient to `self`.
+    pub fn maximum(self, other: Var<'t, T>) -> Result<Self> {
+        self.binary(other, BinaryOp::Maximum)
+    }
+
+    fn reduce(self, op: ReduceOp, axis: Option<usize>, keepdim: bool) -> Result<Var<'t, T>> {
+        let y = reduce::reduce(&self.value(), op, axis, keepdim)?;
+        Ok(self.tape.record(y, Op::Reduce { x: self.id, op, axis, keepdim }, &[self.id]))
+    }
+
+    /// Sum over `axis`.
+    pub fn sum(self, axis: usize, keepdim: bool) -> Result<Self> {
+        self.reduce(ReduceOp::Sum, Some(axis), keepdim)
+    }
+    /// Mean over `axis`.
+    pub fn mean(self, axis: usize, keepdim: bool) -> Result<Self> {
+        self.reduce(ReduceOp::Mean, Some(axis), keepdim)
+    }
+    /// Maximum over `axis` (gradient to the first maximal entry).
+    pub fn max(self, axis: usize, keepdim: bool) -> Result<Self> {
+        self.reduce(ReduceOp::Max, Some(axis), keepdim)
+    }
+    /// Sum of all elements (a scalar).
+    pub fn sum_all(self) -> Self {
+        self.reduce(ReduceOp::Sum, None, false).expect("a full sum cannot fail")
+    }
+    /// Mean of all elements (a scalar); fails on an empty tensor.
+    pub fn mean_all(self) -> Result<Self> {
+        self.reduce(ReduceOp::Mean, None, false)
+    }
+    /// Maximum of all elements (a scalar); fails on an empty tensor.
+    pub fn max_all(self) -> Result<Self> {
+        self.reduce(ReduceOp::Max, None, false)
+    }
+
+    /// Matrix product over the last two dims, batch dims broadcast (both operands rank >= 2).
+    pub fn matmul(self, other: Var<'t, T>) -> Result<Self> {
+        self.matmul_t(other, false, false)
+    }
+
+    /// `op(self) @ op(other)` where `op` transposes the last two dims when asked; the
+    /// transposes are read as strides, nothing is copied.
+    pub fn matmul_t(self, other: Var<'t, T>, ta: bool, tb: bool) -> Result<Self> {
+        self.tape.check_same(other);
+        let y = matmul::matmul(&self.value(), &other.value(), ta, tb)?;
+        Ok(self.tape.record(y, Op::MatMul { a: self.id, b: other.id, ta, tb }, &[self.id, other.id]))
+    }
+
+    /// Fused `act(self @ w + b)` over the last dim: `self [.., in]`, `w [in, out]`, `b [out]`.
+    pub fn linear(self, w: Var<'t, T>, b: Option<Var<'t, T>>, act: Activation) -> Result<Self> {
+        self.tape.check_same(w);
+        let bv = b.map(|b| {
+            self.tape.check_same(b);
+            b.value()
+        });
+        let y = nnops::linear(&self.value(), &w.value(), bv.as_ref(), act)?;
+        let mut inputs = vec![self.id, w.id];
+        inputs.extend(b.map(|b| b.id));
+        Ok(self.tape.record(y, Op::Linear { x: self.id, w: w.id, b: b.map(|b| b.id), act }, &inputs))
+    }
+
+    /// Softmax over the last axis.
+    pub fn softmax(self) -> Self {
+        let y = nnops::softmax(&self.value());
+        self.tape.record(y, Op::Softmax(self.id), &[self.id])
+    }
+
+    /// Same elements, new shape (no copy).
+    pub fn reshape(self, shape: &[usize]) -> Result<Self> {
+        let y = self.value().reshape(shape)?;
+        Ok(self.tape.record(y, Op::Reshape(self.id), &[self.id]))
+    }
+
+    /// Inserts a dim of size 1 at `axis`.
+    pub fn unsqueeze(self, axis: usize) -> Result<Self> {
+        let mut s = self.shape();
+        if axis > s.len() {
+            return Err(check_axis("unsqueeze", axis, &s).unwrap_err());
+        }
+        s.insert(axis, 1);
+        self.reshape(&s)
+    }
+
+    /// Reorders axes: output axis `i` is input axis `perm[i]`.
+    pub fn permute(self, perm: &[usize]) -> Result<Self> {
+        let y = layout::permute(&self.value(), perm)?;
+        Ok(self.tape.record(y, Op::Permute(self.id, perm.to_vec()), &[self.id]))
+    }
+
+    /// Swaps two axes.
+    pub fn transpose(self, a: usize, b: usize) -> Result<Self> {
+        let r = self.rank();
+        check_axis("transpose", a, &self.shape())?;
+        check_axis("transpose", b, &self.shape())?;
+        let mut perm: Vec<usize> = (0..r).collect();
+        perm.swap(a, b);
+        self.permute(&perm)
+    }
+
+    /// Broadcasts to a larger shape (copies).
+    pub fn expand(self, shape: &[usize]) -> Result<Self> {
+        let y = layout::expand(&self.value(), shape)?;
+        Ok(self.tape.record(y, Op::Expand(self.id), &[self.id]))
+    }
+
+    /// Entries `start..start+len` of `axis`.
+    pub fn narrow(self, axis: usize, start: usize, len: usize) -> Result<Self> {
+        let y = layout::narrow(&self.value(), axis, start, len)?;
+        Ok(self.tape.record(y, Op::Narrow { x: self.id, axis, start }, &[self.id]))
+    }
+
+    /// Entries of `axis` picked by `idx` (repeats allowed).
+    pub fn index_select(self, axis: usize, idx: &[usize]) -> Result<Self> {
+        let y = index::index_select(&self.value(), axis, idx)?;
+        Ok(self.tape.record(y, Op::IndexSelect { x: self.id, axis, idx: Arc::new(idx.to_vec()) }, &[self.id]))
+    }
+
+    /// `self` with `src[.., j, ..]` added at entry `idx[j]` of `axis`; duplicate indices
+    /// accumulate.
+    pub fn index_add(self, axis: usize, idx: &[usize], src: Var<'t, T>) -> Result<Self> {
+        self.tape.check_same(src);
+        let (x, s) = (self.value(), src.value());
+        index::check_index_add(x.shape(), s.shape(), axis, idx)?;
+        let (outer, n, inner) = crate::shape::split_at_axis(x.shape(), axis);
+        let mut out = x.to_vec();
+        index::index_add_into(&mut out, n, s.data(), idx.len(), outer, inner, idx);
+        let y = Tensor::from_parts(out, x.shape().to_vec());
+        Ok(self.tape.record(
+            y,
+            Op::IndexAdd { x: self.id, src: src.id, axis, idx: Arc::new(idx.to_vec()) },
+            &[self.id, src.id],
+        ))
+    }
+
+    /// Scatter-add into zeros: an output with `size` entries on `axis` where entry `idx[j]`
+    /// receives the sum of `self[.., j, ..]`.
+    pub fn scatter_add(self, axis: usize, idx: &[usize], size: usize) -> Result<Self> {
+        check_axis("scatter_add", axis, &self.shape())?;
+        let mut shape = self.shape();
+        shape[axis] = size;
+        let zeros = self.tape.constant(Tensor::zeros(&shape));
+        zeros.index_add(axis, idx, self)
+    }
+
+    /// `out[o, j, i] = self[o, idx[o, j, i], i]` along `axis`; `idx` has shape `idx_shape`
+    /// (equal to the input's except along `axis`).
+    pub fn gather(self, axis: usize, idx_shape: &[usize], idx: &[usize]) -> Result<Self> {
+        let y = index::gather(&self.value(), axis, idx_shape, idx)?;
+        Ok(self.tape.record(y, Op::Gather { x: self.id, axis, idx: Arc::new(idx.to_vec()) }, &[self.id]))
+    }
+
+    /// Sums of rows (axis 0) grouped by sorted segment ids into `num_segments` rows.
+    pub fn segment_sum(self, seg: &[usize], num_segments: usize) -> Result<Self> {
+        self.segment(seg, num_segments, false)
+    }
+
+    /// Means of rows (axis 0) grouped by sorted segment ids; empty segments give 0.
+    pub fn segment_mean(self, seg: &[usize], num_segments: usize) -> Result<Self> {
+        self.segment(seg, num_segments, true)
+    }
+
+    fn segment(self, seg: &[usize], n: usize, mean: bool) -> Result<Self> {
+        let y = index::segment_reduce(&self.value(), seg, n, mean)?;
+        Ok(self.tape.record(y, Op::Segment { x: self.id, seg: Arc::new(seg.to_vec()), mean }, &[self.id]))
+    }
+}
+
+impl<T: Float> Tape<T> {
+    /// Concatenation along `axis`.
+    pub fn cat<'t>(&'t self, xs: &[Var<'t, T>], axis: usize) -> Result<Var<'t, T>> {
+        xs.iter().for_each(|&x| self.check_same(x));
+        let vals: Vec<Tensor<T>> = xs.iter().map(|x| x.value()).collect();
+        let refs: Vec<&Tensor<T>> = vals.iter().collect();
+        let y = layout::cat(&refs, axis)?;
+        let ids: Vec<usize> = xs.iter().map(|x| x.id).collect();
+        Ok(self.record(y, Op::Cat { xs: ids.clone(), axis }, &ids))
+    }
+
+    /// Stacks equally shaped tensors along a new `axis`.
+    pub fn stack<'t>(&'t self, xs: &[Var<'t, T>], axis: usize) -> Result<Var<'t, T>> {
+        let first = xs.first().ok_or_else(|| invalid("stack", "needs at least one tensor"))?;
+        let s0 = first.shape();
+        if axis > s0.len() {
+            return Err(check_axis("stack", axis, &s0).unwrap_err());
+        }
+        let mut ys = Vec::with_capacity(xs.len());
+        for x in xs {
+            if x.shape() != s0 {
+                return Err(mismatch("stack", &[&s0, &x.shape()], "all tensors must have the same shape"));
+            }
+            ys.push(x.unsqueeze(axis)?);
+        }
+        self.cat(&ys, axis)
+    }
+
+    /// `mask ? a : b` element-wise; `a` and `b` broadcast, `mask` has the broadcast shape's
+    /// element count (row-major).
+    pub fn where_select<'t>(&'t self, mask: &[bool], a: Var<'t, T>, b: Var<'t, T>) -> Result<Var<'t, T>> {
+        self.check_same(a);
+        self.check_same(b);
+        let (av, bv) = (a.value(), b.value());
+        let shape = broadcast_shapes("where", av.shape(), bv.shape())?;
+        if mask.len() != numel(&shape) {
+            return Err(mismatch(
+                "where",
+                &[av.shape(), bv.shape()],
+                format!("mask has {} entries, the broadcast shape {shape:?} needs {}", mask.len(), numel(&shape)),
+            ));
+        }
+        let y = Tensor::from_parts(elementwise::where_select(mask, &shape, &av, &bv), shape);
+        Ok(self.record(y, Op::Where { a: a.id, b: b.id, mask: Arc::new(mask.to_vec()) }, &[a.id, b.id]))
+    }
+}

@@ -1,0 +1,220 @@
+//! Seeded property tests over random shapes: kernels against naive reference loops, random
+//! broadcast gradient checks, and bit-identical results whatever the thread count.
+
+mod common;
+
+use common::*;
+use rand::RngExt;
+use tensor::gradcheck::check_gradients;
+use tensor::shape::{broadcast_shapes, numel, strides};
+use tensor::{Tape, Tensor};
+
+/// A random shape of rank 0..=max_rank with dims 1..=max_dim.
+fn random_shape(r: &mut rand_chacha::ChaCha8Rng, max_rank: usize, max_dim: usize) -> Vec<usize> {
+    let rank = r.random_range(0..=max_rank);
+    (0..rank).map(|_| r.random_range(1..=max_dim)).collect()
+}
+
+/// A shape that broadcasts with `s`: drop some leading dims, set some dims to 1.
+fn broadcastable(r: &mut rand_chacha::ChaCha8Rng, s: &[usize]) -> Vec<usize> {
+    let drop = r.random_range(0..=s.len());
+    s[drop..].iter().map(|&d| if r.random_bool(0.3) { 1 } else { d }).collect()
+}
+
+/// Reads `x` at a multi-index of the broadcast shape `out`.
+fn at_broadcast(x: &Tensor<f64>, out: &[usize], idx: &[usize]) -> f64 {
+    let off = out.len() - x.rank();
+    let st = strides(x.shape());
+    let p: usize = (0..x.rank()).map(|d| if x.shape()[d] == 1 { 0 } else { idx[d + off] * st[d] }).sum();
+    x.data()[p]
+}
+
+fn unravel(mut i: usize, shape: &[usize]) -> Vec<usize> {
+    let mut idx = vec![0; shape.len()];
+    for d in (0..shape.len()).rev() {
+        idx[d] = i % shape[d];
+        i /= shape[d];
+    }
+    idx
+}
+
+#[test]
+fn broadcast_binary_matches_naive() {
+    let mut r = rng(100);
+    for _ in 0..200 {
+        let sa = random_shape(&mut r, 4, 4);
+        let sb = if r.random_bool(0.5) { broadcastable(&mut r, &sa) } else { sa.clone() };
+        let (sa, sb) = if r.random_bool(0.5) { (sa, sb) } else { (sb, sa) };
+        let a = uniform(&mut r, &sa);
+        let b = positive(&mut r, &sb);
+        let out = broadcast_shapes("t", &sa, &sb).unwrap();
+        let tape = Tape::new();
+        let (va, vb) = (tape.constant(a.clone()), tape.constant(b.clone()));
+        let got = va.mul(vb).unwrap().sub(vb).unwrap().div(vb).unwrap().value();
+        assert_eq!(got.shape(), &out[..]);
+        for i in 0..numel(&out) {
+            let idx = unravel(i, &out);
+            let (x, y) = (at_broadcast(&a, &out, &idx), at_broadcast(&b, &out, &idx));
+            let want = (x * y - y) / y;
+            assert!((got.data()[i] - want).abs() < 1e-12, "{sa:?} {sb:?}");
+        }
+    }
+}
+
+#[test]
+fn broadcast_gradients_on_random_shapes() {
+    let mut r = rng(101);
+    for _ in 0..40 {
+        let sa = random_shape(&mut r, 3, 3);
+        let sb = broadcastable(&mut r, &sa);
+        let a = uniform(&mut r, &sa);
+        let b = positive(&mut r, &sb);
+        check_gradients(|_, v| v[0].mul(v[1])?.add(v[1])?.div(v[1].add(v[0])?), &[a, b]).unwrap();
+    }
+}
+
+fn naive_matmul(a: &Tensor<f64>, b: &Tensor<f64>, ta: bool, tb: bool) -> Vec<f64> {
+    // 2-D only.
+    let (ar, ac) = (a.shape()[0], a.shape()[1]);
+    let (br, bc) = (b.shape()[0], b.shape()[1]);
+    let (m, k) = if ta { (ac, ar) } else { (ar, ac) };
+    let n = if tb { br } else { bc };
+    let ga = |i: usize, p: usize| if ta { a.data()[p * ac + i] } else { a.data()[i * ac + p] };
+    let gb = |p: usize, j: usize| if tb { b.data()[j * bc + p] } else { b.data()[p * bc + j] };
+    let mut out = vec![0.0; m * n];
+    for i in 0..m {
+        for j in 0..n {
+            out[i * n + j] = (0..k).map(|p| ga(i, p) * gb(p, j)).sum();
+        }
+    }
+    out
+}
+
+#[test]
+fn matmul_matches_naive_for_random_sizes_and_transposes() {
+    let mut r = rng(102);
+    for trial in 0..60 {
+        // Mix tiny (direct loop) and larger (faer, and row-block parallel) sizes.
+        let big = trial % 10 == 0;
+        let hi = if big { 300 } else { 40 };
+        let (m, k, n) = (r.random_range(1..=hi), r.random_range(1..=hi), r.random_range(1..=hi));
+        let (ta, tb) = (r.random_bool(0.5), r.random_bool(0.5));
+        let a = uniform(&mut r, &if ta { [k, m] } else { [m, k] });
+        let b = uniform(&mut r, &if tb { [n, k] } else { [k, n] });
+        let tape = Tape::new();
+        let got = tape.constant(a.clone()).matmul_t(tape.constant(b.clone()), ta, tb).unwrap().value();
+        let want = naive_matmul(&a, &b, ta, tb);
+        for (x, y) in got.data().iter().zip(&want) {
+            assert!((x - y).abs() < 1e-10 * (k as f64), "m{m} k{k} n{n} ta{ta} tb{tb}");
+        }
+    }
+}
+
+#[test]
+fn batched_matmul_matches_per_batch_products() {
+    let mut r = rng(103);
+    for _ in 0..30 {
+        let (m, k, n) = (r.random_range(1..=6), r.random_range(1..=6), r.random_range(1..=6));
+        let batch = random_shape(&mut r, 2, 3);
+        let bb = broadcastable(&mut r, &batch);
+        let mut sa = batch.clone();
+        sa.extend([m, k]);
+        let mut sb = bb.clone();
+        sb.extend([k, n]);
+        let a = uniform(&mut r, &sa);
+        let b = uniform(&mut r, &sb);
+        let tape = Tape::new();
+        let got = tape.constant(a.clone()).matmul(tape.constant(b.clone())).unwrap().value();
+        let out_batch = broadcast_shapes("t", &batch, &bb).unwrap();
+        for bi in 0..numel(&out_batch) {
+            let idx = unravel(bi, &out_batch);
+            let pick = |x: &Tensor<f64>, bshape: &[usize], rows: usize, cols: usize| {
+                let off = out_batch.len() - bshape.len();
+                let st = strides(bshape);
+                let p: usize = (0..bshape.len()).map(|d| if bshape[d] == 1 { 0 } else { idx[d + off] * st[d] }).sum();
+                Tensor::new(x.data()[p * rows * cols..(p + 1) * rows * cols].to_vec(), &[rows, cols]).unwrap()
+            };
+            let want = naive_matmul(&pick(&a, &batch, m, k), &pick(&b, &bb, k, n), false, false);
+            let got_b = &got.data()[bi * m * n..(bi + 1) * m * n];
+            for (x, y) in got_b.iter().zip(&want) {
+                assert!((x - y).abs() < 1e-12);
+            }
+        }
+    }
+}
+
+#[test]
+fn reductions_and_permutes_match_naive() {
+    let mut r = rng(104);
+    for _ in 0..100 {
+        let mut s = random_shape(&mut r, 4, 5);
+        if s.is_empty() {
+            s.push(3);
+        }
+        let x = uniform(&mut r, &s);
+        let axis = r.random_range(0..s.len());
+        let tape = Tape::new();
+        let v = tape.constant(x.clone());
+        let sum = v.sum(axis, true).unwrap().value();
+        let max = v.max(axis, true).unwrap().value();
+        for i in 0..x.numel() {
+            let mut idx = unravel(i, &s);
+            idx[axis] = 0;
+            let st = strides(&s);
+            let base: usize = idx.iter().zip(&st).map(|(a, b)| a * b).sum();
+            let vals: Vec<f64> = (0..s[axis]).map(|k| x.data()[base + k * st[axis]]).collect();
+            let mut rs = s.clone();
+            rs[axis] = 1;
+            let o: usize = idx.iter().zip(strides(&rs)).map(|(a, b)| a * b).sum();
+            assert!((sum.data()[o] - vals.iter().sum::<f64>()).abs() < 1e-12);
+            assert_eq!(max.data()[o], vals.iter().copied().fold(f64::MIN, f64::max));
+        }
+        // A random permutation moves element idx to the permuted index.
+        let mut perm: Vec<usize> = (0..s.len()).collect();
+        for i in (1..perm.len()).rev() {
+            let j = r.random_range(0..=i);
+            perm.swap(i, j);
+        }
+        let p = v.permute(&perm).unwrap().value();
+        let ps: Vec<usize> = perm.iter().map(|&d| s[d]).collect();
+        for i in 0..p.numel() {
+            let pidx = unravel(i, &ps);
+            let mut src = vec![0; s.len()];
+            for (d, &pd) in perm.iter().enumerate() {
+                src[pd] = pidx[d];
+            }
+            let o: usize = src.iter().zip(strides(&s)).map(|(a, b)| a * b).sum();
+            assert_eq!(p.data()[i], x.data()[o]);
+        }
+    }
+}
+
+/// Runs a workload with large f32 products and reductions (parallel paths) and returns the
+/// bits of the result and of the gradient.
+fn workload() -> (Vec<u32>, Vec<u32>) {
+    let mut r = rng(105);
+    let x: Tensor<f32> = uniform(&mut r, &[600, 256]).cast();
+    let w: Tensor<f32> = uniform(&mut r, &[256, 300]).cast();
+    let bw: Tensor<f32> = uniform(&mut r, &[64, 32, 32]).cast();
+    let bz: Tensor<f32> = uniform(&mut r, &[64, 3, 32]).cast();
+    let tape = Tape::new();
+    let (xv, wv) = (tape.var(x), tape.var(w));
+    let (bwv, bzv) = (tape.var(bw), tape.var(bz));
+    let h = xv.matmul(wv).unwrap().tanh();
+    let z = bzv.matmul(bwv).unwrap();
+    let loss = h.sum_all().add(z.square().mean_all().unwrap()).unwrap();
+    let g = tape.backward(loss).unwrap();
+    let bits = |t: &Tensor<f32>| t.data().iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+    let mut grads = bits(g.get(wv).unwrap());
+    grads.extend(bits(g.get(bwv).unwrap()));
+    (bits(&loss.value()), grads)
+}
+
+#[test]
+fn results_are_bit_identical_across_thread_counts() {
+    let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap().install(workload);
+    let two = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap().install(workload);
+    let four = rayon::ThreadPoolBuilder::new().num_threads(4).build().unwrap().install(workload);
+    assert_eq!(one, two);
+    assert_eq!(one, four);
+}
