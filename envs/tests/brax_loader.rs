@@ -25,8 +25,7 @@ fn all_seven_morphologies_load_with_their_actuated_dof() {
         // Every joint is actuated in these files.
         assert_eq!(config.dof(), dof, "{name}");
         // One connected tree: every body but the root is some joint's child.
-        let children: std::collections::BTreeSet<&str> =
-            config.joints.iter().map(|j| j.child.as_str()).collect();
+        let children: std::collections::BTreeSet<&str> = config.joints.iter().map(|j| j.child.as_str()).collect();
         assert_eq!(children.len() + 1, config.bodies.len(), "{name}");
     }
 }
@@ -36,10 +35,7 @@ fn morphologies_are_found_by_name_stem_and_alias() {
     let by_stem = morphology("5506-10-14-17-10-38-34").unwrap();
     assert_eq!(by_stem.name, "unimal_5506-10-14-17-10-38-34");
     assert_eq!(morphology("unimal_1").unwrap().name, by_stem.name);
-    assert_eq!(
-        morphology("unimal_2").unwrap().name,
-        "unimal_5506-12-11-17-05-56-16"
-    );
+    assert_eq!(morphology("unimal_2").unwrap().name, "unimal_5506-12-11-17-05-56-16");
     assert_eq!(morphology("claw.txt").unwrap().name, "claw");
     let names = known_names();
     for m in &MORPHOLOGIES {
@@ -51,19 +47,11 @@ fn morphologies_are_found_by_name_stem_and_alias() {
 #[test]
 fn unknown_morphology_lists_the_known_names() {
     let err = load_morphology("spider").unwrap_err();
-    let BraxError::UnknownMorphology { name, known } = &err else {
-        panic!("{err:?}")
-    };
+    let BraxError::UnknownMorphology { name, known } = &err else { panic!("{err:?}") };
     assert_eq!(name, "spider");
     assert_eq!(known.len(), known_names().len());
     let text = err.to_string();
-    for n in [
-        "ant",
-        "claw",
-        "centipede",
-        "unimal_5506-15-11-01-10-04-14",
-        "unimal_1",
-    ] {
+    for n in ["ant", "claw", "centipede", "unimal_5506-15-11-01-10-04-14", "unimal_1"] {
         assert!(text.contains(n), "{text}");
     }
 }
@@ -75,43 +63,22 @@ fn ant_config_matches_the_mujoco_ant_design() {
     assert_eq!(torso.name, "torso");
     assert_eq!(torso.mass, 10.0);
     // A capsule of total length 2r is MuJoCo's sphere of radius 0.25.
-    assert_eq!(
-        torso.colliders[0].shape,
-        ColliderShape::Capsule {
-            radius: 0.25,
-            length: 0.5,
-            end: 1
-        }
-    );
+    assert_eq!(torso.colliders[0].shape, ColliderShape::Capsule { radius: 0.25, length: 0.5, end: 1 });
     let mut hips = 0;
     let mut ankles = 0;
     for j in &ant.joints {
         if j.parent == "torso" {
             hips += 1;
-            assert_eq!(
-                j.angle_limits,
-                vec![AngleLimit {
-                    min: -30.0,
-                    max: 30.0
-                }]
-            );
+            assert_eq!(j.angle_limits, vec![AngleLimit { min: -30.0, max: 30.0 }]);
         } else {
             ankles += 1;
-            assert_eq!(
-                j.angle_limits,
-                vec![AngleLimit {
-                    min: 30.0,
-                    max: 70.0
-                }]
-            );
+            assert_eq!(j.angle_limits, vec![AngleLimit { min: 30.0, max: 70.0 }]);
         }
         assert_eq!(j.angular_damping, 35.0);
     }
     assert_eq!((hips, ankles), (4, 4));
     for b in ant.bodies.iter().filter(|b| b.name != "torso") {
-        let ColliderShape::Capsule { radius, .. } = b.colliders[0].shape else {
-            panic!("{} has no capsule", b.name)
-        };
+        let ColliderShape::Capsule { radius, .. } = b.colliders[0].shape else { panic!("{} has no capsule", b.name) };
         assert_eq!(radius, 0.08);
     }
     assert!(ant.actuators.iter().all(|a| a.strength == 350.0));
@@ -122,24 +89,9 @@ fn missing_bounds_of_an_angle_limit_are_zero() {
     // unimal_1's joint limby_16: `angle_limit { }` then `angle_limit { max: 30.0 }`.
     let u = load_morphology("unimal_1").unwrap();
     let j = &u.joints[u.joint_index("limby_16").unwrap()];
-    assert_eq!(
-        j.angle_limits,
-        vec![
-            AngleLimit { min: 0.0, max: 0.0 },
-            AngleLimit {
-                min: 0.0,
-                max: 30.0
-            }
-        ]
-    );
+    assert_eq!(j.angle_limits, vec![AngleLimit { min: 0.0, max: 0.0 }, AngleLimit { min: 0.0, max: 30.0 }]);
     let j = &u.joints[u.joint_index("limbx_18").unwrap()];
-    assert_eq!(
-        j.angle_limits,
-        vec![AngleLimit {
-            min: -45.0,
-            max: 0.0
-        }]
-    );
+    assert_eq!(j.angle_limits, vec![AngleLimit { min: -45.0, max: 0.0 }]);
 }
 
 #[test]
@@ -158,10 +110,7 @@ fn loads_from_a_user_file_and_reports_unreadable_ones() {
     let err = load_config_file(&bad).unwrap_err();
     let text = err.to_string();
     assert!(text.starts_with(&format!("{}:5:", bad.display())), "{text}");
-    assert!(
-        text.contains("expected `}` to close `bodies` opened at line 1"),
-        "{text}"
-    );
+    assert!(text.contains("expected `}` to close `bodies` opened at line 1"), "{text}");
 
     let missing = dir.join("does_not_exist.txt");
     let err = load_config_file(&missing).unwrap_err();
@@ -195,10 +144,7 @@ fn config_error(text: &str, line: usize) -> String {
 #[test]
 fn the_minimal_config_is_valid() {
     let c = parse_config(TWO_BODIES, "cfg.txt").unwrap();
-    assert_eq!(
-        (c.bodies.len(), c.joints.len(), c.actuated_dof()),
-        (2, 1, 1)
-    );
+    assert_eq!((c.bodies.len(), c.joints.len(), c.actuated_dof()), (2, 1, 1));
 }
 
 #[test]
@@ -207,10 +153,7 @@ fn malformed_syntax_names_file_line_and_expectation() {
     let m = config_error(&text, 6);
     // Line 6, column 10: where the string stands instead of `:`.
     assert!(m.contains("cfg.txt:6:10: syntax error"), "{m}");
-    assert!(
-        m.contains("expected `:` or `{` after field name `parent`"),
-        "{m}"
-    );
+    assert!(m.contains("expected `:` or `{` after field name `parent`"), "{m}");
 }
 
 #[test]
@@ -219,10 +162,7 @@ fn unknown_body_in_a_joint_is_reported_with_known_bodies() {
     let m = config_error(&text, 4);
     assert!(m.contains("joints[\"j\"].child"), "{m}");
     assert!(m.contains("\"c\""), "{m}");
-    assert!(
-        m.contains("unknown body name; known bodies: \"a\", \"b\""),
-        "{m}"
-    );
+    assert!(m.contains("unknown body name; known bodies: \"a\", \"b\""), "{m}");
 }
 
 #[test]
@@ -240,34 +180,21 @@ fn two_joints_on_one_child_must_share_the_joint_point() {
     // The sumo unimal 5506-13-5-02-21-35-41 gives limb_end_3 two joints from torso_0 at the
     // same point (limbx_1 and limby_1): accepted. Different points are not.
     let u = load_morphology("unimal_5506-13-5-02-21-35-41").unwrap();
-    let on_limb: Vec<&str> = u
-        .joints
-        .iter()
-        .filter(|j| j.child == "limb_end_3")
-        .map(|j| j.name.as_str())
-        .collect();
+    let on_limb: Vec<&str> = u.joints.iter().filter(|j| j.child == "limb_end_3").map(|j| j.name.as_str()).collect();
     assert_eq!(on_limb, vec!["limbx_1", "limby_1"]);
     let text = format!(
         "{TWO_BODIES}\njoints {{ name: \"k\" parent: \"a\" child: \"b\" parent_offset {{ x: 0.1 }} angle_limit {{ }} }}\n"
     );
     let m = config_error(&text, 12);
     assert!(m.contains("must share parent_offset"), "{m}");
-    let same_point = format!(
-        "{TWO_BODIES}\njoints {{ name: \"k\" parent: \"a\" child: \"b\" angle_limit {{ }} }}\n"
-    );
+    let same_point = format!("{TWO_BODIES}\njoints {{ name: \"k\" parent: \"a\" child: \"b\" angle_limit {{ }} }}\n");
     assert_eq!(parse_config(&same_point, "cfg.txt").unwrap().dof(), 2);
 }
 
 #[test]
 fn missing_required_fields_are_named() {
-    let m = config_error(
-        &TWO_BODIES.replace("mass: 1 colliders { capsule", "colliders { capsule"),
-        3,
-    );
-    assert!(
-        m.contains("field `bodies[\"b\"].mass`: missing required field `mass`"),
-        "{m}"
-    );
+    let m = config_error(&TWO_BODIES.replace("mass: 1 colliders { capsule", "colliders { capsule"), 3);
+    assert!(m.contains("field `bodies[\"b\"].mass`: missing required field `mass`"), "{m}");
     let m = config_error(&TWO_BODIES.replace("  child: \"b\"\n", ""), 4);
     assert!(m.contains("missing required field `child`"), "{m}");
     let m = config_error(&TWO_BODIES.replace(" length: 0.3", ""), 3);
@@ -278,10 +205,8 @@ fn missing_required_fields_are_named() {
 
 #[test]
 fn wrong_counts_and_values_are_rejected() {
-    let three = TWO_BODIES.replace(
-        "angle_limit { min: -10 max: 10 }",
-        "angle_limit { } angle_limit { } angle_limit { }",
-    );
+    let three =
+        TWO_BODIES.replace("angle_limit { min: -10 max: 10 }", "angle_limit { } angle_limit { } angle_limit { }");
     let m = config_error(&three, 4);
     assert!(m.contains("1 or 2 `angle_limit` entries"), "{m}");
     assert!(m.contains("found 3"), "{m}");
@@ -292,10 +217,7 @@ fn wrong_counts_and_values_are_rejected() {
     assert!(m.contains("min 10 > max -10"), "{m}");
     let text_mass = TWO_BODIES.replace("name: \"a\" mass: 1", "name: \"a\" mass: \"heavy\"");
     let m = config_error(&text_mass, 2);
-    assert!(
-        m.contains("bodies[\"a\"].mass` = \"heavy\": expected a number"),
-        "{m}"
-    );
+    assert!(m.contains("bodies[\"a\"].mass` = \"heavy\": expected a number"), "{m}");
     let twice = TWO_BODIES.replace("name: \"a\" mass: 1", "name: \"a\" mass: 1 mass: 2");
     assert!(config_error(&twice, 2).contains("field given twice"));
     let short = TWO_BODIES.replace("length: 0.3", "length: 0.05");
@@ -315,8 +237,7 @@ fn unknown_and_unsupported_fields_are_rejected_and_scene_settings_ignored() {
     assert!(config_error(&servo, 10).contains("does not support"));
     let bx = TWO_BODIES.replace("sphere { radius: 0.1 }", "box { halfsize { x: 1 } }");
     assert!(config_error(&bx, 2).contains("`box` is a Brax feature"));
-    let scene =
-        format!("friction: 0.6\ngravity {{ z: -9.8 }}\ndt: 0.05\nsubsteps: 10\n{TWO_BODIES}");
+    let scene = format!("friction: 0.6\ngravity {{ z: -9.8 }}\ndt: 0.05\nsubsteps: 10\n{TWO_BODIES}");
     assert!(parse_config(&scene, "cfg.txt").is_ok());
 }
 
@@ -328,10 +249,7 @@ fn structure_errors_unknown_joint_duplicates_and_disconnected_bodies() {
     assert!(config_error(&dup, 3).contains("duplicate body name"));
     let loose = format!("{TWO_BODIES}\nbodies {{ name: \"c\" mass: 1 }}\n");
     let m = config_error(&loose, 2);
-    assert!(
-        m.contains("several bodies have no parent joint: \"a\", \"c\""),
-        "{m}"
-    );
+    assert!(m.contains("several bodies have no parent joint: \"a\", \"c\""), "{m}");
     let self_joint = TWO_BODIES.replace("child: \"b\"", "child: \"a\"");
     assert!(config_error(&self_joint, 4).contains("to itself"));
 }
@@ -381,10 +299,7 @@ fn fuzzed_truncated_and_mutated_inputs_never_panic() {
         }
     }
     // Most damaged inputs must be rejected (the test fails if the loader accepts anything).
-    assert!(
-        rejected * 2 > total,
-        "only {rejected} of {total} damaged inputs rejected"
-    );
+    assert!(rejected * 2 > total, "only {rejected} of {total} damaged inputs rejected");
 }
 
 /// Parses text and, if it is a valid config, runs the queries a caller would make.
@@ -392,4 +307,166 @@ fn load_morphology_text(text: &str) -> Result<(), BraxError> {
     let c = parse_config(text, "fuzz")?;
     let _ = (c.dof(), c.actuated_dof(), c.root_body());
     Ok(())
+}
+
+// ---------------------------------------------------------------------------------------
+// Conversion into the simulator's model.
+
+use envs::brax::rotation::{euler_degrees_to_quat, quat_rotate};
+use envs::brax::tree::TreeShape;
+use envs::brax::{AgentTree, BraxPhysics, agent_model};
+use envs::kinematics::kinematics;
+use envs::{Data, Model, Shape};
+
+fn close(a: f64, b: f64, tol: f64) -> bool {
+    (a - b).abs() <= tol
+}
+
+#[test]
+fn euler_to_quaternion_matches_hand_computed_cases() {
+    let h = std::f64::consts::FRAC_1_SQRT_2;
+    let cases: [([f64; 3], [f64; 4]); 5] = [
+        ([0.0, 0.0, 0.0], [1.0, 0.0, 0.0, 0.0]),
+        ([0.0, 0.0, 90.0], [h, 0.0, 0.0, h]),
+        ([0.0, -90.0, 0.0], [h, 0.0, -h, 0.0]),
+        // qx(90) * qy(90) = (h, h, 0, 0) * (h, 0, h, 0) = (1/2, 1/2, 1/2, 1/2).
+        ([90.0, 90.0, 0.0], [0.5, 0.5, 0.5, 0.5]),
+        // qx(90) * qy(-90) = (h, h, 0, 0) * (h, 0, -h, 0) = (1/2, 1/2, -1/2, -1/2).
+        ([90.0, -90.0, 0.0], [0.5, 0.5, -0.5, -0.5]),
+    ];
+    for (angles, expected) in cases {
+        let q = euler_degrees_to_quat(angles);
+        for k in 0..4 {
+            assert!(close(q[k], expected[k], 1e-12), "{angles:?}: {q:?}");
+        }
+    }
+    // The ant's hip joint frame `rotation { y: -90 }` turns the x axis (1st DoF) to +z:
+    // the hips turn about the vertical, as MuJoCo's ant `hip` axis "0 0 1".
+    let axis = quat_rotate(euler_degrees_to_quat([0.0, -90.0, 0.0]), [1.0, 0.0, 0.0]);
+    assert!(close(axis[2], 1.0, 1e-12), "{axis:?}");
+}
+
+/// Lowest geom surface point of the model at `d`'s pose, from the simulator's kinematics.
+fn lowest_geom_point(m: &Model, d: &Data) -> f64 {
+    let mut lowest = f64::INFINITY;
+    for (g, geom) in m.geoms.iter().enumerate() {
+        let c = d.geom_xpos[g];
+        let z = match geom.shape {
+            Shape::Sphere { radius } => c[2] - radius,
+            Shape::Capsule { radius, half_length } => c[2] - half_length * d.geom_xmat[g][2][2].abs() - radius,
+            Shape::Plane => continue,
+        };
+        lowest = lowest.min(z);
+    }
+    lowest
+}
+
+#[test]
+fn every_morphology_builds_and_rests_on_the_ground() {
+    for (name, dof) in ACTUATED_DOF {
+        let config = load_morphology(name).unwrap();
+        let (model, tree) = agent_model(&config, &BraxPhysics::default()).unwrap();
+        assert_eq!(model.nu(), dof, "{name}");
+        assert_eq!(model.nq, 7 + dof, "{name}");
+        assert_eq!(model.qpos0, tree.rest_qpos(), "{name}");
+        let mass: f64 = config.bodies.iter().map(|b| b.mass).sum();
+        assert!(close(model.tree_mass(0), mass, 1e-9), "{name}");
+        // The simulator's own kinematics at qpos0 puts the lowest collider point on z = 0.
+        let mut d = Data::new(&model);
+        kinematics(&model, &mut d);
+        let lowest = lowest_geom_point(&model, &d);
+        assert!(close(lowest, 0.0, 1e-9), "{name}: lowest point {lowest}");
+        assert!(tree.rest_height() > 0.0, "{name}");
+        // Every rest angle is the middle of its range.
+        for j in model.joints.iter().filter(|j| j.limited) {
+            let q = model.qpos0[j.qpos_adr];
+            assert!(close(q, 0.5 * (j.range[0] + j.range[1]), 1e-12), "{name}");
+        }
+    }
+}
+
+#[test]
+fn ant_rest_height_is_the_foot_below_the_torso() {
+    // Hips at 0, ankles at 50 deg: the foot cap's centre is 2 * 0.28284 m along the leg
+    // from the ankle, 50 deg below the horizontal; add the capsule radius 0.08.
+    let tree = AgentTree::from_config(&load_morphology("ant").unwrap(), &BraxPhysics::default());
+    let expected = 2.0 * 0.282_842_708_826_065_05 * 50f64.to_radians().sin() + 0.08;
+    assert!(close(tree.rest_height(), expected, 1e-9), "{}", tree.rest_height());
+}
+
+#[test]
+fn ant_geometry_matches_mujoco_ant_xml() {
+    let ant = load_morphology("ant").unwrap();
+    let physics = BraxPhysics::default();
+    let (model, tree) = agent_model(&ant, &physics).unwrap();
+    // Torso: a sphere of radius 0.25 (ant.xml torso_geom), the capsule of length 2r.
+    assert_eq!(tree.bodies[0].name, "torso");
+    assert_eq!(tree.bodies[0].geoms[0].shape, TreeShape::Sphere { radius: 0.25 });
+    let torso = model.body_id("torso").unwrap().0;
+    let torso_geoms: Vec<&envs::model::Geom> = model.geoms.iter().filter(|g| g.body == torso).collect();
+    assert_eq!(torso_geoms[0].shape, Shape::Sphere { radius: 0.25 });
+    // Legs: capsules of radius 0.08 (ant.xml size="0.08").
+    let legs = model.geoms.iter().filter(|g| g.body != torso && g.shape != Shape::Plane);
+    let mut n = 0;
+    for g in legs {
+        let Shape::Capsule { radius, .. } = g.shape else { panic!("leg geom is not a capsule: {g:?}") };
+        assert_eq!(radius, 0.08);
+        n += 1;
+    }
+    assert_eq!(n, 8);
+    // Hips +-30 deg about the vertical; ankles 30..70 deg about a horizontal axis across
+    // the leg (ant.xml hip_i range -30 30 axis 0 0 1; ankle_1 range 30 70 axis -1 1 0).
+    let mut d = Data::new(&model);
+    d.qpos.iter_mut().skip(7).for_each(|q| *q = 0.0);
+    kinematics(&model, &mut d);
+    let (mut hips, mut ankles) = (0, 0);
+    for (j, joint) in model.joints.iter().enumerate().skip(1) {
+        let [lo, hi] = joint.range.map(f64::to_degrees);
+        let axis = d.xaxis[j];
+        if joint.name.starts_with("torso_") {
+            hips += 1;
+            assert!(close(lo, -30.0, 1e-9) && close(hi, 30.0, 1e-9), "{}", joint.name);
+            assert!(close(axis[2], 1.0, 1e-9), "{}: {axis:?}", joint.name);
+        } else {
+            ankles += 1;
+            assert!(close(lo, 30.0, 1e-9) && close(hi, 70.0, 1e-9), "{}", joint.name);
+            assert!(close(axis[2], 0.0, 1e-9), "{}: {axis:?}", joint.name);
+            // The axis is horizontal and across the leg: perpendicular to the anchor's
+            // horizontal direction from the torso centre.
+            let a = d.xanchor[j];
+            assert!(close(axis[0] * a[0] + axis[1] * a[1], 0.0, 1e-9), "{}", joint.name);
+        }
+        assert_eq!(joint.damping, 35.0);
+        assert!(close(joint.armature, 0.35, 1e-12));
+    }
+    assert_eq!((hips, ankles), (4, 4));
+    assert!(model.actuators.iter().all(|a| a.gear == 350.0));
+    assert!(model.actuators.iter().all(|a| a.ctrlrange == Some([-1.0, 1.0])));
+    // Positive ankle angles bend the legs down (as ant.xml's ankle_1 range 30..70): at the
+    // rest pose every foot is below the torso.
+    let mut d = Data::new(&model);
+    kinematics(&model, &mut d);
+    for b in ["$ Body 4_0", "$ Body 4_1", "$ Body 4_2", "$ Body 4_3"] {
+        let id = model.body_id(b).unwrap().0;
+        assert!(d.xpos[id][2] < d.xpos[torso][2] - 0.1, "{b}");
+    }
+}
+
+#[test]
+fn universal_and_doubled_joints_become_chained_hinges() {
+    let physics = BraxPhysics::default();
+    // Claw hips: 2 DoF about the joint frame's x then y axes (orthogonal).
+    let claw = AgentTree::from_config(&load_morphology("claw").unwrap(), &physics);
+    let hip = claw.bodies.iter().find(|b| b.name == "Aux 1_0").unwrap();
+    assert_eq!(hip.hinges.len(), 2);
+    assert_eq!(hip.hinges[0].name, "torso_Aux 1_0.1");
+    let (a, b) = (hip.hinges[0].axis, hip.hinges[1].axis);
+    assert!(close(a[0] * b[0] + a[1] * b[1] + a[2] * b[2], 0.0, 1e-12));
+    assert_eq!(claw.motors.len(), 16);
+    // The sumo unimal's limb_end_3 (joints limbx_1 and limby_1 from torso_0): 3 hinges.
+    let u = AgentTree::from_config(&load_morphology("unimal_5506-13-5-02-21-35-41").unwrap(), &physics);
+    let limb = u.bodies.iter().find(|b| b.name == "limb_end_3").unwrap();
+    let names: Vec<&str> = limb.hinges.iter().map(|h| h.name.as_str()).collect();
+    assert_eq!(names, vec!["limbx_1", "limby_1.1", "limby_1.2"]);
+    assert_eq!(u.motors.len(), 13);
 }

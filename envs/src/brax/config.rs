@@ -157,36 +157,18 @@ pub struct ActuatorConfig {
 impl SystemConfig {
     /// Converts a parsed tree into a checked config. `source` names the text in errors.
     pub fn from_message(message: &Message, source: &str) -> Result<SystemConfig, BraxError> {
-        let top = Reader {
-            msg: message,
-            source,
-            path: String::new(),
-        };
-        top.check_names(
-            &["bodies", "joints", "actuators"],
-            IGNORED_TOP_LEVEL,
-            &["forces", "frozen"],
-        )?;
-        let mut config = SystemConfig {
-            source: source.to_string(),
-            bodies: Vec::new(),
-            joints: Vec::new(),
-            actuators: Vec::new(),
-        };
+        let top = Reader { msg: message, source, path: String::new() };
+        top.check_names(&["bodies", "joints", "actuators"], IGNORED_TOP_LEVEL, &["forces", "frozen"])?;
+        let mut config =
+            SystemConfig { source: source.to_string(), bodies: Vec::new(), joints: Vec::new(), actuators: Vec::new() };
         for (i, f) in message.fields_named("bodies").enumerate() {
-            config
-                .bodies
-                .push(read_body(&top.child(f, "bodies", i)?, f)?);
+            config.bodies.push(read_body(&top.child(f, "bodies", i)?, f)?);
         }
         for (i, f) in message.fields_named("joints").enumerate() {
-            config
-                .joints
-                .push(read_joint(&top.child(f, "joints", i)?, f)?);
+            config.joints.push(read_joint(&top.child(f, "joints", i)?, f)?);
         }
         for (i, f) in message.fields_named("actuators").enumerate() {
-            config
-                .actuators
-                .push(read_actuator(&top.child(f, "actuators", i)?, f)?);
+            config.actuators.push(read_actuator(&top.child(f, "actuators", i)?, f)?);
         }
         config.check_structure()?;
         Ok(config)
@@ -204,9 +186,7 @@ impl SystemConfig {
 
     /// Index of the root body: the only body that is no joint's child (checked on load).
     pub fn root_body(&self) -> usize {
-        (0..self.bodies.len())
-            .find(|&b| !self.joints.iter().any(|j| j.child == self.bodies[b].name))
-            .unwrap_or(0)
+        (0..self.bodies.len()).find(|&b| !self.joints.iter().any(|j| j.child == self.bodies[b].name)).unwrap_or(0)
     }
 
     /// Total number of joint DoFs (hinges).
@@ -225,25 +205,14 @@ impl SystemConfig {
 
     /// Checks that the bodies and joints form one tree and that actuators name joints.
     fn check_structure(&self) -> Result<(), BraxError> {
-        let err = |line: usize, field: String, value: Option<String>, message: String| {
-            BraxError::Config {
-                location: Location {
-                    source: self.source.clone(),
-                    line,
-                    column: 1,
-                },
-                field,
-                value,
-                message,
-            }
+        let err = |line: usize, field: String, value: Option<String>, message: String| BraxError::Config {
+            location: Location { source: self.source.clone(), line, column: 1 },
+            field,
+            value,
+            message,
         };
         if self.bodies.is_empty() {
-            return Err(err(
-                1,
-                "bodies".into(),
-                None,
-                "the config has no bodies".into(),
-            ));
+            return Err(err(1, "bodies".into(), None, "the config has no bodies".into()));
         }
         for (i, b) in self.bodies.iter().enumerate() {
             if let Some(first) = self.bodies[..i].iter().find(|o| o.name == b.name) {
@@ -255,13 +224,7 @@ impl SystemConfig {
                 ));
             }
         }
-        let known_bodies = || {
-            self.bodies
-                .iter()
-                .map(|b| format!("{:?}", b.name))
-                .collect::<Vec<_>>()
-                .join(", ")
-        };
+        let known_bodies = || self.bodies.iter().map(|b| format!("{:?}", b.name)).collect::<Vec<_>>().join(", ");
         let mut parent_joint: Vec<Vec<usize>> = vec![Vec::new(); self.bodies.len()];
         for (ji, j) in self.joints.iter().enumerate() {
             if let Some(first) = self.joints[..ji].iter().find(|o| o.name == j.name) {
@@ -269,10 +232,7 @@ impl SystemConfig {
                     j.line,
                     format!("joints[{:?}].name", j.name),
                     Some(format!("{:?}", j.name)),
-                    format!(
-                        "duplicate joint name (first defined at line {})",
-                        first.line
-                    ),
+                    format!("duplicate joint name (first defined at line {})", first.line),
                 ));
             }
             let index = |field: &str, name: &str| {
@@ -324,14 +284,9 @@ impl SystemConfig {
             }
             parent_joint[c].push(ji);
         }
-        let roots: Vec<usize> = (0..self.bodies.len())
-            .filter(|&b| parent_joint[b].is_empty())
-            .collect();
+        let roots: Vec<usize> = (0..self.bodies.len()).filter(|&b| parent_joint[b].is_empty()).collect();
         if roots.len() != 1 {
-            let names: Vec<String> = roots
-                .iter()
-                .map(|&b| format!("{:?}", self.bodies[b].name))
-                .collect();
+            let names: Vec<String> = roots.iter().map(|&b| format!("{:?}", self.bodies[b].name)).collect();
             let (line, message) = match roots.first() {
                 Some(&b) => (
                     self.bodies[b].line,
@@ -340,10 +295,7 @@ impl SystemConfig {
                         names.join(", ")
                     ),
                 ),
-                None => (
-                    1,
-                    "every body has a parent joint: the joints form a cycle".into(),
-                ),
+                None => (1, "every body has a parent joint: the joints form a cycle".into()),
             };
             return Err(err(line, "joints".into(), None, message));
         }
@@ -359,21 +311,14 @@ impl SystemConfig {
                         self.joints[j].line,
                         format!("joints[{:?}].parent", self.joints[j].name),
                         Some(format!("{:?}", self.joints[j].parent)),
-                        format!(
-                            "the joints form a cycle: body {:?} is its own ancestor",
-                            self.bodies[start].name
-                        ),
+                        format!("the joints form a cycle: body {:?} is its own ancestor", self.bodies[start].name),
                     ));
                 }
             }
         }
         for (ai, a) in self.actuators.iter().enumerate() {
             if self.joint_index(&a.joint).is_none() {
-                let known: Vec<String> = self
-                    .joints
-                    .iter()
-                    .map(|j| format!("{:?}", j.name))
-                    .collect();
+                let known: Vec<String> = self.joints.iter().map(|j| format!("{:?}", j.name)).collect();
                 return Err(err(
                     a.line,
                     format!("actuators[{:?}].joint", a.name),
@@ -386,10 +331,7 @@ impl SystemConfig {
                     a.line,
                     format!("actuators[{:?}].joint", a.name),
                     Some(format!("{:?}", a.joint)),
-                    format!(
-                        "joint already driven by actuator {:?} (line {})",
-                        first.name, first.line
-                    ),
+                    format!("joint already driven by actuator {:?} (line {})", first.name, first.line),
                 ));
             }
         }
@@ -417,13 +359,7 @@ fn read_body(r: &Reader<'_>, field: &Field) -> Result<BodyConfig, BraxError> {
         colliders.push(read_collider(&r.child(f, "colliders", i)?, f)?);
     }
     let inertia = r.optional("inertia")?.map(|f| r.vec3(f)).transpose()?;
-    Ok(BodyConfig {
-        name,
-        mass,
-        colliders,
-        inertia,
-        line: field.line,
-    })
+    Ok(BodyConfig { name, mass, colliders, inertia, line: field.line })
 }
 
 /// Reads a `colliders` message.
@@ -431,14 +367,7 @@ fn read_collider(r: &Reader<'_>, field: &Field) -> Result<ColliderConfig, BraxEr
     r.check_names(
         &["position", "rotation", "sphere", "capsule"],
         &["material"],
-        &[
-            "box",
-            "plane",
-            "heightMap",
-            "mesh",
-            "clipped_plane",
-            "no_contact",
-        ],
+        &["box", "plane", "heightMap", "mesh", "clipped_plane", "no_contact"],
     )?;
     let position = r.vec3_or_zero("position")?;
     let rotation = r.vec3_or_zero("rotation")?;
@@ -460,10 +389,7 @@ fn read_collider(r: &Reader<'_>, field: &Field) -> Result<ColliderConfig, BraxEr
             if length < 2.0 * radius * (1.0 - 1e-9) {
                 return Err(c.bad(
                     length_field,
-                    &format!(
-                        "capsule length (total, caps included) must be at least 2 * radius = {}",
-                        2.0 * radius
-                    ),
+                    &format!("capsule length (total, caps included) must be at least 2 * radius = {}", 2.0 * radius),
                 ));
             }
             let end = match c.optional("end")? {
@@ -476,28 +402,16 @@ fn read_collider(r: &Reader<'_>, field: &Field) -> Result<ColliderConfig, BraxEr
                     v as i32
                 }
             };
-            ColliderShape::Capsule {
-                radius,
-                length,
-                end,
-            }
+            ColliderShape::Capsule { radius, length, end }
         }
         (Some(_), Some(c)) => {
-            return Err(r.bad(
-                c,
-                "a collider has exactly one shape, found both `sphere` and `capsule`",
-            ));
+            return Err(r.bad(c, "a collider has exactly one shape, found both `sphere` and `capsule`"));
         }
         (None, None) => {
             return Err(r.missing("sphere` or `capsule"));
         }
     };
-    Ok(ColliderConfig {
-        position,
-        rotation,
-        shape,
-        line: field.line,
-    })
+    Ok(ColliderConfig { position, rotation, shape, line: field.line })
 }
 
 /// Reads a `joints` message.
@@ -526,18 +440,11 @@ fn read_joint(r: &Reader<'_>, field: &Field) -> Result<JointConfig, BraxError> {
     for (i, f) in r.msg.fields_named("angle_limit").enumerate() {
         let l = r.child(f, "angle_limit", i)?;
         l.check_names(&["min", "max"], &[], &[])?;
-        let min = l
-            .optional("min")?
-            .map(|f| l.number(f))
-            .transpose()?
-            .unwrap_or(0.0);
+        let min = l.optional("min")?.map(|f| l.number(f)).transpose()?.unwrap_or(0.0);
         let max_field = l.optional("max")?;
         let max = max_field.map(|f| l.number(f)).transpose()?.unwrap_or(0.0);
         if min > max {
-            return Err(l.bad(
-                max_field.unwrap_or(f),
-                &format!("angle limit has min {min} > max {max}"),
-            ));
+            return Err(l.bad(max_field.unwrap_or(f), &format!("angle limit has min {min} > max {max}")));
         }
         angle_limits.push(AngleLimit { min, max });
     }
@@ -583,12 +490,7 @@ fn read_actuator(r: &Reader<'_>, field: &Field) -> Result<ActuatorConfig, BraxEr
         r.message(t)?;
     }
     let strength = r.non_negative(r.required("strength")?)?;
-    Ok(ActuatorConfig {
-        name,
-        joint,
-        strength,
-        line: field.line,
-    })
+    Ok(ActuatorConfig { name, joint, strength, line: field.line })
 }
 
 /// A message being read, with its source and dotted path for error messages.
@@ -600,19 +502,11 @@ struct Reader<'a> {
 
 impl<'a> Reader<'a> {
     fn location(&self, line: usize, column: usize) -> Location {
-        Location {
-            source: self.source.to_string(),
-            line,
-            column,
-        }
+        Location { source: self.source.to_string(), line, column }
     }
 
     fn field_path(&self, name: &str) -> String {
-        if self.path.is_empty() {
-            name.to_string()
-        } else {
-            format!("{}.{name}", self.path)
-        }
+        if self.path.is_empty() { name.to_string() } else { format!("{}.{name}", self.path) }
     }
 
     /// An error about the value of `field`.
@@ -638,11 +532,7 @@ impl<'a> Reader<'a> {
     /// The reader of the nested message in `field` (the i-th of its name).
     fn child(&self, field: &'a Field, name: &str, i: usize) -> Result<Reader<'a>, BraxError> {
         let msg = self.message(field)?;
-        Ok(Reader {
-            msg,
-            source: self.source,
-            path: format!("{}[{i}]", self.field_path(name)),
-        })
+        Ok(Reader { msg, source: self.source, path: format!("{}[{i}]", self.field_path(name)) })
     }
 
     /// The same reader with the last path element's index replaced by a name.
@@ -651,20 +541,11 @@ impl<'a> Reader<'a> {
             Some(k) => &self.path[..k],
             None => &self.path,
         };
-        Reader {
-            msg: self.msg,
-            source: self.source,
-            path: format!("{base}[{name:?}]"),
-        }
+        Reader { msg: self.msg, source: self.source, path: format!("{base}[{name:?}]") }
     }
 
     /// Rejects unknown and unsupported field names; `ignored` names are accepted.
-    fn check_names(
-        &self,
-        known: &[&str],
-        ignored: &[&str],
-        refused: &[&str],
-    ) -> Result<(), BraxError> {
+    fn check_names(&self, known: &[&str], ignored: &[&str], refused: &[&str]) -> Result<(), BraxError> {
         for f in &self.msg.fields {
             let name = f.name.as_str();
             if known.contains(&name) || ignored.contains(&name) {
@@ -673,10 +554,7 @@ impl<'a> Reader<'a> {
             let message = if refused.contains(&name) {
                 format!("`{name}` is a Brax feature this loader does not support")
             } else {
-                format!(
-                    "unknown field `{name}`; expected one of: {}",
-                    known.join(", ")
-                )
+                format!("unknown field `{name}`; expected one of: {}", known.join(", "))
             };
             return Err(BraxError::Config {
                 location: self.location(f.line, f.column),
@@ -693,10 +571,7 @@ impl<'a> Reader<'a> {
         let mut it = self.msg.fields.iter().filter(|f| f.name == name);
         let first = it.next();
         if let (Some(first), Some(second)) = (first, it.next()) {
-            return Err(self.bad(
-                second,
-                &format!("field given twice (first at line {})", first.line),
-            ));
+            return Err(self.bad(second, &format!("field given twice (first at line {})", first.line)));
         }
         Ok(first)
     }
@@ -730,37 +605,22 @@ impl<'a> Reader<'a> {
 
     fn positive(&self, field: &Field) -> Result<f64, BraxError> {
         let v = self.number(field)?;
-        if v > 0.0 {
-            Ok(v)
-        } else {
-            Err(self.bad(field, "expected a positive number"))
-        }
+        if v > 0.0 { Ok(v) } else { Err(self.bad(field, "expected a positive number")) }
     }
 
     fn non_negative(&self, field: &Field) -> Result<f64, BraxError> {
         let v = self.number(field)?;
-        if v >= 0.0 {
-            Ok(v)
-        } else {
-            Err(self.bad(field, "expected a number >= 0"))
-        }
+        if v >= 0.0 { Ok(v) } else { Err(self.bad(field, "expected a number >= 0")) }
     }
 
     fn non_negative_or_zero(&self, name: &str) -> Result<f64, BraxError> {
-        Ok(self
-            .optional(name)?
-            .map(|f| self.non_negative(f))
-            .transpose()?
-            .unwrap_or(0.0))
+        Ok(self.optional(name)?.map(|f| self.non_negative(f)).transpose()?.unwrap_or(0.0))
     }
 
     /// A `{ x: .. y: .. z: .. }` message; missing components are 0.
     fn vec3(&self, field: &'a Field) -> Result<Vec3, BraxError> {
         let v = self.child(field, &field.name, 0)?;
-        let v = Reader {
-            path: self.field_path(&field.name),
-            ..v
-        };
+        let v = Reader { path: self.field_path(&field.name), ..v };
         v.check_names(&["x", "y", "z"], &[], &[])?;
         let mut out = [0.0; 3];
         for (k, axis) in ["x", "y", "z"].iter().enumerate() {
@@ -772,10 +632,6 @@ impl<'a> Reader<'a> {
     }
 
     fn vec3_or_zero(&self, name: &str) -> Result<Vec3, BraxError> {
-        Ok(self
-            .optional(name)?
-            .map(|f| self.vec3(f))
-            .transpose()?
-            .unwrap_or([0.0; 3]))
+        Ok(self.optional(name)?.map(|f| self.vec3(f)).transpose()?.unwrap_or([0.0; 3]))
     }
 }

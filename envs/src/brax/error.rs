@@ -53,6 +53,13 @@ pub enum BraxError {
         /// Every accepted name.
         known: Vec<String>,
     },
+    /// The simulator refused the model made from a valid config.
+    Model {
+        /// The config's source name.
+        source: String,
+        /// The simulator's message.
+        message: String,
+    },
     /// A config file could not be read.
     Io {
         /// The file.
@@ -66,9 +73,7 @@ impl BraxError {
     /// The location of the error, when it has one.
     pub fn location(&self) -> Option<&Location> {
         match self {
-            BraxError::Syntax { location, .. } | BraxError::Config { location, .. } => {
-                Some(location)
-            }
+            BraxError::Syntax { location, .. } | BraxError::Config { location, .. } => Some(location),
             _ => None,
         }
     }
@@ -80,23 +85,19 @@ impl fmt::Display for BraxError {
             BraxError::Syntax { location, message } => {
                 write!(f, "{location}: syntax error: {message}")
             }
-            BraxError::Config {
-                location,
-                field,
-                value,
-                message,
-            } => {
+            BraxError::Config { location, field, value, message } => {
                 write!(f, "{location}: field `{field}`")?;
                 if let Some(value) = value {
                     write!(f, " = {value}")?;
                 }
                 write!(f, ": {message}")
             }
-            BraxError::UnknownMorphology { name, known } => write!(
-                f,
-                "unknown morphology `{name}`; known names: {}",
-                known.join(", ")
-            ),
+            BraxError::UnknownMorphology { name, known } => {
+                write!(f, "unknown morphology `{name}`; known names: {}", known.join(", "))
+            }
+            BraxError::Model { source, message } => {
+                write!(f, "{source}: the simulator rejected the model: {message}")
+            }
             BraxError::Io { path, message } => {
                 write!(f, "cannot read Brax config {}: {message}", path.display())
             }

@@ -94,13 +94,12 @@ pub fn known_names() -> Vec<&'static str> {
 /// known names.
 pub fn morphology(name: &str) -> Result<&'static Morphology, BraxError> {
     let key = name.strip_suffix(".txt").unwrap_or(name);
-    MORPHOLOGIES
-        .iter()
-        .find(|m| m.name == key || m.file_stem == key || m.aliases.contains(&key))
-        .ok_or_else(|| BraxError::UnknownMorphology {
+    MORPHOLOGIES.iter().find(|m| m.name == key || m.file_stem == key || m.aliases.contains(&key)).ok_or_else(|| {
+        BraxError::UnknownMorphology {
             name: name.to_string(),
             known: known_names().iter().map(|s| s.to_string()).collect(),
-        })
+        }
+    })
 }
 
 /// Parses and checks a built-in morphology.
@@ -118,9 +117,7 @@ pub fn parse_config(text: &str, source: &str) -> Result<SystemConfig, BraxError>
 /// Reads, parses and checks a config file; errors name the path.
 pub fn load_config_file(path: impl AsRef<Path>) -> Result<SystemConfig, BraxError> {
     let path = path.as_ref();
-    let text = std::fs::read_to_string(path).map_err(|e| BraxError::Io {
-        path: path.to_path_buf(),
-        message: e.to_string(),
-    })?;
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| BraxError::Io { path: path.to_path_buf(), message: e.to_string() })?;
     parse_config(&text, &path.display().to_string())
 }

@@ -86,17 +86,9 @@ impl Message {
 /// (a file path or a built-in name).
 pub fn parse(text: &str, source: &str) -> Result<Message, BraxError> {
     let tokens = Lexer::new(text, source).tokenize()?;
-    let mut parser = Parser {
-        tokens,
-        pos: 0,
-        source,
-    };
+    let mut parser = Parser { tokens, pos: 0, source };
     let fields = parser.fields(None, 0)?;
-    Ok(Message {
-        line: 1,
-        column: 1,
-        fields,
-    })
+    Ok(Message { line: 1, column: 1, fields })
 }
 
 /// A lexical token.
@@ -145,13 +137,7 @@ struct Lexer<'a> {
 
 impl<'a> Lexer<'a> {
     fn new(text: &str, source: &'a str) -> Self {
-        Lexer {
-            chars: text.chars().collect(),
-            pos: 0,
-            line: 1,
-            column: 1,
-            source,
-        }
+        Lexer { chars: text.chars().collect(), pos: 0, line: 1, column: 1, source }
     }
 
     fn peek(&self) -> Option<char> {
@@ -171,14 +157,7 @@ impl<'a> Lexer<'a> {
     }
 
     fn error(&self, line: usize, column: usize, message: String) -> BraxError {
-        BraxError::Syntax {
-            location: Location {
-                source: self.source.to_string(),
-                line,
-                column,
-            },
-            message,
-        }
+        BraxError::Syntax { location: Location { source: self.source.to_string(), line, column }, message }
     }
 
     fn tokenize(mut self) -> Result<Vec<Spanned>, BraxError> {
@@ -200,22 +179,14 @@ impl<'a> Lexer<'a> {
             }
             let (line, column) = (self.line, self.column);
             let Some(c) = self.peek() else {
-                out.push(Spanned {
-                    tok: Tok::Eof,
-                    line,
-                    column,
-                });
+                out.push(Spanned { tok: Tok::Eof, line, column });
                 return Ok(out);
             };
             let tok = if "{}<>[]:,;-".contains(c) {
                 self.bump();
                 Tok::Punct(c)
             } else if c.is_ascii_digit()
-                || (c == '.'
-                    && self
-                        .chars
-                        .get(self.pos + 1)
-                        .is_some_and(|d| d.is_ascii_digit()))
+                || (c == '.' && self.chars.get(self.pos + 1).is_some_and(|d| d.is_ascii_digit()))
             {
                 Tok::Number(self.number())
             } else if c.is_alphabetic() || c == '_' {
@@ -246,10 +217,8 @@ impl<'a> Lexer<'a> {
     fn number(&mut self) -> String {
         let mut s = String::new();
         while let Some(c) = self.peek() {
-            let exponent_sign = (c == '+' || c == '-')
-                && s.ends_with(['e', 'E'])
-                && !s.starts_with("0x")
-                && !s.starts_with("0X");
+            let exponent_sign =
+                (c == '+' || c == '-') && s.ends_with(['e', 'E']) && !s.starts_with("0x") && !s.starts_with("0X");
             if c.is_alphanumeric() || c == '.' || c == '_' || exponent_sign {
                 s.push(c);
                 self.bump();
@@ -321,8 +290,7 @@ impl<'a> Lexer<'a> {
                             char::from_u32(code).unwrap_or('\u{fffd}')
                         }
                         other => {
-                            let shown =
-                                other.map_or("end of file".to_string(), |c| format!("{c:?}"));
+                            let shown = other.map_or("end of file".to_string(), |c| format!("{c:?}"));
                             return Err(self.error(
                                 el,
                                 ec,
@@ -361,22 +329,14 @@ impl Parser<'_> {
 
     fn error_at(&self, t: &Spanned, message: String) -> BraxError {
         BraxError::Syntax {
-            location: Location {
-                source: self.source.to_string(),
-                line: t.line,
-                column: t.column,
-            },
+            location: Location { source: self.source.to_string(), line: t.line, column: t.column },
             message,
         }
     }
 
     /// Parses fields until `close` (or end of file when `close` is None).
     /// `open` is the token that opened the enclosing message, for error messages.
-    fn fields(
-        &mut self,
-        close: Option<(char, &Spanned, &str)>,
-        depth: usize,
-    ) -> Result<Vec<Field>, BraxError> {
+    fn fields(&mut self, close: Option<(char, &Spanned, &str)>, depth: usize) -> Result<Vec<Field>, BraxError> {
         let mut fields = Vec::new();
         loop {
             let t = self.next();
@@ -405,10 +365,7 @@ impl Parser<'_> {
                         Some((want, _, _)) => format!("a field name or `{want}`"),
                         None => "a field name".to_string(),
                     };
-                    return Err(self.error_at(
-                        &t,
-                        format!("expected {expected}, found {}", other.describe()),
-                    ));
+                    return Err(self.error_at(&t, format!("expected {expected}, found {}", other.describe())));
                 }
             }
         }
@@ -422,12 +379,7 @@ impl Parser<'_> {
         depth: usize,
         out: &mut Vec<Field>,
     ) -> Result<(), BraxError> {
-        let make = |value: Value| Field {
-            name: name.to_string(),
-            line: name_tok.line,
-            column: name_tok.column,
-            value,
-        };
+        let make = |value: Value| Field { name: name.to_string(), line: name_tok.line, column: name_tok.column, value };
         let t = self.next();
         match &t.tok {
             Tok::Punct('{') | Tok::Punct('<') => {
@@ -451,10 +403,7 @@ impl Parser<'_> {
             other => {
                 return Err(self.error_at(
                     &t,
-                    format!(
-                        "expected `:` or `{{` after field name `{name}`, found {}",
-                        other.describe()
-                    ),
+                    format!("expected `:` or `{{` after field name `{name}`, found {}", other.describe()),
                 ));
             }
         }
@@ -464,22 +413,11 @@ impl Parser<'_> {
     /// Parses the body of a message whose opening token `open` was just read.
     fn message(&mut self, open: &Spanned, name: &str, depth: usize) -> Result<Message, BraxError> {
         if depth + 1 > MAX_DEPTH {
-            return Err(self.error_at(
-                open,
-                format!("messages nested deeper than {MAX_DEPTH} levels"),
-            ));
+            return Err(self.error_at(open, format!("messages nested deeper than {MAX_DEPTH} levels")));
         }
-        let close = if open.tok == Tok::Punct('<') {
-            '>'
-        } else {
-            '}'
-        };
+        let close = if open.tok == Tok::Punct('<') { '>' } else { '}' };
         let fields = self.fields(Some((close, open, name)), depth + 1)?;
-        Ok(Message {
-            line: open.line,
-            column: open.column,
-            fields,
-        })
+        Ok(Message { line: open.line, column: open.column, fields })
     }
 
     /// Parses `[a, b, ...]` after the `[` token `open`; each element becomes one field.
@@ -518,10 +456,7 @@ impl Parser<'_> {
                 other => {
                     return Err(self.error_at(
                         &sep,
-                        format!(
-                            "expected `,` or `]` in the list `{name}`, found {}",
-                            other.describe()
-                        ),
+                        format!("expected `,` or `]` in the list `{name}`, found {}", other.describe()),
                     ));
                 }
             }
@@ -539,10 +474,7 @@ impl Parser<'_> {
                     Tok::Ident(ref id) if is_special_float(id) => self.number(&n, id, true),
                     ref other => Err(self.error_at(
                         &n,
-                        format!(
-                            "expected a number after `-` in field `{name}`, found {}",
-                            other.describe()
-                        ),
+                        format!("expected a number after `-` in field `{name}`, found {}", other.describe()),
                     )),
                 }
             }
@@ -573,11 +505,7 @@ impl Parser<'_> {
         let magnitude = if let Some(hex) = lower.strip_prefix("0x") {
             u64::from_str_radix(hex, 16).ok().map(|v| v as f64)
         } else if is_special_float(&lower) {
-            Some(if lower.starts_with("inf") {
-                f64::INFINITY
-            } else {
-                f64::NAN
-            })
+            Some(if lower.starts_with("inf") { f64::INFINITY } else { f64::NAN })
         } else {
             let body = lower.strip_suffix('f').unwrap_or(&lower);
             // Rust's float parser accepts "inf"/"nan" words, which cannot reach here since
@@ -587,11 +515,7 @@ impl Parser<'_> {
         match magnitude {
             Some(v) => Ok(Value::Number {
                 value: if negative { -v } else { v },
-                text: if negative {
-                    format!("-{text}")
-                } else {
-                    text.to_string()
-                },
+                text: if negative { format!("-{text}") } else { text.to_string() },
             }),
             None => Err(self.error_at(t, format!("invalid number `{text}`"))),
         }
@@ -620,19 +544,12 @@ mod tests {
         let m = parse(text, "t").unwrap();
         assert_eq!(m.fields.len(), 4);
         let bodies = &m.fields[0];
-        assert_eq!(
-            (bodies.name.as_str(), bodies.line, bodies.column),
-            ("bodies", 2, 1)
-        );
-        let Value::Message(b) = &bodies.value else {
-            panic!()
-        };
+        assert_eq!((bodies.name.as_str(), bodies.line, bodies.column), ("bodies", 2, 1));
+        let Value::Message(b) = &bodies.value else { panic!() };
         assert_eq!(b.fields[0].value, Value::String("torso".into()));
         assert_eq!(b.fields[1].line, 4);
         assert_eq!(num(&b.fields[1].value), 10.0);
-        let Value::Message(inertia) = &b.fields[2].value else {
-            panic!()
-        };
+        let Value::Message(inertia) = &b.fields[2].value else { panic!() };
         let values: Vec<f64> = inertia.fields.iter().map(|f| num(&f.value)).collect();
         assert_eq!(values, vec![1.0, -2.0, -1.5e-3]);
         assert_eq!(inertia.fields[2].column, 26);
@@ -648,14 +565,8 @@ mod tests {
         let a: Vec<f64> = m.fields_named("a").map(|f| num(&f.value)).collect();
         assert_eq!(a, vec![1.0, -2.0, 0.5]);
         assert_eq!(m.fields_named("b").count(), 2);
-        assert_eq!(
-            m.fields_named("c").next().unwrap().value,
-            Value::String("it'sAA".into())
-        );
-        assert_eq!(
-            num(&m.fields_named("d").next().unwrap().value),
-            f64::NEG_INFINITY
-        );
+        assert_eq!(m.fields_named("c").next().unwrap().value, Value::String("it'sAA".into()));
+        assert_eq!(num(&m.fields_named("d").next().unwrap().value), f64::NEG_INFINITY);
         assert!(num(&m.fields_named("e").next().unwrap().value).is_nan());
         assert_eq!(num(&m.fields_named("f").next().unwrap().value), 1.5);
         assert_eq!(m.fields_named("g").count(), 0);
@@ -675,16 +586,10 @@ mod tests {
     fn reports_line_column_and_expectation() {
         let (l, c, m) = syntax_error("a {\n  b: 1\n");
         assert_eq!(l, 3);
-        assert!(
-            m.contains("expected `}` to close `a` opened at line 1"),
-            "{m}"
-        );
+        assert!(m.contains("expected `}` to close `a` opened at line 1"), "{m}");
         let (l, c2, m) = syntax_error("a {\n  b 1\n}");
         assert_eq!((l, c2), (2, 5));
-        assert!(
-            m.contains("expected `:` or `{` after field name `b`"),
-            "{m}"
-        );
+        assert!(m.contains("expected `:` or `{` after field name `b`"), "{m}");
         let (l, _, m) = syntax_error("x: 1\ny: }\n");
         assert_eq!(l, 2);
         assert!(m.contains("expected a value"), "{m}");

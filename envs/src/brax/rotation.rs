@@ -19,12 +19,7 @@ pub fn euler_degrees_to_quat(angles: Vec3) -> Quat {
     let (s1, c1) = a1.sin_cos();
     let (s2, c2) = a2.sin_cos();
     let (s3, c3) = a3.sin_cos();
-    [
-        c1 * c2 * c3 - s1 * s2 * s3,
-        s1 * c2 * c3 + c1 * s2 * s3,
-        c1 * s2 * c3 - s1 * c2 * s3,
-        c1 * c2 * s3 + s1 * s2 * c3,
-    ]
+    [c1 * c2 * c3 - s1 * s2 * s3, s1 * c2 * c3 + c1 * s2 * s3, c1 * s2 * c3 - s1 * c2 * s3, c1 * c2 * s3 + s1 * s2 * c3]
 }
 
 /// The Hamilton product a * b (apply b first, then a).
@@ -63,11 +58,7 @@ pub fn quat_to_matrix(q: Quat) -> [[f64; 3]; 3] {
     let c0 = quat_rotate(q, [1.0, 0.0, 0.0]);
     let c1 = quat_rotate(q, [0.0, 1.0, 0.0]);
     let c2 = quat_rotate(q, [0.0, 0.0, 1.0]);
-    [
-        [c0[0], c1[0], c2[0]],
-        [c0[1], c1[1], c2[1]],
-        [c0[2], c1[2], c2[2]],
-    ]
+    [[c0[0], c1[0], c2[0]], [c0[1], c1[1], c2[1]], [c0[2], c1[2], c2[2]]]
 }
 
 /// a + b.
@@ -87,11 +78,7 @@ pub fn scale(a: Vec3, s: f64) -> Vec3 {
 
 /// The cross product a x b.
 pub fn cross(a: Vec3, b: Vec3) -> Vec3 {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
+    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
 }
 
 /// The dot product.
@@ -110,18 +97,9 @@ mod tests {
     #[test]
     fn single_axis_angles_are_half_angle_quaternions() {
         let h = std::f64::consts::FRAC_1_SQRT_2;
-        assert!(close(
-            &euler_degrees_to_quat([90.0, 0.0, 0.0]),
-            &[h, h, 0.0, 0.0]
-        ));
-        assert!(close(
-            &euler_degrees_to_quat([0.0, -90.0, 0.0]),
-            &[h, 0.0, -h, 0.0]
-        ));
-        assert!(close(
-            &euler_degrees_to_quat([0.0, 0.0, 180.0]),
-            &[0.0, 0.0, 0.0, 1.0]
-        ));
+        assert!(close(&euler_degrees_to_quat([90.0, 0.0, 0.0]), &[h, h, 0.0, 0.0]));
+        assert!(close(&euler_degrees_to_quat([0.0, -90.0, 0.0]), &[h, 0.0, -h, 0.0]));
+        assert!(close(&euler_degrees_to_quat([0.0, 0.0, 180.0]), &[0.0, 0.0, 0.0, 1.0]));
     }
 
     #[test]
