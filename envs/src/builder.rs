@@ -5,10 +5,12 @@
 //! body is a solid of uniform density (or of a given mass); the body's mass, centre of mass and
 //! inertia tensor are the sums (parallel-axis theorem).
 
+#![allow(clippy::neg_cmp_op_on_partial_ord)] // `!(x > 0.0)` deliberately rejects NaN too
+
 use crate::math::{self, Mat3, Quat, Vec3};
 use crate::model::{
-    Actuator, ActuatorId, Body, BodyId, CapsuleEnds, CollisionPair, Geom, GeomId, Joint, JointId,
-    JointKind, Model, ModelError, NONE, Options, Shape, Tree,
+    Actuator, ActuatorId, Body, BodyId, CapsuleEnds, CollisionPair, Geom, GeomId, Joint, JointId, JointKind, Model,
+    ModelError, NONE, Options, Shape, Tree,
 };
 
 /// Description of a geom for [`ModelBuilder::add_geom`]; construct with [`GeomSpec::sphere`],
@@ -157,15 +159,7 @@ pub struct HingeSpec {
 impl HingeSpec {
     /// A hinge about `axis` with the defaults.
     pub fn new(axis: Vec3) -> Self {
-        HingeSpec {
-            axis,
-            anchor: [0.0; 3],
-            range: None,
-            armature: 0.0,
-            damping: 0.0,
-            init: 0.0,
-            name: String::new(),
-        }
+        HingeSpec { axis, anchor: [0.0; 3], range: None, armature: 0.0, damping: 0.0, init: 0.0, name: String::new() }
     }
 
     /// Sets the anchor.
@@ -275,13 +269,7 @@ impl ModelBuilder {
     /// Adds a body whose frame is at `pos` with orientation `quat` (w, x, y, z; normalised by
     /// `build`) in its parent's frame. The parent must already exist.
     pub fn add_body(&mut self, parent: BodyId, pos: Vec3, quat: Quat) -> BodyId {
-        self.bodies.push(BodySpec {
-            name: String::new(),
-            parent: parent.0,
-            pos,
-            quat,
-            mass: MassOverride::FromGeoms,
-        });
+        self.bodies.push(BodySpec { name: String::new(), parent: parent.0, pos, quat, mass: MassOverride::FromGeoms });
         BodyId(self.bodies.len() - 1)
     }
 
@@ -311,11 +299,7 @@ impl ModelBuilder {
     /// Adds a free (floating) joint to a child of the world; it must be the body's only
     /// joint. Its initial qpos is the body's `pos` and `quat`.
     pub fn add_free_joint(&mut self, body: BodyId) -> JointId {
-        self.joints.push(JointSpec {
-            body: body.0,
-            kind: JointKind::Free,
-            hinge: HingeSpec::new([0.0, 0.0, 1.0]),
-        });
+        self.joints.push(JointSpec { body: body.0, kind: JointKind::Free, hinge: HingeSpec::new([0.0, 0.0, 1.0]) });
         JointId(self.joints.len() - 1)
     }
 
@@ -340,12 +324,7 @@ impl ModelBuilder {
     }
 
     /// Adds a motor on a hinge: torque = `gear * clamp(ctrl, ctrlrange)` (`None`: unclamped).
-    pub fn add_actuator(
-        &mut self,
-        joint: JointId,
-        gear: f64,
-        ctrlrange: Option<[f64; 2]>,
-    ) -> ActuatorId {
+    pub fn add_actuator(&mut self, joint: JointId, gear: f64, ctrlrange: Option<[f64; 2]>) -> ActuatorId {
         self.actuators.push(ActSpec { joint: joint.0, gear, ctrlrange, name: String::new() });
         ActuatorId(self.actuators.len() - 1)
     }
@@ -386,9 +365,7 @@ impl ModelBuilder {
             return Err(bad("option solref", opt.solref[0].min(opt.solref[1])));
         }
         let [dmin, dmax, width, mid, power] = opt.solimp;
-        if !(0.0 < dmin && dmin <= dmax && dmax < 1.0 && width > 0.0 && mid > 0.0 && mid < 1.0)
-            || !(power >= 1.0)
-        {
+        if !(0.0 < dmin && dmin <= dmax && dmax < 1.0 && width > 0.0 && mid > 0.0 && mid < 1.0 && power >= 1.0) {
             return Err(bad("option solimp", dmin));
         }
 
@@ -630,6 +607,11 @@ impl ModelBuilder {
                 dof_parent[b.dof_adr + k] = if k == 0 { parent_dof } else { b.dof_adr + k - 1 };
             }
         }
+        let mut body_last_dof = vec![NONE; nbody];
+        for i in 1..nbody {
+            let b = &bodies[i];
+            body_last_dof[i] = if b.dof_num > 0 { b.dof_adr + b.dof_num - 1 } else { body_last_dof[b.parent] };
+        }
         let mut dof_depth = vec![0; nv];
         for i in 0..nv {
             dof_depth[i] = if dof_parent[i] == NONE { 1 } else { dof_depth[dof_parent[i]] + 1 };
@@ -724,13 +706,16 @@ impl ModelBuilder {
             dof_joint,
             dof_armature,
             dof_damping,
+            body_last_dof,
             dof_depth,
             plane_pairs,
             geom_pairs,
             nslot,
             nlimited,
+            dof_invweight0: Vec::new(),
         };
-        crate::crba::check_positive_definite(&model)?;
+        let mut model = model;
+        model.dof_invweight0 = crate::crba::check_positive_definite(&model)?;
         Ok(model)
     }
 }

@@ -6,6 +6,8 @@
 //! Storage: `nv x nv` row-major; only entries `(i, j)` with `j` on the ancestor chain of `i`
 //! (including `i`) are meaningful. For the 14-dof ant that is 70 of 196 entries.
 
+#![allow(clippy::neg_cmp_op_on_partial_ord)] // `!(x > 0.0)` deliberately rejects NaN too
+
 use crate::data::Data;
 use crate::model::{Model, ModelError, NONE};
 
@@ -120,14 +122,15 @@ pub fn dense_mass_matrix(m: &Model, d: &Data) -> Vec<f64> {
     out
 }
 
-/// Build-time check: the mass matrix at `qpos0` must be positive definite.
-pub(crate) fn check_positive_definite(m: &Model) -> Result<(), ModelError> {
+/// Build-time constants: checks that the mass matrix at `qpos0` is positive definite and
+/// returns the diagonal of `M(qpos0)^-1` (MuJoCo's `dof_invweight0`, used to scale the joint
+/// limit regularisers as MuJoCo does).
+pub(crate) fn check_positive_definite(m: &Model) -> Result<Vec<f64>, ModelError> {
     let mut d = Data::new(m);
     crate::kinematics::kinematics(m, &mut d);
     crate::kinematics::com_pos(m, &mut d);
     crba(m, &mut d);
-    let h = m.opt.timestep;
-    factor_h(m, &mut d, h).map_err(|dof| ModelError::SingularMassMatrix { dof })?;
+    factor_h(m, &mut d, 0.0).map_err(|dof| ModelError::SingularMassMatrix { dof })?;
     // A pivot that is tiny relative to the largest one is numerically singular too.
     let nv = m.nv;
     let max = (0..nv).map(|i| d.qm[i * nv + i]).fold(0.0, f64::max);
@@ -136,5 +139,13 @@ pub(crate) fn check_positive_definite(m: &Model) -> Result<(), ModelError> {
             return Err(ModelError::SingularMassMatrix { dof: i });
         }
     }
-    Ok(())
+    let mut inv = vec![0.0; nv];
+    let mut e = vec![0.0; nv];
+    for i in 0..nv {
+        e.iter_mut().for_each(|x| *x = 0.0);
+        e[i] = 1.0;
+        ltdl_solve(m, &d.qh, &mut e);
+        inv[i] = e[i];
+    }
+    Ok(inv)
 }

@@ -99,8 +99,6 @@ pub struct Data {
     pub(crate) warm_limit: Vec<f64>,
     /// Constraint scratch.
     pub(crate) efc: Efc,
-    /// Generic nv-sized scratch.
-    pub(crate) scratch: Vec<f64>,
 }
 
 /// Constraint rows of one step (scratch; capacities persist).
@@ -124,8 +122,8 @@ pub(crate) struct Efc {
     pub f: Vec<f64>,
     /// Where to store the force afterwards: slot * 4 + facet, or `LIMIT_BASE + joint`.
     pub dst: Vec<usize>,
-    /// First and one-past-last dof touched by the row (for sparse loops).
-    pub span: Vec<(usize, usize)>,
+    /// Contact Jacobian scratch: normal and two tangent rows, `3 x nv`.
+    pub jc: Vec<f64>,
 }
 
 impl Data {
@@ -169,7 +167,6 @@ impl Data {
             warm: vec![[0.0; 4]; m.nslot],
             warm_limit: vec![0.0; m.joints.len()],
             efc: Efc::default(),
-            scratch: vec![0.0; nv],
         }
     }
 

@@ -10,6 +10,8 @@
 //! - free joint dofs: three world-axis translations of the body origin, then three rotations
 //!   about the body's own axes (qvel angular velocity in the body frame).
 
+#![allow(clippy::needless_range_loop)] // index loops mirror the formulas (RBDA notation)
+
 use crate::data::Data;
 use crate::math::{self, SpatialInertia};
 use crate::model::{JointKind, Model, NONE};

@@ -5,18 +5,24 @@
 //! - `step` advances one `Data` by one time step; `step_batch` many in parallel;
 //! - `mjcf` loads MuJoCo XML files.
 
+pub mod batch;
 pub mod brax;
 pub mod builder;
+pub mod collision;
+pub mod constraints;
 pub mod crba;
 pub mod data;
+pub mod integrator;
 pub mod kinematics;
 pub mod math;
+pub mod mjcf;
 pub mod model;
 pub mod rne;
 
+pub use batch::{step_batch, step_batch_ctrl};
 pub use builder::{GeomSpec, HingeSpec, ModelBuilder};
 pub use data::{Contact, Data};
+pub use integrator::{forward, step};
 pub use model::{
-    ActuatorId, BodyId, CapsuleEnds, GeomId, Integrator, JointId, JointKind, Model, ModelError,
-    Options, Shape,
+    ActuatorId, BodyId, CapsuleEnds, GeomId, Integrator, JointId, JointKind, Model, ModelError, Options, Shape,
 };

@@ -53,11 +53,7 @@ pub fn dot(a: Vec3, b: Vec3) -> f64 {
 /// Cross product `a x b`.
 #[inline(always)]
 pub fn cross(a: Vec3, b: Vec3) -> Vec3 {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
+    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
 }
 
 /// Euclidean norm.
@@ -104,11 +100,7 @@ pub fn mat_mul(a: &Mat3, b: &Mat3) -> Mat3 {
 /// `a^T`.
 #[inline]
 pub fn transpose(a: &Mat3) -> Mat3 {
-    [
-        [a[0][0], a[1][0], a[2][0]],
-        [a[0][1], a[1][1], a[2][1]],
-        [a[0][2], a[1][2], a[2][2]],
-    ]
+    [[a[0][0], a[1][0], a[2][0]], [a[0][1], a[1][1], a[2][1]], [a[0][2], a[1][2], a[2][2]]]
 }
 
 /// `r * a * r^T`: a tensor given in a rotated frame expressed in the outer frame.
@@ -164,11 +156,7 @@ pub fn quat_conj(q: Quat) -> Quat {
 #[inline]
 pub fn quat_normalize(q: Quat) -> Quat {
     let n = (q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]).sqrt();
-    if n > 1e-15 && n.is_finite() {
-        [q[0] / n, q[1] / n, q[2] / n, q[3] / n]
-    } else {
-        QUAT_IDENTITY
-    }
+    if n > 1e-15 && n.is_finite() { [q[0] / n, q[1] / n, q[2] / n, q[3] / n] } else { QUAT_IDENTITY }
 }
 
 /// Rotation of `angle` radians about the unit `axis`.

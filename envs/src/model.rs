@@ -317,6 +317,9 @@ pub struct Model {
     pub dof_armature: Vec<f64>,
     /// Damping of each dof.
     pub dof_damping: Vec<f64>,
+    /// Last dof on the chain from each body to its tree root ([`NONE`] for static bodies):
+    /// the dofs that move the body are this one and its ancestors.
+    pub body_last_dof: Vec<usize>,
     /// Depth of each dof in its chain (number of ancestor dofs, itself included).
     pub dof_depth: Vec<usize>,
     /// Candidate collision pairs with a plane.
@@ -327,6 +330,9 @@ pub struct Model {
     pub nslot: usize,
     /// Number of limited hinge joints (one potential limit row each).
     pub nlimited: usize,
+    /// Diagonal of `M^-1` at `qpos0` (MuJoCo's `dof_invweight0`): the constant scale of the
+    /// joint-limit regularisers.
+    pub dof_invweight0: Vec<f64>,
 }
 
 impl Model {
@@ -407,10 +413,9 @@ impl fmt::Display for ModelError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             ModelError::BadId { what, index } => write!(f, "no {what} with index {index}"),
-            ModelError::BadFreeJoint { body } => write!(
-                f,
-                "free joint on body {body}: a free joint must be the only joint of a child of the world"
-            ),
+            ModelError::BadFreeJoint { body } => {
+                write!(f, "free joint on body {body}: a free joint must be the only joint of a child of the world")
+            }
             ModelError::JointOnWorld => write!(f, "the world body cannot have joints"),
             ModelError::BadValue { what, value } => write!(f, "bad value {value} for {what}"),
             ModelError::Degenerate { what } => write!(f, "degenerate {what} (zero length)"),
@@ -420,10 +425,9 @@ impl fmt::Display for ModelError {
             ModelError::ActuatorNotOnHinge { actuator } => {
                 write!(f, "actuator {actuator}: motors drive hinge joints only")
             }
-            ModelError::SingularMassMatrix { dof } => write!(
-                f,
-                "mass matrix not positive definite at dof {dof}: a moving body lacks mass or inertia"
-            ),
+            ModelError::SingularMassMatrix { dof } => {
+                write!(f, "mass matrix not positive definite at dof {dof}: a moving body lacks mass or inertia")
+            }
         }
     }
 }

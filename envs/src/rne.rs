@@ -2,6 +2,8 @@
 //! bias forces `c(q, qdot) = C qdot + g` (with zero joint acceleration) and inverse dynamics.
 //! Gravity enters as a fictitious base acceleration `-g` (RBDA §5.3, "a_0 = -a_g").
 
+#![allow(clippy::needless_range_loop)] // index loops mirror the formulas (RBDA notation)
+
 use crate::data::Data;
 use crate::math::{self, Vec6};
 use crate::model::{Model, NONE};
@@ -65,7 +67,5 @@ pub fn inverse_dynamics(m: &Model, d: &mut Data, qacc: &[f64]) -> Vec<f64> {
     crate::kinematics::com_pos(m, d);
     crate::kinematics::com_vel(m, d);
     rne_forces(m, d, Some(qacc));
-    (0..m.nv)
-        .map(|i| math::dot6(&d.cdof[i], &d.cfrc[m.dof_body[i]]) + m.dof_armature[i] * qacc[i])
-        .collect()
+    (0..m.nv).map(|i| math::dot6(&d.cdof[i], &d.cfrc[m.dof_body[i]]) + m.dof_armature[i] * qacc[i]).collect()
 }

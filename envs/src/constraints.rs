@@ -1,0 +1,259 @@
+//! Joint limits and contacts as soft constraints, MuJoCo style (MuJoCo documentation,
+//! "Computation": soft constraints, solref/solimp), solved by projected Gauss-Seidel.
+//!
+//! Every constraint row `k` has a Jacobian `J_k`, a signed distance `r_k` (negative when
+//! violated) and a one-sided force `f_k >= 0`:
+//! - a joint limit: `J = +-e_dof`, `r` = distance into the allowed range;
+//! - a contact with friction coefficient `mu`: the friction cone is the pyramid spanned by the
+//!   four facet directions `n +- mu t1` and `n +- mu t2` (MuJoCo's default pyramidal cone);
+//!   each facet is one row with the contact's distance.
+//!
+//! With `H = M + h D` (the implicit-damping matrix of the integrator), the unconstrained
+//! acceleration `a0 = J qacc_smooth` and `A = J H^-1 J^T`, the forces solve the regularised
+//! complementarity problem `(A + R) f + a0 - aref  >= 0`, `f >= 0`, complementary, where
+//! - `aref = -b (J v) - k imp(r) r` is the reference acceleration of a critically damped
+//!   spring-damper with time constant `tau = max(solref[0], 2 h)` and damping ratio
+//!   `zeta = solref[1]`: `b = 2 / (dmax tau)`, `k = 1 / (dmax^2 tau^2 zeta^2)`;
+//! - `imp(r)` is MuJoCo's impedance, rising from `dmin` to `dmax` as `|r|` grows to `width`;
+//! - `R_k = (1 - imp) / imp * A_kk` makes the constraint soft: at rest a contact carrying force
+//!   `f` sits at depth `r = -R f / (k imp)`, which is what the sphere settling test predicts.
+//!
+//! Projected Gauss-Seidel: `f_k <- max(0, f_k - ((A + R) f + a0 - aref)_k / (A_kk + R_k))`,
+//! `Options::iterations` sweeps, warm-started from the previous step's forces of the same
+//! contact slot (a slot is a fixed geom pair and end point), which makes a few sweeps enough.
+//! Finally `qacc = qacc_smooth + H^-1 J^T f`.
+
+#![allow(clippy::needless_range_loop)] // index loops mirror the formulas (RBDA notation)
+#![allow(clippy::neg_cmp_op_on_partial_ord)] // `!(x > 0.0)` deliberately rejects NaN too
+
+use crate::crba::ltdl_solve;
+use crate::data::Data;
+use crate::math::{self, Vec3, Vec6};
+use crate::model::{JointKind, Model, NONE};
+
+/// Row destination marker for joint limits (`LIMIT_BASE + joint`).
+const LIMIT_BASE: usize = 1 << 48;
+
+#[inline]
+fn dof_of_limit(dst: &[usize], k: usize, m: &Model) -> usize {
+    m.joints[dst[k] - LIMIT_BASE].dof_adr
+}
+
+/// MuJoCo's impedance `imp(r)` for `solimp = [dmin, dmax, width, mid, power]`.
+#[inline]
+pub fn impedance(solimp: &[f64; 5], r: f64) -> f64 {
+    let [dmin, dmax, width, mid, power] = *solimp;
+    let x = r.abs() / width;
+    if x >= 1.0 {
+        return dmax;
+    }
+    let y = if x <= mid {
+        x.powf(power) / mid.powf(power - 1.0)
+    } else {
+        1.0 - (1.0 - x).powf(power) / (1.0 - mid).powf(power - 1.0)
+    };
+    dmin + y * (dmax - dmin)
+}
+
+/// Adds `s * e . v(x)` over the dofs moving `body` to row `row` (length nv), where `v(x)` is
+/// the velocity of the body point at world position `x` per unit dof velocity.
+#[inline]
+#[allow(clippy::too_many_arguments)] // a hot kernel: plain slices, no packing
+fn add_point_jacobian(
+    m: &Model,
+    tree_ref: &[Vec3],
+    cdof: &[Vec6],
+    body: usize,
+    x: Vec3,
+    e: &[Vec3; 3],
+    s: f64,
+    rows: &mut [f64],
+) {
+    let nv = m.nv;
+    let mut i = m.body_last_dof[body];
+    if i == NONE {
+        return;
+    }
+    let r = math::sub(x, tree_ref[m.bodies[body].tree]);
+    let rxe = [math::cross(r, e[0]), math::cross(r, e[1]), math::cross(r, e[2])];
+    while i != NONE {
+        let c = &cdof[i];
+        let w = [c[0], c[1], c[2]];
+        let l = [c[3], c[4], c[5]];
+        for k in 0..3 {
+            rows[k * nv + i] += s * (math::dot(e[k], l) + math::dot(rxe[k], w));
+        }
+        i = m.dof_parent[i];
+    }
+}
+
+/// Tangent directions of a contact with unit normal `n` (for the z normal: x and y, so that
+/// the pyramid is exact for sliding along world axes).
+#[inline]
+fn tangents(n: Vec3) -> (Vec3, Vec3) {
+    let a = if n[0].abs() < 0.9 { [1.0, 0.0, 0.0] } else { [0.0, 1.0, 0.0] };
+    let t1 = math::normalize(math::add_scaled(a, n, -math::dot(a, n))).unwrap_or([0.0, 1.0, 0.0]);
+    (t1, math::cross(n, t1))
+}
+
+/// Assembles and solves the constraints of the current state; updates `d.qacc` from
+/// `d.qacc_smooth`. Needs the kinematics, `cdof`, the factor `d.qh` and `d.contacts`.
+pub fn solve(m: &Model, d: &mut Data) {
+    let nv = m.nv;
+    let h = m.opt.timestep;
+    // Count rows.
+    let mut nlim = 0;
+    if !m.opt.disable_limit && m.nlimited > 0 {
+        for j in &m.joints {
+            if j.limited && j.kind == JointKind::Hinge {
+                let q = d.qpos[j.qpos_adr];
+                if q < j.range[0] || q > j.range[1] {
+                    nlim += 1;
+                }
+            }
+        }
+    }
+    let n = nlim + 4 * d.contacts.len();
+    d.qacc.copy_from_slice(&d.qacc_smooth);
+    d.qfrc_constraint.iter_mut().for_each(|x| *x = 0.0);
+    d.efc.n = n;
+    if n == 0 {
+        d.warm.iter_mut().for_each(|w| *w = [0.0; 4]);
+        d.warm_limit.iter_mut().for_each(|w| *w = 0.0);
+        return;
+    }
+    let efc = &mut d.efc;
+    let resize = |v: &mut Vec<f64>, len: usize| {
+        v.clear();
+        v.resize(len, 0.0);
+    };
+    resize(&mut efc.j, n * nv);
+    resize(&mut efc.y, n * nv);
+    resize(&mut efc.a, n * n);
+    resize(&mut efc.aref, n);
+    resize(&mut efc.r, n);
+    resize(&mut efc.a0, n);
+    resize(&mut efc.f, n);
+    resize(&mut efc.jc, 3 * nv);
+    efc.dst.clear();
+    efc.dst.resize(n, 0);
+    // Distances go to `r` for now; turned into regularisers below.
+    let mut row = 0;
+    if nlim > 0 {
+        for (ji, j) in m.joints.iter().enumerate() {
+            if !(j.limited && j.kind == JointKind::Hinge) {
+                continue;
+            }
+            let q = d.qpos[j.qpos_adr];
+            let (dist, s) = if q < j.range[0] {
+                (q - j.range[0], 1.0)
+            } else if q > j.range[1] {
+                (j.range[1] - q, -1.0)
+            } else {
+                continue;
+            };
+            efc.j[row * nv + j.dof_adr] = s;
+            efc.r[row] = dist;
+            efc.f[row] = d.warm_limit[ji];
+            efc.dst[row] = LIMIT_BASE + ji;
+            row += 1;
+        }
+    }
+    for c in &d.contacts {
+        let (t1, t2) = tangents(c.normal);
+        let e = [c.normal, t1, t2];
+        efc.jc.iter_mut().for_each(|x| *x = 0.0);
+        let b1 = m.geoms[c.geom1].body;
+        let b2 = m.geoms[c.geom2].body;
+        add_point_jacobian(m, &d.tree_ref, &d.cdof, b2, c.pos, &e, 1.0, &mut efc.jc);
+        add_point_jacobian(m, &d.tree_ref, &d.cdof, b1, c.pos, &e, -1.0, &mut efc.jc);
+        let mu = c.friction;
+        for (k, (t, sgn)) in [(1, 1.0), (1, -1.0), (2, 1.0), (2, -1.0)].into_iter().enumerate() {
+            let base = (row + k) * nv;
+            for i in 0..nv {
+                efc.j[base + i] = efc.jc[i] + sgn * mu * efc.jc[t * nv + i];
+            }
+            efc.r[row + k] = c.dist;
+            efc.f[row + k] = d.warm[c.slot][k];
+            efc.dst[row + k] = 4 * c.slot + k;
+        }
+        row += 4;
+    }
+    debug_assert_eq!(row, n);
+
+    // Y = H^-1 J^T (row per constraint), A = J Y^T, a0 = J qacc_smooth, velocities.
+    efc.y.copy_from_slice(&efc.j);
+    for k in 0..n {
+        ltdl_solve(m, &d.qh, &mut efc.y[k * nv..(k + 1) * nv]);
+    }
+    for k in 0..n {
+        let jk = &efc.j[k * nv..(k + 1) * nv];
+        for l in 0..=k {
+            let yl = &efc.y[l * nv..(l + 1) * nv];
+            let mut s = 0.0;
+            for i in 0..nv {
+                s += jk[i] * yl[i];
+            }
+            efc.a[k * n + l] = s;
+            efc.a[l * n + k] = s;
+        }
+    }
+    let [tc, zeta] = m.opt.solref;
+    let dmax = m.opt.solimp[1];
+    let tau = tc.max(2.0 * h);
+    let bb = 2.0 / (dmax * tau);
+    let kk = 1.0 / (dmax * dmax * tau * tau * zeta * zeta);
+    for k in 0..n {
+        let jk = &efc.j[k * nv..(k + 1) * nv];
+        let (mut vel, mut a0) = (0.0, 0.0);
+        for i in 0..nv {
+            vel += jk[i] * d.qvel[i];
+            a0 += jk[i] * d.qacc_smooth[i];
+        }
+        let dist = efc.r[k];
+        let imp = impedance(&m.opt.solimp, dist);
+        efc.a0[k] = a0;
+        efc.aref[k] = -bb * vel - kk * imp * dist;
+        // Limits: MuJoCo's constant dof_invweight0; contacts: the exact diagonal of A.
+        let diag = if k < nlim { m.dof_invweight0[dof_of_limit(&efc.dst, k, m)] } else { efc.a[k * n + k] };
+        efc.r[k] = (1.0 - imp) / imp * diag;
+        if !(efc.f[k] >= 0.0) {
+            efc.f[k] = 0.0;
+        }
+    }
+
+    // Projected Gauss-Seidel.
+    for _ in 0..m.opt.iterations {
+        for k in 0..n {
+            let ak = &efc.a[k * n..(k + 1) * n];
+            let mut g = efc.a0[k] - efc.aref[k] + efc.r[k] * efc.f[k];
+            for l in 0..n {
+                g += ak[l] * efc.f[l];
+            }
+            let diag = ak[k] + efc.r[k];
+            if diag > 0.0 {
+                efc.f[k] = (efc.f[k] - g / diag).max(0.0);
+            }
+        }
+    }
+
+    // Apply, and remember forces for the next step's warm start.
+    d.warm.iter_mut().for_each(|w| *w = [0.0; 4]);
+    d.warm_limit.iter_mut().for_each(|w| *w = 0.0);
+    for k in 0..n {
+        let f = efc.f[k];
+        if f != 0.0 {
+            let (y, jr) = (&efc.y[k * nv..(k + 1) * nv], &efc.j[k * nv..(k + 1) * nv]);
+            for i in 0..nv {
+                d.qacc[i] += y[i] * f;
+                d.qfrc_constraint[i] += jr[i] * f;
+            }
+        }
+        let dst = efc.dst[k];
+        if dst >= LIMIT_BASE {
+            d.warm_limit[dst - LIMIT_BASE] = f;
+        } else {
+            d.warm[dst / 4][dst % 4] = f;
+        }
+    }
+}
