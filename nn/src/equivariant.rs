@@ -1,0 +1,159 @@
+//! Subequivariant building blocks (paper section 3, eq. (subeq), appendix A.1 eq. (subeq2)).
+//!
+//! Vector features are stored as `[.., 3, m]`: 3 spatial rows, `m` channels, exactly the
+//! paper's `Z ∈ R^{3×m}`. A rotation or reflection `R` acts as `Z -> R Z`. Everything here is
+//! built from channel mixing (`Z W`, which commutes with `R`) and inner products (`Z^T Z`,
+//! invariant), so outputs rotate with the inputs; appending gravity `g` as a channel makes
+//! the layer equivariant only to the transformations that fix `g` (subequivariance,
+//! `O_g(3)`).
+
+use tensor::{Activation, Float, Tensor, Var};
+
+use crate::error::{NnError, Result};
+use crate::init::Init;
+use crate::linear::{Linear, Mlp};
+use crate::params::{Bound, Scope};
+
+/// Channel mixing of vector features without bias: `[.., 3, m_in] -> [.., 3, m_out]`,
+/// `Z -> Z W`. (A bias would break equivariance.)
+#[derive(Clone, Debug)]
+pub struct VectorLinear {
+    /// The mixing matrix `[m_in, m_out]`.
+    pub linear: Linear,
+}
+
+impl VectorLinear {
+    /// LeCun-uniform mixing weights named `<scope>.weight`.
+    pub fn new<T: Float>(s: &mut Scope<'_, T>, m_in: usize, m_out: usize) -> Result<Self> {
+        Ok(Self { linear: Linear::with_options(s, m_in, m_out, false, Init::LecunUniform)? })
+    }
+
+    /// `Z W`.
+    pub fn forward<'t, T: Float>(&self, p: &Bound<'t, T>, z: Var<'t, T>) -> Result<Var<'t, T>> {
+        self.linear.forward(p, z)
+    }
+}
+
+/// Gram matrices `Z^T Z` of vector features `[.., 3, m]`, flattened to `[.., m*m]`
+/// (invariant under any orthogonal transform of the rows).
+pub fn gram<'t, T: Float>(z: Var<'t, T>) -> Result<Var<'t, T>> {
+    let s = z.shape();
+    let m = s[s.len() - 1];
+    let g = z.matmul_t(z, true, false)?;
+    let mut flat = s[..s.len() - 2].to_vec();
+    flat.push(m * m);
+    Ok(g.reshape(&flat)?)
+}
+
+/// `||x||_F + 1` over the last dim, `[.., k] -> [.., 1]`, the normaliser of the release's
+/// subequivariant layers. A `1e-12` inside the root keeps the gradient finite at `x = 0`.
+pub fn norm_plus_one<'t, T: Float>(x: Var<'t, T>) -> Result<Var<'t, T>> {
+    let last = x.rank() - 1;
+    Ok(x.square().sum(last, true)?.add_scalar(1e-12).sqrt().add_scalar(1.0))
+}
+
+/// Appends the gravity direction as one more vector channel: `[N.., 3, m] -> [N.., 3, m+1]`.
+pub fn append_gravity<'t, T: Float>(z: Var<'t, T>, g: [f64; 3]) -> Result<Var<'t, T>> {
+    let mut s = z.shape();
+    let gv = z.tape().constant(Tensor::from_f64(&g, &[3, 1])?);
+    *s.last_mut().expect("rank >= 2") = 1;
+    let gz = gv.expand(&s)?;
+    let last = s.len() - 1;
+    Ok(z.tape().cat(&[z, gz], last)?)
+}
+
+/// The subequivariant function of eq. (subeq2):
+/// `M = [Z, g] W`, `(W_g, h') = MLP([M^T M, h]) / (||M^T M|| + 1)`, `Z' = M W_g`.
+///
+/// Vector outputs are linear combinations of the (mixed) input vectors with invariant
+/// coefficients, so they rotate with the inputs about `g`; scalar outputs are invariant.
+#[derive(Clone, Debug)]
+pub struct SubequivariantFn {
+    /// Channel mixing `W: [(m_in (+1)), m_mid]`.
+    pub mix: VectorLinear,
+    /// `σ: R^{m_mid^2 + s_in} -> R^{m_mid m_out + s_out}`.
+    pub mlp: Mlp,
+    /// Gravity channel, if any (`None` gives full O(3) equivariance).
+    pub gravity: Option<[f64; 3]>,
+    /// Mixed vector channels.
+    pub m_mid: usize,
+    /// Output vector channels.
+    pub m_out: usize,
+    /// Output scalars.
+    pub s_out: usize,
+}
+
+/// Sizes of a [`SubequivariantFn`].
+#[derive(Clone, Copy, Debug)]
+pub struct SubeqSizes {
+    /// Input vector channels.
+    pub m_in: usize,
+    /// Input scalars.
+    pub s_in: usize,
+    /// Mixed vector channels (the Gram is `m_mid x m_mid`).
+    pub m_mid: usize,
+    /// Output vector channels.
+    pub m_out: usize,
+    /// Output scalars.
+    pub s_out: usize,
+    /// Hidden width of the MLP.
+    pub hidden: usize,
+    /// Hidden layers of the MLP.
+    pub layers: usize,
+}
+
+impl SubequivariantFn {
+    /// Parameters `<scope>.mix.weight` and `<scope>.mlp.<i>.{weight,bias}`.
+    pub fn new<T: Float>(s: &mut Scope<'_, T>, sz: SubeqSizes, gravity: Option<[f64; 3]>) -> Result<Self> {
+        if sz.m_in == 0 || sz.m_mid == 0 || sz.layers == 0 {
+            return Err(NnError::Config(format!("subequivariant function with sizes {sz:?}")));
+        }
+        let m_in = sz.m_in + usize::from(gravity.is_some());
+        let mix = VectorLinear::new(&mut s.sub("mix"), m_in, sz.m_mid)?;
+        let mut sizes = vec![sz.m_mid * sz.m_mid + sz.s_in];
+        sizes.extend(std::iter::repeat_n(sz.hidden, sz.layers));
+        sizes.push(sz.m_mid * sz.m_out + sz.s_out);
+        let mlp = Mlp::new(&mut s.sub("mlp"), &sizes, Activation::Relu)?;
+        Ok(Self { mix, mlp, gravity, m_mid: sz.m_mid, m_out: sz.m_out, s_out: sz.s_out })
+    }
+
+    /// `z: [N, 3, m_in]`, `h: [N, s_in]` -> `(z': [N, 3, m_out], h': [N, s_out])`.
+    pub fn forward<'t, T: Float>(
+        &self,
+        p: &Bound<'t, T>,
+        z: Var<'t, T>,
+        h: Var<'t, T>,
+    ) -> Result<(Var<'t, T>, Var<'t, T>)> {
+        let z = match self.gravity {
+            Some(g) => append_gravity(z, g)?,
+            None => z,
+        };
+        let m = self.mix.forward(p, z)?;
+        mix_by_invariants(p, &self.mlp, m, &[h], self.m_out, self.s_out)
+    }
+}
+
+/// The common core of every subequivariant map: from mixed vectors `m: [N, 3, k]` and extra
+/// invariant scalars, `c = MLP([m^T m, scalars..]) / (||m^T m|| + 1)`; returns
+/// `(m c[.., :k*m_out] as [N, 3, m_out], c[.., k*m_out..])`.
+pub fn mix_by_invariants<'t, T: Float>(
+    p: &Bound<'t, T>,
+    mlp: &Mlp,
+    m: Var<'t, T>,
+    scalars: &[Var<'t, T>],
+    m_out: usize,
+    s_out: usize,
+) -> Result<(Var<'t, T>, Var<'t, T>)> {
+    let shape = m.shape();
+    let n = shape[0];
+    let k = shape[2];
+    let g = gram(m)?;
+    let mut parts = vec![g];
+    parts.extend_from_slice(scalars);
+    let input = m.tape().cat(&parts, 1)?;
+    let c = mlp.forward(p, input)?.div(norm_plus_one(g)?)?;
+    let w = c.narrow(1, 0, k * m_out)?.reshape(&[n, k, m_out])?;
+    let z_out = m.matmul(w)?;
+    let h_out = c.narrow(1, k * m_out, s_out)?;
+    Ok((z_out, h_out))
+}

@@ -1,0 +1,119 @@
+//! Linear layers and multi-layer perceptrons.
+
+use tensor::{Activation, Float, Tensor, Var};
+
+use crate::error::{NnError, Result};
+use crate::init::Init;
+use crate::params::{Bound, ParamId, Scope};
+
+/// `y = x W + b` over the last dim, `W: [in, out]`, `b: [out]` (zero-initialised).
+#[derive(Clone, Debug)]
+pub struct Linear {
+    /// The weight `[in, out]`, named `weight`.
+    pub weight: ParamId,
+    /// The bias `[out]`, named `bias`, if any.
+    pub bias: Option<ParamId>,
+    /// Input width.
+    pub fan_in: usize,
+    /// Output width.
+    pub fan_out: usize,
+}
+
+impl Linear {
+    /// A layer with a bias and LeCun-uniform weights.
+    pub fn new<T: Float>(s: &mut Scope<'_, T>, fan_in: usize, fan_out: usize) -> Result<Self> {
+        Self::with_options(s, fan_in, fan_out, true, Init::LecunUniform)
+    }
+
+    /// A layer with an explicit bias choice and initialiser.
+    pub fn with_options<T: Float>(
+        s: &mut Scope<'_, T>,
+        fan_in: usize,
+        fan_out: usize,
+        bias: bool,
+        init: Init,
+    ) -> Result<Self> {
+        if fan_in == 0 || fan_out == 0 {
+            return Err(NnError::Config(format!(
+                "{}: linear layer of size {fan_in} -> {fan_out}",
+                s.full_name("weight")
+            )));
+        }
+        let w = init.matrix::<T>(fan_in, fan_out, s.rng());
+        let weight = s.param("weight", w)?;
+        let bias = if bias { Some(s.param("bias", Tensor::zeros(&[fan_out]))?) } else { None };
+        Ok(Self { weight, bias, fan_in, fan_out })
+    }
+
+    /// `act(x W + b)`, fused; `x: [.., in]`.
+    pub fn forward_act<'t, T: Float>(&self, p: &Bound<'t, T>, x: Var<'t, T>, act: Activation) -> Result<Var<'t, T>> {
+        Ok(x.linear(p.get(self.weight), self.bias.map(|b| p.get(b)), act)?)
+    }
+
+    /// `x W + b`.
+    pub fn forward<'t, T: Float>(&self, p: &Bound<'t, T>, x: Var<'t, T>) -> Result<Var<'t, T>> {
+        self.forward_act(p, x, Activation::Identity)
+    }
+}
+
+/// A multi-layer perceptron: hidden layers with an activation, a linear output layer.
+/// Parameters are named `<scope>.<i>.weight` / `<scope>.<i>.bias`.
+#[derive(Clone, Debug)]
+pub struct Mlp {
+    /// The layers, input first.
+    pub layers: Vec<Linear>,
+    /// The activation after every hidden layer.
+    pub activation: Activation,
+}
+
+impl Mlp {
+    /// `sizes = [in, h1, .., out]` with LeCun-uniform weights.
+    pub fn new<T: Float>(s: &mut Scope<'_, T>, sizes: &[usize], activation: Activation) -> Result<Self> {
+        Self::with_init(s, sizes, activation, Init::LecunUniform, Init::LecunUniform)
+    }
+
+    /// `sizes = [in, h1, .., out]` with separate initialisers for hidden and output layers
+    /// (e.g. orthogonal with gain sqrt(2) for hidden layers, 0.01 for a policy head).
+    pub fn with_init<T: Float>(
+        s: &mut Scope<'_, T>,
+        sizes: &[usize],
+        activation: Activation,
+        hidden_init: Init,
+        out_init: Init,
+    ) -> Result<Self> {
+        if sizes.len() < 2 {
+            return Err(NnError::Config(format!(
+                "{}: an MLP needs at least input and output sizes, got {sizes:?}",
+                s.full_name("")
+            )));
+        }
+        let n = sizes.len() - 1;
+        let layers = (0..n)
+            .map(|i| {
+                let init = if i + 1 == n { out_init } else { hidden_init };
+                Linear::with_options(&mut s.sub(i), sizes[i], sizes[i + 1], true, init)
+            })
+            .collect::<Result<Vec<_>>>()?;
+        Ok(Self { layers, activation })
+    }
+
+    /// Input width.
+    pub fn fan_in(&self) -> usize {
+        self.layers[0].fan_in
+    }
+
+    /// Output width.
+    pub fn fan_out(&self) -> usize {
+        self.layers[self.layers.len() - 1].fan_out
+    }
+
+    /// Applies the layers to `x: [.., in]`.
+    pub fn forward<'t, T: Float>(&self, p: &Bound<'t, T>, x: Var<'t, T>) -> Result<Var<'t, T>> {
+        let mut h = x;
+        for (i, layer) in self.layers.iter().enumerate() {
+            let act = if i + 1 == self.layers.len() { Activation::Identity } else { self.activation };
+            h = layer.forward_act(p, h, act)?;
+        }
+        Ok(h)
+    }
+}

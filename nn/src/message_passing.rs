@@ -1,0 +1,222 @@
+//! Subequivariant message passing over an edge list: paper eqs. (vector-interaction) to
+//! (update-mlp), in the form of the reference release (and of the `shnn_step` benchmark).
+//!
+//! For an edge `i -> j` with relative position `e = x_j - x_i`:
+//! - `Z_ij = [Z_i | Z_j | e (| g)] W1` (eq. vector-interaction, mixed to `m` channels),
+//! - `h_ij = [h_i, h_j, |e| or RBF(|e|)]` (eq. scalar-interaction),
+//! - `(M_ij, m_ij) = φ_g(Z_ij, h_ij)` (eq. message-mlp): `c = MLP_e([Z_ij^T Z_ij, h_ij]) / (||Z_ij^T Z_ij|| + 1)`,
+//!   `M_ij = Z_ij c_vec`, `m_ij = c_scalar`,
+//! - `M_i, m_i` = mean (or sum) over the edges leaving `i` (eq. message-aggregation),
+//! - `(Z_i, h_i) += ψ_g([M_i, Z_i], [m_i, h_i])` (eq. update-mlp) with `Y = [Z_i | M_i (| g)] W2`,
+//!   `c' = MLP_n([Y^T Y, h_i, m_i]) / (||Y^T Y|| + 1)`, `Z_i += Y c'_vec`, `h_i += c'_scalar`.
+
+use tensor::{Activation, Float, Var};
+
+use crate::equivariant::{VectorLinear, append_gravity, mix_by_invariants};
+use crate::error::{NnError, Result};
+use crate::linear::Mlp;
+use crate::params::{Bound, Scope};
+use crate::rbf::RadialBasis;
+
+/// Directed edges `src -> dst`, sorted by `src` (messages are aggregated at `src`).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct EdgeList {
+    /// Source node of each edge (non-decreasing).
+    pub src: Vec<usize>,
+    /// Destination node of each edge.
+    pub dst: Vec<usize>,
+    /// Number of nodes.
+    pub num_nodes: usize,
+}
+
+impl EdgeList {
+    /// Checks the edges: equal lengths, indices in range, sources sorted.
+    pub fn new(src: Vec<usize>, dst: Vec<usize>, num_nodes: usize) -> Result<Self> {
+        if src.len() != dst.len() {
+            return Err(NnError::Config(format!("edge list: {} sources and {} destinations", src.len(), dst.len())));
+        }
+        if let Some(&i) = src.iter().chain(&dst).find(|&&i| i >= num_nodes) {
+            return Err(NnError::Config(format!("edge list: node {i} out of range for {num_nodes} nodes")));
+        }
+        if src.windows(2).any(|w| w[0] > w[1]) {
+            return Err(NnError::Config("edge list: sources must be sorted".into()));
+        }
+        Ok(Self { src, dst, num_nodes })
+    }
+
+    /// Every ordered pair `(i, j)`, `i != j`, within each of `groups` consecutive blocks of
+    /// `size` nodes (a batch of fully connected graphs).
+    pub fn fully_connected(groups: usize, size: usize) -> Self {
+        let (mut src, mut dst) = (Vec::new(), Vec::new());
+        for g in 0..groups {
+            for i in 0..size {
+                for j in 0..size {
+                    if i != j {
+                        src.push(g * size + i);
+                        dst.push(g * size + j);
+                    }
+                }
+            }
+        }
+        Self { src, dst, num_nodes: groups * size }
+    }
+
+    /// Number of edges.
+    pub fn len(&self) -> usize {
+        self.src.len()
+    }
+
+    /// Whether there is no edge.
+    pub fn is_empty(&self) -> bool {
+        self.src.is_empty()
+    }
+}
+
+/// How messages are combined at a node.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Aggregation {
+    /// Mean over incoming messages (the release's choice).
+    Mean,
+    /// Sum (the paper's eq. (message-aggregation)).
+    Sum,
+}
+
+/// Edge scalar derived from the distance `|e|`.
+#[derive(Clone, Debug)]
+pub enum EdgeDistance {
+    /// The distance itself (1 feature).
+    Raw,
+    /// A radial-basis expansion.
+    Rbf(RadialBasis),
+    /// No distance feature.
+    None,
+}
+
+impl EdgeDistance {
+    fn size(&self) -> usize {
+        match self {
+            EdgeDistance::Raw => 1,
+            EdgeDistance::Rbf(r) => r.size(),
+            EdgeDistance::None => 0,
+        }
+    }
+}
+
+/// Sizes and options of a [`SubeqMessagePassing`] layer.
+#[derive(Clone, Debug)]
+pub struct MessagePassingConfig {
+    /// Vector channels `m` of the node features.
+    pub vectors: usize,
+    /// Scalar features `s` of the node features.
+    pub scalars: usize,
+    /// Hidden width of both MLPs.
+    pub hidden: usize,
+    /// Hidden layers of both MLPs.
+    pub layers: usize,
+    /// Edge distance feature.
+    pub distance: EdgeDistance,
+    /// Message aggregation.
+    pub aggregation: Aggregation,
+    /// Gravity channel appended before each mixing (`None`: full O(3) equivariance).
+    pub gravity: Option<[f64; 3]>,
+}
+
+/// One round of subequivariant message passing (see the module documentation).
+#[derive(Clone, Debug)]
+pub struct SubeqMessagePassing {
+    /// `W1`: mixes `[Z_i | Z_j | e (| g)]` to `m` channels.
+    pub w1: VectorLinear,
+    /// `MLP_e` of the message function.
+    pub mlp_e: Mlp,
+    /// `W2`: mixes `[Z_i | M_i (| g)]` to `m` channels.
+    pub w2: VectorLinear,
+    /// `MLP_n` of the update function.
+    pub mlp_n: Mlp,
+    /// The configuration.
+    pub config: MessagePassingConfig,
+}
+
+impl SubeqMessagePassing {
+    /// Parameters `<scope>.{w1,w2}.weight`, `<scope>.{mlp_e,mlp_n}.<i>.{weight,bias}`.
+    pub fn new<T: Float>(s: &mut Scope<'_, T>, config: MessagePassingConfig) -> Result<Self> {
+        let (m, sc, hd) = (config.vectors, config.scalars, config.hidden);
+        if m == 0 || hd == 0 || config.layers == 0 {
+            return Err(NnError::Config(format!(
+                "message passing with {m} vectors, hidden {hd}, {} layers",
+                config.layers
+            )));
+        }
+        let g = usize::from(config.gravity.is_some());
+        let hidden = |input: usize| {
+            let mut v = vec![input];
+            v.extend(std::iter::repeat_n(hd, config.layers));
+            v.push(m * m + sc);
+            v
+        };
+        let w1 = VectorLinear::new(&mut s.sub("w1"), 2 * m + 1 + g, m)?;
+        let mlp_e = Mlp::new(&mut s.sub("mlp_e"), &hidden(m * m + 2 * sc + config.distance.size()), Activation::Relu)?;
+        let w2 = VectorLinear::new(&mut s.sub("w2"), 2 * m + g, m)?;
+        let mlp_n = Mlp::new(&mut s.sub("mlp_n"), &hidden(m * m + 2 * sc), Activation::Relu)?;
+        Ok(Self { w1, mlp_e, w2, mlp_n, config })
+    }
+
+    /// One round: `z: [N, 3, m]`, `h: [N, s]`, positions `x: [N, 3, 1]` -> updated `(z, h)`.
+    pub fn forward<'t, T: Float>(
+        &self,
+        p: &Bound<'t, T>,
+        z: Var<'t, T>,
+        h: Var<'t, T>,
+        x: Var<'t, T>,
+        edges: &EdgeList,
+    ) -> Result<(Var<'t, T>, Var<'t, T>)> {
+        let tape = z.tape();
+        let cfg = &self.config;
+        let (m, s) = (cfg.vectors, cfg.scalars);
+        let n = edges.num_nodes;
+        let e_cnt = edges.len();
+        if z.shape() != [n, 3, m] || h.shape() != [n, s] || x.shape() != [n, 3, 1] {
+            return Err(NnError::Config(format!(
+                "message passing expects z [{n}, 3, {m}], h [{n}, {s}], x [{n}, 3, 1]; got {:?}, {:?}, {:?}",
+                z.shape(),
+                h.shape(),
+                x.shape()
+            )));
+        }
+        // Edge features (eqs. vector-interaction, scalar-interaction).
+        let e = x.index_select(0, &edges.dst)?.sub(x.index_select(0, &edges.src)?)?; // [E, 3, 1]
+        let zi = z.index_select(0, &edges.src)?;
+        let zj = z.index_select(0, &edges.dst)?;
+        let mut zij = tape.cat(&[zi, zj, e], 2)?;
+        if let Some(g) = cfg.gravity {
+            zij = append_gravity(zij, g)?;
+        }
+        let zij = self.w1.forward(p, zij)?; // [E, 3, m]
+        let mut scalars = vec![h.index_select(0, &edges.src)?, h.index_select(0, &edges.dst)?];
+        let dist = || -> Result<Var<'t, T>> { Ok(e.square().sum(1, false)?.add_scalar(1e-12).sqrt()) }; // [E, 1]
+        match &cfg.distance {
+            EdgeDistance::Raw => scalars.push(dist()?),
+            EdgeDistance::Rbf(r) => scalars.push(r.forward(dist()?)?),
+            EdgeDistance::None => {}
+        }
+        // Messages (eq. message-mlp).
+        let (mz, mh) = mix_by_invariants(p, &self.mlp_e, zij, &scalars, m, s)?;
+        // Aggregation at the source node (eq. message-aggregation).
+        let agg = |v: Var<'t, T>, width: usize| -> Result<Var<'t, T>> {
+            let flat = v.reshape(&[e_cnt, width])?;
+            Ok(match cfg.aggregation {
+                Aggregation::Mean => flat.segment_mean(&edges.src, n)?,
+                Aggregation::Sum => flat.segment_sum(&edges.src, n)?,
+            })
+        };
+        let mz = agg(mz, 3 * m)?.reshape(&[n, 3, m])?;
+        let mh = agg(mh, s)?;
+        // Node update (eq. update-mlp).
+        let mut y = tape.cat(&[z, mz], 2)?;
+        if let Some(g) = cfg.gravity {
+            y = append_gravity(y, g)?;
+        }
+        let y = self.w2.forward(p, y)?;
+        let (dz, dh) = mix_by_invariants(p, &self.mlp_n, y, &[h, mh], m, s)?;
+        Ok((z.add(dz)?, h.add(dh)?))
+    }
+}
