@@ -91,6 +91,13 @@ pub struct Data {
     /// Constraint forces in joint space of the last step.
     pub qfrc_constraint: Vec<f64>,
 
+    /// Implicit integrator scratch: `M + h D + h dc/dqvel`, LU-factored in place (`nv x nv`).
+    pub(crate) qk: Vec<f64>,
+    /// Implicit integrator scratch: pivots of the LU factorisation.
+    pub(crate) qk_piv: Vec<usize>,
+    /// Implicit integrator scratch: two nv vectors.
+    pub(crate) qtmp: Vec<f64>,
+
     /// Contacts of the last step.
     pub contacts: Vec<Contact>,
     /// Warm-start forces of the contact slots (one per pyramid facet).
@@ -163,6 +170,9 @@ impl Data {
             qfrc_passive: vec![0.0; nv],
             qacc_smooth: vec![0.0; nv],
             qfrc_constraint: vec![0.0; nv],
+            qk: if m.opt.integrator == crate::model::Integrator::Implicit { vec![0.0; nv * nv] } else { Vec::new() },
+            qk_piv: vec![0; nv],
+            qtmp: vec![0.0; 2 * nv],
             contacts: Vec::with_capacity(16 + 2 * m.plane_pairs.len()),
             warm: vec![[0.0; 4]; m.nslot],
             warm_limit: vec![0.0; m.joints.len()],

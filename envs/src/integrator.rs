@@ -19,7 +19,7 @@
 
 use crate::data::Data;
 use crate::math;
-use crate::model::{JointKind, Model};
+use crate::model::{Integrator, JointKind, Model};
 use crate::{collision, constraints, crba, kinematics, rne};
 
 /// Computes `d.qacc` (and everything it depends on) for the current state, without changing
@@ -52,6 +52,101 @@ pub fn forward(m: &Model, d: &mut Data) {
     crba::ltdl_solve(m, &d.qh, &mut d.qacc_smooth);
     collision::collide(m, d);
     constraints::solve(m, d);
+    if m.opt.integrator == Integrator::Implicit {
+        implicit_qacc(m, d);
+    }
+}
+
+/// MuJoCo's `implicit` integrator: `qacc = (M + h D + h K)^-1 (f + qfrc_constraint)` with
+/// `K = dc/dqvel` (backward Euler linearised in the velocity-dependent forces). The bias `c` is
+/// quadratic in `qvel` plus a constant, so the central difference
+/// `K e_i = (c(v + e_i) - c(v - e_i)) / 2` is exact up to round-off. The constraint forces are
+/// those found with `M + h D`, as MuJoCo does.
+fn implicit_qacc(m: &Model, d: &mut Data) {
+    let nv = m.nv;
+    let h = m.opt.timestep;
+    if d.qk.len() != nv * nv {
+        d.qk.resize(nv * nv, 0.0);
+    }
+    for i in 0..nv {
+        let v0 = d.qvel[i];
+        for (k, s) in [(0, 1.0), (1, -1.0)] {
+            d.qvel[i] = v0 + s;
+            kinematics::com_vel(m, d);
+            rne::bias(m, d);
+            d.qtmp[k * nv..(k + 1) * nv].copy_from_slice(&d.qfrc_bias);
+        }
+        d.qvel[i] = v0;
+        for r in 0..nv {
+            d.qk[r * nv + i] = h * 0.5 * (d.qtmp[r] - d.qtmp[nv + r]);
+        }
+    }
+    kinematics::com_vel(m, d);
+    rne::bias(m, d);
+    for i in 0..nv {
+        let mut j = i;
+        while j != crate::model::NONE {
+            let mij = d.qm[i * nv + j];
+            d.qk[i * nv + j] += mij;
+            if j != i {
+                d.qk[j * nv + i] += mij;
+            }
+            j = m.dof_parent[j];
+        }
+        d.qk[i * nv + i] += h * m.dof_damping[i];
+    }
+    for i in 0..nv {
+        d.qacc[i] = d.qfrc_actuator[i] + d.qfrc_applied[i] + d.qfrc_passive[i] - d.qfrc_bias[i] + d.qfrc_constraint[i];
+    }
+    lu_factor(nv, &mut d.qk, &mut d.qk_piv);
+    lu_solve(nv, &d.qk, &d.qk_piv, &mut d.qacc);
+}
+
+/// In-place LU factorisation with partial pivoting (Golub & Van Loan, Alg. 3.4.1).
+fn lu_factor(n: usize, a: &mut [f64], piv: &mut [usize]) {
+    for k in 0..n {
+        let mut p = k;
+        for i in k + 1..n {
+            if a[i * n + k].abs() > a[p * n + k].abs() {
+                p = i;
+            }
+        }
+        piv[k] = p;
+        if p != k {
+            for j in 0..n {
+                a.swap(k * n + j, p * n + j);
+            }
+        }
+        let pivot = a[k * n + k];
+        if pivot == 0.0 {
+            continue;
+        }
+        for i in k + 1..n {
+            let l = a[i * n + k] / pivot;
+            a[i * n + k] = l;
+            for j in k + 1..n {
+                a[i * n + j] -= l * a[k * n + j];
+            }
+        }
+    }
+}
+
+/// Solves with the factorisation of [`lu_factor`] in place.
+fn lu_solve(n: usize, a: &[f64], piv: &[usize], x: &mut [f64]) {
+    for k in 0..n {
+        x.swap(k, piv[k]);
+    }
+    for i in 0..n {
+        for j in 0..i {
+            x[i] -= a[i * n + j] * x[j];
+        }
+    }
+    for i in (0..n).rev() {
+        for j in i + 1..n {
+            x[i] -= a[i * n + j] * x[j];
+        }
+        x[i] /= a[i * n + i];
+    }
 }
 
 /// Integrates velocities then positions by one time step from `d.qacc` (semi-implicit Euler).

@@ -12,6 +12,7 @@ pub mod collision;
 pub mod constraints;
 pub mod crba;
 pub mod data;
+pub mod diagnostics;
 pub mod integrator;
 pub mod kinematics;
 pub mod math;

@@ -68,9 +68,11 @@ pub struct ActuatorId(pub usize);
 /// Sentinel for "no parent dof / no tree".
 pub const NONE: usize = usize::MAX;
 
-/// Numerical integrator named in a model file. The simulator always integrates with
-/// semi-implicit Euler with implicit joint damping (MuJoCo's `Euler`); other names are
-/// accepted by the MJCF loader and recorded here for information only.
+/// Numerical integrator. `Euler` (the default) is MuJoCo's semi-implicit Euler with implicit
+/// joint damping; `Implicit` additionally treats the Coriolis/centrifugal forces implicitly
+/// (MuJoCo's `implicit`: `(M + h D + h dc/dqvel) qacc = f`), which keeps tumbling bodies from
+/// gaining energy. `Rk4` and `ImplicitFast` are accepted by the MJCF loader and recorded, but
+/// stepped with `Euler`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub enum Integrator {
     /// Semi-implicit Euler (velocity first, then position), implicit damping.
@@ -78,7 +80,7 @@ pub enum Integrator {
     Euler,
     /// MuJoCo's RK4 (recorded; stepped with Euler).
     Rk4,
-    /// MuJoCo's implicit (recorded; stepped with Euler).
+    /// Semi-implicit Euler with implicit damping and implicit Coriolis/centrifugal forces.
     Implicit,
     /// MuJoCo's implicitfast (recorded; stepped with Euler).
     ImplicitFast,
