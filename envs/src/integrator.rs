@@ -133,8 +133,8 @@ fn lu_factor(n: usize, a: &mut [f64], piv: &mut [usize]) {
 
 /// Solves with the factorisation of [`lu_factor`] in place.
 fn lu_solve(n: usize, a: &[f64], piv: &[usize], x: &mut [f64]) {
-    for k in 0..n {
-        x.swap(k, piv[k]);
+    for (k, &p) in piv.iter().enumerate().take(n) {
+        x.swap(k, p);
     }
     for i in 0..n {
         for j in 0..i {
