@@ -470,3 +470,92 @@ fn universal_and_doubled_joints_become_chained_hinges() {
     assert_eq!(names, vec!["limbx_1", "limby_1.1", "limby_1.2"]);
     assert_eq!(u.motors.len(), 13);
 }
+
+// ---------------------------------------------------------------------------------------
+// Dynamics of the converted agents.
+
+use envs::step;
+
+/// The lowest collider point of `m` touches z = 0 at `qpos`: returns the lifted qpos.
+fn lifted(m: &Model, mut qpos: Vec<f64>) -> Vec<f64> {
+    let mut d = Data::new(m);
+    qpos[2] = 0.0;
+    d.reset_to(m, &qpos).unwrap();
+    kinematics(m, &mut d);
+    qpos[2] = -lowest_geom_point(m, &d);
+    qpos
+}
+
+/// Steps `d` for `seconds` with zero controls; returns the torso height and vertical speed.
+fn settle(m: &Model, d: &mut Data, seconds: f64) -> (f64, f64) {
+    let n = (seconds / m.opt.timestep).round() as usize;
+    for _ in 0..n {
+        step(m, d);
+    }
+    assert!(d.is_finite());
+    (d.qpos[2], d.qvel[2])
+}
+
+#[test]
+fn ant_from_config_and_from_mjcf_stand_alike_at_rest() {
+    // MuJoCo's ant (ant.xml) through the simulator's MJCF loader, put in the same rest pose
+    // as the Brax ant: every hinge at the middle of its range (hips 0, ankles +-50 deg),
+    // upright, lowest point on the ground.
+    let mj = envs::mjcf::load_str(include_str!("../morphologies/mujoco_ant.xml"), "mujoco_ant.xml").unwrap();
+    assert_eq!(mj.opt.timestep, 0.01);
+    let mut q = mj.qpos0.clone();
+    q[3..7].copy_from_slice(&[1.0, 0.0, 0.0, 0.0]);
+    for j in mj.joints.iter().filter(|j| j.limited) {
+        q[j.qpos_adr] = 0.5 * (j.range[0] + j.range[1]);
+    }
+    let q = lifted(&mj, q);
+    let mut dm = Data::new(&mj);
+    dm.reset_to(&mj, &q).unwrap();
+
+    let (bm, tree) = agent_model(&load_morphology("ant").unwrap(), &BraxPhysics::default()).unwrap();
+    let mut db = Data::new(&bm);
+    // Same leg geometry below the ankle (0.4 sqrt 2 m shin, radius 0.08) and same ankle
+    // angle: the two start at the same height.
+    assert!(close(q[2], tree.rest_height(), 1e-6), "{} vs {}", q[2], tree.rest_height());
+
+    // Two seconds (40 control steps) without action.
+    let (hm, vm) = settle(&mj, &mut dm, 2.0);
+    let (hb, vb) = settle(&bm, &mut db, 2.0);
+    // Both stand (torso well above the 0.25 m of a torso lying on the ground) and are at
+    // rest (vertical speed below 1 cm/s, no jitter).
+    assert!(hm > 0.4 && hb > 0.4, "mjcf {hm}, brax {hb}");
+    assert!(vm.abs() < 0.01 && vb.abs() < 0.01, "mjcf {vm}, brax {vb}");
+    // Within 10%: the legs below the ankle and the ankle angle are the same, but the masses
+    // differ 20-fold (density 5 in ant.xml: 0.91 kg; MeBen: 18 kg), as do armature, damping
+    // and the hip positions (0.28 m vs 0.30 m from the centre); the contact and friction
+    // softness then let the two sag by slightly different amounts.
+    assert!((hb - hm).abs() < 0.1 * hm, "mjcf {hm}, brax {hb}");
+}
+
+#[test]
+fn every_morphology_survives_bang_bang_actions_at_the_default_time_step() {
+    // The constants of BraxPhysics must keep every agent finite and on the ground under
+    // the extreme actions RL produces: 400 control steps of +-1 (5 physics steps each).
+    for (name, _) in ACTUATED_DOF {
+        let (m, _) = agent_model(&load_morphology(name).unwrap(), &BraxPhysics::default()).unwrap();
+        let mut d = Data::new(&m);
+        let mut state = 0x2545_F491_4F6C_DD1Du64;
+        let mut highest: f64 = 0.0;
+        for _ in 0..400 {
+            for c in d.ctrl.iter_mut() {
+                *c = if (next(&mut state) >> 11) & 1 == 0 { 1.0 } else { -1.0 };
+            }
+            for _ in 0..5 {
+                step(&m, &mut d);
+            }
+            assert!(d.is_finite(), "{name}: non-finite state at t = {}", d.time);
+            highest = highest.max(d.qpos[2]);
+        }
+        assert!(highest < 5.0, "{name}: torso reached {highest} m");
+        // Joint limits hold (soft constraints: within 0.2 rad).
+        for j in m.joints.iter().filter(|j| j.limited) {
+            let q = d.qpos[j.qpos_adr];
+            assert!(q > j.range[0] - 0.2 && q < j.range[1] + 0.2, "{name}: {} at {q}", j.name);
+        }
+    }
+}

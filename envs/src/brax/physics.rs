@@ -12,7 +12,7 @@ pub struct BraxPhysics {
     /// Armature of an actuated DoF per unit of actuator strength, in s^2 (kg m^2 per N m).
     ///
     /// Default 1/1000: the ant's joints (strength 350) get 0.35 kg m^2, the unimals'
-    /// (150-200) 0.15-0.2. Reason: whatever the link inertia, a full-strength torque cannot
+    /// (150-300) 0.15-0.3. Reason: whatever the link inertia, a full-strength torque cannot
     /// change a joint velocity by more than `strength * dt / armature` = 10 rad/s in one 0.01 s
     /// step (0.1 rad of travel), which is Brax's own terminal joint speed
     /// (`strength / angular_damping` = 350 / 35 for the ant). Together with the damping below
@@ -25,7 +25,9 @@ pub struct BraxPhysics {
     /// Joint damping = `damping_scale * angular_damping` of the config (N m s / rad).
     ///
     /// Default 1: Brax's relative angular damping is exactly a viscous joint damping in
-    /// reduced coordinates (35 for the ant, 15-30 for the unimals). The simulator treats
+    /// reduced coordinates (35 for the ant, 15-30 for the unimals). MeBen's files pair it with
+    /// `strength` so that the terminal joint speed `strength / angular_damping` is 10 rad/s
+    /// (claw 14, centipede torso 8.6); keeping it keeps that design. The simulator treats
     /// damping implicitly, so any value is stable.
     pub damping_scale: f64,
     /// Actuator gear = `gear_scale * strength` (N m at action 1). Default 1: `strength` is
