@@ -1,26 +1,32 @@
 //! Joint limits and contacts as soft constraints, MuJoCo style (MuJoCo documentation,
 //! "Computation": soft constraints, solref/solimp), solved by projected Gauss-Seidel.
 //!
-//! Every constraint row `k` has a Jacobian `J_k`, a signed distance `r_k` (negative when
-//! violated) and a one-sided force `f_k >= 0`:
-//! - a joint limit: `J = +-e_dof`, `r` = distance into the allowed range;
-//! - a contact with friction coefficient `mu`: the friction cone is the pyramid spanned by the
-//!   four facet directions `n +- mu t1` and `n +- mu t2` (MuJoCo's default pyramidal cone);
-//!   each facet is one row with the contact's distance.
+//! Every constraint has Jacobian rows `J_k` and forces `f_k`:
+//! - a joint limit: one row `J = +-e_dof`, signed distance `r` into the allowed range (negative
+//!   when violated), force `f >= 0`;
+//! - a contact with friction coefficient `mu`: three rows, the normal `n` (distance `r`,
+//!   `f_n >= 0`) and two tangents `t1`, `t2` whose forces lie in the friction disc
+//!   `|f_t| <= mu f_n` (an elliptic cone, as MuJoCo's `cone="elliptic"`). Unlike a pyramid,
+//!   this keeps sliding from coupling into the normal direction (the pyramid's facet rows would
+//!   push a sliding body off the ground in proportion to its speed).
 //!
 //! With `H = M + h D` (the implicit-damping matrix of the integrator), the unconstrained
 //! acceleration `a0 = J qacc_smooth` and `A = J H^-1 J^T`, the forces solve the regularised
-//! complementarity problem `(A + R) f + a0 - aref  >= 0`, `f >= 0`, complementary, where
-//! - `aref = -b (J v) - k imp(r) r` is the reference acceleration of a critically damped
-//!   spring-damper with time constant `tau = max(solref[0], 2 h)` and damping ratio
-//!   `zeta = solref[1]`: `b = 2 / (dmax tau)`, `k = 1 / (dmax^2 tau^2 zeta^2)`;
+//! problem `(A + R) f + a0 - aref` complementary to the cone, where
+//! - `aref = -b (J v) - k imp(r) r` (normal and limit rows) or `-b (J v)` (friction rows) is
+//!   the reference acceleration of a critically damped spring-damper with time constant
+//!   `tau = max(solref[0], 2 h)` and damping ratio `zeta = solref[1]`:
+//!   `b = 2 / (dmax tau)`, `k = 1 / (dmax^2 tau^2 zeta^2)`;
 //! - `imp(r)` is MuJoCo's impedance, rising from `dmin` to `dmax` as `|r|` grows to `width`;
-//! - `R_k = (1 - imp) / imp * A_kk` makes the constraint soft: at rest a contact carrying force
-//!   `f` sits at depth `r = -R f / (k imp)`, which is what the sphere settling test predicts.
+//! - `R_k = (1 - imp) / imp * w_k` makes the constraint soft, with `w_k = A_kk` for contacts
+//!   and MuJoCo's constant `dof_invweight0` for limits: at rest a row carrying force `f` sits
+//!   at depth `r = -R f / (k imp)`, which is what the settling tests predict.
 //!
-//! Projected Gauss-Seidel: `f_k <- max(0, f_k - ((A + R) f + a0 - aref)_k / (A_kk + R_k))`,
-//! `Options::iterations` sweeps, warm-started from the previous step's forces of the same
-//! contact slot (a slot is a fixed geom pair and end point), which makes a few sweeps enough.
+//! Projected (block) Gauss-Seidel, `Options::iterations` sweeps: a limit or normal row
+//! `f <- max(0, f - res / (A_kk + R_k))`; the two friction rows of a contact together,
+//! `f_t <- f_t - (A_tt + R_t)^-1 res_t`, then scaled back into the disc of radius `mu f_n`.
+//! Warm-started from the previous step's forces of the same contact slot (a slot is a fixed
+//! geom pair and end point), which makes a few sweeps enough.
 //! Finally `qacc = qacc_smooth + H^-1 J^T f`.
 
 #![allow(clippy::needless_range_loop)] // index loops mirror the formulas (RBDA notation)
@@ -33,6 +39,12 @@ use crate::model::{JointKind, Model, NONE};
 
 /// Row destination marker for joint limits (`LIMIT_BASE + joint`).
 const LIMIT_BASE: usize = 1 << 48;
+
+/// Distance of the contact whose normal row is `kn`.
+#[inline]
+fn efc_dist(contacts: &[crate::data::Contact], nlim: usize, kn: usize) -> f64 {
+    contacts[(kn - nlim) / 3].dist
+}
 
 #[inline]
 fn dof_of_limit(dst: &[usize], k: usize, m: &Model) -> usize {
@@ -113,7 +125,7 @@ pub fn solve(m: &Model, d: &mut Data) {
             }
         }
     }
-    let n = nlim + 4 * d.contacts.len();
+    let n = nlim + 3 * d.contacts.len();
     d.qacc.copy_from_slice(&d.qacc_smooth);
     d.qfrc_constraint.iter_mut().for_each(|x| *x = 0.0);
     d.efc.n = n;
@@ -134,7 +146,6 @@ pub fn solve(m: &Model, d: &mut Data) {
     resize(&mut efc.r, n);
     resize(&mut efc.a0, n);
     resize(&mut efc.f, n);
-    resize(&mut efc.jc, 3 * nv);
     efc.dst.clear();
     efc.dst.resize(n, 0);
     // Distances go to `r` for now; turned into regularisers below.
@@ -162,22 +173,17 @@ pub fn solve(m: &Model, d: &mut Data) {
     for c in &d.contacts {
         let (t1, t2) = tangents(c.normal);
         let e = [c.normal, t1, t2];
-        efc.jc.iter_mut().for_each(|x| *x = 0.0);
         let b1 = m.geoms[c.geom1].body;
         let b2 = m.geoms[c.geom2].body;
-        add_point_jacobian(m, &d.tree_ref, &d.cdof, b2, c.pos, &e, 1.0, &mut efc.jc);
-        add_point_jacobian(m, &d.tree_ref, &d.cdof, b1, c.pos, &e, -1.0, &mut efc.jc);
-        let mu = c.friction;
-        for (k, (t, sgn)) in [(1, 1.0), (1, -1.0), (2, 1.0), (2, -1.0)].into_iter().enumerate() {
-            let base = (row + k) * nv;
-            for i in 0..nv {
-                efc.j[base + i] = efc.jc[i] + sgn * mu * efc.jc[t * nv + i];
-            }
-            efc.r[row + k] = c.dist;
+        let rows = &mut efc.j[row * nv..(row + 3) * nv];
+        add_point_jacobian(m, &d.tree_ref, &d.cdof, b2, c.pos, &e, 1.0, rows);
+        add_point_jacobian(m, &d.tree_ref, &d.cdof, b1, c.pos, &e, -1.0, rows);
+        for k in 0..3 {
+            efc.r[row + k] = if k == 0 { c.dist } else { 0.0 };
             efc.f[row + k] = d.warm[c.slot][k];
             efc.dst[row + k] = 4 * c.slot + k;
         }
-        row += 4;
+        row += 3;
     }
     debug_assert_eq!(row, n);
 
@@ -210,33 +216,80 @@ pub fn solve(m: &Model, d: &mut Data) {
             vel += jk[i] * d.qvel[i];
             a0 += jk[i] * d.qacc_smooth[i];
         }
-        let dist = efc.r[k];
-        let imp = impedance(&m.opt.solimp, dist);
         efc.a0[k] = a0;
-        efc.aref[k] = -bb * vel - kk * imp * dist;
-        // Limits: MuJoCo's constant dof_invweight0; contacts: the exact diagonal of A.
-        let diag = if k < nlim { m.dof_invweight0[dof_of_limit(&efc.dst, k, m)] } else { efc.a[k * n + k] };
-        efc.r[k] = (1.0 - imp) / imp * diag;
-        if !(efc.f[k] >= 0.0) {
-            efc.f[k] = 0.0;
+        if k < nlim || (k - nlim) % 3 == 0 {
+            // Limit or normal row: spring-damper on the distance.
+            let dist = efc.r[k];
+            let imp = impedance(&m.opt.solimp, dist);
+            efc.aref[k] = -bb * vel - kk * imp * dist;
+            // Limits: MuJoCo's constant dof_invweight0; contacts: the exact diagonal of A.
+            let w = if k < nlim { m.dof_invweight0[dof_of_limit(&efc.dst, k, m)] } else { efc.a[k * n + k] };
+            efc.r[k] = (1.0 - imp) / imp * w;
+            if !(efc.f[k] >= 0.0) {
+                efc.f[k] = 0.0;
+            }
+        } else {
+            // Friction row: damper only, with the impedance of its contact's normal row.
+            let kn = k - (k - nlim) % 3;
+            let imp = impedance(&m.opt.solimp, efc_dist(&d.contacts, nlim, kn));
+            efc.aref[k] = -bb * vel;
+            efc.r[k] = (1.0 - imp) / imp * efc.a[k * n + k];
+            if !efc.f[k].is_finite() {
+                efc.f[k] = 0.0;
+            }
         }
     }
 
-    // Projected Gauss-Seidel.
+    // Projected (block) Gauss-Seidel.
+    let residual = |efc: &crate::data::Efc, k: usize| -> f64 {
+        let ak = &efc.a[k * n..(k + 1) * n];
+        let mut g = efc.a0[k] - efc.aref[k] + efc.r[k] * efc.f[k];
+        for l in 0..n {
+            g += ak[l] * efc.f[l];
+        }
+        g
+    };
     for _ in 0..m.opt.iterations {
-        for k in 0..n {
-            let ak = &efc.a[k * n..(k + 1) * n];
-            let mut g = efc.a0[k] - efc.aref[k] + efc.r[k] * efc.f[k];
-            for l in 0..n {
-                g += ak[l] * efc.f[l];
-            }
-            let diag = ak[k] + efc.r[k];
+        for k in 0..nlim {
+            let diag = efc.a[k * n + k] + efc.r[k];
             if diag > 0.0 {
+                let g = residual(efc, k);
                 efc.f[k] = (efc.f[k] - g / diag).max(0.0);
             }
         }
+        for (ci, c) in d.contacts.iter().enumerate() {
+            let k = nlim + 3 * ci;
+            let diag = efc.a[k * n + k] + efc.r[k];
+            if diag > 0.0 {
+                let g = residual(efc, k);
+                efc.f[k] = (efc.f[k] - g / diag).max(0.0);
+            }
+            let fmax = c.friction * efc.f[k];
+            if fmax <= 0.0 {
+                efc.f[k + 1] = 0.0;
+                efc.f[k + 2] = 0.0;
+                continue;
+            }
+            // 2x2 block solve for the tangential forces, then projection onto the disc.
+            let (g1, g2) = (residual(efc, k + 1), residual(efc, k + 2));
+            let a11 = efc.a[(k + 1) * n + k + 1] + efc.r[k + 1];
+            let a22 = efc.a[(k + 2) * n + k + 2] + efc.r[k + 2];
+            let a12 = efc.a[(k + 1) * n + k + 2];
+            let det = a11 * a22 - a12 * a12;
+            if !(det > 0.0) {
+                continue;
+            }
+            let mut f1 = efc.f[k + 1] - (a22 * g1 - a12 * g2) / det;
+            let mut f2 = efc.f[k + 2] - (a11 * g2 - a12 * g1) / det;
+            let ft = (f1 * f1 + f2 * f2).sqrt();
+            if ft > fmax {
+                f1 *= fmax / ft;
+                f2 *= fmax / ft;
+            }
+            efc.f[k + 1] = f1;
+            efc.f[k + 2] = f2;
+        }
     }
-
     // Apply, and remember forces for the next step's warm start.
     d.warm.iter_mut().for_each(|w| *w = [0.0; 4]);
     d.warm_limit.iter_mut().for_each(|w| *w = 0.0);

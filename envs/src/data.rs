@@ -100,7 +100,7 @@ pub struct Data {
 
     /// Contacts of the last step.
     pub contacts: Vec<Contact>,
-    /// Warm-start forces of the contact slots (one per pyramid facet).
+    /// Warm-start forces of the contact slots (normal, two tangents, unused).
     pub(crate) warm: Vec<[f64; 4]>,
     /// Warm-start forces of the joint limits, per joint.
     pub(crate) warm_limit: Vec<f64>,
@@ -129,8 +129,6 @@ pub(crate) struct Efc {
     pub f: Vec<f64>,
     /// Where to store the force afterwards: slot * 4 + facet, or `LIMIT_BASE + joint`.
     pub dst: Vec<usize>,
-    /// Contact Jacobian scratch: normal and two tangent rows, `3 x nv`.
-    pub jc: Vec<f64>,
 }
 
 impl Data {
