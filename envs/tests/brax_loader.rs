@@ -159,7 +159,9 @@ fn malformed_syntax_names_file_line_and_expectation() {
 #[test]
 fn unknown_body_in_a_joint_is_reported_with_known_bodies() {
     let text = TWO_BODIES.replace("child: \"b\"", "child: \"c\"");
-    let m = config_error(&text, 4);
+    // Reported at the `child` field itself: line 7, column 3.
+    let m = config_error(&text, 7);
+    assert!(m.starts_with("cfg.txt:7:3: "), "{m}");
     assert!(m.contains("joints[\"j\"].child"), "{m}");
     assert!(m.contains("\"c\""), "{m}");
     assert!(m.contains("unknown body name; known bodies: \"a\", \"b\""), "{m}");
@@ -251,7 +253,7 @@ fn structure_errors_unknown_joint_duplicates_and_disconnected_bodies() {
     let m = config_error(&loose, 2);
     assert!(m.contains("several bodies have no parent joint: \"a\", \"c\""), "{m}");
     let self_joint = TWO_BODIES.replace("child: \"b\"", "child: \"a\"");
-    assert!(config_error(&self_joint, 4).contains("to itself"));
+    assert!(config_error(&self_joint, 7).contains("to itself"));
 }
 
 /// A tiny deterministic generator (xorshift) for the fuzz test.
@@ -558,4 +560,14 @@ fn every_morphology_survives_bang_bang_actions_at_the_default_time_step() {
             assert!(q > j.range[0] - 0.2 && q < j.range[1] + 0.2, "{name}: {} at {q}", j.name);
         }
     }
+}
+
+#[test]
+fn a_model_the_simulator_rejects_is_a_brax_error() {
+    let physics = BraxPhysics { friction: -1.0, ..BraxPhysics::default() };
+    let err = agent_model(&load_morphology("ant").unwrap(), &physics).unwrap_err();
+    assert!(matches!(err, BraxError::Model { .. }), "{err:?}");
+    let text = err.to_string();
+    assert!(text.starts_with("ant: the simulator rejected the model"), "{text}");
+    assert!(text.contains("friction"), "{text}");
 }

@@ -11,7 +11,7 @@
 //! |---|---|---|---|---|
 //! | top level | `bodies`, `joints`, `actuators` | | scene and solver settings ([`IGNORED_TOP_LEVEL`]) | `forces`, `frozen` |
 //! | body | `name`, `mass`, `colliders` | `inertia` (always 1,1,1: an artefact of Brax's spring solver) | | `frozen` |
-//! | collider | `position`, `rotation`, `sphere`, `capsule` (`end` kept, unused) | | `material` | other shapes, `no_contact` |
+//! | collider | `position`, `rotation`, `sphere`, `capsule` (`radius`, `length`, `end`) | | `material` | other shapes, `no_contact` |
 //! | joint | `name`, `parent`, `child`, offsets, `rotation`, `reference_rotation`, `angle_limit`, `angular_damping` | `stiffness` | `spring_damping`, `limit_strength` | |
 //! | actuator | `name`, `joint`, `strength`, `torque {}` | | | `angle {}` (position servos) |
 //!
@@ -42,6 +42,22 @@ pub const IGNORED_TOP_LEVEL: &[&str] = &[
     "solver_scale_collide",
 ];
 
+/// A position in the config text (1-based line and column), kept for error messages.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub struct TextPos {
+    /// 1-based line.
+    pub line: usize,
+    /// 1-based column.
+    pub column: usize,
+}
+
+impl TextPos {
+    /// The position of a field's name.
+    pub fn of(field: &Field) -> TextPos {
+        TextPos { line: field.line, column: field.column }
+    }
+}
+
 /// A whole agent: bodies, the joints between them and the motors on the joints.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SystemConfig {
@@ -67,8 +83,8 @@ pub struct BodyConfig {
     /// Brax's `inertia` field when present; kept for completeness but never used (it is
     /// always (1, 1, 1) in these files, an artefact of Brax's spring solver).
     pub inertia: Option<Vec3>,
-    /// Line of the `bodies` field.
-    pub line: usize,
+    /// Where the `bodies` field starts.
+    pub at: TextPos,
 }
 
 /// A collision shape attached to a body.
@@ -80,8 +96,8 @@ pub struct ColliderConfig {
     pub rotation: Vec3,
     /// The shape.
     pub shape: ColliderShape,
-    /// Line of the `colliders` field.
-    pub line: usize,
+    /// Where the `colliders` field starts.
+    pub at: TextPos,
 }
 
 /// The shape of a collider.
@@ -99,7 +115,7 @@ pub enum ColliderShape {
         /// Total length including both caps (m); at least 2 * radius.
         length: f64,
         /// Brax's `end`: 0 both caps collide with the ground, 1 only the +z cap, -1 only the
-        /// -z cap. Kept but not used: the simulator collides the whole capsule.
+        /// -z cap. Passed to the simulator when `BraxPhysics::capsule_ends` is set.
         end: i32,
     },
 }
@@ -128,8 +144,12 @@ pub struct JointConfig {
     pub angular_damping: f64,
     /// Brax's joint spring stiffness; kept but meaningless in reduced coordinates.
     pub stiffness: f64,
-    /// Line of the `joints` field.
-    pub line: usize,
+    /// Where the `joints` field starts.
+    pub at: TextPos,
+    /// Where its `parent` field is.
+    pub parent_at: TextPos,
+    /// Where its `child` field is.
+    pub child_at: TextPos,
 }
 
 /// The range of one joint DoF, in degrees (a missing bound is 0).
@@ -150,8 +170,10 @@ pub struct ActuatorConfig {
     pub joint: String,
     /// Torque at action 1 (N m), the same for each DoF of the joint.
     pub strength: f64,
-    /// Line of the `actuators` field.
-    pub line: usize,
+    /// Where the `actuators` field starts.
+    pub at: TextPos,
+    /// Where its `joint` field is.
+    pub joint_at: TextPos,
 }
 
 impl SystemConfig {
@@ -205,22 +227,23 @@ impl SystemConfig {
 
     /// Checks that the bodies and joints form one tree and that actuators name joints.
     fn check_structure(&self) -> Result<(), BraxError> {
-        let err = |line: usize, field: String, value: Option<String>, message: String| BraxError::Config {
-            location: Location { source: self.source.clone(), line, column: 1 },
+        let err = |at: TextPos, field: String, value: Option<String>, message: String| BraxError::Config {
+            location: Location { source: self.source.clone(), line: at.line, column: at.column },
             field,
             value,
             message,
         };
         if self.bodies.is_empty() {
-            return Err(err(1, "bodies".into(), None, "the config has no bodies".into()));
+            let start = TextPos { line: 1, column: 1 };
+            return Err(err(start, "bodies".into(), None, "the config has no bodies".into()));
         }
         for (i, b) in self.bodies.iter().enumerate() {
             if let Some(first) = self.bodies[..i].iter().find(|o| o.name == b.name) {
                 return Err(err(
-                    b.line,
+                    b.at,
                     "bodies.name".into(),
                     Some(format!("{:?}", b.name)),
-                    format!("duplicate body name (first defined at line {})", first.line),
+                    format!("duplicate body name (first defined at line {})", first.at.line),
                 ));
             }
         }
@@ -229,27 +252,27 @@ impl SystemConfig {
         for (ji, j) in self.joints.iter().enumerate() {
             if let Some(first) = self.joints[..ji].iter().find(|o| o.name == j.name) {
                 return Err(err(
-                    j.line,
+                    j.at,
                     format!("joints[{:?}].name", j.name),
                     Some(format!("{:?}", j.name)),
-                    format!("duplicate joint name (first defined at line {})", first.line),
+                    format!("duplicate joint name (first defined at line {})", first.at.line),
                 ));
             }
-            let index = |field: &str, name: &str| {
+            let index = |field: &str, name: &str, at: TextPos| {
                 self.body_index(name).ok_or_else(|| {
                     err(
-                        j.line,
+                        at,
                         format!("joints[{:?}].{field}", j.name),
                         Some(format!("{name:?}")),
                         format!("unknown body name; known bodies: {}", known_bodies()),
                     )
                 })
             };
-            let p = index("parent", &j.parent)?;
-            let c = index("child", &j.child)?;
+            let p = index("parent", &j.parent, j.parent_at)?;
+            let c = index("child", &j.child, j.child_at)?;
             if p == c {
                 return Err(err(
-                    j.line,
+                    j.child_at,
                     format!("joints[{:?}].child", j.name),
                     Some(format!("{:?}", j.child)),
                     "a joint cannot connect a body to itself".into(),
@@ -260,7 +283,7 @@ impl SystemConfig {
                 let reason = if o.parent != j.parent {
                     Some(format!(
                         "body has two parents: it is already the child of joint {:?} (line {}) whose parent is {:?}",
-                        o.name, o.line, o.parent
+                        o.name, o.at.line, o.parent
                     ))
                 } else if !same(o.parent_offset, j.parent_offset)
                     || !same(o.child_offset, j.child_offset)
@@ -268,14 +291,14 @@ impl SystemConfig {
                 {
                     Some(format!(
                         "body is already the child of joint {:?} (line {}) from the same parent: several joints on one child must share parent_offset, child_offset and reference_rotation",
-                        o.name, o.line
+                        o.name, o.at.line
                     ))
                 } else {
                     None
                 };
                 if let Some(message) = reason {
                     return Err(err(
-                        j.line,
+                        j.child_at,
                         format!("joints[{:?}].child", j.name),
                         Some(format!("{:?}", j.child)),
                         message,
@@ -287,17 +310,20 @@ impl SystemConfig {
         let roots: Vec<usize> = (0..self.bodies.len()).filter(|&b| parent_joint[b].is_empty()).collect();
         if roots.len() != 1 {
             let names: Vec<String> = roots.iter().map(|&b| format!("{:?}", self.bodies[b].name)).collect();
-            let (line, message) = match roots.first() {
+            let (at, message) = match roots.first() {
                 Some(&b) => (
-                    self.bodies[b].line,
+                    self.bodies[b].at,
                     format!(
                         "a config must describe one connected agent, but several bodies have no parent joint: {}",
                         names.join(", ")
                     ),
                 ),
-                None => (1, "every body has a parent joint: the joints form a cycle".into()),
+                None => (
+                    self.joints.first().map_or(TextPos { line: 1, column: 1 }, |j| j.at),
+                    "every body has a parent joint: the joints form a cycle".into(),
+                ),
             };
-            return Err(err(line, "joints".into(), None, message));
+            return Err(err(at, "joints".into(), None, message));
         }
         // Every body must reach the root by following parents (no cycle).
         for start in 0..self.bodies.len() {
@@ -308,7 +334,7 @@ impl SystemConfig {
                 steps += 1;
                 if steps > self.bodies.len() {
                     return Err(err(
-                        self.joints[j].line,
+                        self.joints[j].parent_at,
                         format!("joints[{:?}].parent", self.joints[j].name),
                         Some(format!("{:?}", self.joints[j].parent)),
                         format!("the joints form a cycle: body {:?} is its own ancestor", self.bodies[start].name),
@@ -320,7 +346,7 @@ impl SystemConfig {
             if self.joint_index(&a.joint).is_none() {
                 let known: Vec<String> = self.joints.iter().map(|j| format!("{:?}", j.name)).collect();
                 return Err(err(
-                    a.line,
+                    a.joint_at,
                     format!("actuators[{:?}].joint", a.name),
                     Some(format!("{:?}", a.joint)),
                     format!("unknown joint name; known joints: {}", known.join(", ")),
@@ -328,10 +354,10 @@ impl SystemConfig {
             }
             if let Some(first) = self.actuators[..ai].iter().find(|o| o.joint == a.joint) {
                 return Err(err(
-                    a.line,
+                    a.joint_at,
                     format!("actuators[{:?}].joint", a.name),
                     Some(format!("{:?}", a.joint)),
-                    format!("joint already driven by actuator {:?} (line {})", first.name, first.line),
+                    format!("joint already driven by actuator {:?} (line {})", first.name, first.at.line),
                 ));
             }
         }
@@ -359,7 +385,7 @@ fn read_body(r: &Reader<'_>, field: &Field) -> Result<BodyConfig, BraxError> {
         colliders.push(read_collider(&r.child(f, "colliders", i)?, f)?);
     }
     let inertia = r.optional("inertia")?.map(|f| r.vec3(f)).transpose()?;
-    Ok(BodyConfig { name, mass, colliders, inertia, line: field.line })
+    Ok(BodyConfig { name, mass, colliders, inertia, at: TextPos::of(field) })
 }
 
 /// Reads a `colliders` message.
@@ -411,7 +437,7 @@ fn read_collider(r: &Reader<'_>, field: &Field) -> Result<ColliderConfig, BraxEr
             return Err(r.missing("sphere` or `capsule"));
         }
     };
-    Ok(ColliderConfig { position, rotation, shape, line: field.line })
+    Ok(ColliderConfig { position, rotation, shape, at: TextPos::of(field) })
 }
 
 /// Reads a `joints` message.
@@ -434,8 +460,10 @@ fn read_joint(r: &Reader<'_>, field: &Field) -> Result<JointConfig, BraxError> {
     )?;
     let name = r.string(r.required("name")?)?;
     let r = r.renamed(&name);
-    let parent = r.string(r.required("parent")?)?;
-    let child = r.string(r.required("child")?)?;
+    let parent_field = r.required("parent")?;
+    let child_field = r.required("child")?;
+    let parent = r.string(parent_field)?;
+    let child = r.string(child_field)?;
     let mut angle_limits = Vec::new();
     for (i, f) in r.msg.fields_named("angle_limit").enumerate() {
         let l = r.child(f, "angle_limit", i)?;
@@ -473,14 +501,18 @@ fn read_joint(r: &Reader<'_>, field: &Field) -> Result<JointConfig, BraxError> {
         angle_limits,
         angular_damping,
         stiffness,
-        line: field.line,
+        at: TextPos::of(field),
+        parent_at: TextPos::of(parent_field),
+        child_at: TextPos::of(child_field),
     })
 }
 
 /// Reads an `actuators` message.
 fn read_actuator(r: &Reader<'_>, field: &Field) -> Result<ActuatorConfig, BraxError> {
     r.check_names(&["name", "joint", "strength", "torque"], &[], &["angle"])?;
-    let joint = r.string(r.required("joint")?)?;
+    let joint_field = r.required("joint")?;
+    let joint_at = TextPos::of(joint_field);
+    let joint = r.string(joint_field)?;
     let name = match r.optional("name")? {
         Some(f) => r.string(f)?,
         None => joint.clone(),
@@ -490,7 +522,7 @@ fn read_actuator(r: &Reader<'_>, field: &Field) -> Result<ActuatorConfig, BraxEr
         r.message(t)?;
     }
     let strength = r.non_negative(r.required("strength")?)?;
-    Ok(ActuatorConfig { name, joint, strength, line: field.line })
+    Ok(ActuatorConfig { name, joint, strength, at: TextPos::of(field), joint_at })
 }
 
 /// A message being read, with its source and dotted path for error messages.
