@@ -3,27 +3,35 @@
 //! - Parameters live in a [`ParamStore`] under stable dotted names; layers are created in a
 //!   [`Scope`] and hold [`ParamId`]s; a forward pass reads them from a [`Bound`]
 //!   (the store placed on a tape).
-//! - Layers: [`Linear`], [`Mlp`], [`RadialBasis`], and the subequivariant blocks of the
-//!   paper ([`VectorLinear`], [`gram`], [`SubequivariantFn`], [`SubeqMessagePassing`]).
+//! - Layers: [`Linear`], [`Mlp`], [`LayerNorm`], [`MultiHeadAttention`],
+//!   [`TransformerEncoderLayer`] / [`TransformerEncoder`] ([`TransformerConfig`]),
+//!   [`RadialBasis`], and the subequivariant blocks of the paper
+//!   ([`VectorLinear`], [`gram`], [`SubequivariantFn`], [`SubeqMessagePassing`]).
 //! - Optimisation: [`Adam`], [`clip_elementwise`], [`clip_global_norm`], [`LrSchedule`].
 //! - Saved state: [`StateDict`] (JSON through serde, written atomically, checked on load).
 
+pub mod attention;
 pub mod equivariant;
 pub mod error;
 pub mod init;
 pub mod linear;
 pub mod message_passing;
+pub mod norm;
 pub mod optim;
 pub mod params;
 pub mod rbf;
 pub mod state;
+pub mod transformer;
 
+pub use attention::MultiHeadAttention;
 pub use equivariant::{SubeqSizes, SubequivariantFn, VectorLinear, gram};
 pub use error::{NnError, Result};
 pub use init::Init;
 pub use linear::{Linear, Mlp};
 pub use message_passing::{Aggregation, EdgeDistance, EdgeList, MessagePassingConfig, SubeqMessagePassing};
+pub use norm::LayerNorm;
 pub use optim::{Adam, AdamConfig, LrSchedule, clip_elementwise, clip_global_norm};
 pub use params::{Bound, ParamId, ParamStore, Scope, init_rng};
 pub use rbf::RadialBasis;
 pub use state::{StateDict, write_atomic};
+pub use transformer::{TransformerConfig, TransformerEncoder, TransformerEncoderLayer};
