@@ -441,6 +441,7 @@ impl ModelBuilder {
                 shape: s.shape,
                 pos: s.pos,
                 quat,
+                mat: math::quat_to_mat(quat),
                 friction: s.friction,
                 contype: s.contype,
                 conaffinity: s.conaffinity,

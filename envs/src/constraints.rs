@@ -32,7 +32,7 @@
 #![allow(clippy::needless_range_loop)] // index loops mirror the formulas (RBDA notation)
 #![allow(clippy::neg_cmp_op_on_partial_ord)] // `!(x > 0.0)` deliberately rejects NaN too
 
-use crate::crba::ltdl_solve;
+use crate::crba::{ltdl_half_solve, ltdl_solve};
 use crate::data::Data;
 use crate::math::{self, Vec3, Vec6};
 use crate::model::{JointKind, Model, NONE};
@@ -146,6 +146,8 @@ pub fn solve(m: &Model, d: &mut Data) {
     resize(&mut efc.r, n);
     resize(&mut efc.a0, n);
     resize(&mut efc.f, n);
+    resize(&mut efc.dinv, nv);
+    resize(&mut efc.wd, nv);
     efc.dst.clear();
     efc.dst.resize(n, 0);
     // Distances go to `r` for now; turned into regularisers below.
@@ -187,18 +189,26 @@ pub fn solve(m: &Model, d: &mut Data) {
     }
     debug_assert_eq!(row, n);
 
-    // Y = H^-1 J^T (row per constraint), A = J Y^T, a0 = J qacc_smooth, velocities.
+    // With H = L^T D L: A = J H^-1 J^T = W D^-1 W^T, W = J L^-1 (rows: L^T w = J_k^T). A
+    // Jacobian row lives on one or two dof chains and so does its w (the half solve only
+    // moves entries to ancestors): cheap, and one full solve with J^T f at the end replaces
+    // a solve per row.
     efc.y.copy_from_slice(&efc.j);
     for k in 0..n {
-        ltdl_solve(m, &d.qh, &mut efc.y[k * nv..(k + 1) * nv]);
+        ltdl_half_solve(m, &d.qh, &mut efc.y[k * nv..(k + 1) * nv]);
+    }
+    for i in 0..nv {
+        efc.dinv[i] = 1.0 / d.qh[i * nv + i];
     }
     for k in 0..n {
-        let jk = &efc.j[k * nv..(k + 1) * nv];
+        for i in 0..nv {
+            efc.wd[i] = efc.y[k * nv + i] * efc.dinv[i];
+        }
         for l in 0..=k {
             let yl = &efc.y[l * nv..(l + 1) * nv];
             let mut s = 0.0;
             for i in 0..nv {
-                s += jk[i] * yl[i];
+                s += efc.wd[i] * yl[i];
             }
             efc.a[k * n + l] = s;
             efc.a[l * n + k] = s;
@@ -296,9 +306,8 @@ pub fn solve(m: &Model, d: &mut Data) {
     for k in 0..n {
         let f = efc.f[k];
         if f != 0.0 {
-            let (y, jr) = (&efc.y[k * nv..(k + 1) * nv], &efc.j[k * nv..(k + 1) * nv]);
+            let jr = &efc.j[k * nv..(k + 1) * nv];
             for i in 0..nv {
-                d.qacc[i] += y[i] * f;
                 d.qfrc_constraint[i] += jr[i] * f;
             }
         }
@@ -308,5 +317,11 @@ pub fn solve(m: &Model, d: &mut Data) {
         } else {
             d.warm[dst / 4][dst % 4] = f;
         }
+    }
+    // qacc = qacc_smooth + H^-1 J^T f.
+    efc.wd[..nv].copy_from_slice(&d.qfrc_constraint);
+    ltdl_solve(m, &d.qh, &mut efc.wd[..nv]);
+    for i in 0..nv {
+        d.qacc[i] += efc.wd[i];
     }
 }

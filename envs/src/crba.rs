@@ -78,6 +78,23 @@ pub fn ltdl_factor(m: &Model, h: &mut [f64]) -> Result<(), usize> {
     Ok(())
 }
 
+/// First half of [`ltdl_solve`]: solves `L^T z = b` in place. Entries only move to ancestor
+/// dofs, so a right-hand side supported on a few dof chains stays on them (zeros skipped).
+pub fn ltdl_half_solve(m: &Model, h: &[f64], x: &mut [f64]) {
+    let nv = m.nv;
+    for k in (0..nv).rev() {
+        let xk = x[k];
+        if xk == 0.0 {
+            continue;
+        }
+        let mut i = m.dof_parent[k];
+        while i != NONE {
+            x[i] -= h[k * nv + i] * xk;
+            i = m.dof_parent[i];
+        }
+    }
+}
+
 /// Solves `H x = b` in place (`x` holds `b` on entry) with the factor of [`ltdl_factor`]
 /// (RBDA Table 6.4).
 pub fn ltdl_solve(m: &Model, h: &[f64], x: &mut [f64]) {

@@ -51,7 +51,8 @@ pub struct Data {
     pub xipos: Vec<Vec3>,
     /// Geom centres (world).
     pub geom_xpos: Vec<Vec3>,
-    /// Geom rotation matrices (world).
+    /// Geom rotation matrices (world); not updated for spheres (their orientation does not
+    /// matter to collisions: use the body's `xmat`).
     pub geom_xmat: Vec<Mat3>,
     /// Hinge axes (world), per joint.
     pub xaxis: Vec<Vec3>,
@@ -115,8 +116,12 @@ pub(crate) struct Efc {
     pub n: usize,
     /// Jacobian rows, `n x nv`.
     pub j: Vec<f64>,
-    /// `(M + hD)^-1 J^T`, stored row per constraint (`n x nv`).
+    /// `W = J L^-1` (with `M + hD = L^T D L`), row per constraint (`n x nv`).
     pub y: Vec<f64>,
+    /// `1 / D`.
+    pub dinv: Vec<f64>,
+    /// An nv scratch vector.
+    pub wd: Vec<f64>,
     /// `A = J (M + hD)^-1 J^T`, `n x n`.
     pub a: Vec<f64>,
     /// Reference acceleration.

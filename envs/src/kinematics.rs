@@ -34,11 +34,14 @@ pub fn kinematics(m: &Model, d: &mut Data) {
                     d.xaxis[j] = [0.0, 0.0, 1.0];
                 }
                 JointKind::Hinge => {
-                    let anchor = math::add(xp, math::quat_rotate(xq, jnt.anchor));
+                    let centred = jnt.anchor == [0.0; 3];
+                    let anchor = if centred { xp } else { math::add(xp, math::quat_rotate(xq, jnt.anchor)) };
                     d.xaxis[j] = math::quat_rotate(xq, jnt.axis);
                     d.xanchor[j] = anchor;
                     xq = math::quat_mul(xq, math::quat_axis_angle(jnt.axis, d.qpos[a]));
-                    xp = math::sub(anchor, math::quat_rotate(xq, jnt.anchor));
+                    if !centred {
+                        xp = math::sub(anchor, math::quat_rotate(xq, jnt.anchor));
+                    }
                 }
             }
         }
@@ -51,7 +54,10 @@ pub fn kinematics(m: &Model, d: &mut Data) {
     for (g, geom) in m.geoms.iter().enumerate() {
         let b = geom.body;
         d.geom_xpos[g] = math::add(d.xpos[b], math::mat_vec(&d.xmat[b], geom.pos));
-        d.geom_xmat[g] = math::quat_to_mat(math::quat_mul(d.xquat[b], geom.quat));
+        // A sphere's orientation is irrelevant to collisions: its geom_xmat is not updated.
+        if !matches!(geom.shape, crate::model::Shape::Sphere { .. }) {
+            d.geom_xmat[g] = math::mat_mul(&d.xmat[b], &geom.mat);
+        }
     }
     for (t, tree) in m.trees.iter().enumerate() {
         d.tree_ref[t] = d.xpos[tree.root];

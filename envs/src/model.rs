@@ -235,6 +235,8 @@ pub struct Geom {
     pub pos: Vec3,
     /// Orientation in the body frame.
     pub quat: Quat,
+    /// Rotation matrix of `quat`.
+    pub mat: Mat3,
     /// Coulomb (sliding) friction coefficient; a contact uses the larger of the two geoms'.
     pub friction: f64,
     /// Collision type bits (MuJoCo rule: a pair may collide when
