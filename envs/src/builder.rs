@@ -614,8 +614,16 @@ impl ModelBuilder {
             body_last_dof[i] = if b.dof_num > 0 { b.dof_adr + b.dof_num - 1 } else { body_last_dof[b.parent] };
         }
         let mut dof_depth = vec![0; nv];
+        let mut dof_chain_adr = vec![0; nv];
+        let mut dof_chain = Vec::new();
         for i in 0..nv {
             dof_depth[i] = if dof_parent[i] == NONE { 1 } else { dof_depth[dof_parent[i]] + 1 };
+            dof_chain_adr[i] = dof_chain.len();
+            let mut j = i;
+            while j != NONE {
+                dof_chain.push(j);
+                j = dof_parent[j];
+            }
         }
 
         // Trees: a body with joints whose parent is static starts a tree.
@@ -709,6 +717,8 @@ impl ModelBuilder {
             dof_damping,
             body_last_dof,
             dof_depth,
+            dof_chain_adr,
+            dof_chain,
             plane_pairs,
             geom_pairs,
             nslot,

@@ -40,6 +40,27 @@ use crate::model::{JointKind, Model, NONE};
 /// Row destination marker for joint limits (`LIMIT_BASE + joint`).
 const LIMIT_BASE: usize = 1 << 48;
 
+/// Dot product with four partial sums (independent of threads: a fixed order).
+#[inline(always)]
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    let n = a.len().min(b.len());
+    let (a, b) = (&a[..n], &b[..n]);
+    let mut s = [0.0; 4];
+    let (ca, cb) = (a.chunks_exact(4), b.chunks_exact(4));
+    let (ra, rb) = (ca.remainder(), cb.remainder());
+    for (x, y) in ca.zip(cb) {
+        s[0] += x[0] * y[0];
+        s[1] += x[1] * y[1];
+        s[2] += x[2] * y[2];
+        s[3] += x[3] * y[3];
+    }
+    let mut t = (s[0] + s[1]) + (s[2] + s[3]);
+    for (x, y) in ra.iter().zip(rb) {
+        t += x * y;
+    }
+    t
+}
+
 /// Distance of the contact whose normal row is `kn`.
 #[inline]
 fn efc_dist(contacts: &[crate::data::Contact], nlim: usize, kn: usize) -> f64 {
@@ -82,20 +103,20 @@ fn add_point_jacobian(
     rows: &mut [f64],
 ) {
     let nv = m.nv;
-    let mut i = m.body_last_dof[body];
-    if i == NONE {
+    let last = m.body_last_dof[body];
+    if last == NONE {
         return;
     }
     let r = math::sub(x, tree_ref[m.bodies[body].tree]);
     let rxe = [math::cross(r, e[0]), math::cross(r, e[1]), math::cross(r, e[2])];
-    while i != NONE {
+    let a = m.dof_chain_adr[last];
+    for &i in &m.dof_chain[a..a + m.dof_depth[last]] {
         let c = &cdof[i];
         let w = [c[0], c[1], c[2]];
         let l = [c[3], c[4], c[5]];
         for k in 0..3 {
             rows[k * nv + i] += s * (math::dot(e[k], l) + math::dot(rxe[k], w));
         }
-        i = m.dof_parent[i];
     }
 }
 
@@ -198,18 +219,14 @@ pub fn solve(m: &Model, d: &mut Data) {
         ltdl_half_solve(m, &d.qh, &mut efc.y[k * nv..(k + 1) * nv]);
     }
     for i in 0..nv {
-        efc.dinv[i] = 1.0 / d.qh[i * nv + i];
+        efc.dinv[i] = 1.0 / crate::crba::diag(m, &d.qh, i);
     }
     for k in 0..n {
-        for i in 0..nv {
-            efc.wd[i] = efc.y[k * nv + i] * efc.dinv[i];
+        for ((w, y), di) in efc.wd.iter_mut().zip(&efc.y[k * nv..(k + 1) * nv]).zip(&efc.dinv) {
+            *w = y * di;
         }
         for l in 0..=k {
-            let yl = &efc.y[l * nv..(l + 1) * nv];
-            let mut s = 0.0;
-            for i in 0..nv {
-                s += efc.wd[i] * yl[i];
-            }
+            let s = dot(&efc.wd, &efc.y[l * nv..(l + 1) * nv]);
             efc.a[k * n + l] = s;
             efc.a[l * n + k] = s;
         }
@@ -221,12 +238,8 @@ pub fn solve(m: &Model, d: &mut Data) {
     let kk = 1.0 / (dmax * dmax * tau * tau * zeta * zeta);
     for k in 0..n {
         let jk = &efc.j[k * nv..(k + 1) * nv];
-        let (mut vel, mut a0) = (0.0, 0.0);
-        for i in 0..nv {
-            vel += jk[i] * d.qvel[i];
-            a0 += jk[i] * d.qacc_smooth[i];
-        }
-        efc.a0[k] = a0;
+        let vel = dot(jk, &d.qvel);
+        efc.a0[k] = dot(jk, &d.qacc_smooth);
         if k < nlim || (k - nlim) % 3 == 0 {
             // Limit or normal row: spring-damper on the distance.
             let dist = efc.r[k];
@@ -252,12 +265,7 @@ pub fn solve(m: &Model, d: &mut Data) {
 
     // Projected (block) Gauss-Seidel.
     let residual = |efc: &crate::data::Efc, k: usize| -> f64 {
-        let ak = &efc.a[k * n..(k + 1) * n];
-        let mut g = efc.a0[k] - efc.aref[k] + efc.r[k] * efc.f[k];
-        for l in 0..n {
-            g += ak[l] * efc.f[l];
-        }
-        g
+        efc.a0[k] - efc.aref[k] + efc.r[k] * efc.f[k] + dot(&efc.a[k * n..(k + 1) * n], &efc.f)
     };
     for _ in 0..m.opt.iterations {
         for k in 0..nlim {

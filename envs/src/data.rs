@@ -76,10 +76,10 @@ pub struct Data {
     /// Body spatial forces (scratch of the Newton-Euler pass).
     pub cfrc: Vec<Vec6>,
 
-    /// Mass matrix, dense `nv x nv` row-major; only entries (i, j) with j an ancestor dof of
-    /// i (or i itself) are written (lower triangle of the tree pattern).
+    /// Mass matrix in the compact tree layout of [`crate::crba`] (row `i`: `M[i][j]` for the
+    /// ancestors `j` of `i`, diagonal first); [`crate::crba::dense_mass_matrix`] expands it.
     pub qm: Vec<f64>,
-    /// `L^T D L` factor of `M + h D_damping` in the same pattern (strict lower part: L).
+    /// `L^T D L` factor of `M + h D_damping` in the same layout (diagonal entries: D).
     pub qh: Vec<f64>,
     /// Bias forces `C(q, qdot) qdot + g(q)`.
     pub qfrc_bias: Vec<f64>,
@@ -166,8 +166,8 @@ impl Data {
             cvel: vec![z6; nb],
             cacc: vec![z6; nb],
             cfrc: vec![z6; nb],
-            qm: vec![0.0; nv * nv],
-            qh: vec![0.0; nv * nv],
+            qm: vec![0.0; m.dof_chain.len()],
+            qh: vec![0.0; m.dof_chain.len()],
             qfrc_bias: vec![0.0; nv],
             qfrc_actuator: vec![0.0; nv],
             qfrc_passive: vec![0.0; nv],

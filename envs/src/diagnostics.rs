@@ -11,16 +11,10 @@ pub fn kinetic_energy(m: &Model, d: &mut Data) -> f64 {
     kinematics::kinematics(m, d);
     kinematics::com_pos(m, d);
     crba::crba(m, d);
-    let nv = m.nv;
     let mut e = 0.0;
-    for i in 0..nv {
-        let mut j = i;
-        while j != NONE {
-            let mij = d.qm[i * nv + j];
-            e += if i == j { 0.5 * mij * d.qvel[i] * d.qvel[i] } else { mij * d.qvel[i] * d.qvel[j] };
-            j = m.dof_parent[j];
-        }
-    }
+    crba::for_each_entry(m, &d.qm, |i, j, mij| {
+        e += if i == j { 0.5 * mij * d.qvel[i] * d.qvel[i] } else { mij * d.qvel[i] * d.qvel[j] };
+    });
     e
 }
 

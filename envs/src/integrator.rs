@@ -83,16 +83,14 @@ fn implicit_qacc(m: &Model, d: &mut Data) {
     }
     kinematics::com_vel(m, d);
     rne::bias(m, d);
-    for i in 0..nv {
-        let mut j = i;
-        while j != crate::model::NONE {
-            let mij = d.qm[i * nv + j];
-            d.qk[i * nv + j] += mij;
-            if j != i {
-                d.qk[j * nv + i] += mij;
-            }
-            j = m.dof_parent[j];
+    let qk = &mut d.qk;
+    crba::for_each_entry(m, &d.qm, |i, j, mij| {
+        qk[i * nv + j] += mij;
+        if j != i {
+            qk[j * nv + i] += mij;
         }
+    });
+    for i in 0..nv {
         d.qk[i * nv + i] += h * m.dof_damping[i];
     }
     for i in 0..nv {

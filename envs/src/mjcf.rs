@@ -49,7 +49,11 @@ pub struct MjcfError {
 
 impl fmt::Display for MjcfError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "{}:{}:", self.file, self.line)?;
+        if self.line > 0 {
+            write!(f, "{}:{}:", self.file, self.line)?;
+        } else {
+            write!(f, "{}:", self.file)?;
+        }
         if !self.element.is_empty() {
             write!(f, " <{}>", self.element)?;
         }

@@ -324,8 +324,14 @@ pub struct Model {
     /// Last dof on the chain from each body to its tree root ([`NONE`] for static bodies):
     /// the dofs that move the body are this one and its ancestors.
     pub body_last_dof: Vec<usize>,
-    /// Depth of each dof in its chain (number of ancestor dofs, itself included).
+    /// Depth of each dof in its chain (number of ancestor dofs, itself included): the length
+    /// of its row in the compact mass matrix layout.
     pub dof_depth: Vec<usize>,
+    /// Start of each dof's row in the compact layout (see [`crate::crba`]) and in
+    /// `dof_chain`.
+    pub dof_chain_adr: Vec<usize>,
+    /// Ancestor chains, concatenated: row `i` is `i`, its parent dof, ..., its tree's first dof.
+    pub dof_chain: Vec<usize>,
     /// Candidate collision pairs with a plane.
     pub plane_pairs: Vec<CollisionPair>,
     /// Candidate collision pairs between two non-plane geoms, sorted by tree pair.
