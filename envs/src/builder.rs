@@ -10,7 +10,7 @@
 use crate::math::{self, Mat3, Quat, Vec3};
 use crate::model::{
     Actuator, ActuatorId, Body, BodyId, CapsuleEnds, CollisionPair, Geom, GeomId, Joint, JointId, JointKind, Model,
-    ModelError, NONE, Options, Shape, Tree,
+    ModelError, NONE, Options, PairGroup, Shape, Tree,
 };
 
 /// Description of a geom for [`ModelBuilder::add_geom`]; construct with [`GeomSpec::sphere`],
@@ -693,9 +693,24 @@ impl ModelBuilder {
                     plane_pairs.push(CollisionPair { g1: p, g2: o, slot: nslot });
                     nslot += n;
                 } else {
-                    geom_pairs.push(CollisionPair { g1: a, g2: b, slot: nslot });
-                    nslot += 1;
+                    geom_pairs.push(CollisionPair { g1: a, g2: b, slot: 0 });
                 }
+            }
+        }
+        // Group the geom pairs by tree pair (for the tree-level broad phase), then give slots.
+        let tree_key = |p: &CollisionPair| {
+            let (t1, t2) = (geoms[p.g1].tree, geoms[p.g2].tree);
+            (t1.min(t2), t1.max(t2))
+        };
+        geom_pairs.sort_by_key(|p| (tree_key(p), p.g1, p.g2));
+        let mut pair_groups: Vec<PairGroup> = Vec::new();
+        for (i, p) in geom_pairs.iter_mut().enumerate() {
+            p.slot = nslot;
+            nslot += 1;
+            let (t1, t2) = tree_key(p);
+            match pair_groups.last_mut() {
+                Some(g) if (g.tree1, g.tree2) == (t1, t2) => g.end = i + 1,
+                _ => pair_groups.push(PairGroup { tree1: t1, tree2: t2, start: i, end: i + 1 }),
             }
         }
         let nlimited = joints.iter().filter(|j| j.limited).count();
@@ -721,6 +736,7 @@ impl ModelBuilder {
             dof_chain,
             plane_pairs,
             geom_pairs,
+            pair_groups,
             nslot,
             nlimited,
             dof_invweight0: Vec::new(),

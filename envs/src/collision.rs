@@ -122,7 +122,34 @@ pub fn collide(m: &Model, d: &mut Data) {
             }
         }
     }
-    for pair in &m.geom_pairs {
+    if m.geom_pairs.is_empty() {
+        return;
+    }
+    // Tree bounding spheres about each tree's reference point.
+    for (t, tree) in m.trees.iter().enumerate() {
+        let c = d.tree_ref[t];
+        d.tree_rbound[t] = tree
+            .geoms
+            .iter()
+            .map(|&g| math::norm(math::sub(d.geom_xpos[g], c)) + m.geoms[g].rbound)
+            .fold(0.0, f64::max);
+    }
+    for group in &m.pair_groups {
+        if group.tree2 != crate::model::NONE {
+            let (t1, t2) = (group.tree1, group.tree2);
+            let v = math::sub(d.tree_ref[t1], d.tree_ref[t2]);
+            let r = d.tree_rbound[t1] + d.tree_rbound[t2];
+            if math::dot(v, v) >= r * r {
+                continue;
+            }
+        }
+        collide_pairs(m, d, &m.geom_pairs[group.start..group.end]);
+    }
+}
+
+/// Narrow phase of sphere/capsule pairs (after a bounding-sphere test per pair).
+fn collide_pairs(m: &Model, d: &mut Data, pairs: &[crate::model::CollisionPair]) {
+    for pair in pairs {
         let (g1, g2) = (pair.g1, pair.g2);
         let (c1, c2) = (d.geom_xpos[g1], d.geom_xpos[g2]);
         let rb = m.geoms[g1].rbound + m.geoms[g2].rbound;

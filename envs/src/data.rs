@@ -60,6 +60,8 @@ pub struct Data {
     pub xanchor: Vec<Vec3>,
     /// Reference point of each tree's spatial quantities: the root body's origin.
     pub tree_ref: Vec<Vec3>,
+    /// Radius about `tree_ref` of a sphere holding all of the tree's geoms (broad phase).
+    pub tree_rbound: Vec<f64>,
 
     /// Body spatial inertias about their tree's reference point.
     pub cinert: Vec<SpatialInertia>,
@@ -159,6 +161,7 @@ impl Data {
             xaxis: vec![z3; m.joints.len()],
             xanchor: vec![z3; m.joints.len()],
             tree_ref: vec![z3; m.trees.len()],
+            tree_rbound: vec![0.0; m.trees.len()],
             cinert: vec![SpatialInertia::default(); nb],
             crb: vec![SpatialInertia::default(); nb],
             cdof: vec![z6; nv],

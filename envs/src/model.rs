@@ -289,6 +289,20 @@ pub struct CollisionPair {
     pub slot: usize,
 }
 
+/// A run `geom_pairs[start..end]` of pairs between the same two trees (`tree1 < tree2`;
+/// [`NONE`], i.e. static geoms, sorts last).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PairGroup {
+    /// First tree.
+    pub tree1: usize,
+    /// Second tree (or [`NONE`] for static geoms).
+    pub tree2: usize,
+    /// First pair.
+    pub start: usize,
+    /// One past the last pair.
+    pub end: usize,
+}
+
 /// The immutable model. Build it with [`crate::ModelBuilder`] or a loader.
 #[derive(Clone, Debug)]
 pub struct Model {
@@ -336,6 +350,8 @@ pub struct Model {
     pub plane_pairs: Vec<CollisionPair>,
     /// Candidate collision pairs between two non-plane geoms, sorted by tree pair.
     pub geom_pairs: Vec<CollisionPair>,
+    /// Runs of `geom_pairs` sharing the same two trees (broad phase on tree bounding spheres).
+    pub pair_groups: Vec<PairGroup>,
     /// Number of contact warm-start slots.
     pub nslot: usize,
     /// Number of limited hinge joints (one potential limit row each).
