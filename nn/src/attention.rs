@@ -106,6 +106,9 @@ impl MultiHeadAttention {
 /// `scores: [B, H, N, N]`; no gradient reaches the replaced entries.
 fn mask_keys<'t, T: Float>(scores: Var<'t, T>, mask: &[bool], b: usize, h: usize, n: usize) -> Result<Var<'t, T>> {
     let tape = scores.tape();
+    if n == 0 {
+        return Ok(scores);
+    }
     // `where_select` keeps `scores` where its mask is true, so the mask is "key is real".
     let mut keep = Vec::with_capacity(b * h * n * n);
     for row in mask.chunks_exact(n).take(b) {

@@ -75,7 +75,7 @@ pub struct TransformerEncoderLayer {
 
 impl TransformerEncoderLayer {
     /// A layer with the sizes of `cfg` (`cfg.num_layers` is not used).
-    pub fn new<T: Float>(s: &mut Scope<'_, T>, cfg: &TransformerConfig) -> Result<Self> {
+    pub fn new<T: Float>(s: &mut Scope<'_, T>, cfg: TransformerConfig) -> Result<Self> {
         cfg.validate()?;
         let (d, f, eps) = (cfg.model_dim, cfg.ff_dim, cfg.layer_norm_eps);
         Ok(Self {
@@ -119,7 +119,7 @@ impl TransformerEncoder {
         cfg.validate()?;
         let mut layers_scope = s.sub("layers");
         let layers = (0..cfg.num_layers)
-            .map(|i| TransformerEncoderLayer::new(&mut layers_scope.sub(i), &cfg))
+            .map(|i| TransformerEncoderLayer::new(&mut layers_scope.sub(i), cfg))
             .collect::<Result<Vec<_>>>()?;
         Ok(Self { layers, config: cfg })
     }

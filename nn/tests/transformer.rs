@@ -455,7 +455,7 @@ fn attention_rejects_bad_sizes_and_inputs() {
 fn encoder_layer_gradients_and_reference() {
     let cfg = tiny_config(1);
     let mut store = ParamStore::<f64>::new();
-    let layer = TransformerEncoderLayer::new(&mut store.scope("layer", &mut nn::init_rng(8)), &cfg).unwrap();
+    let layer = TransformerEncoderLayer::new(&mut store.scope("layer", &mut nn::init_rng(8)), cfg).unwrap();
     randomise(&mut store, &mut rng(80));
     let x = uniform(&mut rng(27), &[2, 3, 4]);
     let mask = [false, true, false, false, false, true];
@@ -546,7 +546,7 @@ fn invalid_configs_are_errors_naming_the_values() {
             assert!(msg.contains(w), "{cfg:?}: `{msg}` does not name `{w}`");
         }
         assert!(store.is_empty());
-        let err = TransformerEncoderLayer::new(&mut store.scope("l", &mut nn::init_rng(0)), &cfg).unwrap_err();
+        let err = TransformerEncoderLayer::new(&mut store.scope("l", &mut nn::init_rng(0)), cfg).unwrap_err();
         assert!(matches!(err, NnError::Config(_)));
     }
     let cfg = TransformerConfig { layer_norm_eps: -1.0, ..Default::default() };
@@ -565,4 +565,17 @@ fn gradient_check_catches_a_missing_gradient_path() {
         let y = mha.forward(p, v[0], None)?;
         Ok(y.add(mha.forward(p, v[0].detach(), None)?)?)
     });
+}
+
+#[test]
+fn empty_sets_of_tokens_keep_their_shape() {
+    let mut store = ParamStore::<f64>::new();
+    let enc = TransformerEncoder::new(&mut store.scope("enc", &mut nn::init_rng(12)), tiny_config(2)).unwrap();
+    for shape in [[2, 0, 4], [0, 3, 4]] {
+        let x = Tensor::zeros(&shape);
+        for mask in [None, Some(vec![true; shape[0] * shape[1]])] {
+            let y = eval(&store, &x, |p, x| enc.forward(p, x, mask.as_deref()));
+            assert_eq!(y.shape(), shape);
+        }
+    }
 }
