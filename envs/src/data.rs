@@ -69,7 +69,7 @@ pub struct Data {
     pub crb: Vec<SpatialInertia>,
     /// Dof motion axes (world, about the tree reference point).
     pub cdof: Vec<Vec6>,
-    /// Time derivative of `cdof` (times nothing: multiply by qvel).
+    /// Time derivative of each `cdof` (the axis moving with the body before that dof).
     pub cdof_dot: Vec<Vec6>,
     /// Body spatial velocities.
     pub cvel: Vec<Vec6>,

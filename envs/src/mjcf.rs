@@ -15,8 +15,8 @@
 //! `axisangle`/`xyaxes`/`zaxis`, `coordinate="global"`, `inertiafromgeom="false"`) is an
 //! error rather than silently wrong.
 //!
-//! The `integrator` is recorded in [`Options::integrator`]; stepping is always semi-implicit
-//! Euler (see [`crate::integrator`]).
+//! The `integrator` is recorded in [`crate::Options::integrator`]; `Euler` and `implicit` are
+//! stepped as named, `RK4` and `implicitfast` with Euler (see [`crate::integrator`]).
 //!
 //! Every error is a [`MjcfError`] naming the file, the line, the element, the attribute and
 //! the offending value; loading never panics.
