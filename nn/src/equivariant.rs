@@ -48,8 +48,7 @@ pub fn gram<'t, T: Float>(z: Var<'t, T>) -> Result<Var<'t, T>> {
 /// `||x||_F + 1` over the last dim, `[.., k] -> [.., 1]`, the normaliser of the release's
 /// subequivariant layers. A `1e-12` inside the root keeps the gradient finite at `x = 0`.
 pub fn norm_plus_one<'t, T: Float>(x: Var<'t, T>) -> Result<Var<'t, T>> {
-    let last = x.rank() - 1;
-    Ok(x.square().sum(last, true)?.add_scalar(1e-12).sqrt().add_scalar(1.0))
+    Ok(x.norm_last(1e-12).add_scalar(1.0))
 }
 
 /// Appends the gravity direction as one more vector channel: `[N.., 3, m] -> [N.., 3, m+1]`.
@@ -151,9 +150,16 @@ pub fn mix_by_invariants<'t, T: Float>(
     let mut parts = vec![g];
     parts.extend_from_slice(scalars);
     let input = m.tape().cat(&parts, 1)?;
-    let c = mlp.forward(p, input)?.div(norm_plus_one(g)?)?;
-    let w = c.narrow(1, 0, k * m_out)?.reshape(&[n, k, m_out])?;
+    let hidden = mlp.forward_hidden(p, input)?;
+    let norm = norm_plus_one(g)?;
+    // The output layer is applied in two column blocks (vector coefficients, scalars): the
+    // same arithmetic as one layer followed by slicing, without copying the large output.
+    let w = mlp.forward_output_columns(p, hidden, 0, k * m_out)?.div(norm)?.reshape(&[n, k, m_out])?;
     let z_out = m.matmul(w)?;
-    let h_out = c.narrow(1, k * m_out, s_out)?;
+    let h_out = if s_out > 0 {
+        mlp.forward_output_columns(p, hidden, k * m_out, s_out)?.div(norm)?
+    } else {
+        m.tape().constant(Tensor::zeros(&[n, 0]))
+    };
     Ok((z_out, h_out))
 }

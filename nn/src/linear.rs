@@ -109,11 +109,36 @@ impl Mlp {
 
     /// Applies the layers to `x: [.., in]`.
     pub fn forward<'t, T: Float>(&self, p: &Bound<'t, T>, x: Var<'t, T>) -> Result<Var<'t, T>> {
+        let h = self.forward_hidden(p, x)?;
+        self.layers[self.layers.len() - 1].forward(p, h)
+    }
+
+    /// Applies every layer but the last (each followed by the activation): the features the
+    /// output layer reads.
+    pub fn forward_hidden<'t, T: Float>(&self, p: &Bound<'t, T>, x: Var<'t, T>) -> Result<Var<'t, T>> {
         let mut h = x;
-        for (i, layer) in self.layers.iter().enumerate() {
-            let act = if i + 1 == self.layers.len() { Activation::Identity } else { self.activation };
-            h = layer.forward_act(p, h, act)?;
+        for layer in &self.layers[..self.layers.len() - 1] {
+            h = layer.forward_act(p, h, self.activation)?;
         }
         Ok(h)
+    }
+
+    /// The output layer restricted to output columns `start..start+len`, applied to hidden
+    /// features from [`Mlp::forward_hidden`]. Splitting the output this way slices the small
+    /// weight matrix instead of the large output.
+    pub fn forward_output_columns<'t, T: Float>(
+        &self,
+        p: &Bound<'t, T>,
+        hidden: Var<'t, T>,
+        start: usize,
+        len: usize,
+    ) -> Result<Var<'t, T>> {
+        let last = &self.layers[self.layers.len() - 1];
+        let w = p.get(last.weight).narrow(1, start, len)?;
+        let b = match last.bias {
+            Some(b) => Some(p.get(b).narrow(0, start, len)?),
+            None => None,
+        };
+        Ok(hidden.linear(w, b, Activation::Identity)?)
     }
 }

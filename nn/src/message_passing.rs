@@ -192,7 +192,7 @@ impl SubeqMessagePassing {
         }
         let zij = self.w1.forward(p, zij)?; // [E, 3, m]
         let mut scalars = vec![h.index_select(0, &edges.src)?, h.index_select(0, &edges.dst)?];
-        let dist = || -> Result<Var<'t, T>> { Ok(e.square().sum(1, false)?.add_scalar(1e-12).sqrt()) }; // [E, 1]
+        let dist = || -> Result<Var<'t, T>> { Ok(e.reshape(&[e_cnt, 3])?.norm_last(1e-12)) }; // [E, 1]
         match &cfg.distance {
             EdgeDistance::Raw => scalars.push(dist()?),
             EdgeDistance::Rbf(r) => scalars.push(r.forward(dist()?)?),

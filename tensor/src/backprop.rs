@@ -142,6 +142,13 @@ pub(crate) fn propagate<T: Float>(nodes: &[Node<T>], id: NodeId, g: Vec<T>, stor
                 store.add(*x, nnops::softmax_backward(y.data(), &g, n));
             }
         }
+        Op::NormLast { x, .. } => {
+            if store.wants(*x) {
+                let xv = val(*x);
+                let n = xv.shape().last().copied().unwrap_or(1);
+                store.add(*x, nnops::norm_last_backward(xv.data(), y.data(), &g, n));
+            }
+        }
         Op::Reshape(x) => {
             if store.wants(*x) {
                 store.add(*x, g);
@@ -166,12 +173,13 @@ pub(crate) fn propagate<T: Float>(nodes: &[Node<T>], id: NodeId, g: Vec<T>, stor
             }
         }
         Op::Cat { xs, axis } => {
-            let gt = g_t();
             let mut start = 0;
             for &x in xs {
-                let len = val(x).shape()[*axis];
+                let xv = val(x);
+                let len = xv.shape()[*axis];
                 if store.wants(x) {
-                    store.add(x, layout::narrow(&gt, *axis, start, len).expect("in range").into_vec());
+                    let slot = store.slot(x, xv.numel());
+                    layout::narrow_add_into(slot, &g, y.shape(), *axis, start, len);
                 }
                 start += len;
             }
@@ -259,16 +267,36 @@ fn binary_rule<T: Float>(
 ) {
     let (av, bv) = (&nodes[a].value, &nodes[b].value);
     let shape = y.shape();
-    let with = |other: &Tensor<T>, f: &(dyn Fn(T, T) -> T + Sync)| {
-        elementwise::binary_into_shape(&g, shape, other.data(), other.shape(), shape, f)
+    let with = |other: &Tensor<T>, mul: bool| {
+        let (o, os) = (other.data(), other.shape());
+        if mul {
+            elementwise::binary_into_shape(&g, shape, o, os, shape, |gv, ov| gv * ov)
+        } else {
+            elementwise::binary_into_shape(&g, shape, o, os, shape, |gv, ov| gv / ov)
+        }
     };
     let (wa, wb) = (store.wants(a), store.wants(b));
+    if matches!(op, BinaryOp::Div | BinaryOp::Mul)
+        && av.numel() == y.numel()
+        && elementwise::is_row_broadcast(bv.shape(), shape)
+    {
+        // `a` scaled by one value of `b` per row (e.g. c / (||G|| + 1)): both gradients in
+        // one pass, without broadcast temporaries.
+        let (ga, gb) = elementwise::row_scale_backward(&g, av.data(), bv.data(), op == BinaryOp::Div, wa, wb);
+        if let Some(ga) = ga {
+            store.add(a, ga);
+        }
+        if let Some(gb) = gb {
+            store.add(b, gb);
+        }
+        return;
+    }
     let (ga, gb): (Option<Vec<T>>, Option<Vec<T>>) = match op {
         BinaryOp::Add => (wa.then(|| g.clone()), wb.then(|| g.clone())),
         BinaryOp::Sub => (wa.then(|| g.clone()), wb.then(|| g.iter().map(|&v| -v).collect())),
-        BinaryOp::Mul => (wa.then(|| with(bv, &|gv, bv| gv * bv)), wb.then(|| with(av, &|gv, av| gv * av))),
+        BinaryOp::Mul => (wa.then(|| with(bv, true)), wb.then(|| with(av, true))),
         BinaryOp::Div => {
-            let ga = wa.then(|| with(bv, &|gv, bv| gv / bv));
+            let ga = wa.then(|| with(bv, false));
             let gb = wb.then(|| {
                 // d(a/b)/db = -y / b
                 let gy: Vec<T> = g.iter().zip(y.data()).map(|(&gv, &yv)| gv * yv).collect();

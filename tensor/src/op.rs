@@ -242,4 +242,50 @@ pub enum Op {
     Where { a: NodeId, b: NodeId, mask: Arc<Vec<bool>> },
     /// Softmax along the last axis.
     Softmax(NodeId),
+    /// Euclidean norm over the last axis, `sqrt(sum x^2 + eps)`, keeping the axis as size 1.
+    NormLast { x: NodeId, eps: f64 },
+}
+
+impl Op {
+    /// Short name of the operation (for profiles and messages).
+    pub fn name(&self) -> &'static str {
+        match self {
+            Op::Leaf => "leaf",
+            Op::Unary(_, u) => match u {
+                UnaryOp::Neg => "neg",
+                UnaryOp::Exp => "exp",
+                UnaryOp::Log => "log",
+                UnaryOp::Sqrt => "sqrt",
+                UnaryOp::Square => "square",
+                UnaryOp::Tanh => "tanh",
+                UnaryOp::Sigmoid => "sigmoid",
+                UnaryOp::Relu => "relu",
+                UnaryOp::Softplus => "softplus",
+                UnaryOp::Abs => "abs",
+                UnaryOp::Powf(_) => "powf",
+                UnaryOp::Clamp(..) => "clamp",
+                UnaryOp::Scale(_) => "scale",
+                UnaryOp::AddScalar(_) => "add_scalar",
+            },
+            Op::Binary(_, _, b) => b.name(),
+            Op::Reduce { op: ReduceOp::Sum, .. } => "sum",
+            Op::Reduce { op: ReduceOp::Mean, .. } => "mean",
+            Op::Reduce { op: ReduceOp::Max, .. } => "max",
+            Op::MatMul { .. } => "matmul",
+            Op::Linear { .. } => "linear",
+            Op::Reshape(_) => "reshape",
+            Op::Permute(..) => "permute",
+            Op::Expand(_) => "expand",
+            Op::Narrow { .. } => "narrow",
+            Op::Cat { .. } => "cat",
+            Op::IndexSelect { .. } => "index_select",
+            Op::IndexAdd { .. } => "index_add",
+            Op::Gather { .. } => "gather",
+            Op::Segment { mean: false, .. } => "segment_sum",
+            Op::Segment { mean: true, .. } => "segment_mean",
+            Op::Where { .. } => "where",
+            Op::Softmax(_) => "softmax",
+            Op::NormLast { .. } => "norm",
+        }
+    }
 }

@@ -6,6 +6,8 @@
 //! Gradient rules live in `backprop.rs`.
 
 use std::cell::{Cell, Ref, RefCell};
+use std::collections::HashMap;
+use std::time::{Duration, Instant};
 
 use crate::backprop::{GradStore, propagate};
 use crate::element::Float;
@@ -26,6 +28,15 @@ pub(crate) struct Node<T: Float> {
 pub struct Tape<T: Float> {
     nodes: RefCell<Vec<Node<T>>>,
     grad_enabled: Cell<bool>,
+    profile: RefCell<Option<Profile>>,
+}
+
+/// Time spent per op, forward and backward (see [`Tape::enable_profiling`]).
+#[derive(Default)]
+struct Profile {
+    forward: HashMap<&'static str, (u64, Duration)>,
+    backward: HashMap<&'static str, (u64, Duration)>,
+    last: Option<Instant>,
 }
 
 impl<T: Float> Default for Tape<T> {
@@ -49,7 +60,31 @@ impl<T: Float> Drop for NoGradGuard<'_, T> {
 impl<T: Float> Tape<T> {
     /// An empty tape with gradient recording on.
     pub fn new() -> Self {
-        Self { nodes: RefCell::new(Vec::new()), grad_enabled: Cell::new(true) }
+        Self { nodes: RefCell::new(Vec::new()), grad_enabled: Cell::new(true), profile: RefCell::new(None) }
+    }
+
+    /// Starts recording the wall time of every op: forward time is the time since the
+    /// previous node was recorded (so it includes any caller code in between), backward time
+    /// is that of the op's gradient rule. Read it with [`Tape::profile_report`].
+    pub fn enable_profiling(&self) {
+        *self.profile.borrow_mut() = Some(Profile { last: Some(Instant::now()), ..Profile::default() });
+    }
+
+    /// A table of time per op (forward and backward, slowest first), if profiling is on.
+    pub fn profile_report(&self) -> Option<String> {
+        let prof = self.profile.borrow();
+        let prof = prof.as_ref()?;
+        let mut out = String::new();
+        for (title, table) in [("forward", &prof.forward), ("backward", &prof.backward)] {
+            let mut rows: Vec<_> = table.iter().collect();
+            rows.sort_by_key(|r| std::cmp::Reverse(r.1.1));
+            let total: Duration = rows.iter().map(|r| r.1.1).sum();
+            out.push_str(&format!("{title}: {:.2} ms\n", total.as_secs_f64() * 1e3));
+            for (name, (count, t)) in rows {
+                out.push_str(&format!("  {name:<14} {count:>6} calls {:>10.3} ms\n", t.as_secs_f64() * 1e3));
+            }
+        }
+        Some(out)
     }
 
     /// Number of recorded nodes.
@@ -88,6 +123,13 @@ impl<T: Float> Tape<T> {
     /// Appends a node; its gradient is wanted if `requires_grad` and recording is on.
     pub(crate) fn push(&self, value: Tensor<T>, op: Op, requires_grad: bool) -> Var<'_, T> {
         let requires_grad = requires_grad && self.grad_enabled.get();
+        if let Some(prof) = self.profile.borrow_mut().as_mut() {
+            let now = Instant::now();
+            let e = prof.forward.entry(op.name()).or_default();
+            e.0 += 1;
+            e.1 += now - prof.last.unwrap_or(now);
+            prof.last = Some(now);
+        }
         let op = if requires_grad { op } else { Op::Leaf };
         let mut nodes = self.nodes.borrow_mut();
         nodes.push(Node { value, op, requires_grad });
@@ -129,7 +171,13 @@ impl<T: Float> Tape<T> {
                 continue;
             }
             if let Some(g) = store.take(id) {
+                let start = Instant::now();
                 propagate(&nodes, id, g, &mut store);
+                if let Some(prof) = self.profile.borrow_mut().as_mut() {
+                    let e = prof.backward.entry(nodes[id].op.name()).or_default();
+                    e.0 += 1;
+                    e.1 += start.elapsed();
+                }
             }
         }
         Ok(Gradients { grads: store.into_leaf_grads(&nodes[..=loss.id]) })

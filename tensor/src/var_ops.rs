@@ -171,6 +171,13 @@ impl<'t, T: Float> Var<'t, T> {
         self.tape.record(y, Op::Softmax(self.id), &[self.id])
     }
 
+    /// Euclidean norm over the last axis, `sqrt(sum x^2 + eps)`, with that axis kept as
+    /// size 1 (`eps >= 0` keeps the gradient finite at 0).
+    pub fn norm_last(self, eps: f64) -> Self {
+        let y = nnops::norm_last(&self.value(), eps);
+        self.tape.record(y, Op::NormLast { x: self.id, eps }, &[self.id])
+    }
+
     /// Same elements, new shape (no copy).
     pub fn reshape(self, shape: &[usize]) -> Result<Self> {
         let y = self.value().reshape(shape)?;

@@ -127,6 +127,7 @@ fn layout_and_index_values() {
         &[0.0, -1.0, 2.0, -1.0, 4.0, -1.0],
     );
     close(&x.expand(&[2, 2, 3]).unwrap().value(), &[0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 0.0, 1.0, 2.0, 3.0, 4.0, 5.0]);
+    close(&tape.constant(t(&[3.0, 4.0, 0.0, 0.0], &[2, 2])).norm_last(0.0).value(), &[5.0, 0.0]);
     let sm = tape.constant(t(&[0.0, 2f64.ln()], &[1, 2])).softmax();
     close(&sm.value(), &[1.0 / 3.0, 2.0 / 3.0]);
 }

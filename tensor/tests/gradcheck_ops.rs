@@ -78,6 +78,21 @@ fn binary_ops_with_broadcasting() {
 }
 
 #[test]
+fn per_row_scaling_and_norms() {
+    // The fused backward of a * b and a / b when b holds one value per row.
+    let mut r = rng(21);
+    let a = uniform(&mut r, &[4, 3]);
+    let b = positive(&mut r, &[4, 1]);
+    gc!(vec![a.clone(), b.clone()], |_, v| v[0].div(v[1]));
+    gc!(vec![a.clone(), b.clone()], |_, v| v[0].mul(v[1]));
+    let a3 = uniform(&mut r, &[2, 3, 5]);
+    let b3 = positive(&mut r, &[2, 3, 1]);
+    gc!(vec![a3.clone(), b3.clone()], |_, v| v[0].div(v[1]));
+    gc!(vec![a3.clone()], |_, v| Ok(v[0].norm_last(0.0)));
+    gc!(vec![a3], |_, v| Ok(v[0].norm_last(1e-3).add_scalar(1.0)));
+}
+
+#[test]
 fn minimum_and_maximum_away_from_ties() {
     let mut r = rng(3);
     let a = away_from_zero(&mut r, &[4, 3]);

@@ -93,11 +93,16 @@ fn naive_matmul(a: &Tensor<f64>, b: &Tensor<f64>, ta: bool, tb: bool) -> Vec<f64
 #[test]
 fn matmul_matches_naive_for_random_sizes_and_transposes() {
     let mut r = rng(102);
-    for trial in 0..60 {
-        // Mix tiny (direct loop) and larger (faer, and row-block parallel) sizes.
+    for trial in 0..64 {
+        // Mix tiny (direct loop) and larger (faer, and row-block parallel) sizes, and
+        // short-wide products with a long inner dim (column-block parallel).
         let big = trial % 10 == 0;
         let hi = if big { 300 } else { 40 };
-        let (m, k, n) = (r.random_range(1..=hi), r.random_range(1..=hi), r.random_range(1..=hi));
+        let (m, k, n) = if trial % 16 == 15 {
+            (r.random_range(1..=100), r.random_range(2000..=3000), r.random_range(256..=400))
+        } else {
+            (r.random_range(1..=hi), r.random_range(1..=hi), r.random_range(1..=hi))
+        };
         let (ta, tb) = (r.random_bool(0.5), r.random_bool(0.5));
         let a = uniform(&mut r, &if ta { [k, m] } else { [m, k] });
         let b = uniform(&mut r, &if tb { [n, k] } else { [k, n] });
@@ -197,15 +202,19 @@ fn workload() -> (Vec<u32>, Vec<u32>) {
     let w: Tensor<f32> = uniform(&mut r, &[256, 300]).cast();
     let bw: Tensor<f32> = uniform(&mut r, &[64, 32, 32]).cast();
     let bz: Tensor<f32> = uniform(&mut r, &[64, 3, 32]).cast();
+    let wide: Tensor<f32> = uniform(&mut r, &[600, 300]).cast();
     let tape = Tape::new();
     let (xv, wv) = (tape.var(x), tape.var(w));
     let (bwv, bzv) = (tape.var(bw), tape.var(bz));
     let h = xv.matmul(wv).unwrap().tanh();
     let z = bzv.matmul(bwv).unwrap();
-    let loss = h.sum_all().add(z.square().mean_all().unwrap()).unwrap();
+    // x[:, :100]^T wide: a 100 x 300 product with inner dim 600 (the column-block path).
+    let xw = xv.narrow(1, 0, 100).unwrap().matmul_t(tape.constant(wide), true, false).unwrap();
+    let loss = h.sum_all().add(z.square().mean_all().unwrap()).unwrap().add(xw.square().mean_all().unwrap()).unwrap();
     let g = tape.backward(loss).unwrap();
     let bits = |t: &Tensor<f32>| t.data().iter().map(|v| v.to_bits()).collect::<Vec<_>>();
     let mut grads = bits(g.get(wv).unwrap());
+    grads.extend(bits(g.get(xv).unwrap()));
     grads.extend(bits(g.get(bwv).unwrap()));
     (bits(&loss.value()), grads)
 }

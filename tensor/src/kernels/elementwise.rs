@@ -71,6 +71,17 @@ pub(crate) fn binary_into_shape<T: Float>(
         });
         return out;
     }
+    if a.len() == n && !b.is_empty() && is_prefix(b_shape, shape) {
+        // b holds one value per row of n / b.len() elements (e.g. a per-row scale [R, 1]).
+        let m = n / b.len();
+        super::for_rows(&mut out, m, |r, row| {
+            let y = b[r];
+            for (o, &x) in row.iter_mut().zip(&a[r * m..(r + 1) * m]) {
+                *o = f(x, y);
+            }
+        });
+        return out;
+    }
     if a.len() == n && !b.is_empty() && is_suffix(b_shape, shape) {
         // b repeats every b.len() elements (e.g. a bias row).
         let m = b.len();
@@ -90,6 +101,68 @@ pub(crate) fn binary_into_shape<T: Float>(
         }
     });
     out
+}
+
+/// Whether a tensor of shape `small` holds one value per row of the broadcast shape `big`
+/// (same rank, equal leading dims, 1 after them, and at least one trailing 1).
+pub(crate) fn is_row_broadcast(small: &[usize], big: &[usize]) -> bool {
+    is_prefix(small, big) && small != big && !small.is_empty()
+}
+
+/// Gradients of `y = a * b` (or `a / b`) where `b` has one value per row of `a`:
+/// `ga = g b` (or `g / b`), `gb[r] = sum_row(g a)` (or `-sum_row(g a) / b^2`).
+pub(crate) fn row_scale_backward<T: Float>(
+    g: &[T],
+    a: &[T],
+    b: &[T],
+    div: bool,
+    wa: bool,
+    wb: bool,
+) -> (Option<Vec<T>>, Option<Vec<T>>) {
+    let m = a.len() / b.len().max(1);
+    let ga = wa.then(|| {
+        let mut out = vec![T::ZERO; g.len()];
+        super::for_rows(&mut out, m, |r, row| {
+            let s = if div { T::ONE / b[r] } else { b[r] };
+            for (o, &gv) in row.iter_mut().zip(&g[r * m..(r + 1) * m]) {
+                *o = gv * s;
+            }
+        });
+        out
+    });
+    let gb = wb.then(|| {
+        let mut out = vec![T::ZERO; b.len()];
+        super::fill_chunks(&mut out, |start, ch| {
+            for (i, o) in ch.iter_mut().enumerate() {
+                let r = start + i;
+                let mut acc = [T::ZERO; 8];
+                let (gr, ar) = (&g[r * m..(r + 1) * m], &a[r * m..(r + 1) * m]);
+                let (cg, ca) = (gr.chunks_exact(8), ar.chunks_exact(8));
+                let (rg, ra) = (cg.remainder(), ca.remainder());
+                for (x, y) in cg.zip(ca) {
+                    for l in 0..8 {
+                        acc[l] += x[l] * y[l];
+                    }
+                }
+                let mut sum = ((acc[0] + acc[4]) + (acc[1] + acc[5])) + ((acc[2] + acc[6]) + (acc[3] + acc[7]));
+                for (&x, &y) in rg.iter().zip(ra) {
+                    sum += x * y;
+                }
+                *o = if div { -sum / (b[r] * b[r]) } else { sum };
+            }
+        });
+        out
+    });
+    (ga, gb)
+}
+
+/// Whether `small` has the rank of `big`, equals its leading dims and is 1 after them.
+fn is_prefix(small: &[usize], big: &[usize]) -> bool {
+    if small.len() != big.len() {
+        return false;
+    }
+    let k = small.iter().rposition(|&d| d != 1).map_or(0, |i| i + 1);
+    small[..k] == big[..k]
 }
 
 /// Whether `small` equals the trailing dims of `big` once leading 1s are dropped.

@@ -70,6 +70,18 @@ pub fn narrow_backward_into<T: Float>(dst: &mut [T], dst_shape: &[usize], g: &[T
     }
 }
 
+/// Adds entries `start..start+len` of `axis` of `src` (shape `src_shape`) into `dst`, which
+/// has `len` entries on that axis (the adjoint of concatenation).
+pub fn narrow_add_into<T: Float>(dst: &mut [T], src: &[T], src_shape: &[usize], axis: usize, start: usize, len: usize) {
+    let (outer, n, inner) = split_at_axis(src_shape, axis);
+    for o in 0..outer {
+        let s = &src[(o * n + start) * inner..(o * n + start + len) * inner];
+        for (a, &b) in dst[o * len * inner..(o + 1) * len * inner].iter_mut().zip(s) {
+            *a += b;
+        }
+    }
+}
+
 /// Concatenates along `axis`; all other dims must agree.
 pub fn cat<T: Float>(xs: &[&Tensor<T>], axis: usize) -> Result<Tensor<T>> {
     let first = xs.first().ok_or_else(|| invalid("cat", "needs at least one tensor"))?;

@@ -119,9 +119,55 @@ pub fn matmul_into<T: Float>(out: &mut [T], accumulate: bool, a: &[T], ta: bool,
             let rows = o.len() / n;
             faer_matmul(o, accumulate, am, ta, bm, tb, m, k, n, r0, rows);
         });
+    } else if nb == 1 && work >= 1 << 22 && n >= 2 * COL_BLOCK {
+        let (oa, ob) = plan.offsets[0];
+        matmul_col_blocks(out, accumulate, &a[oa..oa + m * k], ta, &b[ob..ob + k * n], tb, m, k, n);
     } else {
         out.chunks_mut(mn).zip(plan.offsets.iter()).for_each(|(o, off)| one(o, off));
     }
+}
+
+/// Columns per parallel block when a wide, short product is split.
+const COL_BLOCK: usize = 128;
+
+/// A pointer that may cross threads; each thread writes a disjoint block through it.
+#[derive(Clone, Copy)]
+struct SendPtr<T>(*mut T);
+unsafe impl<T> Send for SendPtr<T> {}
+unsafe impl<T> Sync for SendPtr<T> {}
+
+/// `op(A) @ op(B)` split into fixed blocks of columns computed in parallel (for outputs
+/// with few rows and many columns, such as weight gradients `x^T g`). Each output element
+/// is computed by one thread, so the result does not depend on the thread count.
+#[allow(clippy::too_many_arguments)]
+fn matmul_col_blocks<T: Float>(
+    out: &mut [T],
+    accumulate: bool,
+    a: &[T],
+    ta: bool,
+    b: &[T],
+    tb: bool,
+    m: usize,
+    k: usize,
+    n: usize,
+) {
+    assert_eq!(out.len(), m * n);
+    let lhs: MatRef<'_, T> =
+        if ta { MatRef::from_row_major_slice(a, k, m).transpose() } else { MatRef::from_row_major_slice(a, m, k) };
+    let rhs: MatRef<'_, T> =
+        if tb { MatRef::from_row_major_slice(b, n, k).transpose() } else { MatRef::from_row_major_slice(b, k, n) };
+    let ptr = SendPtr(out.as_mut_ptr());
+    let accum = if accumulate { Accum::Add } else { Accum::Replace };
+    (0..n.div_ceil(COL_BLOCK)).into_par_iter().for_each(|blk| {
+        let c0 = blk * COL_BLOCK;
+        let nc = COL_BLOCK.min(n - c0);
+        let p = ptr;
+        // SAFETY: `out` holds m x n elements in row-major order and outlives this scope; block
+        // `blk` covers columns c0..c0+nc of every row, disjoint from every other block, so no
+        // two threads write the same element and nothing else reads `out` meanwhile.
+        let dst: MatMut<'_, T> = unsafe { MatMut::from_raw_parts_mut(p.0.add(c0), m, nc, n as isize, 1) };
+        faer::linalg::matmul::matmul(dst, accum, lhs, rhs.subcols(c0, nc), T::ONE, Par::Seq);
+    });
 }
 
 /// Rows `r0..r0+rows` of `op(A) @ op(B)` through faer, single-threaded.
@@ -183,12 +229,7 @@ fn small_matmul<T: Float>(
         for i in 0..m {
             let ar = &a[i * k..(i + 1) * k];
             for j in 0..n {
-                let br = &b[j * k..(j + 1) * k];
-                let mut acc = T::ZERO;
-                for (&x, &y) in ar.iter().zip(br) {
-                    acc += x * y;
-                }
-                out[i * n + j] += acc;
+                out[i * n + j] += dot(ar, &b[j * k..(j + 1) * k]);
             }
         }
     } else {
@@ -202,4 +243,23 @@ fn small_matmul<T: Float>(
             }
         }
     }
+}
+
+/// Dot product with eight interleaved partial sums (a fixed order, so it vectorises and stays
+/// deterministic).
+#[inline(always)]
+fn dot<T: Float>(a: &[T], b: &[T]) -> T {
+    let mut acc = [T::ZERO; 8];
+    let (ca, cb) = (a.chunks_exact(8), b.chunks_exact(8));
+    let (ra, rb) = (ca.remainder(), cb.remainder());
+    for (x, y) in ca.zip(cb) {
+        for l in 0..8 {
+            acc[l] += x[l] * y[l];
+        }
+    }
+    let mut s = ((acc[0] + acc[4]) + (acc[1] + acc[5])) + ((acc[2] + acc[6]) + (acc[3] + acc[7]));
+    for (&x, &y) in ra.iter().zip(rb) {
+        s += x * y;
+    }
+    s
 }

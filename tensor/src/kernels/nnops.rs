@@ -86,3 +86,51 @@ pub fn activation_backward<T: Float>(y: &[T], g: &[T], act: Activation) -> Vec<T
         Activation::Tanh => g.iter().zip(y).map(|(&g, &y)| g * (T::ONE - y * y)).collect(),
     }
 }
+
+/// `sqrt(sum x^2 + eps)` over the last axis, one value per row (`[.., n] -> [.., 1]`).
+pub fn norm_last<T: Float>(x: &Tensor<T>, eps: f64) -> Tensor<T> {
+    let n = x.shape().last().copied().unwrap_or(1);
+    let rows = x.numel().checked_div(n).unwrap_or(0);
+    let xd = x.data();
+    let eps = T::from_f64(eps);
+    let mut out = vec![T::ZERO; rows];
+    let body = |r: usize, o: &mut T| {
+        let mut acc = [T::ZERO; 8];
+        let row = &xd[r * n..(r + 1) * n];
+        let chunks = row.chunks_exact(8);
+        let rest = chunks.remainder();
+        for c in chunks {
+            for (a, &v) in acc.iter_mut().zip(c) {
+                *a += v * v;
+            }
+        }
+        let mut s = ((acc[0] + acc[4]) + (acc[1] + acc[5])) + ((acc[2] + acc[6]) + (acc[3] + acc[7]));
+        for &v in rest {
+            s += v * v;
+        }
+        *o = (s + eps).sqrt();
+    };
+    if x.numel() >= super::PAR_MIN {
+        use rayon::prelude::*;
+        out.par_iter_mut().enumerate().for_each(|(r, o)| body(r, o));
+    } else {
+        out.iter_mut().enumerate().for_each(|(r, o)| body(r, o));
+    }
+    let mut shape = x.shape().to_vec();
+    if let Some(l) = shape.last_mut() {
+        *l = 1;
+    }
+    Tensor::from_parts(out, shape)
+}
+
+/// Gradient of [`norm_last`]: `dx = g x / y` row by row.
+pub fn norm_last_backward<T: Float>(x: &[T], y: &[T], g: &[T], n: usize) -> Vec<T> {
+    let mut out = vec![T::ZERO; x.len()];
+    for_rows(&mut out, n, |r, row| {
+        let s = g[r] / y[r];
+        for (o, &xv) in row.iter_mut().zip(&x[r * n..(r + 1) * n]) {
+            *o = s * xv;
+        }
+    });
+    out
+}

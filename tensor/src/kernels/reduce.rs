@@ -71,6 +71,31 @@ pub fn sum_all<T: Float>(x: &[T]) -> T {
 /// `out[o, i] = sum_k x[o, k, i]`.
 pub fn sum_axis<T: Float>(x: &[T], outer: usize, len: usize, inner: usize) -> Vec<T> {
     let mut out = vec![T::ZERO; outer * inner];
+    if inner == 1 {
+        // Row sums: eight interleaved partial sums (a fixed order, so results do not depend on
+        // the thread count) let the compiler vectorise.
+        let row_sum = |row: &[T]| {
+            let mut acc = [T::ZERO; 8];
+            let chunks = row.chunks_exact(8);
+            let rest = chunks.remainder();
+            for c in chunks {
+                for (a, &v) in acc.iter_mut().zip(c) {
+                    *a += v;
+                }
+            }
+            let mut s = ((acc[0] + acc[4]) + (acc[1] + acc[5])) + ((acc[2] + acc[6]) + (acc[3] + acc[7]));
+            for &v in rest {
+                s += v;
+            }
+            s
+        };
+        if x.len() >= PAR_MIN && len > 0 {
+            out.par_iter_mut().zip(x.par_chunks(len)).for_each(|(o, row)| *o = row_sum(row));
+        } else if len > 0 {
+            out.iter_mut().zip(x.chunks(len)).for_each(|(o, row)| *o = row_sum(row));
+        }
+        return out;
+    }
     let body = |o: usize, dst: &mut [T]| {
         for k in 0..len {
             let src = &x[(o * len + k) * inner..(o * len + k + 1) * inner];
