@@ -310,6 +310,15 @@ impl ModelBuilder {
         }
     }
 
+    /// Sets a joint's armature and damping after creation (for free joints, whose six dofs
+    /// all get them, as in MuJoCo; hinges usually set them through [`HingeSpec`]).
+    pub fn set_joint_armature_damping(&mut self, joint: JointId, armature: f64, damping: f64) {
+        if let Some(j) = self.joints.get_mut(joint.0) {
+            j.hinge.armature = armature;
+            j.hinge.damping = damping;
+        }
+    }
+
     /// Adds a hinge joint to `body`. Joints must be added in body order (all joints of a body
     /// before those of any later body); several hinges on a body apply in the order added.
     pub fn add_hinge(&mut self, body: BodyId, spec: HingeSpec) -> JointId {

@@ -252,6 +252,16 @@ impl<'a, 'i> Parser<'a, 'i> {
         Ok(self.nums(a, name, 3, 3)?.map(|v| [v[0], v[1], v[2]]))
     }
 
+    fn nonneg(&self, a: &Attrs, name: &str) -> Result<Option<f64>, MjcfError> {
+        match a.map.get(name) {
+            None => Ok(None),
+            Some(v) => {
+                let x = v.text.trim().parse::<f64>().ok().filter(|x| x.is_finite() && *x >= 0.0);
+                x.map(Some).ok_or_else(|| self.err_attr(a, name, "expected a non-negative number"))
+            }
+        }
+    }
+
     fn bits(&self, a: &Attrs, name: &str, default: u32) -> Result<u32, MjcfError> {
         match a.map.get(name) {
             None => Ok(default),
@@ -563,7 +573,10 @@ impl<'a, 'i> Parser<'a, 'i> {
                 {
                     return Err(self.err_attr(&a, "pos", "a free joint must be at the body origin"));
                 }
-                self.b.add_free_joint(body)
+                let id = self.b.add_free_joint(body);
+                let (armature, damping) = (self.nonneg(&a, "armature")?, self.nonneg(&a, "damping")?);
+                self.b.set_joint_armature_damping(id, armature.unwrap_or(0.0), damping.unwrap_or(0.0));
+                id
             }
             "hinge" => {
                 let axis = self.vec3(&a, "axis")?.unwrap_or([0.0, 0.0, 1.0]);
@@ -587,12 +600,8 @@ impl<'a, 'i> Parser<'a, 'i> {
                     }
                     spec.range = Some([self.angle(r[0]), self.angle(r[1])]);
                 }
-                for (key, slot) in [("armature", &mut spec.armature), ("damping", &mut spec.damping)] {
-                    if let Some(v) = a.map.get(key) {
-                        let x = v.text.trim().parse::<f64>().ok().filter(|x| x.is_finite() && *x >= 0.0);
-                        *slot = x.ok_or_else(|| self.err_attr(&a, key, "expected a non-negative number"))?;
-                    }
-                }
+                spec.armature = self.nonneg(&a, "armature")?.unwrap_or(0.0);
+                spec.damping = self.nonneg(&a, "damping")?.unwrap_or(0.0);
                 spec.name = name.clone();
                 self.b.add_hinge(body, spec)
             }

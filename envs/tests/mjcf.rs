@@ -55,7 +55,7 @@ fn defaults_classes_childclass_and_orientations() {
   <worldbody>
     <geom type="plane" size="1 1 1"/>
     <body name="a" pos="0 0 1" euler="0.3 -0.2 1.1">
-      <freejoint/>
+      <joint type="free"/>
       <geom size="0.1"/>
       <body name="b" childclass="leg" pos="0.2 0 0" quat="0 0 0 2">
         <joint name="j" axis="0 2 0"/>
@@ -87,6 +87,9 @@ fn defaults_classes_childclass_and_orientations() {
     // Density: main 2 for body a (sphere), leg 4 for body b.
     let vol = 4.0 / 3.0 * std::f64::consts::PI * 0.001;
     assert!((m.bodies[1].mass - 2.0 * vol).abs() < 1e-15);
+    // The free joint takes the damping of class main on its six dofs, as MuJoCo.
+    assert_eq!(&m.dof_damping[..6], &[3.0; 6]);
+    assert_eq!(m.dof_armature[0], 0.0);
     // Motor without ctrlrange: unclamped.
     assert_eq!((m.actuators[0].gear, m.actuators[0].ctrlrange), (7.0, None));
 }
@@ -231,6 +234,7 @@ fn joint_errors() {
     expect_err(&j("<joint damping=\"lots\"/>"), 6, &["damping", "\"lots\""]);
     expect_err(&j("<joint name=\"a\"/>\n<joint name=\"a\"/>"), 7, &["name", "\"a\"", "duplicate joint name"]);
     expect_err(&j("<joint type=\"free\" pos=\"0 0 1\"/>"), 6, &["pos", "body origin"]);
+    expect_err(&j("<joint type=\"free\" damping=\"-2\"/>"), 6, &["damping", "\"-2\"", "non-negative"]);
     // A free joint inside a child body.
     expect_err(
         &doc("", "<body>\n<geom size=\"0.1\"/>\n<body>\n<freejoint/>\n<geom size=\"0.1\"/>\n</body>\n</body>", ""),
