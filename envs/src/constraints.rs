@@ -80,10 +80,20 @@ pub fn impedance(solimp: &[f64; 5], r: f64) -> f64 {
     if x >= 1.0 {
         return dmax;
     }
+    // power = 2 (MuJoCo's default) without the libm call.
+    let pw = |b: f64, p: f64| {
+        if p == 2.0 {
+            b * b
+        } else if p == 1.0 {
+            b
+        } else {
+            b.powf(p)
+        }
+    };
     let y = if x <= mid {
-        x.powf(power) / mid.powf(power - 1.0)
+        pw(x, power) / pw(mid, power - 1.0)
     } else {
-        1.0 - (1.0 - x).powf(power) / (1.0 - mid).powf(power - 1.0)
+        1.0 - pw(1.0 - x, power) / pw(1.0 - mid, power - 1.0)
     };
     dmin + y * (dmax - dmin)
 }

@@ -77,13 +77,15 @@ pub fn ltdl_factor(m: &Model, h: &mut [f64]) -> Result<(), usize> {
 /// First half of [`ltdl_solve`]: solves `L^T z = b` in place. Entries only move to ancestor
 /// dofs, so a right-hand side supported on a few dof chains stays on them (zeros skipped).
 pub fn ltdl_half_solve(m: &Model, h: &[f64], x: &mut [f64]) {
-    for k in (0..m.nv).rev() {
+    let (adr, depth, chain) = (&m.dof_chain_adr[..m.nv], &m.dof_depth[..m.nv], &m.dof_chain[..]);
+    let x = &mut x[..m.nv];
+    for k in (0..x.len()).rev() {
         let xk = x[k];
         if xk == 0.0 {
             continue;
         }
-        let (ak, lk) = (m.dof_chain_adr[k], m.dof_depth[k]);
-        for (l, &i) in h[ak + 1..ak + lk].iter().zip(&m.dof_chain[ak + 1..ak + lk]) {
+        let (ak, lk) = (adr[k], depth[k]);
+        for (l, &i) in h[ak + 1..ak + lk].iter().zip(&chain[ak + 1..ak + lk]) {
             x[i] -= l * xk;
         }
     }
@@ -94,13 +96,13 @@ pub fn ltdl_half_solve(m: &Model, h: &[f64], x: &mut [f64]) {
 pub fn ltdl_solve(m: &Model, h: &[f64], x: &mut [f64]) {
     // L^T z = b, from the leaves up; then D; then L x = D^-1 z from the roots down.
     ltdl_half_solve(m, h, x);
-    for k in 0..m.nv {
-        x[k] /= h[m.dof_chain_adr[k]];
-    }
-    for k in 0..m.nv {
-        let (ak, lk) = (m.dof_chain_adr[k], m.dof_depth[k]);
-        let mut s = x[k];
-        for (l, &i) in h[ak + 1..ak + lk].iter().zip(&m.dof_chain[ak + 1..ak + lk]) {
+    let (adr, depth, chain) = (&m.dof_chain_adr[..m.nv], &m.dof_depth[..m.nv], &m.dof_chain[..]);
+    let x = &mut x[..m.nv];
+    for k in 0..x.len() {
+        let (ak, lk) = (adr[k], depth[k]);
+        // The ancestors of k are already final: x_k = z_k / D_k - sum_i L_ki x_i.
+        let mut s = x[k] / h[ak];
+        for (l, &i) in h[ak + 1..ak + lk].iter().zip(&chain[ak + 1..ak + lk]) {
             s -= l * x[i];
         }
         x[k] = s;

@@ -31,6 +31,7 @@
 //! - `add_geom(body, GeomSpec)`: a sphere, capsule or plane with its frame in the body frame,
 //!   density (or mass), friction and `contype`/`conaffinity` bits.
 //! - `add_actuator(joint, gear, ctrlrange)`: a motor, torque = gear * clamp(ctrl, ctrlrange).
+//! - `set_joint_armature_damping(joint, armature, damping)`: for free joints (all six dofs).
 //! - `set_body_mass` / `set_body_inertia`: override the inertia that is otherwise computed from
 //!   the geoms (MuJoCo's `inertiafromgeom`: solid spheres and capsules of the given density).
 //! - `set_options(Options)`: time step, gravity, contact/limit switches, solver parameters.
