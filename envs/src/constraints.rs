@@ -10,9 +10,9 @@
 //!   this keeps sliding from coupling into the normal direction (the pyramid's facet rows would
 //!   push a sliding body off the ground in proportion to its speed).
 //!
-//! With `H = M + h D` (the implicit-damping matrix of the integrator), the unconstrained
-//! acceleration `a0 = J qacc_smooth` and `A = J H^-1 J^T`, the forces solve the regularised
-//! problem `(A + R) f + a0 - aref` complementary to the cone, where
+//! As in MuJoCo, the forces are found from the dynamics with the mass matrix `M` alone: with
+//! the unconstrained acceleration `a0 = J M^-1 f` (`f` the smooth force) and `A = J M^-1 J^T`,
+//! the forces solve the regularised problem `(A + R) f + a0 - aref` complementary to the cone, where
 //! - `aref = -b (J v) - k imp(r) r` (normal and limit rows) or `-b (J v)` (friction rows) is
 //!   the reference acceleration of a critically damped spring-damper with time constant
 //!   `tau = max(solref[0], 2 h)` and damping ratio `zeta = solref[1]`:
@@ -27,7 +27,8 @@
 //! `f_t <- f_t - (A_tt + R_t)^-1 res_t`, then scaled back into the disc of radius `mu f_n`.
 //! Warm-started from the previous step's forces of the same contact slot (a slot is a fixed
 //! geom pair and end point), which makes a few sweeps enough.
-//! Finally `qacc = qacc_smooth + H^-1 J^T f`.
+//! Finally the integrator's implicit damping enters as in MuJoCo's Euler:
+//! `qacc = H^-1 (f + J^T lambda) = qacc_smooth + H^-1 J^T lambda`, `H = M + h D`.
 
 #![allow(clippy::needless_range_loop)] // index loops mirror the formulas (RBDA notation)
 #![allow(clippy::neg_cmp_op_on_partial_ord)] // `!(x > 0.0)` deliberately rejects NaN too
@@ -220,16 +221,27 @@ pub fn solve(m: &Model, d: &mut Data) {
     }
     debug_assert_eq!(row, n);
 
-    // With H = L^T D L: A = J H^-1 J^T = W D^-1 W^T, W = J L^-1 (rows: L^T w = J_k^T). A
+    // The factor of M: qh itself without damping, else a second factorisation.
+    let damped = m.dof_damping.iter().any(|&x| x > 0.0);
+    if damped {
+        d.qlm.copy_from_slice(&d.qm);
+        let _ = crate::crba::ltdl_factor(m, &mut d.qlm);
+        d.qacc_m.copy_from_slice(&d.qfrc_smooth);
+        ltdl_solve(m, &d.qlm, &mut d.qacc_m);
+    } else {
+        d.qlm.copy_from_slice(&d.qh);
+        d.qacc_m.copy_from_slice(&d.qacc_smooth);
+    }
+    // With M = L^T D L: A = J M^-1 J^T = W D^-1 W^T, W = J L^-1 (rows: L^T w = J_k^T). A
     // Jacobian row lives on one or two dof chains and so does its w (the half solve only
     // moves entries to ancestors): cheap, and one full solve with J^T f at the end replaces
     // a solve per row.
     efc.y.copy_from_slice(&efc.j);
     for k in 0..n {
-        ltdl_half_solve(m, &d.qh, &mut efc.y[k * nv..(k + 1) * nv]);
+        ltdl_half_solve(m, &d.qlm, &mut efc.y[k * nv..(k + 1) * nv]);
     }
     for i in 0..nv {
-        efc.dinv[i] = 1.0 / crate::crba::diag(m, &d.qh, i);
+        efc.dinv[i] = 1.0 / crate::crba::diag(m, &d.qlm, i);
     }
     for k in 0..n {
         for ((w, y), di) in efc.wd.iter_mut().zip(&efc.y[k * nv..(k + 1) * nv]).zip(&efc.dinv) {
@@ -249,7 +261,7 @@ pub fn solve(m: &Model, d: &mut Data) {
     for k in 0..n {
         let jk = &efc.j[k * nv..(k + 1) * nv];
         let vel = dot(jk, &d.qvel);
-        efc.a0[k] = dot(jk, &d.qacc_smooth);
+        efc.a0[k] = dot(jk, &d.qacc_m);
         if k < nlim || (k - nlim) % 3 == 0 {
             // Limit or normal row: spring-damper on the distance.
             let dist = efc.r[k];

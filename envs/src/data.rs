@@ -89,8 +89,15 @@ pub struct Data {
     pub qfrc_actuator: Vec<f64>,
     /// Passive (damping) forces.
     pub qfrc_passive: Vec<f64>,
-    /// Unconstrained acceleration `(M + h D)^-1 (tau - c - D qvel)`.
+    /// Total smooth force `tau_act + tau_applied - D qvel - c`.
+    pub qfrc_smooth: Vec<f64>,
+    /// Unconstrained acceleration `(M + h D)^-1 qfrc_smooth`.
     pub qacc_smooth: Vec<f64>,
+    /// Factor of `M` alone (compact layout), for the constraint solver when damping makes
+    /// it differ from `qh`.
+    pub(crate) qlm: Vec<f64>,
+    /// `M^-1 qfrc_smooth` (scratch of the constraint solver).
+    pub(crate) qacc_m: Vec<f64>,
     /// Constraint forces in joint space of the last step.
     pub qfrc_constraint: Vec<f64>,
 
@@ -174,7 +181,10 @@ impl Data {
             qfrc_bias: vec![0.0; nv],
             qfrc_actuator: vec![0.0; nv],
             qfrc_passive: vec![0.0; nv],
+            qfrc_smooth: vec![0.0; nv],
             qacc_smooth: vec![0.0; nv],
+            qlm: vec![0.0; m.dof_chain.len()],
+            qacc_m: vec![0.0; nv],
             qfrc_constraint: vec![0.0; nv],
             qk: if m.opt.integrator == crate::model::Integrator::Implicit { vec![0.0; nv * nv] } else { Vec::new() },
             qk_piv: vec![0; nv],

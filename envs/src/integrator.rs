@@ -8,7 +8,8 @@
 //! 4. passive force `-D qvel`, motors `gear * clamp(ctrl, ctrlrange)`;
 //! 5. `H = M + h D` factored (tree-sparse `L^T D L`),
 //!    `qacc_smooth = H^-1 (tau_act + tau_applied - D qvel - c)`;
-//! 6. collision detection, then limits and contacts (`constraints`) giving `qacc`;
+//! 6. collision detection, then limits and contacts (`constraints`): forces from the
+//!    unconstrained dynamics with `M` (as MuJoCo's solver), `qacc = H^-1 (f + J^T lambda)`;
 //! 7. `qvel <- qvel + h qacc` and positions integrated with the new velocity: hinges
 //!    `q += h qdot`; free joints `p += h v` (world frame) and
 //!    `quat <- normalize(quat * exp(h w / 2))` with `w` in the body frame.
@@ -47,8 +48,9 @@ pub fn forward(m: &Model, d: &mut Data) {
     // definiteness); the non-finite values then propagate to qacc and are visible to callers.
     let _ = crba::factor_h(m, d, h);
     for i in 0..nv {
-        d.qacc_smooth[i] = d.qfrc_actuator[i] + d.qfrc_applied[i] + d.qfrc_passive[i] - d.qfrc_bias[i];
+        d.qfrc_smooth[i] = d.qfrc_actuator[i] + d.qfrc_applied[i] + d.qfrc_passive[i] - d.qfrc_bias[i];
     }
+    d.qacc_smooth.copy_from_slice(&d.qfrc_smooth);
     crba::ltdl_solve(m, &d.qh, &mut d.qacc_smooth);
     collision::collide(m, d);
     constraints::solve(m, d);
