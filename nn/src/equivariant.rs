@@ -149,13 +149,14 @@ pub fn mix_by_invariants<'t, T: Float>(
     let g = gram(m)?;
     let mut parts = vec![g];
     parts.extend_from_slice(scalars);
-    let input = m.tape().cat(&parts, 1)?;
-    let hidden = mlp.forward_hidden(p, input)?;
-    let norm = norm_plus_one(g)?;
+    let hidden = mlp.forward_hidden_parts(p, &parts)?;
+    let norm = norm_plus_one(g)?; // [N, 1]
     // The output layer is applied in two column blocks (vector coefficients, scalars): the
     // same arithmetic as one layer followed by slicing, without copying the large output.
-    let w = mlp.forward_output_columns(p, hidden, 0, k * m_out)?.div(norm)?.reshape(&[n, k, m_out])?;
-    let z_out = m.matmul(w)?;
+    // The division by the norm is applied after the product with `m` (one scalar per row
+    // commutes with it), on [N, 3, m_out] instead of the k x m_out coefficients.
+    let w = mlp.forward_output_columns(p, hidden, 0, k * m_out)?.reshape(&[n, k, m_out])?;
+    let z_out = m.matmul(w)?.div(norm.reshape(&[n, 1, 1])?)?;
     let h_out = if s_out > 0 {
         mlp.forward_output_columns(p, hidden, k * m_out, s_out)?.div(norm)?
     } else {

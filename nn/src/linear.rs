@@ -113,6 +113,46 @@ impl Mlp {
         self.layers[self.layers.len() - 1].forward(p, h)
     }
 
+    /// Like [`Mlp::forward_hidden`] for the input `cat(parts, last axis)`, without building the
+    /// concatenation: the first layer is computed as `sum_i part_i W[rows_i] + b`, which is
+    /// the same product split by input rows (and avoids copying large inputs such as Gram
+    /// matrices).
+    pub fn forward_hidden_parts<'t, T: Float>(&self, p: &Bound<'t, T>, parts: &[Var<'t, T>]) -> Result<Var<'t, T>> {
+        let first = &self.layers[0];
+        let w = p.get(first.weight);
+        let mut offset = 0;
+        let mut acc: Option<Var<'t, T>> = None;
+        for part in parts {
+            let width = *part.shape().last().ok_or_else(|| NnError::Config("an MLP input part has no dims".into()))?;
+            let wp = w.narrow(0, offset, width)?;
+            offset += width;
+            let y = part.linear(wp, None, Activation::Identity)?;
+            acc = Some(match acc {
+                Some(a) => a.add(y)?,
+                None => y,
+            });
+        }
+        if offset != first.fan_in {
+            return Err(NnError::Config(format!(
+                "MLP input parts have {offset} features in all, the first layer takes {}",
+                first.fan_in
+            )));
+        }
+        let mut h = acc.ok_or_else(|| NnError::Config("an MLP needs at least one input part".into()))?;
+        if let Some(b) = first.bias {
+            h = h.add(p.get(b))?;
+        }
+        h = match self.activation {
+            Activation::Identity => h,
+            Activation::Relu => h.relu(),
+            Activation::Tanh => h.tanh(),
+        };
+        for layer in &self.layers[1..self.layers.len() - 1] {
+            h = layer.forward_act(p, h, self.activation)?;
+        }
+        Ok(h)
+    }
+
     /// Applies every layer but the last (each followed by the activation): the features the
     /// output layer reads.
     pub fn forward_hidden<'t, T: Float>(&self, p: &Bound<'t, T>, x: Var<'t, T>) -> Result<Var<'t, T>> {

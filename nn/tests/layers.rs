@@ -134,3 +134,24 @@ fn bad_configurations_are_errors() {
     assert!(EdgeList::new(vec![1, 0], vec![0, 1], 2).is_err());
     assert!(EdgeList::new(vec![0, 1], vec![2, 0], 2).unwrap_err().to_string().contains("node 2"));
 }
+
+#[test]
+fn mlp_on_input_parts_equals_mlp_on_their_concatenation() {
+    let mut r = rng(6);
+    let mut store = ParamStore::<f64>::new();
+    let mut init = nn::init_rng(4);
+    let mlp = Mlp::new(&mut store.scope("m", &mut init), &[7, 5, 3], Activation::Relu).unwrap();
+    randomise_biases(&mut store, &mut r);
+    let (a, b) = (uniform(&mut r, &[4, 3]), uniform(&mut r, &[4, 4]));
+    let tape = tensor::Tape::new();
+    let p = store.bind(&tape);
+    let (va, vb) = (tape.constant(a), tape.constant(b));
+    let whole = mlp.forward_hidden(&p, tape.cat(&[va, vb], 1).unwrap()).unwrap().value();
+    let parts = mlp.forward_hidden_parts(&p, &[va, vb]).unwrap().value();
+    assert!(whole.all_close(&parts, 0.0, 1e-12));
+    // Parts that do not add up to the input width are an error.
+    assert!(mlp.forward_hidden_parts(&p, &[va]).is_err());
+    check_layer(&store, vec![uniform(&mut r, &[4, 3]), uniform(&mut r, &[4, 4])], |p, v| {
+        mlp.forward_output_columns(p, mlp.forward_hidden_parts(p, &[v[0], v[1]])?, 1, 2)
+    });
+}

@@ -16,8 +16,14 @@ use crate::tensor::Tensor;
 
 /// Products with fewer multiply-adds than this use the direct loop.
 const SMALL_WORK: usize = 16 * 1024;
-/// Rows per parallel block when one large product is split.
-const ROW_BLOCK: usize = 128;
+/// Smallest block (rows or columns) when one large product is split.
+const MIN_BLOCK: usize = 64;
+
+/// Block length for splitting an output side of length `len`: about an eighth of it (so up
+/// to eight threads get work), a multiple of 16, at least [`MIN_BLOCK`], at most 512.
+fn block_size(len: usize) -> usize {
+    (len.div_ceil(8).div_ceil(16) * 16).clamp(MIN_BLOCK, 512)
+}
 
 /// The logical problem: `op(A)` is `m x k`, `op(B)` is `k x n`, per batch entry.
 #[derive(Clone, Debug)]
@@ -110,25 +116,23 @@ pub fn matmul_into<T: Float>(out: &mut [T], accumulate: bool, a: &[T], ta: bool,
     let nb = plan.offsets.len();
     if nb > 1 && work * nb >= 1 << 16 {
         out.par_chunks_mut(mn).zip(plan.offsets.par_iter()).for_each(|(o, off)| one(o, off));
-    } else if nb == 1 && work >= 1 << 22 && m >= 2 * ROW_BLOCK {
+    } else if nb == 1 && work >= 1 << 22 && m.max(n) >= 2 * MIN_BLOCK {
+        // One large product: split the longer output side into fixed blocks (a function of
+        // the shape only) computed in parallel, each by one single-threaded faer call.
         let (oa, ob) = plan.offsets[0];
-        let am = &a[oa..oa + m * k];
-        let bm = &b[ob..ob + k * n];
-        out.par_chunks_mut(ROW_BLOCK * n).enumerate().for_each(|(blk, o)| {
-            let r0 = blk * ROW_BLOCK;
-            let rows = o.len() / n;
-            faer_matmul(o, accumulate, am, ta, bm, tb, m, k, n, r0, rows);
-        });
-    } else if nb == 1 && work >= 1 << 22 && n >= 2 * COL_BLOCK {
-        let (oa, ob) = plan.offsets[0];
-        matmul_col_blocks(out, accumulate, &a[oa..oa + m * k], ta, &b[ob..ob + k * n], tb, m, k, n);
+        let (am, bm) = (&a[oa..oa + m * k], &b[ob..ob + k * n]);
+        if m >= n {
+            let rb = block_size(m);
+            out.par_chunks_mut(rb * n).enumerate().for_each(|(blk, o)| {
+                faer_matmul(o, accumulate, am, ta, bm, tb, m, k, n, blk * rb, o.len() / n);
+            });
+        } else {
+            matmul_col_blocks(out, accumulate, am, ta, bm, tb, m, k, n, block_size(n));
+        }
     } else {
         out.chunks_mut(mn).zip(plan.offsets.iter()).for_each(|(o, off)| one(o, off));
     }
 }
-
-/// Columns per parallel block when a wide, short product is split.
-const COL_BLOCK: usize = 128;
 
 /// A pointer that may cross threads; each thread writes a disjoint block through it.
 #[derive(Clone, Copy)]
@@ -150,6 +154,7 @@ fn matmul_col_blocks<T: Float>(
     m: usize,
     k: usize,
     n: usize,
+    cb: usize,
 ) {
     assert_eq!(out.len(), m * n);
     let lhs: MatRef<'_, T> =
@@ -158,9 +163,9 @@ fn matmul_col_blocks<T: Float>(
         if tb { MatRef::from_row_major_slice(b, n, k).transpose() } else { MatRef::from_row_major_slice(b, k, n) };
     let ptr = SendPtr(out.as_mut_ptr());
     let accum = if accumulate { Accum::Add } else { Accum::Replace };
-    (0..n.div_ceil(COL_BLOCK)).into_par_iter().for_each(|blk| {
-        let c0 = blk * COL_BLOCK;
-        let nc = COL_BLOCK.min(n - c0);
+    (0..n.div_ceil(cb)).into_par_iter().for_each(|blk| {
+        let c0 = blk * cb;
+        let nc = cb.min(n - c0);
         let p = ptr;
         // SAFETY: `out` holds m x n elements in row-major order and outlives this scope; block
         // `blk` covers columns c0..c0+nc of every row, disjoint from every other block, so no
