@@ -3,7 +3,8 @@
 //!
 //! - [`ModelBuilder`] builds an immutable [`Model`]; [`Data`] holds one environment's state;
 //! - `step` advances one `Data` by one time step; `step_batch` many in parallel;
-//! - `mjcf` loads MuJoCo XML files.
+//! - `mjcf` loads MuJoCo XML files, `brax` MeBen's agent configs;
+//! - `tasks`: the MeBen tasks (Team Reach, Team Sumo) as batched multi-agent environments.
 
 pub mod batch;
 pub mod brax;
@@ -19,6 +20,7 @@ pub mod math;
 pub mod mjcf;
 pub mod model;
 pub mod rne;
+pub mod tasks;
 
 pub use batch::{step_batch, step_batch_ctrl};
 pub use builder::{GeomSpec, HingeSpec, ModelBuilder};

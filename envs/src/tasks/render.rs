@@ -1,0 +1,1 @@
+//! Trajectories and their HTML player (to come).

@@ -1,0 +1,230 @@
+//! Environment names and compositions: which morphologies play in which team, the arena or
+//! placement radius `R`, the number of goal balls, and the timing (MEBEN.md sections 2, 3).
+//!
+//! Built-in names: [`BUILTIN_NAMES`]. Any other composition is configured without code by
+//! a string ([`TaskSpec::from_name`]):
+//!
+//! - `team_reach:agents=ant+claw;R=5;balls=2` (`balls` defaults to the number of agents,
+//!   `R` to 5);
+//! - `team_sumo:team1=ant+claw;team2=ant+ant;R=3` (`R` defaults to 3).
+//!
+//! Morphologies are the built-in names of [`crate::brax::morphologies`] or paths to Brax
+//! config files (ending in `.txt`).
+
+use super::error::TaskError;
+
+/// Control step (s): one action per 0.05 s.
+pub const CONTROL_DT: f64 = 0.05;
+/// Physics steps per control step (the MeBen scenes' 0.01 s time step,
+/// [`crate::brax::to_model::BRAX_TIMESTEP`]).
+pub const PHYSICS_STEPS_PER_CONTROL: usize = 5;
+/// Episode length in control steps.
+pub const EPISODE_STEPS: usize = 1000;
+
+/// Which game.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TaskKind {
+    /// Team Reach: one team of N agents covers M fixed balls.
+    Reach,
+    /// Team Sumo: two teams push each other out of a ring around a centre ball.
+    Sumo,
+}
+
+/// A complete composition: everything needed to build a scene.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TaskSpec {
+    /// The name it was made from (built-in or custom string).
+    pub name: String,
+    /// Which game.
+    pub kind: TaskKind,
+    /// Morphology names (or config paths) per team: Reach has one team, Sumo two.
+    pub teams: Vec<Vec<String>>,
+    /// Reach: placement radius of agents and balls (m); Sumo: arena radius (m).
+    pub radius: f64,
+    /// Number of balls: Reach goal balls (1 ..= agents); Sumo always 1 (the centre ball).
+    pub balls: usize,
+    /// Episode length in control steps ([`EPISODE_STEPS`]).
+    pub episode_steps: usize,
+    /// Physics steps per control step ([`PHYSICS_STEPS_PER_CONTROL`]).
+    pub physics_steps: usize,
+}
+
+/// Every built-in environment name.
+pub const BUILTIN_NAMES: [&str; 10] = [
+    "team_reach/1_ant",
+    "team_reach/1_centipede",
+    "team_reach/2_ants",
+    "team_reach/2_ant_claw",
+    "team_reach/2_unimals",
+    "team_reach/3_ant_claw_centipede",
+    "team_sumo/1_centipede",
+    "team_sumo/2_ants",
+    "team_sumo/2_ant_claw",
+    "team_sumo/3_ants",
+];
+
+fn builtin(name: &str) -> Option<TaskSpec> {
+    let (agents, radius): (&[&str], f64) = match name {
+        "team_reach/1_ant" => (&["ant"], 5.0),
+        "team_reach/1_centipede" => (&["centipede"], 5.0),
+        "team_reach/2_ants" => (&["ant", "ant"], 3.0),
+        "team_reach/2_ant_claw" => (&["ant", "claw"], 5.0),
+        "team_reach/2_unimals" => (&["unimal_1", "unimal_2"], 5.0),
+        "team_reach/3_ant_claw_centipede" => (&["ant", "claw", "centipede"], 5.0),
+        "team_sumo/1_centipede" => (&["centipede"], 3.0),
+        "team_sumo/2_ants" => (&["ant", "ant"], 3.0),
+        "team_sumo/2_ant_claw" => (&["ant", "claw"], 3.0),
+        "team_sumo/3_ants" => (&["ant", "ant", "ant"], 4.0),
+        _ => return None,
+    };
+    let team: Vec<String> = agents.iter().map(|s| s.to_string()).collect();
+    let spec = if name.starts_with("team_reach/") {
+        TaskSpec::reach(&team, radius, team.len())
+    } else {
+        TaskSpec::sumo(&team, &team, radius)
+    };
+    spec.ok().map(|s| TaskSpec { name: name.to_string(), ..s })
+}
+
+fn bad(what: &str, value: &str, message: &str) -> TaskError {
+    TaskError::BadSpec { what: what.to_string(), value: value.to_string(), message: message.to_string() }
+}
+
+fn parse_team(what: &str, value: &str) -> Result<Vec<String>, TaskError> {
+    let team: Vec<String> = value.split('+').map(|s| s.trim().to_string()).collect();
+    if team.iter().any(|s| s.is_empty()) {
+        return Err(bad(what, value, "expected morphology names joined by '+', e.g. ant+claw"));
+    }
+    Ok(team)
+}
+
+fn parse_radius(value: &str) -> Result<f64, TaskError> {
+    value.trim().parse::<f64>().map_err(|_| bad("R", value, "expected a number of metres"))
+}
+
+impl TaskSpec {
+    /// A Team Reach composition: `agents` (one team), placement radius `radius`, `balls` goal
+    /// balls (1 ..= number of agents).
+    pub fn reach(agents: &[String], radius: f64, balls: usize) -> Result<TaskSpec, TaskError> {
+        let spec = TaskSpec {
+            name: format!("team_reach:agents={};R={radius};balls={balls}", agents.join("+")),
+            kind: TaskKind::Reach,
+            teams: vec![agents.to_vec()],
+            radius,
+            balls,
+            episode_steps: EPISODE_STEPS,
+            physics_steps: PHYSICS_STEPS_PER_CONTROL,
+        };
+        spec.validate()?;
+        Ok(spec)
+    }
+
+    /// A Team Sumo composition: `team1` against `team2` in an arena of radius `radius`.
+    pub fn sumo(team1: &[String], team2: &[String], radius: f64) -> Result<TaskSpec, TaskError> {
+        let spec = TaskSpec {
+            name: format!("team_sumo:team1={};team2={};R={radius}", team1.join("+"), team2.join("+")),
+            kind: TaskKind::Sumo,
+            teams: vec![team1.to_vec(), team2.to_vec()],
+            radius,
+            balls: 1,
+            episode_steps: EPISODE_STEPS,
+            physics_steps: PHYSICS_STEPS_PER_CONTROL,
+        };
+        spec.validate()?;
+        Ok(spec)
+    }
+
+    /// A built-in environment ([`BUILTIN_NAMES`]) or a custom composition string (module
+    /// docs). An unknown name is an error listing the built-in names.
+    pub fn from_name(name: &str) -> Result<TaskSpec, TaskError> {
+        if let Some(spec) = builtin(name) {
+            return Ok(spec);
+        }
+        let unknown = || TaskError::UnknownEnv {
+            name: name.to_string(),
+            known: BUILTIN_NAMES.iter().map(|s| s.to_string()).collect(),
+        };
+        let (kind, rest) = name.split_once(':').ok_or_else(unknown)?;
+        let mut keys: Vec<(&str, &str)> = Vec::new();
+        for part in rest.split(';').filter(|p| !p.trim().is_empty()) {
+            let (k, v) = part
+                .split_once('=')
+                .ok_or_else(|| bad("setting", part, "expected key=value (keys: agents, team1, team2, R, balls)"))?;
+            let k = k.trim();
+            if keys.iter().any(|(old, _)| *old == k) {
+                return Err(bad(k, v, "given twice"));
+            }
+            keys.push((k, v.trim()));
+        }
+        let get = |k: &str| keys.iter().find(|(key, _)| *key == k).map(|(_, v)| *v);
+        let allowed: &[&str] = match kind {
+            "team_reach" => &["agents", "R", "balls"],
+            "team_sumo" => &["team1", "team2", "R"],
+            _ => return Err(unknown()),
+        };
+        if let Some((k, v)) = keys.iter().find(|(k, _)| !allowed.contains(k)) {
+            return Err(bad(k, v, &format!("unknown setting for {kind}; accepted: {}", allowed.join(", "))));
+        }
+        let spec = if kind == "team_reach" {
+            let agents = parse_team("agents", get("agents").ok_or_else(|| bad("agents", "", "missing"))?)?;
+            let radius = get("R").map(parse_radius).transpose()?.unwrap_or(5.0);
+            let balls = match get("balls") {
+                Some(v) => v.parse::<usize>().map_err(|_| bad("balls", v, "expected a whole number"))?,
+                None => agents.len(),
+            };
+            TaskSpec::reach(&agents, radius, balls)?
+        } else {
+            let team1 = parse_team("team1", get("team1").ok_or_else(|| bad("team1", "", "missing"))?)?;
+            let team2 = parse_team("team2", get("team2").ok_or_else(|| bad("team2", "", "missing"))?)?;
+            let radius = get("R").map(parse_radius).transpose()?.unwrap_or(3.0);
+            TaskSpec::sumo(&team1, &team2, radius)?
+        };
+        Ok(TaskSpec { name: name.to_string(), ..spec })
+    }
+
+    /// Checks the numbers: teams not empty, `R` finite and positive (Sumo: above 2 m, so
+    /// that the start ring of radii 1 ..= min(2, R - 1) exists), Reach ball count in
+    /// 1 ..= agents, Sumo exactly one ball. Morphology names are checked when the scene is
+    /// built.
+    pub fn validate(&self) -> Result<(), TaskError> {
+        let n_teams = match self.kind {
+            TaskKind::Reach => 1,
+            TaskKind::Sumo => 2,
+        };
+        if self.teams.len() != n_teams {
+            return Err(bad("teams", &self.teams.len().to_string(), &format!("this game has {n_teams} team(s)")));
+        }
+        if let Some(t) = self.teams.iter().position(|t| t.is_empty()) {
+            return Err(bad(&format!("team{}", t + 1), "", "a team needs at least one agent"));
+        }
+        let r = self.radius;
+        let min_r = if self.kind == TaskKind::Sumo { 2.0 } else { 0.0 };
+        if !r.is_finite() || r <= min_r {
+            return Err(bad("R", &r.to_string(), &format!("must be a finite number of metres above {min_r}")));
+        }
+        let agents = self.n_agents();
+        match self.kind {
+            TaskKind::Reach if self.balls == 0 || self.balls > agents => {
+                return Err(bad("balls", &self.balls.to_string(), &format!("Team Reach needs 1 ..= {agents} balls")));
+            }
+            TaskKind::Sumo if self.balls != 1 => {
+                return Err(bad("balls", &self.balls.to_string(), "Team Sumo has exactly one (centre) ball"));
+            }
+            _ => {}
+        }
+        if self.episode_steps == 0 || self.physics_steps == 0 {
+            return Err(bad("episode length", &self.episode_steps.to_string(), "must be positive"));
+        }
+        Ok(())
+    }
+
+    /// Total number of agents.
+    pub fn n_agents(&self) -> usize {
+        self.teams.iter().map(|t| t.len()).sum()
+    }
+
+    /// Number of teams (1 for Reach, 2 for Sumo).
+    pub fn n_teams(&self) -> usize {
+        self.teams.len()
+    }
+}
