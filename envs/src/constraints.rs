@@ -18,8 +18,10 @@
 //!   `tau = max(solref[0], 2 h)` and damping ratio `zeta = solref[1]`:
 //!   `b = 2 / (dmax tau)`, `k = 1 / (dmax^2 tau^2 zeta^2)`;
 //! - `imp(r)` is MuJoCo's impedance, rising from `dmin` to `dmax` as `|r|` grows to `width`;
-//! - `R_k = (1 - imp) / imp * w_k` makes the constraint soft, with `w_k = A_kk` for contacts
-//!   and MuJoCo's constant `dof_invweight0` for limits: at rest a row carrying force `f` sits
+//! - `R_k = (1 - imp) / imp * w_k` makes the constraint soft, with `w_k = A_kk` for contact
+//!   normals, the mean of the two tangent diagonal entries for both friction rows (so that the
+//!   response does not depend on the orientation of the tangent frame) and MuJoCo's constant
+//!   `dof_invweight0` for limits: at rest a row carrying force `f` sits
 //!   at depth `r = -R f / (k imp)`, which is what the settling tests predict.
 //!
 //! Projected (block) Gauss-Seidel, `Options::iterations` sweeps: a limit or normal row
@@ -27,13 +29,13 @@
 //! `f_t <- f_t - (A_tt + R_t)^-1 res_t`, then scaled back into the disc of radius `mu f_n`.
 //! Warm-started from the previous step's forces of the same contact slot (a slot is a fixed
 //! geom pair and end point), which makes a few sweeps enough.
-//! Finally the integrator's implicit damping enters as in MuJoCo's Euler:
-//! `qacc = H^-1 (f + J^T lambda) = qacc_smooth + H^-1 J^T lambda`, `H = M + h D`.
+//! The result is `d.qfrc_constraint = J^T lambda`; the integrator then applies its implicit
+//! damping as MuJoCo's Euler does: `qacc = (M + h D)^-1 (f + J^T lambda)`.
 
 #![allow(clippy::needless_range_loop)] // index loops mirror the formulas (RBDA notation)
 #![allow(clippy::neg_cmp_op_on_partial_ord)] // `!(x > 0.0)` deliberately rejects NaN too
 
-use crate::crba::{ltdl_half_solve, ltdl_solve};
+use crate::crba::ltdl_half_solve;
 use crate::data::Data;
 use crate::math::{self, Vec3, Vec6};
 use crate::model::{JointKind, Model, NONE};
@@ -140,8 +142,9 @@ fn tangents(n: Vec3) -> (Vec3, Vec3) {
     (t1, math::cross(n, t1))
 }
 
-/// Assembles and solves the constraints of the current state; updates `d.qacc` from
-/// `d.qacc_smooth`. Needs the kinematics, `cdof`, the factor `d.qh` and `d.contacts`.
+/// Assembles and solves the constraints of the current state into `d.qfrc_constraint`.
+/// Needs the kinematics, `cdof`, the factor of `M` (`d.qlm`), `d.qacc_smooth` and
+/// `d.contacts`.
 pub fn solve(m: &Model, d: &mut Data) {
     let nv = m.nv;
     let h = m.opt.timestep;
@@ -158,7 +161,6 @@ pub fn solve(m: &Model, d: &mut Data) {
         }
     }
     let n = nlim + 3 * d.contacts.len();
-    d.qacc.copy_from_slice(&d.qacc_smooth);
     d.qfrc_constraint.iter_mut().for_each(|x| *x = 0.0);
     d.efc.n = n;
     if n == 0 {
@@ -212,26 +214,21 @@ pub fn solve(m: &Model, d: &mut Data) {
         let rows = &mut efc.j[row * nv..(row + 3) * nv];
         add_point_jacobian(m, &d.tree_ref, &d.cdof, b2, c.pos, &e, 1.0, rows);
         add_point_jacobian(m, &d.tree_ref, &d.cdof, b1, c.pos, &e, -1.0, rows);
+        // Warm start: the slot keeps the normal force and the friction force as a world
+        // vector, projected on this step's tangent frame (so the frame's orientation, which
+        // follows world axes, does not matter).
+        let w = d.warm[c.slot];
+        let ft = [w[1], w[2], w[3]];
+        let warm = [w[0], math::dot(ft, t1), math::dot(ft, t2)];
         for k in 0..3 {
             efc.r[row + k] = if k == 0 { c.dist } else { 0.0 };
-            efc.f[row + k] = d.warm[c.slot][k];
+            efc.f[row + k] = warm[k];
             efc.dst[row + k] = 4 * c.slot + k;
         }
         row += 3;
     }
     debug_assert_eq!(row, n);
 
-    // The factor of M: qh itself without damping, else a second factorisation.
-    let damped = m.dof_damping.iter().any(|&x| x > 0.0);
-    if damped {
-        d.qlm.copy_from_slice(&d.qm);
-        let _ = crate::crba::ltdl_factor(m, &mut d.qlm);
-        d.qacc_m.copy_from_slice(&d.qfrc_smooth);
-        ltdl_solve(m, &d.qlm, &mut d.qacc_m);
-    } else {
-        d.qlm.copy_from_slice(&d.qh);
-        d.qacc_m.copy_from_slice(&d.qacc_smooth);
-    }
     // With M = L^T D L: A = J M^-1 J^T = W D^-1 W^T, W = J L^-1 (rows: L^T w = J_k^T). A
     // Jacobian row lives on one or two dof chains and so does its w (the half solve only
     // moves entries to ancestors): cheap, and one full solve with J^T f at the end replaces
@@ -261,7 +258,7 @@ pub fn solve(m: &Model, d: &mut Data) {
     for k in 0..n {
         let jk = &efc.j[k * nv..(k + 1) * nv];
         let vel = dot(jk, &d.qvel);
-        efc.a0[k] = dot(jk, &d.qacc_m);
+        efc.a0[k] = dot(jk, &d.qacc_smooth);
         if k < nlim || (k - nlim) % 3 == 0 {
             // Limit or normal row: spring-damper on the distance.
             let dist = efc.r[k];
@@ -278,7 +275,12 @@ pub fn solve(m: &Model, d: &mut Data) {
             let kn = k - (k - nlim) % 3;
             let imp = impedance(&m.opt.solimp, efc_dist(&d.contacts, nlim, kn));
             efc.aref[k] = -bb * vel;
-            efc.r[k] = (1.0 - imp) / imp * efc.a[k * n + k];
+            // The same regulariser for both tangents (mean of their diagonal entries): a
+            // choice independent of how the tangent frame is oriented, so that the contact
+            // responds the same in any rotated copy of a scene.
+            let (t1, t2) = (kn + 1, kn + 2);
+            let w = 0.5 * (efc.a[t1 * n + t1] + efc.a[t2 * n + t2]);
+            efc.r[k] = (1.0 - imp) / imp * w;
             if !efc.f[k].is_finite() {
                 efc.f[k] = 0.0;
             }
@@ -344,14 +346,12 @@ pub fn solve(m: &Model, d: &mut Data) {
         let dst = efc.dst[k];
         if dst >= LIMIT_BASE {
             d.warm_limit[dst - LIMIT_BASE] = f;
-        } else {
-            d.warm[dst / 4][dst % 4] = f;
         }
     }
-    // qacc = qacc_smooth + H^-1 J^T f.
-    efc.wd[..nv].copy_from_slice(&d.qfrc_constraint);
-    ltdl_solve(m, &d.qh, &mut efc.wd[..nv]);
-    for i in 0..nv {
-        d.qacc[i] += efc.wd[i];
+    for (ci, c) in d.contacts.iter().enumerate() {
+        let k = nlim + 3 * ci;
+        let (t1, t2) = tangents(c.normal);
+        let ft = math::add(math::scale(t1, efc.f[k + 1]), math::scale(t2, efc.f[k + 2]));
+        d.warm[c.slot] = [efc.f[k], ft[0], ft[1], ft[2]];
     }
 }

@@ -81,7 +81,8 @@ pub struct Data {
     /// Mass matrix in the compact tree layout of [`crate::crba`] (row `i`: `M[i][j]` for the
     /// ancestors `j` of `i`, diagonal first); [`crate::crba::dense_mass_matrix`] expands it.
     pub qm: Vec<f64>,
-    /// `L^T D L` factor of `M + h D_damping` in the same layout (diagonal entries: D).
+    /// `L^T D L` factor of `M + h D_damping` in the same layout (diagonal entries: D); only
+    /// computed when some dof has damping.
     pub qh: Vec<f64>,
     /// Bias forces `C(q, qdot) qdot + g(q)`.
     pub qfrc_bias: Vec<f64>,
@@ -91,13 +92,10 @@ pub struct Data {
     pub qfrc_passive: Vec<f64>,
     /// Total smooth force `tau_act + tau_applied - D qvel - c`.
     pub qfrc_smooth: Vec<f64>,
-    /// Unconstrained acceleration `(M + h D)^-1 qfrc_smooth`.
+    /// Unconstrained acceleration `M^-1 qfrc_smooth` (MuJoCo's `qacc_smooth`).
     pub qacc_smooth: Vec<f64>,
-    /// Factor of `M` alone (compact layout), for the constraint solver when damping makes
-    /// it differ from `qh`.
-    pub(crate) qlm: Vec<f64>,
-    /// `M^-1 qfrc_smooth` (scratch of the constraint solver).
-    pub(crate) qacc_m: Vec<f64>,
+    /// `L^T D L` factor of `M` (compact layout).
+    pub qlm: Vec<f64>,
     /// Constraint forces in joint space of the last step.
     pub qfrc_constraint: Vec<f64>,
 
@@ -110,7 +108,8 @@ pub struct Data {
 
     /// Contacts of the last step.
     pub contacts: Vec<Contact>,
-    /// Warm-start forces of the contact slots (normal, two tangents, unused).
+    /// Warm-start forces of the contact slots: normal force, then the friction force as a
+    /// world-frame vector.
     pub(crate) warm: Vec<[f64; 4]>,
     /// Warm-start forces of the joint limits, per joint.
     pub(crate) warm_limit: Vec<f64>,
@@ -184,7 +183,6 @@ impl Data {
             qfrc_smooth: vec![0.0; nv],
             qacc_smooth: vec![0.0; nv],
             qlm: vec![0.0; m.dof_chain.len()],
-            qacc_m: vec![0.0; nv],
             qfrc_constraint: vec![0.0; nv],
             qk: if m.opt.integrator == crate::model::Integrator::Implicit { vec![0.0; nv * nv] } else { Vec::new() },
             qk_piv: vec![0; nv],
