@@ -98,12 +98,15 @@ fn matmul_matches_naive_for_random_sizes_and_transposes() {
         // short-wide products with a long inner dim (column-block parallel).
         let big = trial % 10 == 0;
         let hi = if big { 300 } else { 40 };
-        let (m, k, n) = if trial % 16 == 15 {
+        let (m, k, n) = if trial % 16 == 7 {
+            // Tall, thin A^T B with a long inner dim (the transposed-problem path).
+            (r.random_range(400..=600), r.random_range(2400..=3000), r.random_range(8..=100))
+        } else if trial % 16 == 15 {
             (r.random_range(1..=100), r.random_range(2000..=3000), r.random_range(256..=400))
         } else {
             (r.random_range(1..=hi), r.random_range(1..=hi), r.random_range(1..=hi))
         };
-        let (ta, tb) = (r.random_bool(0.5), r.random_bool(0.5));
+        let (ta, tb) = if trial % 16 == 7 { (true, false) } else { (r.random_bool(0.5), r.random_bool(0.5)) };
         let a = uniform(&mut r, &if ta { [k, m] } else { [m, k] });
         let b = uniform(&mut r, &if tb { [n, k] } else { [k, n] });
         let tape = Tape::new();

@@ -116,6 +116,24 @@ pub fn matmul_into<T: Float>(out: &mut [T], accumulate: bool, a: &[T], ta: bool,
     let nb = plan.offsets.len();
     if nb > 1 && work * nb >= 1 << 16 {
         out.par_chunks_mut(mn).zip(plan.offsets.par_iter()).for_each(|(o, off)| one(o, off));
+    } else if nb == 1 && work >= 1 << 22 && ta && !tb && m >= 4 * n && k >= 4 * m {
+        // A^T B with a tall, thin result and a long inner dim (weight gradients x^T g of wide
+        // inputs): faer is several times faster on the transposed problem B^T A, so compute
+        // that ([n, m]) and transpose it into place.
+        let (oa, ob) = plan.offsets[0];
+        let t_plan = MatMulPlan { m: n, k, n: m, batch: vec![], offsets: vec![(0, 0)] };
+        let mut tmp = vec![T::ZERO; m * n];
+        matmul_into(&mut tmp, false, &b[ob..ob + k * n], true, &a[oa..oa + k * m], false, &t_plan);
+        for i in 0..m {
+            for j in 0..n {
+                let v = tmp[j * m + i];
+                if accumulate {
+                    out[i * n + j] += v;
+                } else {
+                    out[i * n + j] = v;
+                }
+            }
+        }
     } else if nb == 1 && work >= 1 << 22 && m.max(n) >= 2 * MIN_BLOCK {
         // One large product: split the longer output side into fixed blocks (a function of
         // the shape only) computed in parallel, each by one single-threaded faer call.
