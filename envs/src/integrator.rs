@@ -6,10 +6,10 @@
 //! 2. mass matrix `M` by CRBA (armature on the diagonal);
 //! 3. velocities, bias `c = C qdot + g` by recursive Newton-Euler;
 //! 4. passive force `-D qvel`, motors `gear * clamp(ctrl, ctrlrange)`;
-//! 5. `H = M + h D` factored (tree-sparse `L^T D L`),
-//!    `qacc_smooth = H^-1 (tau_act + tau_applied - D qvel - c)`;
-//! 6. collision detection, then limits and contacts (`constraints`): forces from the
-//!    unconstrained dynamics with `M` (as MuJoCo's solver), `qacc = H^-1 (f + J^T lambda)`;
+//! 5. `M` factored (tree-sparse `L^T D L`), `qacc_smooth = M^-1 f` with the smooth force
+//!    `f = tau_act + tau_applied - D qvel - c`; with damping, `H = M + h D` factored too;
+//! 6. collision detection, then limits and contacts (`constraints`), solved with `M` as in
+//!    MuJoCo, and `qacc = H^-1 (f + J^T lambda)`;
 //! 7. `qvel <- qvel + h qacc` and positions integrated with the new velocity: hinges
 //!    `q += h qdot`; free joints `p += h v` (world frame) and
 //!    `quat <- normalize(quat * exp(h w / 2))` with `w` in the body frame.
@@ -44,16 +44,31 @@ pub fn forward(m: &Model, d: &mut Data) {
         };
         d.qfrc_actuator[act.dof] += act.gear * c;
     }
-    // A failed factorisation means a non-finite state (build() checked positive
-    // definiteness); the non-finite values then propagate to qacc and are visible to callers.
-    let _ = crba::factor_h(m, d, h);
     for i in 0..nv {
         d.qfrc_smooth[i] = d.qfrc_actuator[i] + d.qfrc_applied[i] + d.qfrc_passive[i] - d.qfrc_bias[i];
     }
+    // A failed factorisation means a non-finite state (build() checked positive
+    // definiteness); the non-finite values then propagate to qacc and are visible to callers.
+    // M (for qacc_smooth and the constraint solver, as MuJoCo) and, with damping, M + h D.
+    d.qlm.copy_from_slice(&d.qm);
+    let _ = crba::ltdl_factor(m, &mut d.qlm);
     d.qacc_smooth.copy_from_slice(&d.qfrc_smooth);
-    crba::ltdl_solve(m, &d.qh, &mut d.qacc_smooth);
+    crba::ltdl_solve(m, &d.qlm, &mut d.qacc_smooth);
+    let damped = m.dof_damping.iter().any(|&x| x > 0.0);
+    if damped {
+        let _ = crba::factor_h(m, d, h);
+    }
     collision::collide(m, d);
     constraints::solve(m, d);
+    // qacc = (M + h D)^-1 (f + J^T lambda): MuJoCo's Euler with implicit damping.
+    if damped || d.efc.n > 0 {
+        for i in 0..nv {
+            d.qacc[i] = d.qfrc_smooth[i] + d.qfrc_constraint[i];
+        }
+        crba::ltdl_solve(m, if damped { &d.qh } else { &d.qlm }, &mut d.qacc);
+    } else {
+        d.qacc.copy_from_slice(&d.qacc_smooth);
+    }
     if m.opt.integrator == Integrator::Implicit {
         implicit_qacc(m, d);
     }
