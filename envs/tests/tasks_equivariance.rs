@@ -2,6 +2,9 @@
 //! applying the same actions gives the rotated trajectory (qpos to 1e-6 over 50 control
 //! steps), rotated vector observations, rotated headings, unchanged scalars and rewards.
 
+#![allow(clippy::needless_range_loop)] // index loops mirror the array layouts
+
+use envs::tasks::placement::{RootPlacement, Start};
 use envs::tasks::{StartMode, VecEnv};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -35,8 +38,23 @@ fn angle_diff(a: f64, b: f64) -> f64 {
 /// Runs the fixed start of `seed` unrotated and rotated by `angle` about `point` with the
 /// same random actions; checks every control step. Returns the largest qpos error.
 fn check(name: &str, seed: u64, angle: f64, point: [f64; 2]) -> f64 {
-    let mut a = VecEnv::from_name(name, 1, 0, StartMode::fixed(seed)).unwrap();
-    let mut b = VecEnv::from_name(name, 1, 0, StartMode::fixed_rotated(seed, angle, point)).unwrap();
+    let a = VecEnv::from_name(name, 1, 0, StartMode::fixed(seed)).unwrap();
+    let b = VecEnv::from_name(name, 1, 0, StartMode::fixed_rotated(seed, angle, point)).unwrap();
+    check_envs(name, a, b, seed, angle, point).0
+}
+
+/// Like [`check`] from a hand-built start; returns the largest qpos error and the number of
+/// steps with contacts between different agents.
+fn check_start(name: &str, start: &Start, angle: f64, point: [f64; 2]) -> (f64, usize) {
+    let mut a = VecEnv::from_name(name, 1, 0, StartMode::Random).unwrap();
+    let mut b = VecEnv::from_name(name, 1, 0, StartMode::Random).unwrap();
+    a.set_start(0, start).unwrap();
+    b.set_start(0, &start.rotated(angle, point)).unwrap();
+    check_envs(name, a, b, 1, angle, point)
+}
+
+fn check_envs(name: &str, mut a: VecEnv, mut b: VecEnv, seed: u64, angle: f64, point: [f64; 2]) -> (f64, usize) {
+    let mut touching = 0;
     a.set_curriculum_alpha(0.5).unwrap();
     b.set_curriculum_alpha(0.5).unwrap();
     let scene = a.scene().clone();
@@ -51,6 +69,8 @@ fn check(name: &str, seed: u64, angle: f64, point: [f64; 2]) -> f64 {
         assert_eq!(oa.terminated, ob.terminated);
         // Trajectory: roots rotated about the point, orientations pre-multiplied, hinges equal.
         let (da, db) = (a.data(0).unwrap(), b.data(0).unwrap());
+        let tree = |g: usize| scene.model.geoms[g].tree;
+        touching += da.contacts.iter().any(|c| tree(c.geom1) != tree(c.geom2) && tree(c.geom1) != usize::MAX) as usize;
         for ag in &scene.agents {
             let q = &da.qpos[ag.qpos_adr..ag.qpos_adr + ag.nq];
             let r = &db.qpos[ag.qpos_adr..ag.qpos_adr + ag.nq];
@@ -103,7 +123,7 @@ fn check(name: &str, seed: u64, angle: f64, point: [f64; 2]) -> f64 {
             assert!((ra - rb).abs() < tol, "{name} step {step}: reward {ra} vs {rb}");
         }
     }
-    worst
+    (worst, touching)
 }
 
 #[test]
@@ -125,7 +145,20 @@ fn reach_3_ant_claw_centipede_rotated_about_a_point() {
 }
 
 #[test]
-fn sumo_2_ants_rotated_with_contacts_between_agents() {
+fn sumo_2_ants_rotated_about_a_point() {
     let e = check("team_sumo/2_ants", 11, 2.5, [-1.0, 0.5]);
     eprintln!("team_sumo/2_ants max qpos error {e:e}");
+}
+
+#[test]
+fn sumo_2_ants_rotated_while_the_ants_push_each_other() {
+    // Two ants of each team, legs interleaved at the start so that they touch at once.
+    let p = |x: f64, y: f64, yaw: f64| RootPlacement { xy: [x, y], yaw };
+    let start = Start {
+        agents: vec![p(-0.75, 0.0, 0.785), p(0.0, 1.5, 0.0), p(0.75, 0.0, 0.0), p(0.0, -1.5, 0.3)],
+        balls: vec![[0.0, 0.0]],
+    };
+    let (e, touching) = check_start("team_sumo/2_ants", &start, 2.0, [0.3, -0.4]);
+    eprintln!("team_sumo/2_ants pushing: max qpos error {e:e}, {touching} steps with contacts between agents");
+    assert!(touching >= 5, "the ants touched at only {touching} steps");
 }

@@ -104,8 +104,11 @@ pub fn rotate_xy(p: [f64; 2], angle: f64, point: [f64; 2]) -> [f64; 2] {
 
 impl Start {
     /// The same scene rotated by `angle` (rad) about the vertical through `point` (x, y):
-    /// positions rotate about the point, yaws grow by `angle`.
+    /// positions rotate about the point, yaws grow by `angle` (`angle = 0`: an exact copy).
     pub fn rotated(&self, angle: f64, point: [f64; 2]) -> Start {
+        if angle == 0.0 {
+            return self.clone(); // exactly, without round-off
+        }
         Start {
             agents: self
                 .agents
