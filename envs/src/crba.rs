@@ -51,22 +51,26 @@ pub fn factor_h(m: &Model, d: &mut Data, h: f64) -> Result<(), usize> {
 /// In-place `H = L^T D L` (RBDA Table 6.3) in the compact layout: afterwards the diagonal
 /// entries hold D and the others L (unit diagonal implied).
 pub fn ltdl_factor(m: &Model, h: &mut [f64]) -> Result<(), usize> {
-    for k in (0..m.nv).rev() {
-        let (ak, lk) = (m.dof_chain_adr[k], m.dof_depth[k]);
+    let (adr, depth, chain) = (&m.dof_chain_adr[..m.nv], &m.dof_depth[..m.nv], &m.dof_chain[..]);
+    for k in (0..adr.len()).rev() {
+        let (ak, lk) = (adr[k], depth[k]);
         let dk = h[ak];
         if !(dk > 0.0) {
             return Err(k);
         }
+        let inv = 1.0 / dk;
         // Rows of ancestors come before row k: split so both can be borrowed.
         let (lo, hi) = h.split_at_mut(ak);
         let row_k = &mut hi[..lk];
+        let chain_k = &chain[ak..ak + lk];
         for s in 1..lk {
-            let i = m.dof_chain[ak + s];
-            let a = row_k[s] / dk;
-            // H_ij -= H_kj a for j on the chain of i, i.e. chain_k[s..].
-            let ai = m.dof_chain_adr[i];
-            for (x, y) in lo[ai..ai + lk - s].iter_mut().zip(&row_k[s..]) {
-                *x -= y * a;
+            let a = row_k[s] * inv;
+            // H_ij -= H_kj a for j on the chain of i = chain_k[s], i.e. chain_k[s..].
+            let ai = adr[chain_k[s]];
+            let n = lk - s;
+            let (dst, src) = (&mut lo[ai..ai + n], &row_k[s..lk]);
+            for t in 0..n {
+                dst[t] -= src[t] * a;
             }
             row_k[s] = a;
         }
