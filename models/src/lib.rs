@@ -1,14 +1,10 @@
-pub fn add(left: u64, right: u64) -> u64 {
-    left + right
-}
+//! `models`: SHNN and its baselines (paper section 3, appendix A). This first part holds the
+//! model-independent components: task assignment (Algorithm 1 and the Hungarian
+//! alternative), the local reference frame (eqs. (ortho)-(lrf)) and the Tanh-Normal action
+//! distribution. The policies themselves build on the MeBen observations of `envs`.
 
-#[cfg(test)]
-mod tests {
-    use super::*;
+pub mod assignment;
+pub mod distribution;
+pub mod frame;
 
-    #[test]
-    fn it_works() {
-        let result = add(2, 2);
-        assert_eq!(result, 4);
-    }
-}
+pub use assignment::{Assigner, AssignmentMethod, UNASSIGNED, distance_matrix};
