@@ -240,3 +240,18 @@ fn observations_match_the_simulator_state() {
     assert_eq!([bp[0], bp[1]], [ball[0] as f32, ball[1] as f32]);
     assert_eq!(obs.vector(1, o.entity_root_node[1], 1), [0.0; 3]);
 }
+
+#[test]
+fn every_builtin_stays_finite_under_bang_bang_actions() {
+    let mut rng = ChaCha8Rng::seed_from_u64(5);
+    for name in BUILTIN_NAMES {
+        let b = 4;
+        let mut env = VecEnv::from_name(name, b, 3, StartMode::Random).unwrap();
+        for _ in 0..100 {
+            let a: Vec<f32> = (0..b * env.n_actions()).map(|_| if rng.random_bool(0.5) { 1.0 } else { -1.0 }).collect();
+            let out = env.step(&a).unwrap();
+            assert!(!out.outcome.contains(&Outcome::Diverged), "{name} diverged");
+            assert!(out.obs.vectors.iter().chain(&out.reward).all(|x| x.is_finite()), "{name}");
+        }
+    }
+}

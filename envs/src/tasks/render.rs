@@ -1,1 +1,275 @@
-//! Trajectories and their HTML player (to come).
+//! Saving an episode and looking at it: a [`Trajectory`] holds every body's world pose and
+//! the balls at each control step; it is written as CSV ([`Trajectory::to_csv`]) or as a
+//! self-contained HTML page ([`Trajectory::to_html`]) that plays it back on a canvas with no
+//! network access: capsules and spheres under a simple perspective camera, play/pause, a
+//! step slider, drag to turn the camera, wheel to zoom. The red circle is the Sumo arena
+//! (about the centre ball) or the Reach placement disc (about the origin).
+//!
+//! ```no_run
+//! use envs::tasks::render::record_episode;
+//! let traj = record_episode("team_reach/1_ant", 3, 200, |_obs, actions| actions.fill(0.5)).unwrap();
+//! std::fs::write("episode.html", traj.to_html()).unwrap();
+//! ```
+
+use super::error::TaskError;
+use super::eval_modes::StartMode;
+use super::observation::Observation;
+use super::scene::{BALL_RADIUS, Scene};
+use super::spec::TaskKind;
+use super::vec_env::VecEnv;
+use crate::data::Data;
+use crate::math::{add, mat_vec, quat_to_mat};
+use crate::model::Shape;
+use std::fmt::Write;
+
+/// Body poses and balls of one environment over an episode.
+#[derive(Clone, Debug)]
+pub struct Trajectory {
+    /// Environment name.
+    pub name: String,
+    /// The scene (geoms, agents).
+    pub scene: Scene,
+    /// Seconds between frames (the control step).
+    pub dt: f64,
+    /// Per frame, the world pose `(position, quaternion w x y z)` of every model body.
+    pub bodies: Vec<Vec<([f64; 3], [f64; 4])>>,
+    /// Per frame, the ball centres (x, y).
+    pub balls: Vec<Vec<[f64; 2]>>,
+}
+
+impl Trajectory {
+    /// An empty trajectory of `scene`.
+    pub fn new(scene: &Scene) -> Trajectory {
+        let dt = scene.model.opt.timestep * scene.spec.physics_steps as f64;
+        Trajectory { name: scene.spec.name.clone(), scene: scene.clone(), dt, bodies: Vec::new(), balls: Vec::new() }
+    }
+
+    /// Appends a frame: the body poses of `data` (its kinematics must be current, as after
+    /// any [`VecEnv`] step) and the balls.
+    pub fn record(&mut self, data: &Data, balls: &[[f64; 2]]) {
+        self.bodies.push(data.xpos.iter().zip(&data.xquat).map(|(p, q)| (*p, *q)).collect());
+        self.balls.push(balls.to_vec());
+    }
+
+    /// Number of frames.
+    pub fn len(&self) -> usize {
+        self.bodies.len()
+    }
+
+    /// Whether there are no frames.
+    pub fn is_empty(&self) -> bool {
+        self.bodies.is_empty()
+    }
+
+    /// CSV: `frame,kind,index,x,y,z,qw,qx,qy,qz` with `kind` `body` (model body index,
+    /// world pose) or `ball` (centre, identity orientation).
+    pub fn to_csv(&self) -> String {
+        let mut s = String::from("frame,kind,index,x,y,z,qw,qx,qy,qz\n");
+        for (f, (bodies, balls)) in self.bodies.iter().zip(&self.balls).enumerate() {
+            for (i, (p, q)) in bodies.iter().enumerate().skip(1) {
+                let _ = writeln!(s, "{f},body,{i},{},{},{},{},{},{},{}", p[0], p[1], p[2], q[0], q[1], q[2], q[3]);
+            }
+            for (i, b) in balls.iter().enumerate() {
+                let _ = writeln!(s, "{f},ball,{i},{},{},{BALL_RADIUS},1,0,0,0", b[0], b[1]);
+            }
+        }
+        s
+    }
+
+    /// The self-contained HTML player (module docs).
+    pub fn to_html(&self) -> String {
+        let m = &self.scene.model;
+        // Primitives: every agent geom (sphere or capsule), then the balls.
+        let mut kinds = Vec::new();
+        let mut radii = Vec::new();
+        let mut colours = Vec::new();
+        let agent_of = |body: usize| self.scene.agents.iter().position(|a| a.bodies.contains(&body));
+        let palette = ["#3b7dd8", "#e07b39", "#4aa564", "#b04fc0", "#c9a227", "#d94f5c"];
+        let geoms: Vec<usize> = (0..m.geoms.len()).filter(|&g| agent_of(m.geoms[g].body).is_some()).collect();
+        for &g in &geoms {
+            let a = agent_of(m.geoms[g].body).unwrap_or(0);
+            let colour = if self.scene.n_teams() == 2 { self.scene.agents[a].team } else { a };
+            let (kind, r) = match m.geoms[g].shape {
+                Shape::Sphere { radius } => (0, radius),
+                Shape::Capsule { radius, .. } => (1, radius),
+                Shape::Plane => (0, 0.0),
+            };
+            kinds.push(kind);
+            radii.push(r);
+            colours.push(palette[colour % palette.len()]);
+        }
+        let ball_colour = if self.scene.n_teams() == 2 { "#888888" } else { "#e8c547" };
+        let mut frames = String::from("[");
+        for (f, (bodies, balls)) in self.bodies.iter().zip(&self.balls).enumerate() {
+            frames.push_str(if f == 0 { "[" } else { ",\n[" });
+            let mut first = true;
+            let mut num = |s: &mut String, x: f64| {
+                if !first {
+                    s.push(',');
+                }
+                first = false;
+                let _ = write!(s, "{}", (x * 1000.0).round() / 1000.0);
+            };
+            for &g in &geoms {
+                let geom = &m.geoms[g];
+                let (p, q) = bodies[geom.body];
+                let r = quat_to_mat(q);
+                let c = add(p, mat_vec(&r, geom.pos));
+                let half = match geom.shape {
+                    Shape::Capsule { half_length, .. } => half_length,
+                    _ => 0.0,
+                };
+                let axis = mat_vec(&r, mat_vec(&geom.mat, [0.0, 0.0, half]));
+                for k in 0..3 {
+                    num(&mut frames, c[k] - axis[k]);
+                }
+                for k in 0..3 {
+                    num(&mut frames, c[k] + axis[k]);
+                }
+            }
+            for b in balls {
+                num(&mut frames, b[0]);
+                num(&mut frames, b[1]);
+            }
+            frames.push(']');
+        }
+        frames.push(']');
+        let list = |v: Vec<String>| v.join(",");
+        let data = format!(
+            "{{\"name\":{:?},\"sumo\":{},\"dt\":{},\"radius\":{},\"ball\":{BALL_RADIUS},\"ballColour\":{ball_colour:?},\
+             \"kinds\":[{}],\"radii\":[{}],\"colours\":[{}],\"frames\":{frames}}}",
+            self.name,
+            self.scene.kind() == TaskKind::Sumo,
+            self.dt,
+            self.scene.spec.radius,
+            list(kinds.iter().map(|k| k.to_string()).collect()),
+            list(radii.iter().map(|r| r.to_string()).collect()),
+            list(colours.iter().map(|c| format!("{c:?}")).collect()),
+        );
+        format!("{HTML_HEAD}<script>\nconst D = {data};\n{PLAYER_JS}</script>\n</body>\n</html>\n")
+    }
+}
+
+/// Plays `steps` control steps (or until the episode ends) of one environment of `name`
+/// with the fixed start of `seed`, asking `policy(observation, actions)` for each action
+/// row, and records every frame (the start and the state after each step).
+pub fn record_episode(
+    name: &str,
+    seed: u64,
+    steps: usize,
+    mut policy: impl FnMut(&Observation, &mut [f32]),
+) -> Result<Trajectory, TaskError> {
+    let mut env = VecEnv::from_name(name, 1, seed, StartMode::fixed(seed))?;
+    env.set_auto_reset(false);
+    let mut traj = Trajectory::new(env.scene());
+    let mut actions = vec![0.0f32; env.n_actions()];
+    let frame = |env: &VecEnv, traj: &mut Trajectory| {
+        if let (Some(d), Some(b)) = (env.data(0), env.balls(0)) {
+            traj.record(d, b);
+        }
+    };
+    frame(&env, &mut traj);
+    for _ in 0..steps {
+        policy(env.obs(), &mut actions);
+        let out = env.step(&actions)?;
+        let ended = out.terminated[0] || out.truncated[0];
+        frame(&env, &mut traj);
+        if ended {
+            break;
+        }
+    }
+    Ok(traj)
+}
+
+const HTML_HEAD: &str = r#"<!DOCTYPE html>
+<html>
+<head>
+<meta charset="utf-8">
+<title>MeBen episode</title>
+<style>
+body { font-family: sans-serif; margin: 8px; background: #f4f4f0; }
+canvas { background: #ffffff; border: 1px solid #bbb; display: block; }
+#bar { margin-top: 6px; display: flex; gap: 8px; align-items: center; }
+#step { width: 520px; }
+</style>
+</head>
+<body>
+<div id="title"></div>
+<canvas id="c" width="800" height="560"></canvas>
+<div id="bar"><button id="play">pause</button><input id="step" type="range" min="0" value="0"><span id="info"></span></div>
+"#;
+
+const PLAYER_JS: &str = r#"
+const cv = document.getElementById('c'), g = cv.getContext('2d');
+const slider = document.getElementById('step'), info = document.getElementById('info');
+const btn = document.getElementById('play');
+document.getElementById('title').textContent = D.name + '  (drag: turn, wheel: zoom)';
+slider.max = D.frames.length - 1;
+let frame = 0, playing = true, yaw = 0.6, pitch = 0.55, dist = 3 * D.radius + 4;
+function centre(f) {
+  // Sumo: the centre ball (the arena's centre); Reach: the origin (the placement disc's).
+  const F = D.frames[f], o = 6 * D.kinds.length;
+  return D.sumo && F.length > o ? [F[o], F[o + 1], 0] : [0, 0, 0];
+}
+function project(p, c) {
+  // Camera on a sphere around c; returns [screen x, screen y, depth, pixels per metre].
+  const dx = p[0] - c[0], dy = p[1] - c[1], dz = p[2] - c[2];
+  const cy = Math.cos(yaw), sy = Math.sin(yaw), cp = Math.cos(pitch), sp = Math.sin(pitch);
+  const x = cy * dx + sy * dy, y0 = -sy * dx + cy * dy;
+  const y = cp * y0 + sp * dz, z = -sp * y0 + cp * dz;
+  const depth = dist - y, s = 700 / Math.max(depth, 0.1);
+  return [cv.width / 2 + x * s, cv.height * 0.55 - z * s, depth, s];
+}
+function draw() {
+  const F = D.frames[frame], c = centre(frame);
+  g.clearRect(0, 0, cv.width, cv.height);
+  g.strokeStyle = '#ccc'; g.lineWidth = 1;
+  for (let k = -10; k <= 10; k++) {
+    const a = project([c[0] + k, c[1] - 10, 0], c), b = project([c[0] + k, c[1] + 10, 0], c);
+    const e = project([c[0] - 10, c[1] + k, 0], c), f = project([c[0] + 10, c[1] + k, 0], c);
+    g.beginPath(); g.moveTo(a[0], a[1]); g.lineTo(b[0], b[1]); g.moveTo(e[0], e[1]); g.lineTo(f[0], f[1]); g.stroke();
+  }
+  g.strokeStyle = '#c44'; g.lineWidth = 2; g.beginPath();
+  for (let k = 0; k <= 64; k++) {
+    const t = k / 64 * 2 * Math.PI, p = project([c[0] + D.radius * Math.cos(t), c[1] + D.radius * Math.sin(t), 0], c);
+    if (k) g.lineTo(p[0], p[1]); else g.moveTo(p[0], p[1]);
+  }
+  g.stroke();
+  const prims = [];
+  for (let i = 0; i < D.kinds.length; i++) {
+    const a = project(F.slice(6 * i, 6 * i + 3), c), b = project(F.slice(6 * i + 3, 6 * i + 6), c);
+    prims.push([(a[2] + b[2]) / 2, a, b, D.radii[i], D.colours[i]]);
+  }
+  for (let i = 6 * D.kinds.length; i < F.length; i += 2) {
+    const a = project([F[i], F[i + 1], D.ball], c);
+    prims.push([a[2], a, a, D.ball, D.ballColour]);
+  }
+  prims.sort((p, q) => q[0] - p[0]);
+  g.lineCap = 'round';
+  for (const [, a, b, r, col] of prims) {
+    g.strokeStyle = col; g.fillStyle = col;
+    if (a === b || (Math.abs(a[0] - b[0]) < 0.5 && Math.abs(a[1] - b[1]) < 0.5)) {
+      g.beginPath(); g.arc(a[0], a[1], Math.max(r * a[3], 1), 0, 2 * Math.PI); g.fill();
+    } else {
+      g.lineWidth = Math.max(2 * r * (a[3] + b[3]) / 2, 1);
+      g.beginPath(); g.moveTo(a[0], a[1]); g.lineTo(b[0], b[1]); g.stroke();
+    }
+  }
+  slider.value = frame;
+  info.textContent = 'step ' + frame + ' / ' + (D.frames.length - 1) + '   t = ' + (frame * D.dt).toFixed(2) + ' s';
+}
+btn.onclick = () => { playing = !playing; btn.textContent = playing ? 'pause' : 'play'; };
+slider.oninput = () => { frame = +slider.value; draw(); };
+let drag = null;
+cv.onmousedown = e => { drag = [e.clientX, e.clientY]; };
+window.onmouseup = () => { drag = null; };
+cv.onmousemove = e => {
+  if (!drag) return;
+  yaw += (e.clientX - drag[0]) * 0.01;
+  pitch = Math.min(1.5, Math.max(0.05, pitch + (e.clientY - drag[1]) * 0.01));
+  drag = [e.clientX, e.clientY]; draw();
+};
+cv.onwheel = e => { e.preventDefault(); dist = Math.max(2, dist * (e.deltaY > 0 ? 1.1 : 0.9)); draw(); };
+setInterval(() => { if (playing) { frame = (frame + 1) % D.frames.length; draw(); } }, 1000 * D.dt);
+draw();
+"#;

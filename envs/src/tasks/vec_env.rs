@@ -95,6 +95,7 @@ pub struct VecEnv {
     mode: StartMode,
     fixed: Option<Start>,
     alpha: f64,
+    auto_reset: bool,
 }
 
 /// Recomputes poses and velocities for the observation and rewards (the step pipeline
@@ -126,7 +127,15 @@ fn write_obs(scene: &Scene, slot: &Slot, vectors: &mut [f32], scalars: &mut [f32
 }
 
 /// One control step of one environment.
-fn step_env(scene: &Scene, slot: &mut Slot, actions: &[f32], alpha: f64, fixed: Option<&Start>, row: Row<'_>) {
+fn step_env(
+    scene: &Scene,
+    slot: &mut Slot,
+    actions: &[f32],
+    alpha: f64,
+    fixed: Option<&Start>,
+    reset: bool,
+    row: Row<'_>,
+) {
     let m = &scene.model;
     for (i, a) in scene.agents.iter().enumerate() {
         let mut sq = 0.0;
@@ -179,8 +188,10 @@ fn step_env(scene: &Scene, slot: &mut Slot, actions: &[f32], alpha: f64, fixed: 
         row.final_vectors.copy_from_slice(row.vectors);
         row.final_scalars.copy_from_slice(row.scalars);
         row.final_heading.copy_from_slice(row.heading);
-        begin_episode(scene, slot, fixed);
-        write_obs(scene, slot, row.vectors, row.scalars, row.heading);
+        if reset {
+            begin_episode(scene, slot, fixed);
+            write_obs(scene, slot, row.vectors, row.scalars, row.heading);
+        }
     }
 }
 
@@ -222,7 +233,7 @@ impl VecEnv {
             outcome: vec![Outcome::Running; batch],
             episode_len: vec![0; batch],
         };
-        let mut env = VecEnv { scene, slots, out, mode, fixed, alpha: 1.0 };
+        let mut env = VecEnv { scene, slots, out, mode, fixed, alpha: 1.0, auto_reset: true };
         env.reset();
         Ok(env)
     }
@@ -277,7 +288,7 @@ impl VecEnv {
                 ),
             });
         }
-        let (scene, fixed, alpha) = (&self.scene, self.fixed.as_ref(), self.alpha);
+        let (scene, fixed, alpha, reset) = (&self.scene, self.fixed.as_ref(), self.alpha, self.auto_reset);
         let out = &mut self.out;
         let (nv, ns, nh, nt) = (out.obs.nodes * 9, out.obs.nodes * N_SCALARS, out.obs.agents.max(1), scene.n_teams());
         let rows: Vec<Row<'_>> = out
@@ -316,7 +327,7 @@ impl VecEnv {
             )
             .collect();
         self.slots.par_iter_mut().zip(rows).enumerate().for_each(|(e, (slot, row))| {
-            step_env(scene, slot, &actions[e * na..(e + 1) * na], alpha, fixed, row);
+            step_env(scene, slot, &actions[e * na..(e + 1) * na], alpha, fixed, reset, row);
         });
         Ok(&self.out)
     }
@@ -357,6 +368,15 @@ impl VecEnv {
             &mut o.heading[env * nh..(env + 1) * nh],
         );
         Ok(())
+    }
+
+    /// Whether an environment whose episode ended begins the next one at once (default
+    /// true). Off (for rendering and inspection), an ended environment keeps its last state:
+    /// `obs` then equals `final_obs` and further steps continue the same episode's physics
+    /// (with the episode counter past its end) until [`VecEnv::reset`] or
+    /// [`VecEnv::set_start`].
+    pub fn set_auto_reset(&mut self, on: bool) {
+        self.auto_reset = on;
     }
 
     /// Sets the Sumo curriculum factor `alpha` in `[0, 1]` (`r = alpha dense + (1 - alpha)
