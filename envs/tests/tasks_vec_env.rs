@@ -84,6 +84,14 @@ fn builtin_names_build_with_the_documented_layout() {
             assert!(sc[8] <= sc[9] && (0.0..=1.0).contains(&sc[8]) && (0.0..=1.0).contains(&sc[9]));
         }
     }
+    // Agent views: own nodes, then every other entity's root.
+    let s = Scene::from_name("team_sumo/2_ant_claw").unwrap();
+    let o = &s.obs_spec;
+    let view = o.agent_view(1); // the claw of team 0: 1 + 16 own nodes
+    assert_eq!(view.len(), 17 + 3 + 1);
+    assert_eq!(view[0], o.agent_root_node[1]);
+    assert_eq!(&view[17..], &[o.agent_root_node[0], o.agent_root_node[2], o.agent_root_node[3], o.n_nodes - 1]);
+    assert!(o.agent_view(4).is_empty());
     // The ant: torso root, four hips (thigh) and four ankles (leg).
     let s = Scene::from_name("team_reach/1_ant").unwrap();
     let limb =

@@ -248,6 +248,18 @@ impl ObsSpec {
         Ok(o)
     }
 
+    /// MeBen's view of agent `agent` (section 4): its own nodes (root, then one per actuated
+    /// DoF in action order), then the root node of every other entity (the other agents in
+    /// order, then the balls). Empty for an unknown agent.
+    pub fn agent_view(&self, agent: usize) -> Vec<usize> {
+        let Some(&root) = self.agent_root_node.get(agent) else {
+            return Vec::new();
+        };
+        let own = root..root + 1 + self.agent_dof[agent];
+        let others = self.entity_root_node.iter().copied().filter(|&n| n != root);
+        own.chain(others).collect()
+    }
+
     /// Writes one environment's observation row. `data` must have its kinematics and
     /// velocities computed for the current state (`kinematics`, `com_pos`, `com_vel`);
     /// `balls` are the ball positions (x, y) of the episode. Slices are this environment's
