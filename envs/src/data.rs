@@ -105,6 +105,8 @@ pub struct Data {
     pub(crate) qk_piv: Vec<usize>,
     /// Implicit integrator scratch: two nv vectors.
     pub(crate) qtmp: Vec<f64>,
+    /// `EulerGyro` scratch: three nv columns.
+    pub(crate) qk_cols: Vec<f64>,
 
     /// Contacts of the last step.
     pub contacts: Vec<Contact>,
@@ -187,6 +189,7 @@ impl Data {
             qk: if m.opt.integrator == crate::model::Integrator::Implicit { vec![0.0; nv * nv] } else { Vec::new() },
             qk_piv: vec![0; nv],
             qtmp: vec![0.0; 2 * nv],
+            qk_cols: vec![0.0; 3 * nv],
             contacts: Vec::with_capacity(16 + 2 * m.plane_pairs.len()),
             warm: vec![[0.0; 4]; m.nslot],
             warm_limit: vec![0.0; m.joints.len()],

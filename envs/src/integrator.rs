@@ -69,9 +69,93 @@ pub fn forward(m: &Model, d: &mut Data) {
     } else {
         d.qacc.copy_from_slice(&d.qacc_smooth);
     }
-    if m.opt.integrator == Integrator::Implicit {
-        implicit_qacc(m, d);
+    match m.opt.integrator {
+        Integrator::Implicit => implicit_qacc(m, d),
+        Integrator::EulerGyro => root_gyro_qacc(m, d),
+        _ => {}
     }
+}
+
+/// [`Integrator::EulerGyro`]: corrects the Euler `qacc = H^-1 b` to `(H + h E K E^T)^-1 b`,
+/// `E` the three angular dofs of each floating root and `K` (3 x 3, body frame) the derivative
+/// of the root's bias torque with respect to its angular velocity for the tree taken as rigid
+/// (composite inertia `Ic`, first moment `h`, about the root origin moving at `v`):
+/// `K_world = [w]x Ic - [Ic w]x - [h x v]x - [v]x [h]x`, `K = R^T K_world R`.
+/// Woodbury: `x = y - Z hK (I + S hK)^-1 (E^T y)` with `y = H^-1 b`, `Z = H^-1 E`,
+/// `S = E^T Z`; trees are independent (H is block diagonal over trees).
+fn root_gyro_qacc(m: &Model, d: &mut Data) {
+    let nv = m.nv;
+    let h = m.opt.timestep;
+    let damped = m.dof_damping.iter().any(|&x| x > 0.0);
+    for tree in &m.trees {
+        let root = tree.root;
+        let body = &m.bodies[root];
+        if body.jnt_num != 1 || m.joints[body.jnt_adr].kind != JointKind::Free {
+            continue;
+        }
+        let a = body.dof_adr;
+        let r = &d.xmat[root];
+        let c = &d.crb[root];
+        let v = [d.qvel[a], d.qvel[a + 1], d.qvel[a + 2]];
+        let w = math::mat_vec(r, [d.qvel[a + 3], d.qvel[a + 4], d.qvel[a + 5]]);
+        let iw = math::mat_vec(&c.i, w);
+        let hv = math::cross(c.h, v);
+        let skew = |u: math::Vec3| [[0.0, -u[2], u[1]], [u[2], 0.0, -u[0]], [-u[1], u[0], 0.0]];
+        let (sw, siw, shv, sv, sh) = (skew(w), skew(iw), skew(hv), skew(v), skew(c.h));
+        let mut kw = math::mat_mul(&sw, &c.i);
+        let vh = math::mat_mul(&sv, &sh);
+        for i in 0..3 {
+            for j in 0..3 {
+                kw[i][j] -= siw[i][j] + shv[i][j] + vh[i][j];
+            }
+        }
+        // Body frame, times h.
+        let mut hk = math::mat_mul(&math::transpose(r), &math::mat_mul(&kw, r));
+        for row in hk.iter_mut() {
+            for x in row.iter_mut() {
+                *x *= h;
+            }
+        }
+        // Z = H^-1 E (three columns), S = E^T Z.
+        let factor = if damped { &d.qh } else { &d.qlm };
+        let mut s3 = [[0.0; 3]; 3];
+        for k in 0..3 {
+            let z = &mut d.qk_cols[k * nv..(k + 1) * nv];
+            z.iter_mut().for_each(|x| *x = 0.0);
+            z[a + 3 + k] = 1.0;
+            crba::ltdl_solve(m, factor, z);
+            for (i, row) in s3.iter_mut().enumerate() {
+                row[k] = z[a + 3 + i];
+            }
+        }
+        // t = (I + S hK)^-1 (E^T y), then u = hK t, x = y - Z u.
+        let mut g = math::mat_mul(&s3, &hk);
+        for (i, row) in g.iter_mut().enumerate() {
+            row[i] += 1.0;
+        }
+        let ey = [d.qacc[a + 3], d.qacc[a + 4], d.qacc[a + 5]];
+        let Some(t) = solve3(&g, ey) else { continue };
+        let u = math::mat_vec(&hk, t);
+        for k in 0..3 {
+            for i in 0..nv {
+                d.qacc[i] -= d.qk_cols[k * nv + i] * u[k];
+            }
+        }
+    }
+}
+
+/// Solves a 3 x 3 system by Cramer's rule; `None` when (numerically) singular.
+fn solve3(a: &math::Mat3, b: math::Vec3) -> Option<math::Vec3> {
+    let det = math::dot(a[0], math::cross(a[1], a[2]));
+    if !(det.abs() > 1e-300) || !det.is_finite() {
+        return None;
+    }
+    // Columns of a: replace one at a time by b.
+    let col = |j: usize| [a[0][j], a[1][j], a[2][j]];
+    let (c0, c1, c2) = (col(0), col(1), col(2));
+    let d3 = |x: math::Vec3, y: math::Vec3, z: math::Vec3| math::dot(x, math::cross(y, z));
+    let dc = d3(c0, c1, c2);
+    Some([d3(b, c1, c2) / dc, d3(c0, b, c2) / dc, d3(c0, c1, b) / dc])
 }
 
 /// MuJoCo's `implicit` integrator: `qacc = (M + h D + h K)^-1 (f + qfrc_constraint)` with

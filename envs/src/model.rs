@@ -72,8 +72,8 @@ pub const NONE: usize = usize::MAX;
 /// Numerical integrator. `Euler` (the default) is MuJoCo's semi-implicit Euler with implicit
 /// joint damping; `Implicit` additionally treats the Coriolis/centrifugal forces implicitly
 /// (MuJoCo's `implicit`: `(M + h D + h dc/dqvel) qacc = f`), which keeps tumbling bodies from
-/// gaining energy. `Rk4` and `ImplicitFast` are accepted by the MJCF loader and recorded, but
-/// stepped with `Euler`.
+/// gaining energy; `EulerGyro` does so for the floating roots only, cheaply. `Rk4` and
+/// `ImplicitFast` are accepted by the MJCF loader and recorded, but stepped with `Euler`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub enum Integrator {
     /// Semi-implicit Euler (velocity first, then position), implicit damping.
@@ -83,6 +83,13 @@ pub enum Integrator {
     Rk4,
     /// Semi-implicit Euler with implicit damping and implicit Coriolis/centrifugal forces.
     Implicit,
+    /// `Euler`, plus an implicit gyroscopic term for every floating root, computed as if its
+    /// tree were rigid (`K = [w]x Ic - [Ic w]x - [h x v]x - [v]x [h]x`, the derivative of the
+    /// composite's bias torque with respect to the root's angular velocity): a rank-3 update
+    /// per tree applied with the Woodbury identity, 11% dearer than `Euler` on the ant. Keeps
+    /// spinning agents stable where the explicit gyroscopic term of `Euler` can run away
+    /// (strong bang-bang actions at dt = 0.01); exact (= `Implicit`) for a single rigid body.
+    EulerGyro,
     /// MuJoCo's implicitfast (recorded; stepped with Euler).
     ImplicitFast,
 }

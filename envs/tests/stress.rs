@@ -24,7 +24,11 @@ fn centipede() -> Model {
     agent_model(&load_morphology("centipede").unwrap(), &BraxPhysics::default()).unwrap().0
 }
 
-/// Two MeBen ants facing each other 1 m apart on the ground (cross-agent contacts).
+/// Two MeBen ants facing each other 1 m apart on the ground (cross-agent contacts), stepped
+/// with `EulerGyro`: with plain `Euler` (MuJoCo's explicit gyroscopic term), 1 of these 32
+/// scenes under bang-bang actions at the Brax strength of 350 N m spins an ant lying on its
+/// back up to a numerical blow-up (root spin 60 rad/s, h w ~ 0.6); with `EulerGyro` the
+/// largest root spin over all 32 scenes stays at 13 rad/s.
 fn sumo() -> Model {
     let physics = BraxPhysics::default();
     let (single, tree) = agent_model(&load_morphology("ant").unwrap(), &physics).unwrap();
@@ -34,7 +38,9 @@ fn sumo() -> Model {
     b.add_geom(BodyId::WORLD, GeomSpec::plane());
     add_agent(&mut b, &tree, &physics, "a/", [-0.5, 0.0, z], [1.0, 0.0, 0.0, 0.0]);
     add_agent(&mut b, &tree, &physics, "b/", [0.5, 0.0, z], [0.0, 0.0, 0.0, 1.0]);
-    b.build().unwrap()
+    let mut m = b.build().unwrap();
+    m.opt.integrator = envs::Integrator::EulerGyro;
+    m
 }
 
 /// Runs `n` copies of `m` for `STEPS` control steps; actions uniform in [-1, 1] or, when
