@@ -41,6 +41,18 @@ impl<T: Float> GradStore<T> {
         self.grads[id].get_or_insert_with(|| vec![T::ZERO; len])
     }
 
+    /// The gradient buffers of two different nodes at once (zero-initialised on first use).
+    fn slots2(&mut self, a: NodeId, la: usize, b: NodeId, lb: usize) -> (&mut [T], &mut [T]) {
+        assert_ne!(a, b);
+        self.slot(a, la);
+        self.slot(b, lb);
+        let (lo, hi, swap) = if a < b { (a, b, false) } else { (b, a, true) };
+        let (first, second) = self.grads.split_at_mut(hi);
+        let x = first[lo].as_deref_mut().expect("initialised above");
+        let y = second[0].as_deref_mut().expect("initialised above");
+        if swap { (y, x) } else { (x, y) }
+    }
+
     /// Removes and returns node `id`'s gradient.
     pub(crate) fn take(&mut self, id: NodeId) -> Option<Vec<T>> {
         self.grads[id].take()
@@ -101,6 +113,41 @@ pub(crate) fn propagate<T: Float>(nodes: &[Node<T>], id: NodeId, g: Vec<T>, stor
         }
         Op::MatMul { a, b, ta, tb } => {
             let (av, bv) = (val(*a), val(*b));
+            if matmul::fused_small_backward_applies(av.shape(), bv.shape(), *ta, *tb)
+                && store.wants(*a)
+                && store.wants(*b)
+            {
+                // Many tiny products (e.g. Gram matrices Z^T Z of 3 x 32 blocks): both gradients
+                // in one pass over the batch, while each block is in cache.
+                if a == b {
+                    let slot = store.slot(*a, av.numel());
+                    matmul::small_batched_backward(
+                        &g,
+                        av.data(),
+                        *ta,
+                        bv.data(),
+                        *tb,
+                        av.shape(),
+                        bv.shape(),
+                        Some(slot),
+                        None,
+                    );
+                } else {
+                    let (sa, sb) = store.slots2(*a, av.numel(), *b, bv.numel());
+                    matmul::small_batched_backward(
+                        &g,
+                        av.data(),
+                        *ta,
+                        bv.data(),
+                        *tb,
+                        av.shape(),
+                        bv.shape(),
+                        Some(sa),
+                        Some(sb),
+                    );
+                }
+                return;
+            }
             let gt = g_t();
             if store.wants(*a) {
                 // d op(A) = G op(B)^T; stored as A (or A^T when ta).
@@ -115,7 +162,11 @@ pub(crate) fn propagate<T: Float>(nodes: &[Node<T>], id: NodeId, g: Vec<T>, stor
         }
         Op::Linear { x, w, b, act } => {
             let (xv, wv) = (val(*x), val(*w));
-            let gpre = nnops::activation_backward(y.data(), &g, *act);
+            // Without an activation the output gradient is used as it is (no copy).
+            let gpre = match act {
+                crate::op::Activation::Identity => g,
+                _ => nnops::activation_backward(y.data(), &g, *act),
+            };
             let (k, n) = (wv.shape()[0], wv.shape()[1]);
             let rows = gpre.len() / n.max(1);
             if store.wants(*x) {

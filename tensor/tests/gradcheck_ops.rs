@@ -146,6 +146,18 @@ fn matmul_plain_transposed_and_batched() {
     let c = uniform(&mut r, &[2, 1, 3, 4]);
     let d = uniform(&mut r, &[3, 2, 4]);
     gc!(vec![c.clone(), d.clone()], |_, v| v[0].matmul_t(v[1], false, true));
+    // Batches of tiny products with both gradients fused in one pass, every transpose
+    // combination, and the Gram matrix of one tensor with itself (both operands the same).
+    let za = uniform(&mut r, &[4, 3, 5]);
+    let zt = uniform(&mut r, &[4, 5, 3]);
+    let wb = uniform(&mut r, &[4, 5, 2]);
+    let wt = uniform(&mut r, &[4, 2, 5]);
+    gc!(vec![za.clone(), wb.clone()], |_, v| v[0].matmul(v[1]));
+    gc!(vec![zt.clone(), wb.clone()], |_, v| v[0].matmul_t(v[1], true, false));
+    gc!(vec![za.clone(), wt.clone()], |_, v| v[0].matmul_t(v[1], false, true));
+    gc!(vec![zt.clone(), wt.clone()], |_, v| v[0].matmul_t(v[1], true, true));
+    gc!(vec![za.clone()], |_, v| v[0].matmul_t(v[0], true, false));
+    gc!(vec![za.clone()], |_, v| v[0].matmul_t(v[0], false, true));
     // Large enough to take the faer path (m n k >= 16384) and the transposed faer path.
     let la = uniform(&mut r, &[20, 30]);
     let lb = uniform(&mut r, &[30, 40]);

@@ -286,3 +286,68 @@ fn dot<T: Float>(a: &[T], b: &[T]) -> T {
     }
     s
 }
+
+/// Whether [`small_batched_backward`] handles a product of these stored shapes: rank-3
+/// operands with the same batch length (no broadcasting) and tiny matrices.
+pub fn fused_small_backward_applies(a: &[usize], b: &[usize], ta: bool, tb: bool) -> bool {
+    if a.len() != 3 || b.len() != 3 || a[0] != b[0] || a[0] < 2 {
+        return false;
+    }
+    let (m, k) = if ta { (a[2], a[1]) } else { (a[1], a[2]) };
+    let n = if tb { b[1] } else { b[2] };
+    m * n * k < SMALL_WORK
+}
+
+/// Gradients of a batch of tiny products `C_i = op(A_i) op(B_i)` given `G_i = dL/dC_i`, both
+/// accumulated in one pass over the batch: `dA` into `da`, `dB` into `db`; when `A` and `B`
+/// are the same tensor (`db` is `None`), both contributions go to `da`.
+#[allow(clippy::too_many_arguments)]
+pub fn small_batched_backward<T: Float>(
+    g: &[T],
+    a: &[T],
+    ta: bool,
+    b: &[T],
+    tb: bool,
+    a_shape: &[usize],
+    b_shape: &[usize],
+    da: Option<&mut [T]>,
+    db: Option<&mut [T]>,
+) {
+    let (m, k) = if ta { (a_shape[2], a_shape[1]) } else { (a_shape[1], a_shape[2]) };
+    let n = if tb { b_shape[1] } else { b_shape[2] };
+    let (la, lb, lg) = (m * k, k * n, m * n);
+    // dA (stored layout) and dB (stored layout) of one batch entry.
+    let grad_a = |out: &mut [T], gi: &[T], bi: &[T]| {
+        if !ta {
+            small_matmul(out, true, gi, false, bi, !tb, m, n, k);
+        } else {
+            small_matmul(out, true, bi, tb, gi, true, k, n, m);
+        }
+    };
+    let grad_b = |out: &mut [T], gi: &[T], ai: &[T]| {
+        if !tb {
+            small_matmul(out, true, ai, !ta, gi, false, k, m, n);
+        } else {
+            small_matmul(out, true, gi, true, ai, ta, n, m, k);
+        }
+    };
+    match (da, db) {
+        (Some(da), Some(db)) => {
+            da.par_chunks_mut(la).zip(db.par_chunks_mut(lb)).enumerate().for_each(|(i, (oa, ob))| {
+                let gi = &g[i * lg..(i + 1) * lg];
+                grad_a(oa, gi, &b[i * lb..(i + 1) * lb]);
+                grad_b(ob, gi, &a[i * la..(i + 1) * la]);
+            });
+        }
+        (Some(da), None) => {
+            // A and B are the same tensor: both contributions to the same block.
+            da.par_chunks_mut(la).enumerate().for_each(|(i, oa)| {
+                let gi = &g[i * lg..(i + 1) * lg];
+                let xi = &a[i * la..(i + 1) * la];
+                grad_a(oa, gi, xi);
+                grad_b(oa, gi, xi);
+            });
+        }
+        _ => unreachable!("called with the gradients it must produce"),
+    }
+}
