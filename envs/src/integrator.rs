@@ -136,9 +136,9 @@ fn root_gyro_qacc(m: &Model, d: &mut Data) {
         let ey = [d.qacc[a + 3], d.qacc[a + 4], d.qacc[a + 5]];
         let Some(t) = solve3(&g, ey) else { continue };
         let u = math::mat_vec(&hk, t);
-        for k in 0..3 {
-            for i in 0..nv {
-                d.qacc[i] -= d.qk_cols[k * nv + i] * u[k];
+        for (k, uk) in u.iter().enumerate() {
+            for (q, z) in d.qacc.iter_mut().zip(&d.qk_cols[k * nv..(k + 1) * nv]) {
+                *q -= z * uk;
             }
         }
     }
@@ -147,7 +147,7 @@ fn root_gyro_qacc(m: &Model, d: &mut Data) {
 /// Solves a 3 x 3 system by Cramer's rule; `None` when (numerically) singular.
 fn solve3(a: &math::Mat3, b: math::Vec3) -> Option<math::Vec3> {
     let det = math::dot(a[0], math::cross(a[1], a[2]));
-    if !(det.abs() > 1e-300) || !det.is_finite() {
+    if det.is_nan() || det.abs() <= 1e-300 || det.is_infinite() {
         return None;
     }
     // Columns of a: replace one at a time by b.
