@@ -9,6 +9,30 @@
 //!   ([`VectorLinear`], [`gram`], [`SubequivariantFn`], [`SubeqMessagePassing`]).
 //! - Optimisation: [`Adam`], [`clip_elementwise`], [`clip_global_norm`], [`LrSchedule`].
 //! - Saved state: [`StateDict`] (JSON through serde, written atomically, checked on load).
+//!
+//! One training step (the example of the README):
+//!
+//! ```
+//! use nn::{Adam, AdamConfig, Mlp, ParamStore, clip_elementwise};
+//! use tensor::{Activation, Tape, Tensor};
+//!
+//! # fn main() -> Result<(), Box<dyn std::error::Error>> {
+//! let mut store = ParamStore::<f32>::new();
+//! let mut rng = nn::init_rng(0);
+//! let mlp = Mlp::new(&mut store.scope("actor", &mut rng), &[4, 64, 2], Activation::Relu)?;
+//! let mut adam = Adam::new(AdamConfig::default(), &store);
+//!
+//! let tape = Tape::new();
+//! let params = store.bind(&tape);
+//! let x = tape.constant(Tensor::zeros(&[8, 4]));
+//! let loss = mlp.forward(&params, x)?.square().mean_all()?;
+//! let mut grads = params.grads(&tape.backward(loss)?);
+//! clip_elementwise(&mut grads, 0.1);
+//! adam.step(&mut store, &grads)?;
+//! assert_eq!(store.names()[0], "actor.0.weight");
+//! # Ok(())
+//! # }
+//! ```
 
 pub mod attention;
 pub mod equivariant;
