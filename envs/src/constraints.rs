@@ -233,19 +233,32 @@ pub fn solve(m: &Model, d: &mut Data) {
     // Jacobian row lives on one or two dof chains and so does its w (the half solve only
     // moves entries to ancestors): cheap, and one full solve with J^T f at the end replaces
     // a solve per row.
+    // Each row's support [lo, hi) holds its Jacobian and its W (from the first dof of the
+    // trees it touches to its last non-zero). Rows of different agents do not overlap: their
+    // A entries are zero without a dot product.
     efc.y.copy_from_slice(&efc.j);
+    efc.span.clear();
     for k in 0..n {
+        let row = &efc.j[k * nv..(k + 1) * nv];
+        // W fills ancestors of the non-zeros (down to their tree's first dof), never later dofs.
+        let root = |i: usize| m.dof_chain[m.dof_chain_adr[i] + m.dof_depth[i] - 1];
+        let lo = row.iter().enumerate().filter(|(_, x)| **x != 0.0).map(|(i, _)| root(i)).min().unwrap_or(0);
+        let hi = row.iter().rposition(|&x| x != 0.0).map_or(0, |i| i + 1);
+        efc.span.push((lo, hi.max(lo)));
         ltdl_half_solve(m, &d.qlm, &mut efc.y[k * nv..(k + 1) * nv]);
     }
     for i in 0..nv {
         efc.dinv[i] = 1.0 / crate::crba::diag(m, &d.qlm, i);
     }
     for k in 0..n {
-        for ((w, y), di) in efc.wd.iter_mut().zip(&efc.y[k * nv..(k + 1) * nv]).zip(&efc.dinv) {
+        let (lk, hk) = efc.span[k];
+        for ((w, y), di) in efc.wd[lk..hk].iter_mut().zip(&efc.y[k * nv + lk..k * nv + hk]).zip(&efc.dinv[lk..hk]) {
             *w = y * di;
         }
         for l in 0..=k {
-            let s = dot(&efc.wd, &efc.y[l * nv..(l + 1) * nv]);
+            let (ll, hl) = efc.span[l];
+            let (a, b) = (lk.max(ll), hk.min(hl));
+            let s = if a < b { dot(&efc.wd[a..b], &efc.y[l * nv + a..l * nv + b]) } else { 0.0 };
             efc.a[k * n + l] = s;
             efc.a[l * n + k] = s;
         }
@@ -256,9 +269,10 @@ pub fn solve(m: &Model, d: &mut Data) {
     let bb = 2.0 / (dmax * tau);
     let kk = 1.0 / (dmax * dmax * tau * tau * zeta * zeta);
     for k in 0..n {
-        let jk = &efc.j[k * nv..(k + 1) * nv];
-        let vel = dot(jk, &d.qvel);
-        efc.a0[k] = dot(jk, &d.qacc_smooth);
+        let (lk, hk) = efc.span[k];
+        let jk = &efc.j[k * nv + lk..k * nv + hk];
+        let vel = dot(jk, &d.qvel[lk..hk]);
+        efc.a0[k] = dot(jk, &d.qacc_smooth[lk..hk]);
         if k < nlim || (k - nlim) % 3 == 0 {
             // Limit or normal row: spring-damper on the distance.
             let dist = efc.r[k];
@@ -338,9 +352,9 @@ pub fn solve(m: &Model, d: &mut Data) {
     for k in 0..n {
         let f = efc.f[k];
         if f != 0.0 {
-            let jr = &efc.j[k * nv..(k + 1) * nv];
-            for i in 0..nv {
-                d.qfrc_constraint[i] += jr[i] * f;
+            let (lk, hk) = efc.span[k];
+            for (q, j) in d.qfrc_constraint[lk..hk].iter_mut().zip(&efc.j[k * nv + lk..k * nv + hk]) {
+                *q += j * f;
             }
         }
         let dst = efc.dst[k];

@@ -132,6 +132,8 @@ pub(crate) struct Efc {
     pub dinv: Vec<f64>,
     /// An nv scratch vector.
     pub wd: Vec<f64>,
+    /// Support `[lo, hi)` of each Jacobian row.
+    pub span: Vec<(usize, usize)>,
     /// `A = J (M + hD)^-1 J^T`, `n x n`.
     pub a: Vec<f64>,
     /// Reference acceleration.
