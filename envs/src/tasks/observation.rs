@@ -127,12 +127,13 @@ impl Observation {
     }
 
     /// The vector `k` (0 position, 1 velocity, 2 angular velocity) of node `node` in `env`.
+    /// Panics when an index is out of range (as slice indexing does).
     pub fn vector(&self, env: usize, node: usize, k: usize) -> [f32; 3] {
         let i = ((env * self.nodes + node) * 3 + k) * 3;
         [self.vectors[i], self.vectors[i + 1], self.vectors[i + 2]]
     }
 
-    /// The scalars of node `node` in `env`.
+    /// The scalars of node `node` in `env`. Panics when an index is out of range.
     pub fn node_scalars(&self, env: usize, node: usize) -> &[f32] {
         let i = (env * self.nodes + node) * N_SCALARS;
         &self.scalars[i..i + N_SCALARS]
@@ -263,7 +264,8 @@ impl ObsSpec {
     /// Writes one environment's observation row. `data` must have its kinematics and
     /// velocities computed for the current state (`kinematics`, `com_pos`, `com_vel`);
     /// `balls` are the ball positions (x, y) of the episode. Slices are this environment's
-    /// parts of [`Observation`]'s arrays.
+    /// parts of [`Observation`]'s arrays (`N * 9`, `N * N_SCALARS`, `A` long; shorter slices
+    /// or fewer balls than the scene has panic: this is the environment's internal writer).
     pub fn write_row(
         &self,
         model: &Model,
