@@ -28,7 +28,9 @@
 //! `f <- max(0, f - res / (A_kk + R_k))`; the two friction rows of a contact together,
 //! `f_t <- f_t - (A_tt + R_t)^-1 res_t`, then scaled back into the disc of radius `mu f_n`.
 //! Warm-started from the previous step's forces of the same contact slot (a slot is a fixed
-//! geom pair and end point), which makes a few sweeps enough.
+//! geom pair and end point), which makes a few sweeps enough; the friction force is kept as a
+//! world vector, so that nothing depends on how the tangent frame (built from world axes) is
+//! oriented, and a scene rotated about the vertical follows the rotated trajectory.
 //! The result is `d.qfrc_constraint = J^T lambda`; the integrator then applies its implicit
 //! damping as MuJoCo's Euler does: `qacc = (M + h D)^-1 (f + J^T lambda)`.
 

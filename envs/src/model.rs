@@ -88,7 +88,8 @@ pub enum Integrator {
     /// composite's bias torque with respect to the root's angular velocity): a rank-3 update
     /// per tree applied with the Woodbury identity, 11% dearer than `Euler` on the ant. Keeps
     /// spinning agents stable where the explicit gyroscopic term of `Euler` can run away
-    /// (strong bang-bang actions at dt = 0.01); exact (= `Implicit`) for a single rigid body.
+    /// (strong bang-bang actions at dt = 0.01); equal to `Implicit` for a single rigid body whose
+    /// centre of mass is its origin (1.8e-15 apart after 2000 steps of tumbling).
     EulerGyro,
     /// MuJoCo's implicitfast (recorded; stepped with Euler).
     ImplicitFast,
