@@ -285,7 +285,10 @@ pub fn integrate_pos(m: &Model, qpos: &mut [f64], qvel: &[f64], h: f64) {
     }
 }
 
-/// Advances the state by one time step: [`forward`] then [`integrate`].
+/// Advances the state by one time step: [`forward`] then [`integrate`]. As in MuJoCo, the
+/// derived quantities in `Data` (body poses, contacts, `qacc`) then describe the state at the
+/// start of the step; call [`crate::kinematics::kinematics`] (poses) or [`forward`] (all) to
+/// bring them up to date with the new `qpos`/`qvel`.
 pub fn step(m: &Model, d: &mut Data) {
     forward(m, d);
     integrate(m, d);
