@@ -119,33 +119,14 @@ pub(crate) fn propagate<T: Float>(nodes: &[Node<T>], id: NodeId, g: Vec<T>, stor
             {
                 // Many tiny products (e.g. Gram matrices Z^T Z of 3 x 32 blocks): both gradients
                 // in one pass over the batch, while each block is in cache.
-                if a == b {
-                    let slot = store.slot(*a, av.numel());
-                    matmul::small_batched_backward(
-                        &g,
-                        av.data(),
-                        *ta,
-                        bv.data(),
-                        *tb,
-                        av.shape(),
-                        bv.shape(),
-                        Some(slot),
-                        None,
-                    );
+                let (da, db) = if a == b {
+                    (store.slot(*a, av.numel()), None)
                 } else {
                     let (sa, sb) = store.slots2(*a, av.numel(), *b, bv.numel());
-                    matmul::small_batched_backward(
-                        &g,
-                        av.data(),
-                        *ta,
-                        bv.data(),
-                        *tb,
-                        av.shape(),
-                        bv.shape(),
-                        Some(sa),
-                        Some(sb),
-                    );
-                }
+                    (sa, Some(sb))
+                };
+                let (ad, bd) = (av.data(), bv.data());
+                matmul::small_batched_backward(&g, ad, *ta, bd, *tb, av.shape(), bv.shape(), da, db);
                 return;
             }
             let gt = g_t();

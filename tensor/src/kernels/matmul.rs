@@ -152,6 +152,24 @@ pub fn matmul_into<T: Float>(out: &mut [T], accumulate: bool, a: &[T], ta: bool,
     }
 }
 
+/// faer views of `op(A)` (`m x k`) and `op(B)` (`k x n`) over row-major storage; a transpose
+/// is a swap of strides, not a copy.
+fn views<'a, T: Float>(
+    a: &'a [T],
+    ta: bool,
+    b: &'a [T],
+    tb: bool,
+    m: usize,
+    k: usize,
+    n: usize,
+) -> (MatRef<'a, T>, MatRef<'a, T>) {
+    let lhs =
+        if ta { MatRef::from_row_major_slice(a, k, m).transpose() } else { MatRef::from_row_major_slice(a, m, k) };
+    let rhs =
+        if tb { MatRef::from_row_major_slice(b, n, k).transpose() } else { MatRef::from_row_major_slice(b, k, n) };
+    (lhs, rhs)
+}
+
 /// A pointer that may cross threads; each thread writes a disjoint block through it.
 #[derive(Clone, Copy)]
 struct SendPtr<T>(*mut T);
@@ -175,10 +193,7 @@ fn matmul_col_blocks<T: Float>(
     cb: usize,
 ) {
     assert_eq!(out.len(), m * n);
-    let lhs: MatRef<'_, T> =
-        if ta { MatRef::from_row_major_slice(a, k, m).transpose() } else { MatRef::from_row_major_slice(a, m, k) };
-    let rhs: MatRef<'_, T> =
-        if tb { MatRef::from_row_major_slice(b, n, k).transpose() } else { MatRef::from_row_major_slice(b, k, n) };
+    let (lhs, rhs) = views(a, ta, b, tb, m, k, n);
     let ptr = SendPtr(out.as_mut_ptr());
     let accum = if accumulate { Accum::Add } else { Accum::Replace };
     (0..n.div_ceil(cb)).into_par_iter().for_each(|blk| {
@@ -208,11 +223,8 @@ fn faer_matmul<T: Float>(
     r0: usize,
     rows: usize,
 ) {
-    let lhs: MatRef<'_, T> =
-        if ta { MatRef::from_row_major_slice(a, k, m).transpose() } else { MatRef::from_row_major_slice(a, m, k) };
+    let (lhs, rhs) = views(a, ta, b, tb, m, k, n);
     let lhs = lhs.subrows(r0, rows);
-    let rhs: MatRef<'_, T> =
-        if tb { MatRef::from_row_major_slice(b, n, k).transpose() } else { MatRef::from_row_major_slice(b, k, n) };
     let dst: MatMut<'_, T> = MatMut::from_row_major_slice_mut(out, rows, n);
     let accum = if accumulate { Accum::Add } else { Accum::Replace };
     faer::linalg::matmul::matmul(dst, accum, lhs, rhs, T::ONE, Par::Seq);
@@ -310,7 +322,7 @@ pub fn small_batched_backward<T: Float>(
     tb: bool,
     a_shape: &[usize],
     b_shape: &[usize],
-    da: Option<&mut [T]>,
+    da: &mut [T],
     db: Option<&mut [T]>,
 ) {
     let (m, k) = if ta { (a_shape[2], a_shape[1]) } else { (a_shape[1], a_shape[2]) };
@@ -331,15 +343,15 @@ pub fn small_batched_backward<T: Float>(
             small_matmul(out, true, gi, true, ai, ta, n, m, k);
         }
     };
-    match (da, db) {
-        (Some(da), Some(db)) => {
+    match db {
+        Some(db) => {
             da.par_chunks_mut(la).zip(db.par_chunks_mut(lb)).enumerate().for_each(|(i, (oa, ob))| {
                 let gi = &g[i * lg..(i + 1) * lg];
                 grad_a(oa, gi, &b[i * lb..(i + 1) * lb]);
                 grad_b(ob, gi, &a[i * la..(i + 1) * la]);
             });
         }
-        (Some(da), None) => {
+        None => {
             // A and B are the same tensor: both contributions to the same block.
             da.par_chunks_mut(la).enumerate().for_each(|(i, oa)| {
                 let gi = &g[i * lg..(i + 1) * lg];
@@ -348,6 +360,5 @@ pub fn small_batched_backward<T: Float>(
                 grad_b(oa, gi, xi);
             });
         }
-        _ => unreachable!("called with the gradients it must produce"),
     }
 }

@@ -95,19 +95,7 @@ pub fn norm_last<T: Float>(x: &Tensor<T>, eps: f64) -> Tensor<T> {
     let eps = T::from_f64(eps);
     let mut out = vec![T::ZERO; rows];
     let body = |r: usize, o: &mut T| {
-        let mut acc = [T::ZERO; 8];
-        let row = &xd[r * n..(r + 1) * n];
-        let chunks = row.chunks_exact(8);
-        let rest = chunks.remainder();
-        for c in chunks {
-            for (a, &v) in acc.iter_mut().zip(c) {
-                *a += v * v;
-            }
-        }
-        let mut s = ((acc[0] + acc[4]) + (acc[1] + acc[5])) + ((acc[2] + acc[6]) + (acc[3] + acc[7]));
-        for &v in rest {
-            s += v * v;
-        }
+        let s = super::reduce::sum8(xd[r * n..(r + 1) * n].iter().map(|&v| v * v));
         *o = (s + eps).sqrt();
     };
     if x.numel() >= super::PAR_MIN {

@@ -74,21 +74,7 @@ pub fn sum_axis<T: Float>(x: &[T], outer: usize, len: usize, inner: usize) -> Ve
     if inner == 1 {
         // Row sums: eight interleaved partial sums (a fixed order, so results do not depend on
         // the thread count) let the compiler vectorise.
-        let row_sum = |row: &[T]| {
-            let mut acc = [T::ZERO; 8];
-            let chunks = row.chunks_exact(8);
-            let rest = chunks.remainder();
-            for c in chunks {
-                for (a, &v) in acc.iter_mut().zip(c) {
-                    *a += v;
-                }
-            }
-            let mut s = ((acc[0] + acc[4]) + (acc[1] + acc[5])) + ((acc[2] + acc[6]) + (acc[3] + acc[7]));
-            for &v in rest {
-                s += v;
-            }
-            s
-        };
+        let row_sum = |row: &[T]| sum8(row.iter().copied());
         if x.len() >= PAR_MIN && len > 0 {
             out.par_iter_mut().zip(x.par_chunks(len)).for_each(|(o, row)| *o = row_sum(row));
         } else if len > 0 {
@@ -175,4 +161,23 @@ pub fn sum_to_shape<T: Float>(g: Tensor<T>, target: &[usize]) -> Tensor<T> {
         }
     }
     cur
+}
+
+/// Sum with eight interleaved partial sums combined in a fixed order: vectorisable, and the
+/// same bits whatever the thread count (the order depends only on the length).
+#[inline(always)]
+pub(crate) fn sum8<T: Float>(values: impl ExactSizeIterator<Item = T>) -> T {
+    let mut acc = [T::ZERO; 8];
+    let mut it = values;
+    let full = it.len() / 8;
+    for _ in 0..full {
+        for a in acc.iter_mut() {
+            *a += it.next().expect("length checked");
+        }
+    }
+    let mut s = ((acc[0] + acc[4]) + (acc[1] + acc[5])) + ((acc[2] + acc[6]) + (acc[3] + acc[7]));
+    for v in it {
+        s += v;
+    }
+    s
 }
