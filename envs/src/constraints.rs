@@ -66,6 +66,15 @@ fn dot(a: &[f64], b: &[f64]) -> f64 {
     t
 }
 
+/// Forgets the warm starts of the slots used last step (only those are non-zero), so that a
+/// slot without contact this step starts from zero next time.
+fn clear_warm(warm: &mut [[f64; 4]], used: &mut Vec<usize>) {
+    for &s in used.iter() {
+        warm[s] = [0.0; 4];
+    }
+    used.clear();
+}
+
 /// Distance of the contact whose normal row is `kn`.
 #[inline]
 fn efc_dist(contacts: &[crate::data::Contact], nlim: usize, kn: usize) -> f64 {
@@ -166,7 +175,7 @@ pub fn solve(m: &Model, d: &mut Data) {
     d.qfrc_constraint.iter_mut().for_each(|x| *x = 0.0);
     d.efc.n = n;
     if n == 0 {
-        d.warm.iter_mut().for_each(|w| *w = [0.0; 4]);
+        clear_warm(&mut d.warm, &mut d.warm_used);
         d.warm_limit.iter_mut().for_each(|w| *w = 0.0);
         return;
     }
@@ -304,8 +313,36 @@ pub fn solve(m: &Model, d: &mut Data) {
     }
 
     // Projected (block) Gauss-Seidel.
+    // Rows coupled to each row (overlapping supports): all rows for one agent, only its own
+    // agent's (and cross-agent contacts') rows in a multi-agent scene, so a sweep costs the
+    // sum over agents of their rows squared rather than the square of all rows.
+    // (With a single tree every row reaches its root dofs: all rows are coupled.)
+    let all_coupled = m.trees.len() <= 1;
+    efc.nbr.clear();
+    efc.nbr_adr.clear();
+    if !all_coupled {
+        for k in 0..n {
+            efc.nbr_adr.push(efc.nbr.len());
+            let (lk, hk) = efc.span[k];
+            for l in 0..n {
+                let (ll, hl) = efc.span[l];
+                if lk.max(ll) < hk.min(hl) {
+                    efc.nbr.push(l as u32);
+                }
+            }
+        }
+        efc.nbr_adr.push(efc.nbr.len());
+    }
     let residual = |efc: &crate::data::Efc, k: usize| -> f64 {
-        efc.a0[k] - efc.aref[k] + efc.r[k] * efc.f[k] + dot(&efc.a[k * n..(k + 1) * n], &efc.f)
+        let base = efc.a0[k] - efc.aref[k] + efc.r[k] * efc.f[k];
+        if all_coupled {
+            return base + dot(&efc.a[k * n..(k + 1) * n], &efc.f);
+        }
+        let row = &efc.a[k * n..(k + 1) * n];
+        base + efc.nbr[efc.nbr_adr[k]..efc.nbr_adr[k + 1]]
+            .iter()
+            .map(|&l| row[l as usize] * efc.f[l as usize])
+            .sum::<f64>()
     };
     for _ in 0..m.opt.iterations {
         for k in 0..nlim {
@@ -349,7 +386,7 @@ pub fn solve(m: &Model, d: &mut Data) {
         }
     }
     // Apply, and remember forces for the next step's warm start.
-    d.warm.iter_mut().for_each(|w| *w = [0.0; 4]);
+    clear_warm(&mut d.warm, &mut d.warm_used);
     d.warm_limit.iter_mut().for_each(|w| *w = 0.0);
     for k in 0..n {
         let f = efc.f[k];
@@ -369,5 +406,6 @@ pub fn solve(m: &Model, d: &mut Data) {
         let (t1, t2) = tangents(c.normal);
         let ft = math::add(math::scale(t1, efc.f[k + 1]), math::scale(t2, efc.f[k + 2]));
         d.warm[c.slot] = [efc.f[k], ft[0], ft[1], ft[2]];
+        d.warm_used.push(c.slot);
     }
 }

@@ -113,6 +113,8 @@ pub struct Data {
     /// Warm-start forces of the contact slots: normal force, then the friction force as a
     /// world-frame vector.
     pub(crate) warm: Vec<[f64; 4]>,
+    /// Slots written into `warm` by the last step.
+    pub(crate) warm_used: Vec<usize>,
     /// Warm-start forces of the joint limits, per joint.
     pub(crate) warm_limit: Vec<f64>,
     /// Constraint scratch.
@@ -134,6 +136,10 @@ pub(crate) struct Efc {
     pub wd: Vec<f64>,
     /// Support `[lo, hi)` of each Jacobian row.
     pub span: Vec<(usize, usize)>,
+    /// Rows coupled to each row (overlapping supports), concatenated; empty when all are.
+    pub nbr: Vec<u32>,
+    /// Start of each row's list in `nbr` (n + 1 entries).
+    pub nbr_adr: Vec<usize>,
     /// `A = J (M + hD)^-1 J^T`, `n x n`.
     pub a: Vec<f64>,
     /// Reference acceleration.
@@ -194,6 +200,7 @@ impl Data {
             qk_cols: vec![0.0; 3 * nv],
             contacts: Vec::with_capacity(16 + 2 * m.plane_pairs.len()),
             warm: vec![[0.0; 4]; m.nslot],
+            warm_used: Vec::with_capacity(64),
             warm_limit: vec![0.0; m.joints.len()],
             efc: Efc::default(),
         }
@@ -214,6 +221,7 @@ impl Data {
         self.qacc.iter_mut().for_each(|x| *x = 0.0);
         self.qfrc_applied.iter_mut().for_each(|x| *x = 0.0);
         self.warm.iter_mut().for_each(|x| *x = [0.0; 4]);
+        self.warm_used.clear();
         self.warm_limit.iter_mut().for_each(|x| *x = 0.0);
         self.contacts.clear();
         self.time = 0.0;
