@@ -18,14 +18,26 @@ pub fn step_batch(m: &Model, datas: &mut [Data], nsteps: usize) {
 }
 
 /// Like [`step_batch`], but first sets each scene's controls from `ctrl` (row-major,
-/// `datas.len() x Model::nu()`). Panics if `ctrl` has the wrong length (a programming error).
-pub fn step_batch_ctrl(m: &Model, datas: &mut [Data], ctrl: &[f64], nsteps: usize) {
+/// `datas.len() x Model::nu()`). Errors, stepping nothing, if `ctrl` has the wrong length or a
+/// `Data` was not made for this model.
+pub fn step_batch_ctrl(m: &Model, datas: &mut [Data], ctrl: &[f64], nsteps: usize) -> Result<(), String> {
     let nu = m.nu();
-    assert_eq!(ctrl.len(), datas.len() * nu, "ctrl must hold nu values per scene");
+    if ctrl.len() != datas.len() * nu {
+        return Err(format!(
+            "ctrl has {} values, expected {} scenes x {nu} actuators = {}",
+            ctrl.len(),
+            datas.len(),
+            datas.len() * nu
+        ));
+    }
+    if let Some(i) = datas.iter().position(|d| d.ctrl.len() != nu || d.qpos.len() != m.nq) {
+        return Err(format!("scene {i}: its Data does not match the model (nq {}, nu {nu})", m.nq));
+    }
     datas.par_iter_mut().enumerate().for_each(|(e, d)| {
         d.ctrl.copy_from_slice(&ctrl[e * nu..(e + 1) * nu]);
         for _ in 0..nsteps {
             step(m, d);
         }
     });
+    Ok(())
 }

@@ -106,10 +106,23 @@ fn batch_in_pool(m: &Model, threads: usize, nenv: usize) -> Vec<Vec<u64>> {
     pool.install(|| {
         for _ in 0..100 {
             let ctrl: Vec<f64> = (0..nenv * m.nu()).map(|_| rng.random_range(-1.0..1.0)).collect();
-            envs::step_batch_ctrl(m, &mut datas, &ctrl, FRAMES);
+            envs::step_batch_ctrl(m, &mut datas, &ctrl, FRAMES).unwrap();
         }
     });
     datas.iter().map(|d| d.qpos.iter().chain(&d.qvel).map(|x| x.to_bits()).collect()).collect()
+}
+
+#[test]
+fn batched_stepping_rejects_wrong_controls() {
+    let m = mjcf_ant();
+    let mut datas = vec![Data::new(&m), Data::new(&m)];
+    let e = envs::step_batch_ctrl(&m, &mut datas, &[0.0; 15], 1).unwrap_err();
+    assert!(e.contains("15 values") && e.contains("16"), "{e}");
+    let other = centipede();
+    let mut mixed = vec![Data::new(&m), Data::new(&other)];
+    let e = envs::step_batch_ctrl(&m, &mut mixed, &vec![0.0; 2 * m.nu()], 1).unwrap_err();
+    assert!(e.contains("scene 1"), "{e}");
+    assert_eq!(datas[0].time, 0.0, "nothing was stepped");
 }
 
 #[test]
