@@ -122,7 +122,9 @@ fn batched_stepping_rejects_wrong_controls() {
     let mut mixed = vec![Data::new(&m), Data::new(&other)];
     let e = envs::step_batch_ctrl(&m, &mut mixed, &vec![0.0; 2 * m.nu()], 1).unwrap_err();
     assert!(e.contains("scene 1"), "{e}");
+    assert!(envs::step_batch(&m, &mut mixed, 1).unwrap_err().contains("scene 1"));
     assert_eq!(datas[0].time, 0.0, "nothing was stepped");
+    assert_eq!(mixed[0].time, 0.0, "nothing was stepped");
 }
 
 #[test]
