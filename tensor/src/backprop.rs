@@ -8,6 +8,7 @@
 use crate::element::Float;
 use crate::kernels::{elementwise, index, layout, matmul, nnops, reduce};
 use crate::op::{BinaryOp, NodeId, Op, ReduceOp};
+use crate::pool;
 use crate::shape::split_at_axis;
 use crate::tape::Node;
 use crate::tensor::Tensor;
@@ -31,14 +32,17 @@ impl<T: Float> GradStore<T> {
     /// Adds `v` to node `id`'s gradient (takes the buffer if it is the first contribution).
     pub(crate) fn add(&mut self, id: NodeId, v: Vec<T>) {
         match &mut self.grads[id] {
-            Some(g) => g.iter_mut().zip(v).for_each(|(a, b)| *a += b),
+            Some(g) => {
+                g.iter_mut().zip(&v).for_each(|(a, &b)| *a += b);
+                pool::recycle(v);
+            }
             slot => *slot = Some(v),
         }
     }
 
     /// Node `id`'s gradient buffer, zero-initialised on first use, for in-place accumulation.
     fn slot(&mut self, id: NodeId, len: usize) -> &mut [T] {
-        self.grads[id].get_or_insert_with(|| vec![T::ZERO; len])
+        self.grads[id].get_or_insert_with(|| crate::pool::zeros(len))
     }
 
     /// The gradient buffers of two different nodes at once (zero-initialised on first use).
@@ -72,16 +76,21 @@ impl<T: Float> GradStore<T> {
 }
 
 /// Adds the contributions of node `id` (with output gradient `g`) to its inputs.
-pub(crate) fn propagate<T: Float>(nodes: &[Node<T>], id: NodeId, g: Vec<T>, store: &mut GradStore<T>) {
+/// `g` may be taken (left empty) by rules that can reuse it; the caller recycles what is left.
+pub(crate) fn propagate<T: Float>(nodes: &[Node<T>], id: NodeId, g: &mut Vec<T>, store: &mut GradStore<T>) {
     let node = &nodes[id];
     let y = &node.value;
     let val = |i: NodeId| &nodes[i].value;
-    let g_t = || Tensor::from_parts(g.clone(), y.shape().to_vec());
+    let g_t = || {
+        let mut v = crate::pool::with_capacity(g.len());
+        v.extend_from_slice(g);
+        Tensor::from_parts(v, y.shape().to_vec())
+    };
     match &node.op {
         Op::Leaf => {}
         Op::Unary(x, op) => {
             if store.wants(*x) {
-                store.add(*x, elementwise::unary_backward(&g, val(*x).data(), y.data(), *op));
+                store.add(*x, elementwise::unary_backward(g, val(*x).data(), y.data(), *op));
             }
         }
         Op::Binary(a, b, op) => binary_rule(nodes, *a, *b, *op, y, g, store),
@@ -95,10 +104,10 @@ pub(crate) fn propagate<T: Float>(nodes: &[Node<T>], id: NodeId, g: Vec<T>, stor
                 None => (1, xv.numel(), 1),
             };
             let dx = match op {
-                ReduceOp::Max => reduce::max_backward(xv.data(), y.data(), &g, outer, len, inner),
+                ReduceOp::Max => reduce::max_backward(xv.data(), y.data(), g, outer, len, inner),
                 ReduceOp::Sum | ReduceOp::Mean => {
                     let s = if *op == ReduceOp::Mean { T::ONE / T::from_f64(len as f64) } else { T::ONE };
-                    let mut dx = vec![T::ZERO; xv.numel()];
+                    let mut dx = crate::pool::zeros(xv.numel());
                     for o in 0..outer {
                         let gr = &g[o * inner..(o + 1) * inner];
                         for k in 0..len {
@@ -126,7 +135,7 @@ pub(crate) fn propagate<T: Float>(nodes: &[Node<T>], id: NodeId, g: Vec<T>, stor
                     (sa, Some(sb))
                 };
                 let (ad, bd) = (av.data(), bv.data());
-                matmul::small_batched_backward(&g, ad, *ta, bd, *tb, av.shape(), bv.shape(), da, db);
+                matmul::small_batched_backward(g, ad, *ta, bd, *tb, av.shape(), bv.shape(), da, db);
                 return;
             }
             let gt = g_t();
@@ -144,9 +153,13 @@ pub(crate) fn propagate<T: Float>(nodes: &[Node<T>], id: NodeId, g: Vec<T>, stor
         Op::Linear { x, w, b, act } => {
             let (xv, wv) = (val(*x), val(*w));
             // Without an activation the output gradient is used as it is (no copy).
-            let gpre = match act {
+            let owned;
+            let gpre: &[T] = match act {
                 crate::op::Activation::Identity => g,
-                _ => nnops::activation_backward(y.data(), &g, *act),
+                _ => {
+                    owned = nnops::activation_backward(y.data(), g, *act);
+                    &owned
+                }
             };
             let (k, n) = (wv.shape()[0], wv.shape()[1]);
             let rows = gpre.len() / n.max(1);
@@ -154,36 +167,36 @@ pub(crate) fn propagate<T: Float>(nodes: &[Node<T>], id: NodeId, g: Vec<T>, stor
                 let plan =
                     matmul::MatMulPlan::new(&[rows, n], &[k, n], false, true).expect("shapes checked in forward");
                 let slot = store.slot(*x, rows * k);
-                matmul::matmul_into(slot, true, &gpre, false, wv.data(), true, &plan);
+                matmul::matmul_into(slot, true, gpre, false, wv.data(), true, &plan);
             }
             if store.wants(*w) {
                 let plan =
                     matmul::MatMulPlan::new(&[rows, k], &[rows, n], true, false).expect("shapes checked in forward");
                 let slot = store.slot(*w, k * n);
-                matmul::matmul_into(slot, true, xv.data(), true, &gpre, false, &plan);
+                matmul::matmul_into(slot, true, xv.data(), true, gpre, false, &plan);
             }
             if let Some(b) = b
                 && store.wants(*b)
             {
-                store.add(*b, reduce::sum_axis(&gpre, 1, rows, n));
+                store.add(*b, reduce::sum_axis(gpre, 1, rows, n));
             }
         }
         Op::Softmax(x) => {
             if store.wants(*x) {
                 let n = y.shape().last().copied().unwrap_or(1);
-                store.add(*x, nnops::softmax_backward(y.data(), &g, n));
+                store.add(*x, nnops::softmax_backward(y.data(), g, n));
             }
         }
         Op::NormLast { x, .. } => {
             if store.wants(*x) {
                 let xv = val(*x);
                 let n = xv.shape().last().copied().unwrap_or(1);
-                store.add(*x, nnops::norm_last_backward(xv.data(), y.data(), &g, n));
+                store.add(*x, nnops::norm_last_backward(xv.data(), y.data(), g, n));
             }
         }
         Op::Reshape(x) => {
             if store.wants(*x) {
-                store.add(*x, g);
+                store.add(*x, std::mem::take(g));
             }
         }
         Op::Permute(x, perm) => {
@@ -201,7 +214,7 @@ pub(crate) fn propagate<T: Float>(nodes: &[Node<T>], id: NodeId, g: Vec<T>, stor
             if store.wants(*x) {
                 let xv = val(*x);
                 let slot = store.slot(*x, xv.numel());
-                layout::narrow_backward_into(slot, xv.shape(), &g, *axis, *start);
+                layout::narrow_backward_into(slot, xv.shape(), g, *axis, *start);
             }
         }
         Op::Cat { xs, axis } => {
@@ -211,7 +224,7 @@ pub(crate) fn propagate<T: Float>(nodes: &[Node<T>], id: NodeId, g: Vec<T>, stor
                 let len = xv.shape()[*axis];
                 if store.wants(x) {
                     let slot = store.slot(x, xv.numel());
-                    layout::narrow_add_into(slot, &g, y.shape(), *axis, start, len);
+                    layout::narrow_add_into(slot, g, y.shape(), *axis, start, len);
                 }
                 start += len;
             }
@@ -221,7 +234,7 @@ pub(crate) fn propagate<T: Float>(nodes: &[Node<T>], id: NodeId, g: Vec<T>, stor
                 let xv = val(*x);
                 let (outer, n, inner) = split_at_axis(xv.shape(), *axis);
                 let slot = store.slot(*x, xv.numel());
-                index::index_add_into(slot, n, &g, idx.len(), outer, inner, idx);
+                index::index_add_into(slot, n, g, idx.len(), outer, inner, idx);
             }
         }
         Op::IndexAdd { x, src, axis, idx } => {
@@ -229,14 +242,14 @@ pub(crate) fn propagate<T: Float>(nodes: &[Node<T>], id: NodeId, g: Vec<T>, stor
                 store.add(*src, index::index_select(&g_t(), *axis, idx).expect("checked in forward").into_vec());
             }
             if store.wants(*x) {
-                store.add(*x, g);
+                store.add(*x, std::mem::take(g));
             }
         }
         Op::Gather { x, axis, idx } => {
             if store.wants(*x) {
                 let xv = val(*x);
                 let slot = store.slot(*x, xv.numel());
-                index::gather_backward_into(slot, xv.shape(), *axis, &g, idx);
+                index::gather_backward_into(slot, xv.shape(), *axis, g, idx);
             }
         }
         Op::Segment { x, seg, mean } => {
@@ -244,7 +257,7 @@ pub(crate) fn propagate<T: Float>(nodes: &[Node<T>], id: NodeId, g: Vec<T>, stor
                 let xv = val(*x);
                 let inner = xv.numel() / xv.shape()[0].max(1);
                 let counts = if *mean { index::segment_counts(seg, y.shape()[0]) } else { vec![] };
-                let mut dx = vec![T::ZERO; xv.numel()];
+                let mut dx = crate::pool::zeros(xv.numel());
                 for (r, &s) in seg.iter().enumerate() {
                     let scale = if *mean { T::ONE / T::from_f64(counts[s] as f64) } else { T::ONE };
                     let src = &g[s * inner..(s + 1) * inner];
@@ -256,8 +269,7 @@ pub(crate) fn propagate<T: Float>(nodes: &[Node<T>], id: NodeId, g: Vec<T>, stor
         Op::Where { a, b, mask } => {
             for (input, pick) in [(*a, true), (*b, false)] {
                 if store.wants(input) {
-                    let masked: Vec<T> =
-                        g.iter().zip(mask.iter()).map(|(&gv, &m)| if m == pick { gv } else { T::ZERO }).collect();
+                    let masked = pool::zip_map(g, mask, |gv, m| if m == pick { gv } else { T::ZERO });
                     let t = Tensor::from_parts(masked, y.shape().to_vec());
                     store.add(input, reduce::sum_to_shape(t, val(input).shape()).into_vec());
                 }
@@ -294,7 +306,7 @@ fn binary_rule<T: Float>(
     b: NodeId,
     op: BinaryOp,
     y: &Tensor<T>,
-    g: Vec<T>,
+    g: &[T],
     store: &mut GradStore<T>,
 ) {
     let (av, bv) = (&nodes[a].value, &nodes[b].value);
@@ -302,9 +314,9 @@ fn binary_rule<T: Float>(
     let with = |other: &Tensor<T>, mul: bool| {
         let (o, os) = (other.data(), other.shape());
         if mul {
-            elementwise::binary_into_shape(&g, shape, o, os, shape, |gv, ov| gv * ov)
+            elementwise::binary_into_shape(g, shape, o, os, shape, |gv, ov| gv * ov)
         } else {
-            elementwise::binary_into_shape(&g, shape, o, os, shape, |gv, ov| gv / ov)
+            elementwise::binary_into_shape(g, shape, o, os, shape, |gv, ov| gv / ov)
         }
     };
     let (wa, wb) = (store.wants(a), store.wants(b));
@@ -314,7 +326,7 @@ fn binary_rule<T: Float>(
     {
         // `a` scaled by one value of `b` per row (e.g. c / (||G|| + 1)): both gradients in
         // one pass, without broadcast temporaries.
-        let (ga, gb) = elementwise::row_scale_backward(&g, av.data(), bv.data(), op == BinaryOp::Div, wa, wb);
+        let (ga, gb) = elementwise::row_scale_backward(g, av.data(), bv.data(), op == BinaryOp::Div, wa, wb);
         if let Some(ga) = ga {
             store.add(a, ga);
         }
@@ -324,14 +336,14 @@ fn binary_rule<T: Float>(
         return;
     }
     let (ga, gb): (Option<Vec<T>>, Option<Vec<T>>) = match op {
-        BinaryOp::Add => (wa.then(|| g.clone()), wb.then(|| g.clone())),
-        BinaryOp::Sub => (wa.then(|| g.clone()), wb.then(|| g.iter().map(|&v| -v).collect())),
+        BinaryOp::Add => (wa.then(|| pool::map(g, |v| v)), wb.then(|| pool::map(g, |v| v))),
+        BinaryOp::Sub => (wa.then(|| pool::map(g, |v| v)), wb.then(|| pool::map(g, |v| -v))),
         BinaryOp::Mul => (wa.then(|| with(bv, true)), wb.then(|| with(av, true))),
         BinaryOp::Div => {
             let ga = wa.then(|| with(bv, false));
             let gb = wb.then(|| {
                 // d(a/b)/db = -y / b
-                let gy: Vec<T> = g.iter().zip(y.data()).map(|(&gv, &yv)| gv * yv).collect();
+                let gy = pool::zip_map(g, y.data(), |gv, yv| gv * yv);
                 elementwise::binary_into_shape(&gy, shape, bv.data(), bv.shape(), shape, |t, bv| -t / bv)
             });
             (ga, gb)
@@ -342,8 +354,8 @@ fn binary_rule<T: Float>(
                 if chosen { T::ONE } else { T::ZERO }
             };
             let mask = elementwise::binary_into_shape(av.data(), av.shape(), bv.data(), bv.shape(), shape, pick_a);
-            let ga = wa.then(|| g.iter().zip(&mask).map(|(&gv, &m)| gv * m).collect());
-            let gb = wb.then(|| g.iter().zip(&mask).map(|(&gv, &m)| gv * (T::ONE - m)).collect());
+            let ga = wa.then(|| pool::zip_map(g, &mask, |gv, m| gv * m));
+            let gb = wb.then(|| pool::zip_map(g, &mask, |gv, m| gv * (T::ONE - m)));
             (ga, gb)
         }
     };

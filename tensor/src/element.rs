@@ -62,6 +62,8 @@ pub trait Float:
     fn is_finite(self) -> bool;
     /// Negative infinity (identity of `max`).
     fn neg_infinity() -> Self;
+    /// The pool of recycled buffers of this type.
+    fn pool() -> &'static crate::pool::BufferPool<Self>;
 }
 
 macro_rules! impl_float {
@@ -121,6 +123,10 @@ macro_rules! impl_float {
             #[inline(always)]
             fn neg_infinity() -> Self {
                 <$t>::NEG_INFINITY
+            }
+            fn pool() -> &'static crate::pool::BufferPool<Self> {
+                static POOL: crate::pool::BufferPool<$t> = crate::pool::BufferPool::new();
+                &POOL
             }
         }
     };

@@ -24,6 +24,7 @@ pub mod error;
 pub mod gradcheck;
 pub mod kernels;
 pub mod op;
+pub mod pool;
 pub mod shape;
 mod tape;
 mod tensor;

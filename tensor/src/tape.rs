@@ -170,9 +170,10 @@ impl<T: Float> Tape<T> {
             if matches!(nodes[id].op, Op::Leaf) {
                 continue;
             }
-            if let Some(g) = store.take(id) {
+            if let Some(mut g) = store.take(id) {
                 let start = Instant::now();
-                propagate(&nodes, id, g, &mut store);
+                propagate(&nodes, id, &mut g, &mut store);
+                crate::pool::recycle(g);
                 if let Some(prof) = self.profile.borrow_mut().as_mut() {
                     let e = prof.backward.entry(nodes[id].op.name()).or_default();
                     e.0 += 1;

@@ -14,14 +14,32 @@ use crate::shape::numel;
 #[derive(Clone, PartialEq)]
 pub struct Tensor<T: Float> {
     shape: Vec<usize>,
-    data: Arc<Vec<T>>,
+    data: Arc<Buffer<T>>,
+}
+
+/// Element storage that returns large buffers to the pool when dropped.
+#[derive(PartialEq)]
+struct Buffer<T: Float>(Vec<T>);
+
+impl<T: Float> Clone for Buffer<T> {
+    fn clone(&self) -> Self {
+        let mut v = crate::pool::with_capacity(self.0.len());
+        v.extend_from_slice(&self.0);
+        Buffer(v)
+    }
+}
+
+impl<T: Float> Drop for Buffer<T> {
+    fn drop(&mut self) {
+        crate::pool::recycle(std::mem::take(&mut self.0));
+    }
 }
 
 impl<T: Float> std::fmt::Debug for Tensor<T> {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(f, "Tensor<{}>{:?}", T::NAME, self.shape)?;
-        if self.data.len() <= 16 {
-            write!(f, " {:?}", self.data)?;
+        if self.data.0.len() <= 16 {
+            write!(f, " {:?}", self.data.0)?;
         }
         Ok(())
     }
@@ -37,13 +55,13 @@ impl<T: Float> Tensor<T> {
                 format!("{} elements given for a shape of {}", data.len(), numel(shape)),
             ));
         }
-        Ok(Self { shape: shape.to_vec(), data: Arc::new(data) })
+        Ok(Self { shape: shape.to_vec(), data: Arc::new(Buffer(data)) })
     }
 
     /// Internal constructor for kernels whose output size is right by construction.
     pub(crate) fn from_parts(data: Vec<T>, shape: Vec<usize>) -> Self {
         debug_assert_eq!(data.len(), numel(&shape));
-        Self { shape, data: Arc::new(data) }
+        Self { shape, data: Arc::new(Buffer(data)) }
     }
 
     /// Converts `f64` values (handy in tests and for constants).
@@ -53,7 +71,7 @@ impl<T: Float> Tensor<T> {
 
     /// A tensor of `shape` filled with `value`.
     pub fn full(shape: &[usize], value: T) -> Self {
-        Self::from_parts(vec![value; numel(shape)], shape.to_vec())
+        Self::from_parts(crate::pool::filled(numel(shape), value), shape.to_vec())
     }
 
     /// A tensor of zeros.
@@ -83,28 +101,28 @@ impl<T: Float> Tensor<T> {
 
     /// The number of elements.
     pub fn numel(&self) -> usize {
-        self.data.len()
+        self.data.0.len()
     }
 
     /// The elements in row-major order.
     pub fn data(&self) -> &[T] {
-        &self.data
+        &self.data.0
     }
 
     /// Mutable access to the elements (copies first if the storage is shared).
     pub fn data_mut(&mut self) -> &mut [T] {
-        Arc::make_mut(&mut self.data).as_mut_slice()
+        Arc::make_mut(&mut self.data).0.as_mut_slice()
     }
 
     /// The elements as a new vector.
     pub fn to_vec(&self) -> Vec<T> {
-        self.data.to_vec()
+        self.data.0.to_vec()
     }
 
     /// The value of a one-element tensor.
     pub fn item(&self) -> Result<T> {
-        if self.data.len() == 1 {
-            Ok(self.data[0])
+        if self.data.0.len() == 1 {
+            Ok(self.data.0[0])
         } else {
             Err(invalid("item", format!("tensor of shape {:?} is not a single value", self.shape)))
         }
@@ -120,26 +138,29 @@ impl<T: Float> Tensor<T> {
 
     /// Converts the elements to another precision.
     pub fn cast<U: Float>(&self) -> Tensor<U> {
-        Tensor::from_parts(self.data.iter().map(|v| U::from_f64(v.to_f64())).collect(), self.shape.clone())
+        Tensor::from_parts(self.data.0.iter().map(|v| U::from_f64(v.to_f64())).collect(), self.shape.clone())
     }
 
     /// Whether every element is finite.
     pub fn all_finite(&self) -> bool {
-        self.data.iter().all(|v| v.is_finite())
+        self.data.0.iter().all(|v| v.is_finite())
     }
 
     /// Whether both tensors have the same shape and every element differs by at most
     /// `atol + rtol * |other|`.
     pub fn all_close(&self, other: &Self, rtol: f64, atol: f64) -> bool {
         self.shape == other.shape
-            && self.data.iter().zip(other.data.iter()).all(|(a, b)| {
+            && self.data.0.iter().zip(other.data.0.iter()).all(|(a, b)| {
                 let (a, b) = (a.to_f64(), b.to_f64());
                 (a - b).abs() <= atol + rtol * b.abs()
             })
     }
 
-    /// Whether two tensors share the same storage (used to avoid needless copies).
+    /// The elements as a vector, without copying when the storage is not shared.
     pub(crate) fn into_vec(self) -> Vec<T> {
-        Arc::try_unwrap(self.data).unwrap_or_else(|a| (*a).clone())
+        match Arc::try_unwrap(self.data) {
+            Ok(mut b) => std::mem::take(&mut b.0),
+            Err(shared) => shared.0.clone(),
+        }
     }
 }

@@ -19,7 +19,7 @@ pub fn index_select<T: Float>(x: &Tensor<T>, axis: usize, idx: &[usize]) -> Resu
     let (outer, n, inner) = split_at_axis(x.shape(), axis);
     check_indices("index_select", idx, n)?;
     let xd = x.data();
-    let mut out = Vec::with_capacity(outer * idx.len() * inner);
+    let mut out = crate::pool::with_capacity(outer * idx.len() * inner);
     for o in 0..outer {
         for &i in idx {
             out.extend_from_slice(&xd[(o * n + i) * inner..(o * n + i + 1) * inner]);
@@ -95,7 +95,7 @@ pub fn gather<T: Float>(x: &Tensor<T>, axis: usize, idx_shape: &[usize], idx: &[
     let (outer, n, inner) = split_at_axis(x.shape(), axis);
     let m = idx_shape[axis];
     let xd = x.data();
-    let mut out = vec![T::ZERO; idx.len()];
+    let mut out = crate::pool::zeros(idx.len());
     for o in 0..outer {
         for j in 0..m {
             for i in 0..inner {
@@ -139,7 +139,7 @@ pub fn segment_reduce<T: Float>(x: &Tensor<T>, seg: &[usize], num_segments: usiz
     }
     check_segments(seg, x.shape()[0], num_segments)?;
     let inner = x.numel() / x.shape()[0].max(1);
-    let mut out = vec![T::ZERO; num_segments * inner];
+    let mut out = crate::pool::zeros(num_segments * inner);
     index_add_into(&mut out, num_segments, x.data(), seg.len(), 1, inner, seg);
     if mean {
         let counts = segment_counts(seg, num_segments);

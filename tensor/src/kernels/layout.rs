@@ -20,7 +20,7 @@ pub fn permute<T: Float>(x: &Tensor<T>, perm: &[usize]) -> Result<Tensor<T>> {
     let src_strides: Vec<usize> = perm.iter().map(|&p| st[p]).collect();
     let zero = vec![0; r];
     let xd = x.data();
-    let mut out = vec![T::ZERO; x.numel()];
+    let mut out = crate::pool::zeros(x.numel());
     for_each_run2(&shape, &src_strides, &zero, |o, oa, _, len, da, _| {
         for k in 0..len {
             out[o + k] = xd[oa + k * da];
@@ -48,7 +48,7 @@ pub fn narrow<T: Float>(x: &Tensor<T>, axis: usize, start: usize, len: usize) ->
             format!("range {start}..{} is past the end of axis {axis} of shape {:?}", start + len, x.shape()),
         ));
     }
-    let mut out = Vec::with_capacity(outer * len * inner);
+    let mut out = crate::pool::with_capacity(outer * len * inner);
     let xd = x.data();
     for o in 0..outer {
         out.extend_from_slice(&xd[(o * n + start) * inner..(o * n + start + len) * inner]);
@@ -95,7 +95,7 @@ pub fn cat<T: Float>(xs: &[&Tensor<T>], axis: usize) -> Result<Tensor<T>> {
     }
     let (outer, _, inner) = split_at_axis(first.shape(), axis);
     let total: usize = xs.iter().map(|x| x.shape()[axis]).sum();
-    let mut out = Vec::with_capacity(outer * total * inner);
+    let mut out = crate::pool::with_capacity(outer * total * inner);
     for o in 0..outer {
         for x in xs {
             let l = x.shape()[axis] * inner;
@@ -120,7 +120,7 @@ pub fn expand<T: Float>(x: &Tensor<T>, shape: &[usize]) -> Result<Tensor<T>> {
     let sx = broadcast_strides(x.shape(), shape);
     let zero = vec![0; shape.len()];
     let xd = x.data();
-    let mut out = vec![T::ZERO; numel(shape)];
+    let mut out = crate::pool::zeros(numel(shape));
     for_each_run2(shape, &sx, &zero, |o, oa, _, len, da, _| {
         for k in 0..len {
             out[o + k] = xd[oa + k * da];

@@ -91,7 +91,7 @@ impl MatMulPlan {
 /// `op(a) @ op(b)` as a new tensor.
 pub fn matmul<T: Float>(a: &Tensor<T>, b: &Tensor<T>, ta: bool, tb: bool) -> Result<Tensor<T>> {
     let plan = MatMulPlan::new(a.shape(), b.shape(), ta, tb)?;
-    let mut out = vec![T::ZERO; numel(&plan.out_shape())];
+    let mut out = crate::pool::zeros(numel(&plan.out_shape()));
     matmul_into(&mut out, false, a.data(), ta, b.data(), tb, &plan);
     Ok(Tensor::from_parts(out, plan.out_shape()))
 }
@@ -122,7 +122,7 @@ pub fn matmul_into<T: Float>(out: &mut [T], accumulate: bool, a: &[T], ta: bool,
         // that ([n, m]) and transpose it into place.
         let (oa, ob) = plan.offsets[0];
         let t_plan = MatMulPlan { m: n, k, n: m, batch: vec![], offsets: vec![(0, 0)] };
-        let mut tmp = vec![T::ZERO; m * n];
+        let mut tmp = crate::pool::zeros(m * n);
         matmul_into(&mut tmp, false, &b[ob..ob + k * n], true, &a[oa..oa + k * m], false, &t_plan);
         for i in 0..m {
             for j in 0..n {

@@ -11,7 +11,7 @@ use crate::tensor::Tensor;
 pub fn softmax<T: Float>(x: &Tensor<T>) -> Tensor<T> {
     let n = x.shape().last().copied().unwrap_or(1);
     let xd = x.data();
-    let mut out = vec![T::ZERO; x.numel()];
+    let mut out = crate::pool::zeros(x.numel());
     for_rows(&mut out, n, |r, row| {
         let src = &xd[r * n..(r + 1) * n];
         let mx = src.iter().copied().fold(T::neg_infinity(), T::max);
@@ -28,7 +28,7 @@ pub fn softmax<T: Float>(x: &Tensor<T>) -> Tensor<T> {
 
 /// Gradient of softmax: `dx = y * (g - sum(g * y))` row by row.
 pub fn softmax_backward<T: Float>(y: &[T], g: &[T], n: usize) -> Vec<T> {
-    let mut out = vec![T::ZERO; y.len()];
+    let mut out = crate::pool::zeros(y.len());
     for_rows(&mut out, n, |r, row| {
         let (yr, gr) = (&y[r * n..(r + 1) * n], &g[r * n..(r + 1) * n]);
         let dot: T = yr.iter().zip(gr).map(|(&a, &b)| a * b).sum();
@@ -60,7 +60,7 @@ pub fn linear<T: Float>(x: &Tensor<T>, w: &Tensor<T>, b: Option<&Tensor<T>>, act
     let (shape, rows) = linear_shapes(x.shape(), w.shape(), b.map(|b| b.shape()))?;
     let (k, n) = (w.shape()[0], w.shape()[1]);
     let plan = MatMulPlan::new(&[rows, k], &[k, n], false, false)?;
-    let mut out = vec![T::ZERO; rows * n];
+    let mut out = crate::pool::zeros(rows * n);
     matmul_into(&mut out, false, x.data(), false, w.data(), false, &plan);
     let bias = b.map(|b| b.data());
     for_rows(&mut out, n, |_, row| {
@@ -81,9 +81,9 @@ pub fn linear<T: Float>(x: &Tensor<T>, w: &Tensor<T>, b: Option<&Tensor<T>>, act
 /// `g * act'(pre)` expressed through the output `y` of the activation.
 pub fn activation_backward<T: Float>(y: &[T], g: &[T], act: Activation) -> Vec<T> {
     match act {
-        Activation::Identity => g.to_vec(),
-        Activation::Relu => g.iter().zip(y).map(|(&g, &y)| if y > T::ZERO { g } else { T::ZERO }).collect(),
-        Activation::Tanh => g.iter().zip(y).map(|(&g, &y)| g * (T::ONE - y * y)).collect(),
+        Activation::Identity => crate::pool::map(g, |v| v),
+        Activation::Relu => crate::pool::zip_map(g, y, |g, y| if y > T::ZERO { g } else { T::ZERO }),
+        Activation::Tanh => crate::pool::zip_map(g, y, |g, y| g * (T::ONE - y * y)),
     }
 }
 
@@ -93,7 +93,7 @@ pub fn norm_last<T: Float>(x: &Tensor<T>, eps: f64) -> Tensor<T> {
     let rows = x.numel().checked_div(n).unwrap_or(0);
     let xd = x.data();
     let eps = T::from_f64(eps);
-    let mut out = vec![T::ZERO; rows];
+    let mut out = crate::pool::zeros(rows);
     let body = |r: usize, o: &mut T| {
         let s = super::reduce::sum8(xd[r * n..(r + 1) * n].iter().map(|&v| v * v));
         *o = (s + eps).sqrt();
@@ -113,7 +113,7 @@ pub fn norm_last<T: Float>(x: &Tensor<T>, eps: f64) -> Tensor<T> {
 
 /// Gradient of [`norm_last`]: `dx = g x / y` row by row.
 pub fn norm_last_backward<T: Float>(x: &[T], y: &[T], g: &[T], n: usize) -> Vec<T> {
-    let mut out = vec![T::ZERO; x.len()];
+    let mut out = crate::pool::zeros(x.len());
     for_rows(&mut out, n, |r, row| {
         let s = g[r] / y[r];
         for (o, &xv) in row.iter_mut().zip(&x[r * n..(r + 1) * n]) {

@@ -70,7 +70,7 @@ pub fn sum_all<T: Float>(x: &[T]) -> T {
 
 /// `out[o, i] = sum_k x[o, k, i]`.
 pub fn sum_axis<T: Float>(x: &[T], outer: usize, len: usize, inner: usize) -> Vec<T> {
-    let mut out = vec![T::ZERO; outer * inner];
+    let mut out = crate::pool::zeros(outer * inner);
     if inner == 1 {
         // Row sums: eight interleaved partial sums (a fixed order, so results do not depend on
         // the thread count) let the compiler vectorise.
@@ -103,7 +103,7 @@ pub fn sum_axis<T: Float>(x: &[T], outer: usize, len: usize, inner: usize) -> Ve
 
 /// `out[o, i] = max_k x[o, k, i]`.
 fn max_axis<T: Float>(x: &[T], outer: usize, len: usize, inner: usize) -> Vec<T> {
-    let mut out = vec![T::neg_infinity(); outer * inner];
+    let mut out = crate::pool::filled(outer * inner, T::neg_infinity());
     for o in 0..outer {
         let dst = &mut out[o * inner..(o + 1) * inner];
         for k in 0..len {
@@ -120,7 +120,7 @@ fn max_axis<T: Float>(x: &[T], outer: usize, len: usize, inner: usize) -> Vec<T>
 
 /// Gradient of a max reduction: `g` goes to the first position that attains the maximum.
 pub fn max_backward<T: Float>(x: &[T], y: &[T], g: &[T], outer: usize, len: usize, inner: usize) -> Vec<T> {
-    let mut dx = vec![T::ZERO; x.len()];
+    let mut dx = crate::pool::zeros(x.len());
     for o in 0..outer {
         for i in 0..inner {
             let target = y[o * inner + i];
