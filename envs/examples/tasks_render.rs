@@ -9,11 +9,23 @@ use envs::tasks::render::record_episode;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
+/// Parses argument `i` (or returns `default` when absent); a malformed value is an error
+/// naming the argument.
+fn arg<T: std::str::FromStr>(args: &[String], i: usize, what: &str, default: T) -> T {
+    match args.get(i) {
+        None => default,
+        Some(s) => s.parse().unwrap_or_else(|_| {
+            eprintln!("error: {what} must be a non-negative integer, got `{s}`");
+            std::process::exit(2);
+        }),
+    }
+}
+
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let name = args.first().map(String::as_str).unwrap_or("team_reach/3_ant_claw_centipede");
-    let seed = args.get(1).and_then(|s| s.parse().ok()).unwrap_or(0);
-    let steps = args.get(2).and_then(|s| s.parse().ok()).unwrap_or(200);
+    let seed: u64 = arg(&args, 1, "seed (2nd argument)", 0);
+    let steps: usize = arg(&args, 2, "control steps (3rd argument)", 200);
     let out = args.get(3).map(String::as_str).unwrap_or("episode");
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let traj = match record_episode(name, seed, steps, |_obs, a| {
