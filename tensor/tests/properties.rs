@@ -98,7 +98,10 @@ fn matmul_matches_naive_for_random_sizes_and_transposes() {
         // short-wide products with a long inner dim (column-block parallel).
         let big = trial % 10 == 0;
         let hi = if big { 300 } else { 40 };
-        let (m, k, n) = if trial % 16 == 7 {
+        let (m, k, n) = if trial % 16 == 3 {
+            // Small result, long inner dim: the inner-dim split (forced ta, !tb below).
+            (r.random_range(40..=150), r.random_range(4000..=6000), r.random_range(40..=150))
+        } else if trial % 16 == 7 {
             // Tall, thin A^T B with a long inner dim (the transposed-problem path).
             (r.random_range(400..=600), r.random_range(2400..=3000), r.random_range(8..=100))
         } else if trial % 16 == 15 {
@@ -106,7 +109,8 @@ fn matmul_matches_naive_for_random_sizes_and_transposes() {
         } else {
             (r.random_range(1..=hi), r.random_range(1..=hi), r.random_range(1..=hi))
         };
-        let (ta, tb) = if trial % 16 == 7 { (true, false) } else { (r.random_bool(0.5), r.random_bool(0.5)) };
+        let (ta, tb) =
+            if trial % 16 == 7 || trial % 16 == 3 { (true, false) } else { (r.random_bool(0.5), r.random_bool(0.5)) };
         let a = uniform(&mut r, &if ta { [k, m] } else { [m, k] });
         let b = uniform(&mut r, &if tb { [n, k] } else { [k, n] });
         let tape = Tape::new();
@@ -206,6 +210,8 @@ fn workload() -> (Vec<u32>, Vec<u32>) {
     let bw: Tensor<f32> = uniform(&mut r, &[64, 32, 32]).cast();
     let bz: Tensor<f32> = uniform(&mut r, &[64, 3, 32]).cast();
     let wide: Tensor<f32> = uniform(&mut r, &[600, 300]).cast();
+    let (pp, qq): (Tensor<f32>, Tensor<f32>) =
+        (uniform(&mut r, &[4096, 64]).cast(), uniform(&mut r, &[4096, 48]).cast());
     let tape = Tape::new();
     let (xv, wv) = (tape.var(x), tape.var(w));
     let (bwv, bzv) = (tape.var(bw), tape.var(bz));
@@ -213,11 +219,17 @@ fn workload() -> (Vec<u32>, Vec<u32>) {
     let z = bzv.matmul(bwv).unwrap();
     // x[:, :100]^T wide: a 100 x 300 product with inner dim 600 (the column-block path).
     let xw = xv.narrow(1, 0, 100).unwrap().matmul_t(tape.constant(wide), true, false).unwrap();
+    // p^T q: a 64 x 48 result with inner dim 4096 (the inner-dim split).
+    let pv = tape.var(pp);
+    let pq = pv.matmul_t(tape.constant(qq), true, false).unwrap();
     let loss = h.sum_all().add(z.square().mean_all().unwrap()).unwrap().add(xw.square().mean_all().unwrap()).unwrap();
+    let loss = loss.add(pq.square().mean_all().unwrap()).unwrap();
     let g = tape.backward(loss).unwrap();
     let bits = |t: &Tensor<f32>| t.data().iter().map(|v| v.to_bits()).collect::<Vec<_>>();
     let mut grads = bits(g.get(wv).unwrap());
     grads.extend(bits(g.get(xv).unwrap()));
+    grads.extend(bits(g.get(pv).unwrap()));
+    grads.extend(bits(&pq.value()));
     grads.extend(bits(g.get(bwv).unwrap()));
     (bits(&loss.value()), grads)
 }

@@ -16,6 +16,9 @@ use crate::tensor::Tensor;
 
 /// Products with fewer multiply-adds than this use the direct loop.
 const SMALL_WORK: usize = 16 * 1024;
+/// Smallest chunk of the inner dimension when a weight-gradient product is split along it.
+const K_CHUNK: usize = 1024;
+
 /// Smallest block (rows or columns) when one large product is split.
 const MIN_BLOCK: usize = 64;
 
@@ -116,6 +119,32 @@ pub fn matmul_into<T: Float>(out: &mut [T], accumulate: bool, a: &[T], ta: bool,
     let nb = plan.offsets.len();
     if nb > 1 && work * nb >= 1 << 16 {
         out.par_chunks_mut(mn).zip(plan.offsets.par_iter()).for_each(|(o, off)| one(o, off));
+    } else if nb == 1 && work >= 1 << 22 && ta && !tb && m.max(n) <= 512 && k >= 8 * m.max(n) {
+        // A^T B with a small result and a long inner dim (weight gradients x^T g): split the
+        // inner dim into fixed chunks, one partial product each, summed in chunk order. The
+        // chunking depends only on the shape, so the bits do not depend on the thread count.
+        let (oa, ob) = plan.offsets[0];
+        let chunks = (k / K_CHUNK).clamp(1, 8);
+        let chunks = 1 << chunks.ilog2(); // a power of two: even work for 2, 4 or 8 threads
+        let chunk = k.div_ceil(chunks);
+        let parts: Vec<Vec<T>> = (0..k.div_ceil(chunk))
+            .into_par_iter()
+            .map(|c| {
+                let (k0, kc) = (c * chunk, chunk.min(k - c * chunk));
+                let mut part = crate::pool::zeros(m * n);
+                let (a_rows, b_rows) = (&a[oa + k0 * m..oa + (k0 + kc) * m], &b[ob + k0 * n..ob + (k0 + kc) * n]);
+                faer_matmul(&mut part, false, a_rows, true, b_rows, false, m, kc, n, 0, m);
+                part
+            })
+            .collect();
+        for (i, part) in parts.into_iter().enumerate() {
+            if i == 0 && !accumulate {
+                out.copy_from_slice(&part);
+            } else {
+                out.iter_mut().zip(&part).for_each(|(o, &p)| *o += p);
+            }
+            crate::pool::recycle(part);
+        }
     } else if nb == 1 && work >= 1 << 22 && ta && !tb && m >= 4 * n && k >= 4 * m {
         // A^T B with a tall, thin result and a long inner dim (weight gradients x^T g of wide
         // inputs): faer is several times faster on the transposed problem B^T A, so compute
