@@ -1,10 +1,23 @@
-//! `models`: SHNN and its baselines (paper section 3, appendix A). This first part holds the
-//! model-independent components: task assignment (Algorithm 1 and the Hungarian
-//! alternative), the local reference frame (eqs. (ortho)-(lrf)) and the Tanh-Normal action
-//! distribution. The policies themselves build on the MeBen observations of `envs`.
+//! `models`: SHNN and its baselines (paper section 3, appendix A). So far:
+//! - model-independent components: task assignment (Algorithm 1 and the Hungarian
+//!   alternative), the local reference frame (eqs. (ortho)-(lrf)) and the Tanh-Normal action
+//!   distribution;
+//! - SHNN's entity stage: input processing ([`input`]), the task-assignment entity graph
+//!   ([`entity_graph`]) and the entity-level subequivariant message passing with the LRF
+//!   vector ([`entity_mp`]).
+//!
+//! The policies themselves build on the MeBen observations of `envs`.
 
 pub mod assignment;
 pub mod distribution;
+pub mod entity_graph;
+pub mod entity_mp;
+pub mod error;
 pub mod frame;
+pub mod input;
 
 pub use assignment::{Assigner, AssignmentMethod, UNASSIGNED, distance_matrix};
+pub use entity_graph::{EntityGraph, GraphBuilder, GraphTask};
+pub use entity_mp::{EntityFeatures, EntityMp, EntityMpConfig};
+pub use error::{ModelError, Result};
+pub use input::{AgentBody, EntityInputs, InputProcessor, ObsBatch, Translation};

@@ -1,0 +1,220 @@
+//! The task-assignment entity-level graph (paper section 3, "Task Assignment", and
+//! Algorithm 1; MEBEN.md section 5).
+//!
+//! Nodes are the entities of every scene of a batch (agents, then balls; entity `i` of
+//! scene `b` is node `b * E + i`, the rows of [`crate::input::EntityInputs`]). An
+//! [`Assigner`] links agents to objects by the root distances `D[i, j] = |p_j - p_i|`
+//! (Algorithm 1's matrix) and edges join the entities of one assignment group
+//! (`E = {(i, j): C(i) = C(j), i != j}`):
+//! - **Team Reach**: agents -> goal balls (objects = balls in order); each ball forms a group
+//!   with its agent (Algorithm 1: `C(i) = i`, `C(j) = i`); unassigned agents are alone.
+//! - **Team Sumo**, seen from team `t` (each team's model builds its own graph): own agents
+//!   -> opponents (objects = the other team's agents in order), each pair a group, and every
+//!   agent of both teams is also linked with the centre ball.
+//! - [`AssignmentMethod::None`]: every pair of entities of a scene (fully connected).
+//!
+//! Edges are directed both ways and sorted by source ([`nn::EdgeList`] aggregates at the
+//! source). The builder owns its scratch, so a batch is built without per-scene allocation
+//! (only the output lists grow).
+
+use envs::tasks::ObsSpec;
+use envs::tasks::observation::{ENTITY_CENTRE, ENTITY_GOAL};
+use nn::EdgeList;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use tensor::Float;
+
+use crate::assignment::{Assigner, AssignmentMethod, UNASSIGNED};
+use crate::error::{ModelError, Result};
+use crate::input::EntityInputs;
+
+/// The task of a scene, as far as the graph is concerned.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum GraphTask {
+    /// Team Reach: agents and goal balls.
+    Reach,
+    /// Team Sumo: two teams and a centre ball (entity index of the ball).
+    Sumo {
+        /// Entity index of the centre ball.
+        centre: usize,
+    },
+}
+
+/// The entity graph of a batch.
+#[derive(Clone, Debug)]
+pub struct EntityGraph {
+    /// Environments `B`.
+    pub batch: usize,
+    /// Entities per environment `E`.
+    pub entities: usize,
+    /// Directed edges over the `B*E` entity rows, sorted by source.
+    pub edges: EdgeList,
+    /// Assignment label `C(i)` of each entity `[B*E]` (an entity index within its scene:
+    /// the agent of the group; unassigned entities carry their own index; all 0 when fully
+    /// connected). In Sumo the centre ball is linked to every agent across groups.
+    pub group: Vec<usize>,
+    /// Entity each agent is assigned to `[B*A]` (index within the scene; Reach: its ball,
+    /// Sumo: its opponent, for both teams' agents), [`UNASSIGNED`] for none.
+    pub agent_entity: Vec<usize>,
+}
+
+/// Builds [`EntityGraph`]s for one scene layout, one assignment method and one team's view.
+#[derive(Clone, Debug)]
+pub struct GraphBuilder {
+    method: AssignmentMethod,
+    task: GraphTask,
+    team: usize,
+    n_agents: usize,
+    n_entities: usize,
+    /// Entity indices of the assigned agents and of the objects.
+    own: Vec<usize>,
+    objects: Vec<usize>,
+    assigner: Assigner,
+    rng: ChaCha8Rng,
+    // Per-scene scratch.
+    dist: Vec<f64>,
+    out: Vec<usize>,
+    adj: Vec<bool>,
+}
+
+impl GraphBuilder {
+    /// A builder for scenes laid out by `spec`, seen from `team` (0 for Reach; 0 or 1 for
+    /// Sumo). `seed` drives [`AssignmentMethod::Stochastic`].
+    pub fn new(spec: &ObsSpec, method: AssignmentMethod, team: usize, seed: u64) -> Result<Self> {
+        let (na, nm) = (spec.n_agents, spec.n_balls);
+        let ne = na + nm;
+        if spec.entity_root_node.len() != ne || spec.agent_team.len() != na {
+            return Err(ModelError::Input(format!(
+                "observation spec with {na} agents and {nm} balls lists {} entity roots",
+                spec.entity_root_node.len()
+            )));
+        }
+        let ball_type = |j: usize| {
+            let node = spec.entity_root_node[na + j];
+            let s = &spec.static_scalars[node * envs::tasks::N_SCALARS..];
+            (s[ENTITY_GOAL] == 1.0, s[ENTITY_CENTRE] == 1.0)
+        };
+        let sumo = spec.n_teams == 2 && nm == 1 && ball_type(0).1;
+        let reach = spec.n_teams == 1 && (0..nm).all(|j| ball_type(j).0);
+        let (task, own, objects) = if reach {
+            if team != 0 {
+                return Err(ModelError::Option(format!("team {team} in a Team Reach scene (only team 0)")));
+            }
+            (GraphTask::Reach, (0..na).collect::<Vec<_>>(), (na..ne).collect::<Vec<_>>())
+        } else if sumo {
+            if team > 1 {
+                return Err(ModelError::Option(format!("team {team} in a Team Sumo scene (teams 0 and 1)")));
+            }
+            let own = (0..na).filter(|&a| spec.agent_team[a] == team).collect::<Vec<_>>();
+            let objects = (0..na).filter(|&a| spec.agent_team[a] != team).collect::<Vec<_>>();
+            (GraphTask::Sumo { centre: na }, own, objects)
+        } else {
+            return Err(ModelError::Input(format!(
+                "scene with {} teams and {nm} balls is neither Team Reach (1 team, goal balls) nor \
+                 Team Sumo (2 teams, one centre ball)",
+                spec.n_teams
+            )));
+        };
+        let (n, m) = (own.len(), objects.len());
+        Ok(Self {
+            method,
+            task,
+            team,
+            n_agents: na,
+            n_entities: ne,
+            assigner: Assigner::new(n, m),
+            rng: ChaCha8Rng::seed_from_u64(seed),
+            dist: vec![0.0; n * m],
+            out: vec![UNASSIGNED; m],
+            adj: vec![false; ne * ne],
+            own,
+            objects,
+        })
+    }
+
+    /// The assignment method.
+    pub fn method(&self) -> AssignmentMethod {
+        self.method
+    }
+
+    /// The task the scene was recognised as.
+    pub fn task(&self) -> GraphTask {
+        self.task
+    }
+
+    /// The team whose view the graph is built from.
+    pub fn team(&self) -> usize {
+        self.team
+    }
+
+    /// The graph of every scene of `entities` (positions from
+    /// [`crate::input::InputProcessor::entities`]).
+    pub fn build<T: Float>(&mut self, entities: &EntityInputs<T>) -> Result<EntityGraph> {
+        let (nb, ne, na) = (entities.batch, self.n_entities, self.n_agents);
+        if entities.entities != ne || entities.positions.len() != nb * ne {
+            return Err(ModelError::Input(format!(
+                "entity inputs of {} entities per scene ({} positions) for a graph of {ne} entities \
+                 x {nb} scenes",
+                entities.entities,
+                entities.positions.len()
+            )));
+        }
+        let mut graph = EntityGraph {
+            batch: nb,
+            entities: ne,
+            edges: EdgeList { src: Vec::new(), dst: Vec::new(), num_nodes: nb * ne },
+            group: Vec::with_capacity(nb * ne),
+            agent_entity: Vec::with_capacity(nb * na),
+        };
+        let (n, m) = (self.own.len(), self.objects.len());
+        for b in 0..nb {
+            let pos = &entities.positions[b * ne..(b + 1) * ne];
+            self.adj.fill(false);
+            let g0 = graph.group.len();
+            let a0 = graph.agent_entity.len();
+            graph.group.extend(0..ne);
+            graph.agent_entity.extend(std::iter::repeat_n(UNASSIGNED, na));
+            if self.method == AssignmentMethod::None {
+                self.adj.fill(true);
+                graph.group[g0..].fill(0);
+            } else {
+                // Algorithm 1's distance matrix: own agents (rows) x objects.
+                for (i, &a) in self.own.iter().enumerate() {
+                    for (j, &o) in self.objects.iter().enumerate() {
+                        let d = [pos[o][0] - pos[a][0], pos[o][1] - pos[a][1], pos[o][2] - pos[a][2]];
+                        self.dist[i * m + j] = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+                    }
+                }
+                self.assigner.assign(self.method, &self.dist, n, m, &mut self.out, &mut self.rng);
+                for (j, &i) in self.out.iter().enumerate() {
+                    if i == UNASSIGNED {
+                        continue;
+                    }
+                    let (a, o) = (self.own[i], self.objects[j]);
+                    graph.group[g0 + o] = a;
+                    graph.agent_entity[a0 + a] = o;
+                    if let GraphTask::Sumo { .. } = self.task {
+                        graph.agent_entity[a0 + o] = a;
+                    }
+                    self.adj[a * ne + o] = true;
+                    self.adj[o * ne + a] = true;
+                }
+                if let GraphTask::Sumo { centre } = self.task {
+                    for a in 0..na {
+                        self.adj[a * ne + centre] = true;
+                        self.adj[centre * ne + a] = true;
+                    }
+                }
+            }
+            for i in 0..ne {
+                for j in 0..ne {
+                    if i != j && self.adj[i * ne + j] {
+                        graph.edges.src.push(b * ne + i);
+                        graph.edges.dst.push(b * ne + j);
+                    }
+                }
+            }
+        }
+        Ok(graph)
+    }
+}

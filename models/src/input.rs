@@ -1,0 +1,356 @@
+//! Input processing (paper section 3, "Input Processing" and the node features of "Local
+//! Entity-level Subequivariant Message Passing"): batches of MeBen observations
+//! ([`envs::tasks::Observation`] + [`ObsSpec`]) become the tensors the networks read.
+//!
+//! # Entities
+//! The entities `Ω` are the agents (their root nodes) then the balls, in the order of
+//! [`ObsSpec::entity_root_node`] (`E = A + M` per scene). Entity `i` of scene `b` is row
+//! `b * E + i` of:
+//! - `Z_i` `[B*E, 3, 3]`: the paper's `Z_{i,1} ∈ R^{3×3}`, spatial rows and the channels
+//!   position, linear velocity, angular velocity. The position is `p_{i,1} - c` with
+//!   `c = 1/(N+M) Σ_i p_{i,1}` the mean root position of all entities (translation
+//!   invariance; other origins through [`Translation`]).
+//! - `h_i` `[B*E, N_SCALARS + 1]`: `[h_{i,1}, p^z_{i,1}]`, the root's scalars and its height
+//!   above the ground (`-<p, g>` with `g` = [`ObsSpec::gravity_dir`], i.e. `p_z`).
+//!
+//! # Bodies
+//! Per agent `a` (for the body-level heads and the frame transform of eq. (lrf)): its own
+//! nodes (root, then one per actuated DoF in action order), `Z_{a,k}` `[B, K_a, 3, 3]` and
+//! `h_{a,k}` `[B, K_a, N_SCALARS]`, `K_a = 1 + dof_a`. With [`Translation::Assigned`] the
+//! positions are relative to the root of the entity the agent is assigned to,
+//! `p_{a,k} - p_{C(a),1}` (eq. (lrf)), or to `c` when it has none.
+//!
+//! Observations are read through [`ObsBatch`], generic over `f32` (what the environments
+//! produce) and `f64` (exact equivariance tests); all arithmetic is in `f64` and the outputs
+//! are converted to the tensor type once. Only the output buffers are allocated.
+
+use envs::tasks::{N_SCALARS, ObsSpec, Observation};
+use tensor::{Float, Tensor};
+
+use crate::assignment::UNASSIGNED;
+use crate::error::{ModelError, Result};
+
+/// Scalars per entity: the root's [`N_SCALARS`] plus its height.
+pub const ENTITY_SCALARS: usize = N_SCALARS + 1;
+
+/// Vector channels per node: position, linear velocity, angular velocity.
+pub const NODE_VECTORS: usize = 3;
+
+/// Element types observations can be read from (`f32`, `f64`).
+pub trait ObsElement: Copy + Into<f64> {}
+impl ObsElement for f32 {}
+impl ObsElement for f64 {}
+
+/// A borrowed batch of observation arrays in the layout of [`Observation`]:
+/// `vectors` `[B, N, 3, 3]` (per node the position, velocity and angular velocity, each a
+/// 3-vector) and `scalars` `[B, N, N_SCALARS]`.
+#[derive(Clone, Copy, Debug)]
+pub struct ObsBatch<'a, S> {
+    /// Environments `B`.
+    pub batch: usize,
+    /// Nodes per environment `N`.
+    pub nodes: usize,
+    /// `[B, N, 3, 3]`.
+    pub vectors: &'a [S],
+    /// `[B, N, N_SCALARS]`.
+    pub scalars: &'a [S],
+}
+
+impl<'a> ObsBatch<'a, f32> {
+    /// Borrows the arrays of an environment observation.
+    pub fn from_observation(o: &'a Observation) -> Self {
+        Self { batch: o.batch, nodes: o.nodes, vectors: &o.vectors, scalars: &o.scalars }
+    }
+}
+
+impl<'a, S: ObsElement> ObsBatch<'a, S> {
+    /// Checks that the arrays hold `batch` environments of `nodes` nodes.
+    pub fn new(batch: usize, nodes: usize, vectors: &'a [S], scalars: &'a [S]) -> Result<Self> {
+        if vectors.len() != batch * nodes * 9 || scalars.len() != batch * nodes * N_SCALARS {
+            return Err(ModelError::Input(format!(
+                "observation arrays of {} vectors and {} scalars do not hold {batch} x {nodes} nodes \
+                 (expected {} and {})",
+                vectors.len(),
+                scalars.len(),
+                batch * nodes * 9,
+                batch * nodes * N_SCALARS
+            )));
+        }
+        Ok(Self { batch, nodes, vectors, scalars })
+    }
+
+    /// Vector `k` (0 position, 1 velocity, 2 angular velocity) of `node` in `env`.
+    #[inline]
+    pub fn vec3(&self, env: usize, node: usize, k: usize) -> [f64; 3] {
+        let i = ((env * self.nodes + node) * 3 + k) * 3;
+        [self.vectors[i].into(), self.vectors[i + 1].into(), self.vectors[i + 2].into()]
+    }
+
+    /// Scalar `s` of `node` in `env`.
+    #[inline]
+    pub fn scalar(&self, env: usize, node: usize, s: usize) -> f64 {
+        self.scalars[(env * self.nodes + node) * N_SCALARS + s].into()
+    }
+
+    fn check(&self, spec: &ObsSpec) -> Result<()> {
+        Self::new(self.batch, self.nodes, self.vectors, self.scalars)?;
+        if self.nodes != spec.n_nodes || self.batch == 0 {
+            return Err(ModelError::Input(format!(
+                "observations of {} environments x {} nodes for a scene of {} nodes",
+                self.batch, self.nodes, spec.n_nodes
+            )));
+        }
+        Ok(())
+    }
+}
+
+/// Which point positions are measured from (the paper's translation ablation).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum Translation {
+    /// World positions (not translation invariant).
+    None,
+    /// Entities and bodies relative to `c`, the mean root position of all entities (the
+    /// paper's "sparse root mean").
+    RootMean,
+    /// Entities and bodies relative to the mean position of all nodes ("dense body mean").
+    BodyMean,
+    /// Entities relative to `c`, each agent's bodies relative to the root of its assigned
+    /// entity (eq. (lrf); SHNN's choice).
+    #[default]
+    Assigned,
+}
+
+impl Translation {
+    /// Parses `none`, `root_mean`, `body_mean` or `assigned`.
+    pub fn parse(s: &str) -> Result<Self> {
+        match s {
+            "none" => Ok(Self::None),
+            "root_mean" => Ok(Self::RootMean),
+            "body_mean" => Ok(Self::BodyMean),
+            "assigned" => Ok(Self::Assigned),
+            _ => Err(ModelError::Option(format!(
+                "unknown translation `{s}` (expected none, root_mean, body_mean or assigned)"
+            ))),
+        }
+    }
+
+    /// The name [`Translation::parse`] accepts.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::None => "none",
+            Self::RootMean => "root_mean",
+            Self::BodyMean => "body_mean",
+            Self::Assigned => "assigned",
+        }
+    }
+}
+
+/// Entity-level node features of a batch (module docs).
+#[derive(Clone, Debug)]
+pub struct EntityInputs<T: Float> {
+    /// Environments `B`.
+    pub batch: usize,
+    /// Entities per environment `E = A + M`.
+    pub entities: usize,
+    /// `Z_i` `[B*E, 3, 3]`: spatial rows; channels position (relative to the scene origin),
+    /// velocity, angular velocity.
+    pub z: Tensor<T>,
+    /// `h_i` `[B*E, ENTITY_SCALARS]`: the root's scalars, then its height.
+    pub h: Tensor<T>,
+    /// Root positions relative to the scene origin, `[B*E]` (in `f64`, for the assignment).
+    pub positions: Vec<[f64; 3]>,
+    /// The scene origin (world frame) subtracted from the entity positions, `[B]`.
+    pub origin: Vec<[f64; 3]>,
+}
+
+impl<T: Float> EntityInputs<T> {
+    /// World position of entity `e` of scene `b`.
+    pub fn world_position(&self, b: usize, e: usize) -> [f64; 3] {
+        let (p, o) = (self.positions[b * self.entities + e], self.origin[b]);
+        [p[0] + o[0], p[1] + o[1], p[2] + o[2]]
+    }
+}
+
+/// One agent's body-level inputs.
+#[derive(Clone, Debug)]
+pub struct AgentBody<T: Float> {
+    /// The agent (index into the scene's agents).
+    pub agent: usize,
+    /// `Z_{a,k}` `[B, K_a, 3, 3]` (spatial rows; position relative to the agent's origin,
+    /// velocity, angular velocity), `K_a = 1 + dof_a`, root first.
+    pub z: Tensor<T>,
+    /// `h_{a,k}` `[B, K_a, N_SCALARS]`.
+    pub h: Tensor<T>,
+    /// The origin (world frame) of the agent's positions in each scene, `[B]`.
+    pub origin: Vec<[f64; 3]>,
+}
+
+/// Turns observations into entity- and body-level tensors for one scene layout.
+#[derive(Clone, Debug)]
+pub struct InputProcessor {
+    spec: ObsSpec,
+    translation: Translation,
+    gravity: [f64; 3],
+}
+
+impl InputProcessor {
+    /// For observations laid out by `spec`, positions measured as `translation` says.
+    pub fn new(spec: &ObsSpec, translation: Translation) -> Result<Self> {
+        let g = spec.gravity_dir.map(f64::from);
+        let norm = (g[0] * g[0] + g[1] * g[1] + g[2] * g[2]).sqrt();
+        if (norm - 1.0).abs() > 1e-6 {
+            return Err(ModelError::Input(format!("gravity direction {g:?} is not a unit vector")));
+        }
+        let n_ent = spec.n_agents + spec.n_balls;
+        if spec.entity_root_node.len() != n_ent
+            || spec.agent_root_node.len() != spec.n_agents
+            || spec.agent_dof.len() != spec.n_agents
+            || spec.entity_root_node.iter().any(|&n| n >= spec.n_nodes)
+            || spec.agent_root_node.iter().zip(&spec.agent_dof).any(|(&r, &d)| r + 1 + d > spec.n_nodes)
+        {
+            return Err(ModelError::Input(format!(
+                "inconsistent observation spec: {} agents, {} balls, {} nodes, entity roots {:?}",
+                spec.n_agents, spec.n_balls, spec.n_nodes, spec.entity_root_node
+            )));
+        }
+        Ok(Self { spec: spec.clone(), translation, gravity: g })
+    }
+
+    /// The observation layout.
+    pub fn spec(&self) -> &ObsSpec {
+        &self.spec
+    }
+
+    /// The translation mode.
+    pub fn translation(&self) -> Translation {
+        self.translation
+    }
+
+    /// Entities per scene `E`.
+    pub fn n_entities(&self) -> usize {
+        self.spec.entity_root_node.len()
+    }
+
+    /// The scene origin of environment `b` for the entity positions.
+    fn scene_origin<S: ObsElement>(&self, obs: &ObsBatch<'_, S>, b: usize) -> [f64; 3] {
+        let mut c = [0.0; 3];
+        let mut add = |node: usize| {
+            let p = obs.vec3(b, node, 0);
+            (0..3).for_each(|k| c[k] += p[k]);
+        };
+        let count = match self.translation {
+            Translation::None => return c,
+            Translation::RootMean | Translation::Assigned => {
+                self.spec.entity_root_node.iter().for_each(|&n| add(n));
+                self.spec.entity_root_node.len()
+            }
+            Translation::BodyMean => {
+                (0..self.spec.n_nodes).for_each(&mut add);
+                self.spec.n_nodes
+            }
+        };
+        c.map(|x| x / count as f64)
+    }
+
+    /// Entity features `Z_i`, `h_i` of every scene (module docs).
+    pub fn entities<T: Float, S: ObsElement>(&self, obs: &ObsBatch<'_, S>) -> Result<EntityInputs<T>> {
+        obs.check(&self.spec)?;
+        let (nb, ne) = (obs.batch, self.n_entities());
+        let mut z = Vec::with_capacity(nb * ne * 9);
+        let mut h = Vec::with_capacity(nb * ne * ENTITY_SCALARS);
+        let mut positions = Vec::with_capacity(nb * ne);
+        let mut origin = Vec::with_capacity(nb);
+        let g = self.gravity;
+        for b in 0..nb {
+            let c = self.scene_origin(obs, b);
+            origin.push(c);
+            for &node in &self.spec.entity_root_node {
+                let p = obs.vec3(b, node, 0);
+                let rel = [p[0] - c[0], p[1] - c[1], p[2] - c[2]];
+                positions.push(rel);
+                let (v, w) = (obs.vec3(b, node, 1), obs.vec3(b, node, 2));
+                for r in 0..3 {
+                    z.extend([rel[r], v[r], w[r]].map(T::from_f64));
+                }
+                h.extend((0..N_SCALARS).map(|s| T::from_f64(obs.scalar(b, node, s))));
+                h.push(T::from_f64(-(p[0] * g[0] + p[1] * g[1] + p[2] * g[2])));
+            }
+        }
+        Ok(EntityInputs {
+            batch: nb,
+            entities: ne,
+            z: Tensor::new(z, &[nb * ne, 3, NODE_VECTORS])?,
+            h: Tensor::new(h, &[nb * ne, ENTITY_SCALARS])?,
+            positions,
+            origin,
+        })
+    }
+
+    /// Body-level inputs of `agents` (indices into the scene's agents). `agent_entity`
+    /// `[B*A]` is the entity each agent is assigned to in each scene
+    /// ([`crate::entity_graph::EntityGraph::agent_entity`]; [`UNASSIGNED`] for none); it is
+    /// only read with [`Translation::Assigned`], where an agent's positions are relative to
+    /// that entity's root (or to `c` when unassigned). `entities` must come from the same
+    /// observations.
+    pub fn bodies<T: Float, S: ObsElement>(
+        &self,
+        obs: &ObsBatch<'_, S>,
+        entities: &EntityInputs<T>,
+        agent_entity: &[usize],
+        agents: &[usize],
+    ) -> Result<Vec<AgentBody<T>>> {
+        obs.check(&self.spec)?;
+        let (nb, na, ne) = (obs.batch, self.spec.n_agents, self.n_entities());
+        if entities.batch != nb || entities.entities != ne || entities.origin.len() != nb {
+            return Err(ModelError::Input(format!(
+                "entity inputs of {} scenes x {} entities for {nb} scenes x {ne} entities",
+                entities.batch, entities.entities
+            )));
+        }
+        if self.translation == Translation::Assigned && agent_entity.len() != nb * na {
+            return Err(ModelError::Input(format!(
+                "{} assigned entities for {nb} scenes x {na} agents",
+                agent_entity.len()
+            )));
+        }
+        if let Some(&e) = agent_entity.iter().find(|&&e| e != UNASSIGNED && e >= ne) {
+            return Err(ModelError::Input(format!("assigned entity {e} out of range for {ne} entities")));
+        }
+        let mut out = Vec::with_capacity(agents.len());
+        for &a in agents {
+            if a >= na {
+                return Err(ModelError::Input(format!("agent {a} out of range for {na} agents")));
+            }
+            let (root, k) = (self.spec.agent_root_node[a], 1 + self.spec.agent_dof[a]);
+            let mut z = Vec::with_capacity(nb * k * 9);
+            let mut h = Vec::with_capacity(nb * k * N_SCALARS);
+            let mut origin = Vec::with_capacity(nb);
+            for b in 0..nb {
+                let o = match self.translation {
+                    Translation::Assigned => match agent_entity[b * na + a] {
+                        UNASSIGNED => entities.origin[b],
+                        e => entities.world_position(b, e),
+                    },
+                    _ => entities.origin[b],
+                };
+                origin.push(o);
+                for node in root..root + k {
+                    let p = obs.vec3(b, node, 0);
+                    let rel = [p[0] - o[0], p[1] - o[1], p[2] - o[2]];
+                    let (v, w) = (obs.vec3(b, node, 1), obs.vec3(b, node, 2));
+                    for r in 0..3 {
+                        z.extend([rel[r], v[r], w[r]].map(T::from_f64));
+                    }
+                    h.extend((0..N_SCALARS).map(|s| T::from_f64(obs.scalar(b, node, s))));
+                }
+            }
+            out.push(AgentBody {
+                agent: a,
+                z: Tensor::new(z, &[nb, k, 3, NODE_VECTORS])?,
+                h: Tensor::new(h, &[nb, k, N_SCALARS])?,
+                origin,
+            });
+        }
+        Ok(out)
+    }
+}
