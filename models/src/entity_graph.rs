@@ -147,6 +147,20 @@ impl GraphBuilder {
         self.team
     }
 
+    /// The most directed edges one scene's graph can have (the output lists are reserved
+    /// for this many per scene, so that they never grow while a batch is built).
+    pub fn max_edges_per_scene(&self) -> usize {
+        let ne = self.n_entities;
+        if self.method == AssignmentMethod::None {
+            return ne * (ne - 1);
+        }
+        let pairs = 2 * self.own.len().min(self.objects.len());
+        match self.task {
+            GraphTask::Reach => pairs,
+            GraphTask::Sumo { .. } => pairs + 2 * self.n_agents,
+        }
+    }
+
     /// The graph of every scene of `entities` (positions from
     /// [`crate::input::InputProcessor::entities`]).
     pub fn build<T: Float>(&mut self, entities: &EntityInputs<T>) -> Result<EntityGraph> {
@@ -159,10 +173,11 @@ impl GraphBuilder {
                 entities.positions.len()
             )));
         }
+        let cap = nb * self.max_edges_per_scene();
         let mut graph = EntityGraph {
             batch: nb,
             entities: ne,
-            edges: EdgeList { src: Vec::new(), dst: Vec::new(), num_nodes: nb * ne },
+            edges: EdgeList { src: Vec::with_capacity(cap), dst: Vec::with_capacity(cap), num_nodes: nb * ne },
             group: Vec::with_capacity(nb * ne),
             agent_entity: Vec::with_capacity(nb * na),
         };

@@ -13,6 +13,9 @@
 //! - `h_i` `[B*E, N_SCALARS + 1]`: `[h_{i,1}, p^z_{i,1}]`, the root's scalars and its height
 //!   above the ground (`-<p, g>` with `g` = [`ObsSpec::gravity_dir`], i.e. `p_z`).
 //!
+//! With [`EntityAbstraction::Mean`] an agent's vectors (and the position used for `c`, the
+//! assignment and the body origin) are the means over all its nodes instead of its root's.
+//!
 //! # Bodies
 //! Per agent `a` (for the body-level heads and the frame transform of eq. (lrf)): its own
 //! nodes (root, then one per actuated DoF in action order), `Z_{a,k}` `[B, K_a, 3, 3]` and
@@ -145,6 +148,36 @@ impl Translation {
     }
 }
 
+/// What stands for an entity at the entity level (the paper's entity-abstraction ablation).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum EntityAbstraction {
+    /// The root body: `Z_i = Z_{i,1}` (SHNN).
+    #[default]
+    Root,
+    /// The mean of the position, velocity and angular velocity over all of the entity's
+    /// nodes (the root's scalars and the height of the mean position as `h_i`).
+    Mean,
+}
+
+impl EntityAbstraction {
+    /// Parses `root` or `mean`.
+    pub fn parse(s: &str) -> Result<Self> {
+        match s {
+            "root" => Ok(Self::Root),
+            "mean" => Ok(Self::Mean),
+            _ => Err(ModelError::Option(format!("unknown entity abstraction `{s}` (expected root or mean)"))),
+        }
+    }
+
+    /// The name [`EntityAbstraction::parse`] accepts.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Root => "root",
+            Self::Mean => "mean",
+        }
+    }
+}
+
 /// Entity-level node features of a batch (module docs).
 #[derive(Clone, Debug)]
 pub struct EntityInputs<T: Float> {
@@ -157,13 +190,20 @@ pub struct EntityInputs<T: Float> {
     pub z: Tensor<T>,
     /// `h_i` `[B*E, ENTITY_SCALARS]`: the root's scalars, then its height.
     pub h: Tensor<T>,
-    /// Root positions relative to the scene origin, `[B*E]` (in `f64`, for the assignment).
+    /// Entity positions (the roots', or the means with [`EntityAbstraction::Mean`]) relative
+    /// to the scene origin, `[B*E]` (in `f64`, for the assignment).
     pub positions: Vec<[f64; 3]>,
     /// The scene origin (world frame) subtracted from the entity positions, `[B]`.
     pub origin: Vec<[f64; 3]>,
 }
 
 impl<T: Float> EntityInputs<T> {
+    /// The rows of entity `e` in every scene, `[b * E + e for b in 0..B]` (to gather, e.g.,
+    /// an agent's frame `O_a` or features `h'_a` from the entity stage's outputs).
+    pub fn rows_of(&self, e: usize) -> Vec<usize> {
+        (0..self.batch).map(|b| b * self.entities + e).collect()
+    }
+
     /// World position of entity `e` of scene `b`.
     pub fn world_position(&self, b: usize, e: usize) -> [f64; 3] {
         let (p, o) = (self.positions[b * self.entities + e], self.origin[b]);
@@ -190,7 +230,10 @@ pub struct AgentBody<T: Float> {
 pub struct InputProcessor {
     spec: ObsSpec,
     translation: Translation,
+    abstraction: EntityAbstraction,
     gravity: [f64; 3],
+    /// First node and node count of each entity under the abstraction.
+    entity_nodes: Vec<(usize, usize)>,
 }
 
 impl InputProcessor {
@@ -213,7 +256,51 @@ impl InputProcessor {
                 spec.n_agents, spec.n_balls, spec.n_nodes, spec.entity_root_node
             )));
         }
-        Ok(Self { spec: spec.clone(), translation, gravity: g })
+        let mut p = Self {
+            spec: spec.clone(),
+            translation,
+            abstraction: EntityAbstraction::Root,
+            gravity: g,
+            entity_nodes: Vec::new(),
+        };
+        p.set_entity_nodes();
+        Ok(p)
+    }
+
+    /// The same processor with entities abstracted as `abstraction` (default: the root).
+    pub fn with_abstraction(mut self, abstraction: EntityAbstraction) -> Self {
+        self.abstraction = abstraction;
+        self.set_entity_nodes();
+        self
+    }
+
+    fn set_entity_nodes(&mut self) {
+        let spec = &self.spec;
+        self.entity_nodes = (0..spec.entity_root_node.len())
+            .map(|e| match (self.abstraction, e < spec.n_agents) {
+                (EntityAbstraction::Mean, true) => (spec.agent_root_node[e], 1 + spec.agent_dof[e]),
+                _ => (spec.entity_root_node[e], 1),
+            })
+            .collect();
+    }
+
+    /// The entity abstraction.
+    pub fn abstraction(&self) -> EntityAbstraction {
+        self.abstraction
+    }
+
+    /// Vector `k` of entity `e` in environment `b`: its root's, or the mean over its nodes.
+    fn entity_vec<S: ObsElement>(&self, obs: &ObsBatch<'_, S>, b: usize, e: usize, k: usize) -> [f64; 3] {
+        let (first, count) = self.entity_nodes[e];
+        if count == 1 {
+            return obs.vec3(b, first, k);
+        }
+        let mut m = [0.0; 3];
+        for node in first..first + count {
+            let v = obs.vec3(b, node, k);
+            (0..3).for_each(|r| m[r] += v[r]);
+        }
+        m.map(|x| x / count as f64)
     }
 
     /// The observation layout.
@@ -234,18 +321,16 @@ impl InputProcessor {
     /// The scene origin of environment `b` for the entity positions.
     fn scene_origin<S: ObsElement>(&self, obs: &ObsBatch<'_, S>, b: usize) -> [f64; 3] {
         let mut c = [0.0; 3];
-        let mut add = |node: usize| {
-            let p = obs.vec3(b, node, 0);
-            (0..3).for_each(|k| c[k] += p[k]);
-        };
+        let mut add = |p: [f64; 3]| (0..3).for_each(|k| c[k] += p[k]);
         let count = match self.translation {
             Translation::None => return c,
             Translation::RootMean | Translation::Assigned => {
-                self.spec.entity_root_node.iter().for_each(|&n| add(n));
-                self.spec.entity_root_node.len()
+                let ne = self.n_entities();
+                (0..ne).for_each(|e| add(self.entity_vec(obs, b, e, 0)));
+                ne
             }
             Translation::BodyMean => {
-                (0..self.spec.n_nodes).for_each(&mut add);
+                (0..self.spec.n_nodes).for_each(|n| add(obs.vec3(b, n, 0)));
                 self.spec.n_nodes
             }
         };
@@ -264,11 +349,11 @@ impl InputProcessor {
         for b in 0..nb {
             let c = self.scene_origin(obs, b);
             origin.push(c);
-            for &node in &self.spec.entity_root_node {
-                let p = obs.vec3(b, node, 0);
+            for (e, &node) in self.spec.entity_root_node.iter().enumerate() {
+                let p = self.entity_vec(obs, b, e, 0);
                 let rel = [p[0] - c[0], p[1] - c[1], p[2] - c[2]];
                 positions.push(rel);
-                let (v, w) = (obs.vec3(b, node, 1), obs.vec3(b, node, 2));
+                let (v, w) = (self.entity_vec(obs, b, e, 1), self.entity_vec(obs, b, e, 2));
                 for r in 0..3 {
                     z.extend([rel[r], v[r], w[r]].map(T::from_f64));
                 }

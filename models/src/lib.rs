@@ -20,4 +20,4 @@ pub use assignment::{Assigner, AssignmentMethod, UNASSIGNED, distance_matrix};
 pub use entity_graph::{EntityGraph, GraphBuilder, GraphTask};
 pub use entity_mp::{EntityFeatures, EntityMp, EntityMpConfig};
 pub use error::{ModelError, Result};
-pub use input::{AgentBody, EntityInputs, InputProcessor, ObsBatch, Translation};
+pub use input::{AgentBody, EntityAbstraction, EntityInputs, InputProcessor, ObsBatch, Translation};

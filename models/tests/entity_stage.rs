@@ -6,8 +6,8 @@ use models::entity_graph::GraphTask;
 use models::frame::to_frame;
 use models::input::ObsBatch;
 use models::{
-    AssignmentMethod, EntityGraph, EntityInputs, EntityMp, EntityMpConfig, GraphBuilder, InputProcessor, Translation,
-    UNASSIGNED,
+    AssignmentMethod, EntityAbstraction, EntityGraph, EntityInputs, EntityMp, EntityMpConfig, GraphBuilder,
+    InputProcessor, Translation, UNASSIGNED,
 };
 use nn::{Aggregation, Bound, EdgeDistance, EdgeList, ParamStore};
 use rand::{RngExt, SeedableRng};
@@ -87,15 +87,15 @@ struct Stage {
 /// The entity stage on one batch of f64 observations (team `team`'s view).
 fn run_stage(
     spec: &ObsSpec,
-    mp: &EntityMp,
-    store: &ParamStore<f64>,
+    (mp, store): (&EntityMp, &ParamStore<f64>),
     vectors: &[f64],
     scalars: &[f64],
     method: AssignmentMethod,
     team: usize,
+    abstraction: EntityAbstraction,
 ) -> Stage {
     let obs = ObsBatch::new(B, spec.n_nodes, vectors, scalars).unwrap();
-    let proc = InputProcessor::new(spec, Translation::Assigned).unwrap();
+    let proc = InputProcessor::new(spec, Translation::Assigned).unwrap().with_abstraction(abstraction);
     let inputs = proc.entities::<f64, f64>(&obs).unwrap();
     let graph = GraphBuilder::new(spec, method, team, 7).unwrap().build(&inputs).unwrap();
     let own: Vec<usize> = (0..spec.n_agents).filter(|&a| spec.agent_team[a] == team).collect();
@@ -103,12 +103,11 @@ fn run_stage(
     let tape = Tape::new();
     let p = store.bind(&tape);
     let f = mp.forward_inputs(&p, &inputs, &graph).unwrap();
-    let ne = inputs.entities;
     let mut local_bodies = Vec::new();
     for body in &bodies {
         // The frame of agent a in every scene, repeated over its K nodes.
         let k = body.z.shape()[1];
-        let rows: Vec<usize> = (0..B).flat_map(|b| std::iter::repeat_n(b * ne + body.agent, k)).collect();
+        let rows: Vec<usize> = inputs.rows_of(body.agent).into_iter().flat_map(|r| std::iter::repeat_n(r, k)).collect();
         let o = f.frame.index_select(0, &rows).unwrap();
         let z = tape.constant(body.z.reshape(&[B * k, 3, 3]).unwrap());
         local_bodies.push(to_frame(o, z).unwrap().value().to_vec());
@@ -138,14 +137,20 @@ fn entity_stage_is_invariant_under_rotations_about_gravity_and_horizontal_transl
         let (spec, vectors, scalars) = observations(name, 11);
         let (store, mp) = paper_model(&spec, 3);
         let m = mp.config.vectors;
-        for method in [AssignmentMethod::Greedy, AssignmentMethod::Hungarian, AssignmentMethod::None] {
-            let base = run_stage(&spec, &mp, &store, &vectors, &scalars, method, team);
+        for (method, abstraction) in [
+            (AssignmentMethod::Greedy, EntityAbstraction::Root),
+            (AssignmentMethod::Hungarian, EntityAbstraction::Root),
+            (AssignmentMethod::None, EntityAbstraction::Root),
+            (AssignmentMethod::Greedy, EntityAbstraction::Mean),
+        ] {
+            let stage = |v: &[f64]| run_stage(&spec, (&mp, &store), v, &scalars, method, team, abstraction);
+            let base = stage(&vectors);
             let mut r = rng(5);
             for _ in 0..3 {
                 let angle = r.random_range(0.0..std::f64::consts::TAU);
                 let t = [r.random_range(-5.0..5.0), r.random_range(-5.0..5.0)];
-                let moved = run_stage(&spec, &mp, &store, &transform(&vectors, angle, t), &scalars, method, team);
-                let ctx = format!("{name} team {team} {method:?} angle {angle}");
+                let moved = stage(&transform(&vectors, angle, t));
+                let ctx = format!("{name} team {team} {method:?} {abstraction:?} angle {angle}");
                 assert_eq!(moved.graph.edges, base.graph.edges, "{ctx}");
                 assert_eq!(moved.graph.agent_entity, base.graph.agent_entity, "{ctx}");
                 // Inputs: h invariant, Z rotated.
@@ -174,7 +179,7 @@ fn entity_stage_is_invariant_under_rotations_about_gravity_and_horizontal_transl
                 }
                 v
             };
-            let tilted = run_stage(&spec, &mp, &store, &tilt, &scalars, method, team);
+            let tilted = stage(&tilt);
             assert!(max_diff(&tilted.h, &base.h) > 1e-6, "{name}: a tilt should change h'");
         }
     }
@@ -251,6 +256,25 @@ fn inputs_follow_the_observation_layout() {
             assert_eq!(h[row * 11 + 10], roots[i][2], "height");
         }
     }
+    // Mean abstraction: an agent's vectors are the means over its nodes.
+    let em = InputProcessor::new(&spec, Translation::None)
+        .unwrap()
+        .with_abstraction(EntityAbstraction::Mean)
+        .entities::<f64, f64>(&obs)
+        .unwrap();
+    let zm = em.z.to_vec();
+    for b in 0..B {
+        for a in 0..spec.n_agents {
+            let (root, k) = (spec.agent_root_node[a], 1 + spec.agent_dof[a]);
+            for (ch, r) in (0..3).flat_map(|ch| (0..3).map(move |r| (ch, r))) {
+                let mean = (root..root + k).map(|n| obs.vec3(b, n, ch)[r]).sum::<f64>() / k as f64;
+                assert!((zm[(b * ne + a) * 9 + r * 3 + ch] - mean).abs() < 1e-12);
+            }
+        }
+        // The centre ball is its own node.
+        assert_eq!(zm[(b * ne + ne - 1) * 9 + 2 * 3], obs.vec3(b, spec.entity_root_node[ne - 1], 0)[2]);
+    }
+    assert!(EntityAbstraction::parse("all").unwrap_err().to_string().contains("root or mean"));
     // Mismatched arrays are errors that say what was expected.
     let err = ObsBatch::new(B, spec.n_nodes + 1, &vectors, &scalars).unwrap_err().to_string();
     assert!(err.contains("do not hold"), "{err}");
