@@ -526,3 +526,27 @@ fn stage_output<'t>(
     let flat = |x: tensor::Var<'t, f64>| x.reshape(&[x.value().numel()]);
     tape.cat(&[flat(f.z)?, flat(f.h)?, flat(f.frame)?], 0)
 }
+
+#[test]
+fn entity_mp_parameters_are_named_and_counted() {
+    let (spec, _, _) = observations("team_reach/2_ants", 1);
+    let (store, mp) = paper_model(&spec, 0);
+    let (m, s, hd) = (32, 64, 64);
+    // embed_z [3 + g, m]; embed_h 11 -> s; W1 [2m + 1 + g, m]; MLP_e [m^2 + 2s + 1, hd, hd,
+    // m^2 + s]; W2 [2m + g, m]; MLP_n [m^2 + 2s, hd, hd, m^2 + s]; W_u [m, 1].
+    let mlp = |i: usize| i * hd + hd + hd * hd + hd + hd * (m * m + s) + m * m + s;
+    let expected =
+        4 * m + 11 * s + s + (2 * m + 2) * m + mlp(m * m + 2 * s + 1) + (2 * m + 1) * m + mlp(m * m + 2 * s) + m;
+    assert_eq!(store.num_elements(), expected);
+    assert_eq!(expected, 302_528);
+    assert_eq!(store.names()[0], "entity.embed_z.weight");
+    assert!(store.names().iter().all(|n| n.starts_with("entity.")));
+    assert_eq!(store.num_elements_under("entity.mp"), expected - 4 * m - 11 * s - s - m);
+    assert_eq!(mp.config.steps, 2);
+    // Bad sizes are errors.
+    let mut cfg = EntityMpConfig::paper(&spec);
+    cfg.steps = 0;
+    let mut st = ParamStore::<f64>::new();
+    let err = EntityMp::new(&mut st.scope("e", &mut nn::init_rng(0)), cfg).unwrap_err().to_string();
+    assert!(err.contains("0 steps"), "{err}");
+}
