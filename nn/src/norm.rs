@@ -50,11 +50,7 @@ impl LayerNorm {
                 self.dim
             )));
         }
-        let last = shape.len() - 1;
-        let centred = x.sub(x.mean(last, true)?)?;
-        let var = centred.square().mean(last, true)?;
-        let inv_std = var.add_scalar(self.eps).powf(-0.5);
-        let normed = centred.mul(inv_std)?;
+        let normed = x.standardize(self.eps);
         Ok(normed.mul(p.get(self.weight))?.add(p.get(self.bias))?)
     }
 }

@@ -194,6 +194,13 @@ pub(crate) fn propagate<T: Float>(nodes: &[Node<T>], id: NodeId, g: &mut Vec<T>,
                 store.add(*x, nnops::norm_last_backward(xv.data(), y.data(), g, n));
             }
         }
+        Op::Standardize { x, eps } => {
+            if store.wants(*x) {
+                let xv = val(*x);
+                let n = xv.shape().last().copied().unwrap_or(1);
+                store.add(*x, nnops::standardize_backward(xv.data(), y.data(), g, n, *eps));
+            }
+        }
         Op::Reshape(x) => {
             if store.wants(*x) {
                 store.add(*x, std::mem::take(g));

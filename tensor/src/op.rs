@@ -244,6 +244,8 @@ pub enum Op {
     Softmax(NodeId),
     /// Euclidean norm over the last axis, `sqrt(sum x^2 + eps)`, keeping the axis as size 1.
     NormLast { x: NodeId, eps: f64 },
+    /// `(x - mean) / sqrt(var + eps)` over the last axis (biased variance).
+    Standardize { x: NodeId, eps: f64 },
 }
 
 impl Op {
@@ -286,6 +288,7 @@ impl Op {
             Op::Where { .. } => "where",
             Op::Softmax(_) => "softmax",
             Op::NormLast { .. } => "norm",
+            Op::Standardize { .. } => "standardize",
         }
     }
 }

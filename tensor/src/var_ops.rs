@@ -178,6 +178,13 @@ impl<'t, T: Float> Var<'t, T> {
         self.tape.record(y, Op::NormLast { x: self.id, eps }, &[self.id])
     }
 
+    /// `(x - mean) / sqrt(var + eps)` over the last axis (biased variance): layer
+    /// normalisation without its affine part, in one op.
+    pub fn standardize(self, eps: f64) -> Self {
+        let y = nnops::standardize(&self.value(), eps);
+        self.tape.record(y, Op::Standardize { x: self.id, eps }, &[self.id])
+    }
+
     /// Same elements, new shape (no copy).
     pub fn reshape(self, shape: &[usize]) -> Result<Self> {
         let y = self.value().reshape(shape)?;

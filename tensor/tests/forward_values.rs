@@ -128,6 +128,9 @@ fn layout_and_index_values() {
     );
     close(&x.expand(&[2, 2, 3]).unwrap().value(), &[0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 0.0, 1.0, 2.0, 3.0, 4.0, 5.0]);
     close(&tape.constant(t(&[3.0, 4.0, 0.0, 0.0], &[2, 2])).norm_last(0.0).value(), &[5.0, 0.0]);
+    // [1, 3] -> mean 2, variance 2/3: (x - 2) / sqrt(2/3).
+    let sd = (2.0f64 / 3.0).sqrt();
+    close(&tape.constant(t(&[1.0, 2.0, 3.0], &[1, 3])).standardize(0.0).value(), &[-1.0 / sd, 0.0, 1.0 / sd]);
     let sm = tape.constant(t(&[0.0, 2f64.ln()], &[1, 2])).softmax();
     close(&sm.value(), &[1.0 / 3.0, 2.0 / 3.0]);
 }

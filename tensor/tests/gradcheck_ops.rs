@@ -89,6 +89,7 @@ fn per_row_scaling_and_norms() {
     let b3 = positive(&mut r, &[2, 3, 1]);
     gc!(vec![a3.clone(), b3.clone()], |_, v| v[0].div(v[1]));
     gc!(vec![a3.clone()], |_, v| Ok(v[0].norm_last(0.0)));
+    gc!(vec![a3.clone()], |_, v| Ok(v[0].standardize(1e-5)));
     gc!(vec![a3], |_, v| Ok(v[0].norm_last(1e-3).add_scalar(1.0)));
 }
 

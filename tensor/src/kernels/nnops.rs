@@ -122,3 +122,45 @@ pub fn norm_last_backward<T: Float>(x: &[T], y: &[T], g: &[T], n: usize) -> Vec<
     });
     out
 }
+
+/// Mean and `1 / sqrt(var + eps)` (biased variance) of one row.
+#[inline]
+fn row_stats<T: Float>(row: &[T], eps: f64) -> (T, T) {
+    let n = T::from_f64(row.len() as f64);
+    let mean = super::reduce::sum8(row.iter().copied()) / n;
+    let var = super::reduce::sum8(row.iter().map(|&v| (v - mean) * (v - mean))) / n;
+    (mean, T::ONE / (var + T::from_f64(eps)).sqrt())
+}
+
+/// `(x - mean) / sqrt(var + eps)` over the last axis, row by row (layer normalisation
+/// without the affine part).
+pub fn standardize<T: Float>(x: &Tensor<T>, eps: f64) -> Tensor<T> {
+    let n = x.shape().last().copied().unwrap_or(1);
+    let xd = x.data();
+    let mut out = crate::pool::zeros(x.numel());
+    for_rows(&mut out, n, |r, row| {
+        let src = &xd[r * n..(r + 1) * n];
+        let (mean, inv) = row_stats(src, eps);
+        for (o, &v) in row.iter_mut().zip(src) {
+            *o = (v - mean) * inv;
+        }
+    });
+    Tensor::from_parts(out, x.shape().to_vec())
+}
+
+/// Gradient of [`standardize`]: with `y` the output and `s = 1/sqrt(var + eps)`,
+/// `dx = s (g - mean(g) - y mean(g y))` row by row.
+pub fn standardize_backward<T: Float>(x: &[T], y: &[T], g: &[T], n: usize, eps: f64) -> Vec<T> {
+    let mut out = crate::pool::zeros(x.len());
+    let nf = T::from_f64(n as f64);
+    for_rows(&mut out, n, |r, row| {
+        let (xr, yr, gr) = (&x[r * n..(r + 1) * n], &y[r * n..(r + 1) * n], &g[r * n..(r + 1) * n]);
+        let (_, inv) = row_stats(xr, eps);
+        let mg = super::reduce::sum8(gr.iter().copied()) / nf;
+        let mgy = super::reduce::sum8(gr.iter().zip(yr).map(|(&a, &b)| a * b)) / nf;
+        for ((o, &gv), &yv) in row.iter_mut().zip(gr).zip(yr) {
+            *o = inv * (gv - mg - yv * mgy);
+        }
+    });
+    out
+}
