@@ -107,6 +107,9 @@ pub struct Data {
     pub(crate) qtmp: Vec<f64>,
     /// `EulerGyro` scratch: three nv columns.
     pub(crate) qk_cols: Vec<f64>,
+    /// `EulerGyro` scratch: per body, the derivatives of its subtree force in the three
+    /// directions of its root's angular velocity.
+    pub(crate) qk_tan: Vec<[Vec6; 3]>,
 
     /// Contacts of the last step.
     pub contacts: Vec<Contact>,
@@ -198,6 +201,7 @@ impl Data {
             qk_piv: vec![0; nv],
             qtmp: vec![0.0; 2 * nv],
             qk_cols: vec![0.0; 3 * nv],
+            qk_tan: vec![[z6; 3]; nb],
             contacts: Vec::with_capacity(16 + 2 * m.plane_pairs.len()),
             warm: vec![[0.0; 4]; m.nslot],
             warm_used: Vec::with_capacity(64),

@@ -76,69 +76,112 @@ pub fn forward(m: &Model, d: &mut Data) {
     }
 }
 
-/// [`Integrator::EulerGyro`]: corrects the Euler `qacc = H^-1 b` to `(H + h E K E^T)^-1 b`,
-/// `E` the three angular dofs of each floating root and `K` (3 x 3, body frame) the derivative
-/// of the root's bias torque with respect to its angular velocity for the tree taken as rigid
-/// (composite inertia `Ic`, first moment `h`, about the root origin moving at `v`):
-/// `K_world = [w]x Ic - [Ic w]x - [h x v]x - [v]x [h]x`, `K = R^T K_world R`.
-/// Woodbury: `x = y - Z hK (I + S hK)^-1 (E^T y)` with `y = H^-1 b`, `Z = H^-1 E`,
-/// `S = E^T Z`; trees are independent (H is block diagonal over trees).
+/// Columns of `dc/dqvel` for the three angular dofs of every floating root, into `cols`
+/// (`3 nv`, column `k` at `k nv..(k + 1) nv`; rows of trees without a floating root are zero).
+/// Needs the velocities and bias of the current state ([`forward`] up to [`rne::bias`]).
+///
+/// Forward-mode derivative of the Newton-Euler bias pass ([`rne::bias`]) in the direction
+/// `e_k` of the root's angular dof `k`, whose motion axis `s_k = cdof[root + 3 + k]` is the same
+/// for every body of the tree (the hinges' velocities are held fixed). With `v_b` the velocity
+/// of body `b` and `v_r` the root's, the bias pass computes `f_b = I_b a_b + v_b x* I_b v_b`
+/// with `a_b = a_r + sum cdof_dot_i qvel_i` over the hinges `i` between the root and `b`, and
+/// `cdof_dot_i = v x cdof_i`; so, exactly (the bias is quadratic in `qvel`):
+/// `da_b = cdof_dot[root + 3 + k] + s_k x (v_b - v_r)`,
+/// `df_b = I_b da_b + s_k x* I_b v_b + v_b x* I_b s_k`,
+/// and `dc_i = cdof_i . sum(df)` over the subtree of dof `i`'s body: one pass over the bodies
+/// for the three columns.
+pub fn root_spin_bias_derivative(m: &Model, d: &mut Data, cols: &mut [f64]) {
+    let nv = m.nv;
+    assert_eq!(cols.len(), 3 * nv, "cols must hold 3 nv entries");
+    let nb = m.bodies.len();
+    for b in 1..nb {
+        let body = &m.bodies[b];
+        d.qk_tan[b] = [[0.0; 6]; 3];
+        if body.tree == crate::model::NONE {
+            continue;
+        }
+        let root = m.trees[body.tree].root;
+        let rb = &m.bodies[root];
+        if rb.jnt_num != 1 || m.joints[rb.jnt_adr].kind != JointKind::Free {
+            continue;
+        }
+        let a = rb.dof_adr + 3;
+        let (vb, vr) = (&d.cvel[b], &d.cvel[root]);
+        let rel = [vb[0] - vr[0], vb[1] - vr[1], vb[2] - vr[2], vb[3] - vr[3], vb[4] - vr[4], vb[5] - vr[5]];
+        let ib = &d.cinert[b];
+        let hb = ib.mul(vb);
+        for k in 0..3 {
+            let sk = &d.cdof[a + k];
+            let mut da = math::cross_motion(sk, &rel);
+            for (x, y) in da.iter_mut().zip(&d.cdof_dot[a + k]) {
+                *x += y;
+            }
+            let t1 = ib.mul(&da);
+            let t2 = math::cross_force(sk, &hb);
+            let t3 = math::cross_force(vb, &ib.mul(sk));
+            for r in 0..6 {
+                d.qk_tan[b][k][r] = t1[r] + t2[r] + t3[r];
+            }
+        }
+    }
+    for b in (1..nb).rev() {
+        let p = m.bodies[b].parent;
+        if m.bodies[b].tree != crate::model::NONE && p != 0 && m.bodies[p].tree != crate::model::NONE {
+            let f = d.qk_tan[b];
+            for (dst, src) in d.qk_tan[p].iter_mut().zip(&f) {
+                for (x, y) in dst.iter_mut().zip(src) {
+                    *x += y;
+                }
+            }
+        }
+    }
+    for i in 0..nv {
+        let f = &d.qk_tan[m.dof_body[i]];
+        for k in 0..3 {
+            cols[k * nv + i] = math::dot6(&d.cdof[i], &f[k]);
+        }
+    }
+}
+
+/// [`Integrator::EulerGyro`]: corrects the Euler `qacc = H^-1 b` to `(H + h K E E^T)^-1 b`,
+/// where `E` selects the three angular dofs of each floating root and `K E` are the exact
+/// columns of `K = dc/dqvel` for those dofs, all rows of the tree
+/// ([`root_spin_bias_derivative`]). Woodbury: `x = y - Z (I + E^T Z)^-1 (E^T y)` with
+/// `y = H^-1 b` and `Z = H^-1 h K E`; trees are independent (H is block diagonal over trees,
+/// so one solve per column serves every tree).
 fn root_gyro_qacc(m: &Model, d: &mut Data) {
     let nv = m.nv;
     let h = m.opt.timestep;
+    let is_free_root = |t: &crate::model::Tree| {
+        let body = &m.bodies[t.root];
+        body.jnt_num == 1 && m.joints[body.jnt_adr].kind == JointKind::Free
+    };
+    if !m.trees.iter().any(is_free_root) {
+        return;
+    }
     let damped = m.dof_damping.iter().any(|&x| x > 0.0);
-    for tree in &m.trees {
-        let root = tree.root;
-        let body = &m.bodies[root];
-        if body.jnt_num != 1 || m.joints[body.jnt_adr].kind != JointKind::Free {
-            continue;
-        }
-        let a = body.dof_adr;
-        let r = &d.xmat[root];
-        let c = &d.crb[root];
-        let v = [d.qvel[a], d.qvel[a + 1], d.qvel[a + 2]];
-        let w = math::mat_vec(r, [d.qvel[a + 3], d.qvel[a + 4], d.qvel[a + 5]]);
-        let iw = math::mat_vec(&c.i, w);
-        let hv = math::cross(c.h, v);
-        let skew = |u: math::Vec3| [[0.0, -u[2], u[1]], [u[2], 0.0, -u[0]], [-u[1], u[0], 0.0]];
-        let (sw, siw, shv, sv, sh) = (skew(w), skew(iw), skew(hv), skew(v), skew(c.h));
-        let mut kw = math::mat_mul(&sw, &c.i);
-        let vh = math::mat_mul(&sv, &sh);
-        for i in 0..3 {
-            for j in 0..3 {
-                kw[i][j] -= siw[i][j] + shv[i][j] + vh[i][j];
-            }
-        }
-        // Body frame, times h.
-        let mut hk = math::mat_mul(&math::transpose(r), &math::mat_mul(&kw, r));
-        for row in hk.iter_mut() {
-            for x in row.iter_mut() {
-                *x *= h;
-            }
-        }
-        // Z = H^-1 E (three columns), S = E^T Z.
-        let factor = if damped { &d.qh } else { &d.qlm };
-        let mut s3 = [[0.0; 3]; 3];
-        for k in 0..3 {
-            let z = &mut d.qk_cols[k * nv..(k + 1) * nv];
-            z.iter_mut().for_each(|x| *x = 0.0);
-            z[a + 3 + k] = 1.0;
-            crba::ltdl_solve(m, factor, z);
-            for (i, row) in s3.iter_mut().enumerate() {
-                row[k] = z[a + 3 + i];
-            }
-        }
-        // t = (I + S hK)^-1 (E^T y), then u = hK t, x = y - Z u.
-        let mut g = math::mat_mul(&s3, &hk);
+    let mut cols = std::mem::take(&mut d.qk_cols);
+    root_spin_bias_derivative(m, d, &mut cols);
+    d.qk_cols = cols;
+    d.qk_cols.iter_mut().for_each(|x| *x *= h);
+    let factor = if damped { &d.qh } else { &d.qlm };
+    for k in 0..3 {
+        crba::ltdl_solve(m, factor, &mut d.qk_cols[k * nv..(k + 1) * nv]);
+    }
+    for tree in m.trees.iter().filter(|t| is_free_root(t)) {
+        let a = m.bodies[tree.root].dof_adr + 3;
+        let mut g = [[0.0; 3]; 3];
         for (i, row) in g.iter_mut().enumerate() {
-            row[i] += 1.0;
+            for (k, x) in row.iter_mut().enumerate() {
+                *x = d.qk_cols[k * nv + a + i] + if i == k { 1.0 } else { 0.0 };
+            }
         }
-        let ey = [d.qacc[a + 3], d.qacc[a + 4], d.qacc[a + 5]];
+        let ey = [d.qacc[a], d.qacc[a + 1], d.qacc[a + 2]];
         let Some(t) = solve3(&g, ey) else { continue };
-        let u = math::mat_vec(&hk, t);
-        for (k, uk) in u.iter().enumerate() {
-            for (q, z) in d.qacc.iter_mut().zip(&d.qk_cols[k * nv..(k + 1) * nv]) {
-                *q -= z * uk;
+        for &b in &tree.bodies {
+            let body = &m.bodies[b];
+            for i in body.dof_adr..body.dof_adr + body.dof_num {
+                d.qacc[i] -= d.qk_cols[i] * t[0] + d.qk_cols[nv + i] * t[1] + d.qk_cols[2 * nv + i] * t[2];
             }
         }
     }

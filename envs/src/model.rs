@@ -83,13 +83,14 @@ pub enum Integrator {
     Rk4,
     /// Semi-implicit Euler with implicit damping and implicit Coriolis/centrifugal forces.
     Implicit,
-    /// `Euler`, plus an implicit gyroscopic term for every floating root, computed as if its
-    /// tree were rigid (`K = [w]x Ic - [Ic w]x - [h x v]x - [v]x [h]x`, the derivative of the
-    /// composite's bias torque with respect to the root's angular velocity): a rank-3 update
-    /// per tree applied with the Woodbury identity, 11% dearer than `Euler` on the ant. Keeps
-    /// spinning agents stable where the explicit gyroscopic term of `Euler` can run away
-    /// (strong bang-bang actions at dt = 0.01); equal to `Implicit` for a single rigid body whose
-    /// centre of mass is its origin (1.8e-15 apart after 2000 steps of tumbling).
+    /// `Euler`, plus the implicit treatment of the bias forces' dependence on the angular
+    /// velocity of every floating root: `(M + h D + h K E E^T) qacc = f`, with `K E` the exact
+    /// columns of `dc/dqvel` for the root's three angular dofs (all rows of its tree), from one
+    /// forward-mode pass of the Newton-Euler recursion, applied as a rank-3 Woodbury update of
+    /// the factor of `M + h D`. Keeps spinning agents stable where the explicit gyroscopic term
+    /// of `Euler` runs away (strong bang-bang actions at dt = 0.01); equal to `Implicit` for a
+    /// single rigid body whose centre of mass is its origin. Used by the MeBen scenes
+    /// (`brax::brax_options`).
     EulerGyro,
     /// MuJoCo's implicitfast (recorded; stepped with Euler).
     ImplicitFast,

@@ -9,7 +9,7 @@ use super::error::BraxError;
 use super::physics::BraxPhysics;
 use super::rotation::{Quat, Vec3};
 use super::tree::{AgentTree, TreeShape};
-use crate::model::{ActuatorId, BodyId, GeomId, JointId, Model, Options};
+use crate::model::{ActuatorId, BodyId, GeomId, Integrator, JointId, Model, Options};
 use crate::{GeomSpec, HingeSpec, ModelBuilder};
 
 /// Time step of the MeBen scenes (s): 5 steps per 0.05 s control step (`bench/SIM.md`).
@@ -92,9 +92,14 @@ pub fn add_agent(
     AgentIds { root: bodies[0], free_joint: free_joint.unwrap_or(JointId(0)), bodies, hinges, actuators, geoms }
 }
 
-/// The simulator options of MeBen scenes: MuJoCo's defaults with the 0.01 s time step.
+/// The simulator options of MeBen scenes: MuJoCo's defaults with the 0.01 s time step and
+/// the [`Integrator::EulerGyro`] integrator (MuJoCo's Euler plus the exact implicit derivative
+/// of the bias forces with respect to each floating root's angular velocity). Under bang-bang
+/// actions at the Brax strengths, plain `Euler`'s explicit gyroscopic term lets an agent lying
+/// on its back spin up to a numerical blow-up (2 of 704 four-ant Team Sumo scenes over 1000
+/// control steps; `docs/ARCHITECTURE.md`, "The step pipeline").
 pub fn brax_options() -> Options {
-    Options { timestep: BRAX_TIMESTEP, ..Options::default() }
+    Options { timestep: BRAX_TIMESTEP, integrator: Integrator::EulerGyro, ..Options::default() }
 }
 
 /// One agent on the ground plane (friction `physics.friction`) with [`brax_options`], its
