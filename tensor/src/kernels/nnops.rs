@@ -78,13 +78,28 @@ pub fn linear<T: Float>(x: &Tensor<T>, w: &Tensor<T>, b: Option<&Tensor<T>>, act
     Ok(Tensor::from_parts(out, shape))
 }
 
-/// `g * act'(pre)` expressed through the output `y` of the activation.
+/// `g * act'(pre)` expressed through the output `y` of the activation (in parallel for
+/// large inputs).
 pub fn activation_backward<T: Float>(y: &[T], g: &[T], act: Activation) -> Vec<T> {
-    match act {
-        Activation::Identity => crate::pool::map(g, |v| v),
-        Activation::Relu => crate::pool::zip_map(g, y, |g, y| if y > T::ZERO { g } else { T::ZERO }),
-        Activation::Tanh => crate::pool::zip_map(g, y, |g, y| g * (T::ONE - y * y)),
-    }
+    let mut out = crate::pool::zeros(g.len());
+    super::fill_chunks(&mut out, |s, ch| {
+        let n = ch.len();
+        let (gs, ys) = (&g[s..s + n], &y[s..s + n]);
+        match act {
+            Activation::Identity => ch.copy_from_slice(gs),
+            Activation::Relu => {
+                for ((o, &gv), &yv) in ch.iter_mut().zip(gs).zip(ys) {
+                    *o = if yv > T::ZERO { gv } else { T::ZERO };
+                }
+            }
+            Activation::Tanh => {
+                for ((o, &gv), &yv) in ch.iter_mut().zip(gs).zip(ys) {
+                    *o = gv * (T::ONE - yv * yv);
+                }
+            }
+        }
+    });
+    out
 }
 
 /// `sqrt(sum x^2 + eps)` over the last axis, one value per row (`[.., n] -> [.., 1]`).
