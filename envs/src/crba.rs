@@ -113,6 +113,35 @@ pub fn ltdl_solve(m: &Model, h: &[f64], x: &mut [f64]) {
     }
 }
 
+/// [`ltdl_solve`] for three right-hand sides at once, stored one after the other in `x`
+/// (`x[k nv..(k + 1) nv]` holds column `k`): the index walk over the factor is shared.
+pub fn ltdl_solve3(m: &Model, h: &[f64], x: &mut [f64]) {
+    let nv = m.nv;
+    let (adr, depth, chain) = (&m.dof_chain_adr[..nv], &m.dof_depth[..nv], &m.dof_chain[..]);
+    let (x0, rest) = x[..3 * nv].split_at_mut(nv);
+    let (x1, x2) = rest.split_at_mut(nv);
+    for k in (0..nv).rev() {
+        let (a, b, c) = (x0[k], x1[k], x2[k]);
+        let (ak, lk) = (adr[k], depth[k]);
+        for (l, &i) in h[ak + 1..ak + lk].iter().zip(&chain[ak + 1..ak + lk]) {
+            x0[i] -= l * a;
+            x1[i] -= l * b;
+            x2[i] -= l * c;
+        }
+    }
+    for k in 0..nv {
+        let (ak, lk) = (adr[k], depth[k]);
+        let inv = 1.0 / h[ak];
+        let (mut a, mut b, mut c) = (x0[k] * inv, x1[k] * inv, x2[k] * inv);
+        for (l, &i) in h[ak + 1..ak + lk].iter().zip(&chain[ak + 1..ak + lk]) {
+            a -= l * x0[i];
+            b -= l * x1[i];
+            c -= l * x2[i];
+        }
+        (x0[k], x1[k], x2[k]) = (a, b, c);
+    }
+}
+
 /// Diagonal entry `i` of a matrix in the compact layout (`M[i][i]`, or `D[i]` of a factor).
 #[inline]
 pub fn diag(m: &Model, h: &[f64], i: usize) -> f64 {

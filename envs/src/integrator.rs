@@ -165,9 +165,7 @@ fn root_gyro_qacc(m: &Model, d: &mut Data) {
     d.qk_cols = cols;
     d.qk_cols.iter_mut().for_each(|x| *x *= h);
     let factor = if damped { &d.qh } else { &d.qlm };
-    for k in 0..3 {
-        crba::ltdl_solve(m, factor, &mut d.qk_cols[k * nv..(k + 1) * nv]);
-    }
+    crba::ltdl_solve3(m, factor, &mut d.qk_cols);
     for tree in m.trees.iter().filter(|t| is_free_root(t)) {
         let a = m.bodies[tree.root].dof_adr + 3;
         let mut g = [[0.0; 3]; 3];
