@@ -4,9 +4,9 @@
 //!   distribution;
 //! - SHNN's entity stage: input processing ([`input`]), the task-assignment entity graph
 //!   ([`entity_graph`]) and the entity-level subequivariant message passing with the LRF
-//!   vector ([`entity_mp`]).
-//!
-//! The policies themselves build on the MeBen observations of `envs`.
+//!   vector ([`entity_mp`]);
+//! - the policy/critic interface and the models built by name ([`policy`]: `shnn`,
+//!   `shnn_og3`, `shnn_so3`, `mlp`, `mlp_hn`).
 
 pub mod assignment;
 pub mod distribution;
@@ -15,9 +15,11 @@ pub mod entity_mp;
 pub mod error;
 pub mod frame;
 pub mod input;
+pub mod policy;
 
 pub use assignment::{Assigner, AssignmentMethod, UNASSIGNED, distance_matrix};
 pub use entity_graph::{EntityGraph, GraphBuilder, GraphTask};
 pub use entity_mp::{EntityFeatures, EntityMp, EntityMpConfig};
 pub use error::{ModelError, Result};
 pub use input::{AgentBody, EntityAbstraction, EntityInputs, InputProcessor, ObsBatch, Translation};
+pub use policy::{AgentPolicy, MODEL_NAMES, Model, ModelConfig, MpSizes, PolicyOutput};

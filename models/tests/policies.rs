@@ -1,0 +1,300 @@
+//! Tests of the policy/critic interface (`models::policy`): invariance of the SHNN policies
+//! and values, heading normalisation, the MLP baseline's lack of invariance, forward on
+//! every built-in environment, a gradient check through a whole small SHNN, and errors.
+
+use std::cell::RefCell;
+
+use envs::tasks::{BUILTIN_NAMES, ObsSpec, StartMode, VecEnv};
+use models::input::ObsBatch;
+use models::policy::{MODEL_NAMES, PLANNED_MODELS};
+use models::{AssignmentMethod, EntityAbstraction, Model, ModelConfig, MpSizes, PolicyOutput, Translation};
+use nn::{Bound, ParamStore};
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use tensor::gradcheck::check_gradients;
+use tensor::{Tape, Tensor, Var};
+
+const B: usize = 3;
+
+fn rng(seed: u64) -> ChaCha8Rng {
+    ChaCha8Rng::seed_from_u64(seed)
+}
+
+/// `batch` observations of `name` after a few random control steps, in `f64`:
+/// `(spec, vectors, scalars, headings)`.
+fn observations(name: &str, batch: usize, seed: u64) -> (ObsSpec, Vec<f64>, Vec<f64>, Vec<f64>) {
+    let mut env = VecEnv::from_name(name, batch, seed, StartMode::Random).unwrap();
+    let mut r = rng(seed);
+    let na = env.n_actions();
+    for _ in 0..3 {
+        let actions: Vec<f32> = (0..batch * na).map(|_| r.random_range(-1.0..1.0)).collect();
+        env.step(&actions).unwrap();
+    }
+    let o = env.obs();
+    let f = |x: &[f32]| x.iter().map(|&v| v as f64).collect::<Vec<_>>();
+    (env.scene().obs_spec.clone(), f(&o.vectors), f(&o.scalars), f(&o.heading))
+}
+
+/// Rotates every 3-vector about the vertical by `angle`, translates positions by
+/// `(tx, ty, 0)` and shifts the headings by `angle`.
+fn transform(vectors: &[f64], heading: &[f64], angle: f64, t: [f64; 2]) -> (Vec<f64>, Vec<f64>) {
+    let (s, c) = angle.sin_cos();
+    let mut out = vectors.to_vec();
+    for (i, v) in out.chunks_mut(3).enumerate() {
+        let (x, y) = (v[0], v[1]);
+        v[0] = c * x - s * y;
+        v[1] = s * x + c * y;
+        if i % 3 == 0 {
+            v[0] += t[0];
+            v[1] += t[1];
+        }
+    }
+    (out, heading.iter().map(|h| h + angle).collect())
+}
+
+/// Reflects every 3-vector through the vertical plane y = 0 (`y -> -y`) and negates the
+/// headings. This is the action of `O_g(3)` on the network's inputs, which treat all three
+/// channels as vectors (physically the angular velocity is a pseudovector).
+fn reflect(vectors: &[f64], heading: &[f64]) -> (Vec<f64>, Vec<f64>) {
+    let mut out = vectors.to_vec();
+    out.chunks_mut(3).for_each(|v| v[1] = -v[1]);
+    (out, heading.iter().map(|h| -h).collect())
+}
+
+fn max_diff(a: &[f64], b: &[f64]) -> f64 {
+    assert_eq!(a.len(), b.len());
+    a.iter().zip(b).map(|(x, y)| (x - y).abs() / x.abs().max(1.0)).fold(0.0, f64::max)
+}
+
+fn build(config: &ModelConfig, spec: &ObsSpec, team: usize, seed: u64) -> (ParamStore<f64>, Model) {
+    let mut store = ParamStore::<f64>::new();
+    let mut init = nn::init_rng(seed);
+    let model = Model::new(&mut store.scope("team", &mut init), config, spec, team).unwrap();
+    (store, model)
+}
+
+/// Every output of a forward pass flattened: per agent loc then scale, then the value.
+fn flatten<T: tensor::Float>(out: &PolicyOutput<'_, T>) -> Vec<f64> {
+    let mut v = Vec::new();
+    for a in &out.agents {
+        v.extend(a.loc.value().data().iter().map(|x| x.to_f64()));
+        v.extend(a.scale.value().data().iter().map(|x| x.to_f64()));
+    }
+    v.extend(out.value.value().data().iter().map(|x| x.to_f64()));
+    v
+}
+
+fn run(model: &mut Model, store: &ParamStore<f64>, spec: &ObsSpec, v: &[f64], s: &[f64], h: &[f64]) -> Vec<f64> {
+    let tape = Tape::new();
+    let p = store.bind(&tape);
+    let obs = ObsBatch::new(v.len() / (spec.n_nodes * 9), spec.n_nodes, v, s).unwrap();
+    flatten(&model.forward_batch(&p, &obs, h).unwrap())
+}
+
+#[test]
+fn shnn_policies_and_values_are_invariant_under_rotations_about_gravity_and_translations() {
+    let cases = [
+        ("shnn", "team_reach/2_ants", 0),
+        ("shnn", "team_sumo/2_ants", 0),
+        ("shnn", "team_sumo/2_ants", 1),
+        ("shnn", "team_reach/2_ant_claw", 0),
+        ("shnn_og3", "team_reach/2_ants", 0),
+        ("shnn_so3", "team_sumo/2_ants", 1),
+    ];
+    for (model_name, env, team) in cases {
+        let (spec, vectors, scalars, heading) = observations(env, B, 11);
+        let (store, mut model) = build(&ModelConfig::new(model_name), &spec, team, 3);
+        let base = run(&mut model, &store, &spec, &vectors, &scalars, &heading);
+        let mut r = rng(5);
+        for _ in 0..3 {
+            let angle = r.random_range(0.0..std::f64::consts::TAU);
+            let t = [r.random_range(-5.0..5.0), r.random_range(-5.0..5.0)];
+            let (v, h) = transform(&vectors, &heading, angle, t);
+            let moved = run(&mut model, &store, &spec, &v, &scalars, &h);
+            let d = max_diff(&moved, &base);
+            assert!(d < 1e-9, "{model_name} on {env} team {team}, angle {angle}: {d}");
+        }
+        // The check can fail: tilting the scene (about the x axis) changes the outputs.
+        let (s, c) = 0.3f64.sin_cos();
+        let mut tilt = vectors.clone();
+        for q in tilt.chunks_mut(3) {
+            let (y, z) = (q[1], q[2]);
+            q[1] = c * y - s * z;
+            q[2] = s * y + c * z;
+        }
+        let tilted = run(&mut model, &store, &spec, &tilt, &scalars, &heading);
+        assert!(max_diff(&tilted, &base) > 1e-6, "{model_name} on {env}: a tilt should change the outputs");
+    }
+}
+
+#[test]
+fn shnn_og3_is_also_invariant_under_reflections_and_shnn_is_not() {
+    let (spec, vectors, scalars, heading) = observations("team_reach/2_ants", B, 12);
+    let (rv, rh) = reflect(&vectors, &heading);
+    for (name, invariant) in [("shnn_og3", true), ("shnn", false)] {
+        let (store, mut model) = build(&ModelConfig::new(name), &spec, 0, 4);
+        let base = run(&mut model, &store, &spec, &vectors, &scalars, &heading);
+        let mirrored = run(&mut model, &store, &spec, &rv, &scalars, &rh);
+        let d = max_diff(&mirrored, &base);
+        assert_eq!(d < 1e-9, invariant, "{name}: reflection changes the outputs by {d}");
+        if !invariant {
+            assert!(d > 1e-4, "{name}: {d}");
+        }
+    }
+}
+
+#[test]
+fn mlp_hn_is_invariant_under_yaw_and_mlp_is_not() {
+    for (env, team) in [("team_reach/2_ant_claw", 0), ("team_sumo/2_ants", 1)] {
+        let (spec, vectors, scalars, heading) = observations(env, B, 13);
+        let (v, h) = transform(&vectors, &heading, 2.1, [3.0, -1.5]);
+        for (name, invariant) in [("mlp_hn", true), ("mlp", false)] {
+            let (store, mut model) = build(&ModelConfig::new(name), &spec, team, 6);
+            let base = run(&mut model, &store, &spec, &vectors, &scalars, &heading);
+            let moved = run(&mut model, &store, &spec, &v, &scalars, &h);
+            let d = max_diff(&moved, &base);
+            if invariant {
+                assert!(d < 1e-9, "{name} on {env}: {d}");
+            } else {
+                assert!(d > 1e-3, "{name} on {env} should change under a rotation: {d}");
+            }
+            // A rotation alone (no translation) changes mlp too.
+            let (v2, h2) = transform(&vectors, &heading, 0.7, [0.0, 0.0]);
+            let d2 = max_diff(&run(&mut model, &store, &spec, &v2, &scalars, &h2), &base);
+            assert_eq!(d2 < 1e-9, invariant, "{name} on {env}, rotation only: {d2}");
+        }
+    }
+}
+
+#[test]
+fn forward_on_every_builtin_environment_for_every_model() {
+    for env in BUILTIN_NAMES {
+        let mut venv = VecEnv::from_name(env, 2, 1, StartMode::Random).unwrap();
+        let na = venv.n_actions();
+        venv.step(&vec![0.5; 2 * na]).unwrap();
+        let spec = venv.scene().obs_spec.clone();
+        for name in MODEL_NAMES {
+            for team in 0..spec.n_teams {
+                let mut store = ParamStore::<f32>::new();
+                let mut init = nn::init_rng(0);
+                let prefix = format!("team{team}");
+                let mut model =
+                    Model::new(&mut store.scope(&prefix, &mut init), &ModelConfig::new(name), &spec, team).unwrap();
+                assert!(store.names().iter().all(|n| n.starts_with(&format!("{prefix}."))));
+                assert_eq!(model.num_params(&store), store.num_elements());
+                let tape = Tape::new();
+                let p = store.bind(&tape);
+                let out = model.forward(&p, venv.obs()).unwrap();
+                let own: Vec<usize> = (0..spec.n_agents).filter(|&a| spec.agent_team[a] == team).collect();
+                assert_eq!(model.agents(), own.as_slice());
+                assert_eq!(out.agents.len(), own.len(), "{name} on {env}");
+                for (a, pol) in own.iter().zip(&out.agents) {
+                    assert_eq!(pol.agent, *a);
+                    let dof = spec.agent_dof[*a];
+                    assert_eq!(pol.loc.shape(), [2, dof], "{name} on {env} agent {a}");
+                    assert_eq!(pol.scale.shape(), [2, dof], "{name} on {env} agent {a}");
+                    assert!(pol.loc.value().all_finite() && pol.scale.value().all_finite(), "{name} on {env}");
+                    assert!(pol.std().value().data().iter().all(|&s| s >= 0.001));
+                    // One head per agent.
+                    assert!(store.num_elements_under(&format!("{prefix}.actor.{a}.")) > 0);
+                }
+                assert_eq!(out.value.shape(), [2], "{name} on {env}");
+                assert!(out.value.value().all_finite(), "{name} on {env}");
+                // Only the entity stage is shared: its parameters exist once per team.
+                let shared = store.num_elements_under(&format!("{prefix}.entity."));
+                assert_eq!(shared > 0, name.starts_with("shnn"), "{name}");
+            }
+        }
+    }
+}
+
+fn tiny() -> ModelConfig {
+    ModelConfig {
+        mp: Some(MpSizes { vectors: 3, scalars: 4, hidden: 5, layers: 1, steps: 2 }),
+        head_hidden: Some(vec![6]),
+        critic_hidden: Some(vec![5]),
+        ..ModelConfig::new("shnn")
+    }
+}
+
+/// Policy and value of `model` with the parameters `v` (store order) as tape inputs.
+fn whole<'t>(
+    model: &RefCell<Model>,
+    obs: &ObsBatch<'_, f64>,
+    heading: &[f64],
+    v: &[Var<'t, f64>],
+) -> tensor::Result<Var<'t, f64>> {
+    let tape = v[0].tape();
+    let p = Bound::from_vars(v.to_vec());
+    let out = model.borrow_mut().forward_batch(&p, obs, heading).expect("forward");
+    let flat = |x: Var<'t, f64>| x.reshape(&[x.value().numel()]);
+    let mut parts = Vec::new();
+    for a in &out.agents {
+        parts.push(flat(a.loc)?);
+        parts.push(flat(a.std())?);
+    }
+    parts.push(out.value);
+    tape.cat(&parts, 0)
+}
+
+#[test]
+fn gradients_through_a_whole_small_shnn() {
+    for (env, team) in [("team_reach/2_ants", 0), ("team_sumo/1_centipede", 1)] {
+        let (spec, vectors, scalars, heading) = observations(env, 2, 21);
+        let (store, model) = build(&tiny(), &spec, team, 9);
+        let model = RefCell::new(model);
+        let obs = ObsBatch::new(2, spec.n_nodes, &vectors[..], &scalars[..]).unwrap();
+        let params: Vec<Tensor<f64>> = store.values().to_vec();
+        let report = check_gradients(|_, v| whole(&model, &obs, &heading, v), &params).unwrap();
+        assert_eq!(report.checked, store.num_elements(), "{env}");
+        // The check can fail: a term the tape does not see is caught.
+        let wrong = check_gradients(
+            |_, v| {
+                let y = whole(&model, &obs, &heading, v)?;
+                y.add(v[0].detach().square().sum_all())
+            },
+            &params,
+        );
+        assert!(wrong.is_err(), "{env}: a detached term must be caught");
+    }
+}
+
+#[test]
+fn unknown_names_and_options_are_errors_listing_the_known_ones() {
+    let (spec, ..) = observations("team_reach/1_ant", 1, 0);
+    let mut store = ParamStore::<f32>::new();
+    let mut init = nn::init_rng(0);
+    let mut err = |c: &ModelConfig, team: usize| {
+        Model::new(&mut store.scope("m", &mut init), c, &spec, team).unwrap_err().to_string()
+    };
+    let e = err(&ModelConfig::new("resnet"), 0);
+    for name in MODEL_NAMES.iter().chain(&PLANNED_MODELS) {
+        assert!(e.contains(name), "{e}");
+    }
+    assert!(err(&ModelConfig::new("shgnn"), 0).contains("not implemented yet"));
+    let e = err(&ModelConfig { assignment: Some(AssignmentMethod::Hungarian), ..ModelConfig::new("mlp") }, 0);
+    assert!(e.contains("assignment") && e.contains("shnn"), "{e}");
+    assert!(err(&ModelConfig::new("shnn"), 1).contains("team 1"));
+    assert!(err(&ModelConfig { head_hidden: Some(vec![]), ..ModelConfig::new("mlp_hn") }, 0).contains("hidden"));
+    // Parsing.
+    let c = ModelConfig::parse("shnn:assignment=hungarian;translation=root_mean;abstraction=mean;seed=4;head=32x16")
+        .unwrap();
+    assert_eq!(c.assignment, Some(AssignmentMethod::Hungarian));
+    assert_eq!(c.translation, Some(Translation::RootMean));
+    assert_eq!(c.abstraction, Some(EntityAbstraction::Mean));
+    assert_eq!((c.seed, c.head_hidden.clone()), (4, Some(vec![32, 16])));
+    assert!(Model::new(&mut store.scope("ok", &mut init), &c, &spec, 0).is_ok());
+    let msg = |s: &str| ModelConfig::parse(s).unwrap_err().to_string();
+    let e = msg("shnn:depth=3");
+    assert!(
+        ["assignment", "translation", "abstraction", "seed", "head", "critic"].iter().all(|k| e.contains(k)),
+        "{e}"
+    );
+    let e = msg("shnn:assignment=best");
+    assert!(["greedy", "hungarian", "stochastic", "none"].iter().all(|k| e.contains(k)), "{e}");
+    assert!(msg("shnn:translation=x").contains("body_mean"));
+    assert!(msg("shnn:abstraction=x").contains("mean"));
+    assert!(msg("shnn:assignment").contains("key=value"));
+    assert!(msg("shnn:head=256x0").contains("positive"));
+    assert!(msg("gnn").contains("shnn_og3"));
+}
