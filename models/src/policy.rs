@@ -380,6 +380,14 @@ impl Model {
         &self.prefix
     }
 
+    /// The entity-level message passing of the SHNN models (`None` for the MLPs).
+    pub fn entity_stage(&self) -> Option<&EntityMp> {
+        match &self.arch {
+            Arch::Shnn(m) => Some(&m.mp),
+            Arch::Mlp(_) => None,
+        }
+    }
+
     /// Number of scalar parameters of the model in `store` (the one it was built in).
     pub fn num_params<T: Float>(&self, store: &ParamStore<T>) -> usize {
         store.num_elements_under(&self.prefix)
@@ -410,7 +418,7 @@ impl Model {
         }
         match &mut self.arch {
             Arch::Shnn(m) => m.forward(p, obs, &self.agents, &self.spec),
-            Arch::Mlp(m) => m.forward(p, obs, heading, &self.agents, &self.spec, self.team),
+            Arch::Mlp(m) => m.forward(p, obs, heading, &self.agents, &self.spec),
         }
     }
 }
@@ -531,7 +539,6 @@ impl MlpModel {
         heading: &[S],
         agents: &[usize],
         spec: &ObsSpec,
-        team: usize,
     ) -> Result<PolicyOutput<'t, T>> {
         let tape = p.tape();
         let mut out = Vec::with_capacity(agents.len());
@@ -542,8 +549,7 @@ impl MlpModel {
         }
         // The critic sees every node, in the frame of the team's first agent.
         let all: Vec<usize> = (0..spec.n_nodes).collect();
-        let first = agents.first().copied().ok_or_else(|| ModelError::Input(format!("team {team} has no agent")))?;
-        let x = tape.constant(self.features(obs, heading, spec, first, &all)?);
+        let x = tape.constant(self.features(obs, heading, spec, agents[0], &all)?);
         let value = self.critic.forward(p, x)?.reshape(&[obs.batch])?;
         Ok(PolicyOutput { agents: out, value })
     }

@@ -5,9 +5,11 @@
 use std::cell::RefCell;
 
 use envs::tasks::{BUILTIN_NAMES, ObsSpec, StartMode, VecEnv};
-use models::input::ObsBatch;
+use models::input::{InputProcessor, ObsBatch};
 use models::policy::{MODEL_NAMES, PLANNED_MODELS};
-use models::{AssignmentMethod, EntityAbstraction, Model, ModelConfig, MpSizes, PolicyOutput, Translation};
+use models::{
+    AssignmentMethod, EntityAbstraction, GraphBuilder, Model, ModelConfig, MpSizes, PolicyOutput, Translation,
+};
 use nn::{Bound, ParamStore};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -297,4 +299,67 @@ fn unknown_names_and_options_are_errors_listing_the_known_ones() {
     assert!(msg("shnn:assignment").contains("key=value"));
     assert!(msg("shnn:head=256x0").contains("positive"));
     assert!(msg("gnn").contains("shnn_og3"));
+}
+
+/// A rotation matrix (row-major) from a random unit quaternion.
+fn random_rotation(r: &mut ChaCha8Rng) -> [[f64; 3]; 3] {
+    let q: Vec<f64> = (0..4).map(|_| r.random_range(-1.0..1.0)).collect();
+    let n = q.iter().map(|x| x * x).sum::<f64>().sqrt();
+    let (w, x, y, z) = (q[0] / n, q[1] / n, q[2] / n, q[3] / n);
+    [
+        [1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y - w * z), 2.0 * (x * z + w * y)],
+        [2.0 * (x * y + w * z), 1.0 - 2.0 * (x * x + z * z), 2.0 * (y * z - w * x)],
+        [2.0 * (x * z - w * y), 2.0 * (y * z + w * x), 1.0 - 2.0 * (x * x + y * y)],
+    ]
+}
+
+/// Left-multiplies every `[3, m]` block of `x` by `rot`.
+fn rotate_blocks(x: &[f64], m: usize, rot: &[[f64; 3]; 3]) -> Vec<f64> {
+    let mut out = vec![0.0; x.len()];
+    for (blk, o) in x.chunks(3 * m).zip(out.chunks_mut(3 * m)) {
+        for (i, row) in rot.iter().enumerate() {
+            for k in 0..m {
+                o[i * m + k] = (0..3).map(|j| row[j] * blk[j * m + k]).sum();
+            }
+        }
+    }
+    out
+}
+
+#[test]
+fn shnn_so3_message_passing_is_equivariant_under_any_rotation_with_fixed_scalars() {
+    let (spec, vectors, scalars, _) = observations("team_sumo/2_ants", B, 17);
+    let obs = ObsBatch::new(B, spec.n_nodes, &vectors[..], &scalars[..]).unwrap();
+    let inputs = InputProcessor::new(&spec, Translation::RootMean).unwrap().entities::<f64, f64>(&obs).unwrap();
+    let graph = GraphBuilder::new(&spec, AssignmentMethod::Greedy, 0, 0).unwrap().build(&inputs).unwrap();
+    let mut r = rng(8);
+    for (name, equivariant) in [("shnn_so3", true), ("shnn", false)] {
+        let (store, model) = build(&ModelConfig::new(name), &spec, 0, 2);
+        let mp = model.entity_stage().expect("an SHNN model has an entity stage");
+        let m = mp.config.vectors;
+        let stage = |z: Vec<f64>| {
+            let tape = Tape::new();
+            let p = store.bind(&tape);
+            let z0 = tape.constant(Tensor::new(z, inputs.z.shape()).unwrap());
+            let f = mp.forward(&p, z0, tape.constant(inputs.h.clone()), &graph.edges).unwrap();
+            (f.z.value().to_vec(), f.h.value().to_vec())
+        };
+        let (z, h) = stage(inputs.z.to_vec());
+        for _ in 0..3 {
+            let rot = random_rotation(&mut r);
+            let (zr, hr) = stage(rotate_blocks(&inputs.z.to_vec(), 3, &rot));
+            let (dz, dh) = (max_diff(&zr, &rotate_blocks(&z, m, &rot)), max_diff(&hr, &h));
+            if equivariant {
+                assert!(dz < 1e-9 && dh < 1e-9, "{name}: Z' {dz}, h' {dh}");
+            } else {
+                assert!(dh > 1e-6, "{name}: with gravity a general rotation changes h' ({dh})");
+            }
+        }
+    }
+    assert!(
+        Model::new(&mut ParamStore::<f64>::new().scope("m", &mut nn::init_rng(0)), &ModelConfig::new("mlp"), &spec, 0)
+            .unwrap()
+            .entity_stage()
+            .is_none()
+    );
 }
