@@ -278,7 +278,7 @@ fn the_ant_rests_on_the_ground_without_jitter() {
     // Unactuated, the ant's damped ankles sag under its weight until they reach their 30
     // degree limit (tens of seconds from the benchmark pose; MuJoCo does the same), so start
     // it there and drop it from 0.5 m.
-    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/reference/mjcf/ant.xml");
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/morphologies/mujoco_ant.xml");
     let mut m = envs::mjcf::load_file(path).unwrap();
     m.opt.timestep = 0.01;
     let mut d = Data::new(&m);

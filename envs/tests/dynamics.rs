@@ -6,7 +6,7 @@ use envs::{BodyId, Data, GeomSpec, HingeSpec, Model, ModelBuilder, Options};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-const ANT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/reference/mjcf/ant.xml");
+const ANT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/morphologies/mujoco_ant.xml");
 
 fn options(dt: f64, gravity: [f64; 3]) -> Options {
     Options { timestep: dt, gravity, disable_contact: true, ..Options::default() }

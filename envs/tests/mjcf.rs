@@ -4,7 +4,7 @@
 
 use envs::mjcf::{MjcfError, load_file, load_str};
 
-const ANT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/reference/mjcf/ant.xml");
+const ANT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/morphologies/mujoco_ant.xml");
 
 #[test]
 fn the_reference_ant_loads_with_mujocos_masses_and_inertias() {

@@ -30,7 +30,7 @@ unsafe impl GlobalAlloc for Counting {
 #[global_allocator]
 static GLOBAL: Counting = Counting;
 
-const ANT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/reference/mjcf/ant.xml");
+const ANT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/morphologies/mujoco_ant.xml");
 
 fn rollout(m: &Model, d: &mut Data, ctrl: &[f64]) {
     let nu = m.nu();

@@ -9,7 +9,7 @@ use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 
-const ANT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/reference/mjcf/ant.xml");
+const ANT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/morphologies/mujoco_ant.xml");
 const FRAMES: usize = 5;
 const STEPS: usize = 1000;
 
