@@ -28,6 +28,37 @@ fn block_size(len: usize) -> usize {
     (len.div_ceil(8).div_ceil(16) * 16).clamp(MIN_BLOCK, 512)
 }
 
+/// One product `op(A) @ op(B)` over row-major storage: `op(A)` is `m x k` (`a` holds `A`,
+/// or `A^T` when `ta`), `op(B)` is `k x n` (likewise with `tb`).
+#[derive(Clone, Copy)]
+struct Product<'a, T> {
+    a: &'a [T],
+    ta: bool,
+    b: &'a [T],
+    tb: bool,
+    m: usize,
+    k: usize,
+    n: usize,
+}
+
+impl<'a, T: Float> Product<'a, T> {
+    /// faer views of `op(A)` and `op(B)`; a transpose is a swap of strides, not a copy.
+    fn views(&self) -> (MatRef<'a, T>, MatRef<'a, T>) {
+        let (a, b, m, k, n) = (self.a, self.b, self.m, self.k, self.n);
+        let lhs = if self.ta {
+            MatRef::from_row_major_slice(a, k, m).transpose()
+        } else {
+            MatRef::from_row_major_slice(a, m, k)
+        };
+        let rhs = if self.tb {
+            MatRef::from_row_major_slice(b, n, k).transpose()
+        } else {
+            MatRef::from_row_major_slice(b, k, n)
+        };
+        (lhs, rhs)
+    }
+}
+
 /// The logical problem: `op(A)` is `m x k`, `op(B)` is `k x n`, per batch entry.
 #[derive(Clone, Debug)]
 pub struct MatMulPlan {
@@ -111,9 +142,9 @@ pub fn matmul_into<T: Float>(out: &mut [T], accumulate: bool, a: &[T], ta: bool,
         let am = &a[oa..oa + m * k];
         let bm = &b[ob..ob + k * n];
         if work < SMALL_WORK {
-            small_matmul(o, accumulate, am, ta, bm, tb, m, k, n);
+            small_matmul(o, accumulate, Product { a: am, ta, b: bm, tb, m, k, n });
         } else {
-            faer_matmul(o, accumulate, am, ta, bm, tb, m, k, n, 0, m);
+            faer_matmul(o, accumulate, Product { a: am, ta, b: bm, tb, m, k, n }, 0, m);
         }
     };
     let nb = plan.offsets.len();
@@ -133,7 +164,7 @@ pub fn matmul_into<T: Float>(out: &mut [T], accumulate: bool, a: &[T], ta: bool,
                 let (k0, kc) = (c * chunk, chunk.min(k - c * chunk));
                 let mut part = crate::pool::zeros(m * n);
                 let (a_rows, b_rows) = (&a[oa + k0 * m..oa + (k0 + kc) * m], &b[ob + k0 * n..ob + (k0 + kc) * n]);
-                faer_matmul(&mut part, false, a_rows, true, b_rows, false, m, kc, n, 0, m);
+                faer_matmul(&mut part, false, Product { a: a_rows, ta: true, b: b_rows, tb: false, m, k: kc, n }, 0, m);
                 part
             })
             .collect();
@@ -171,32 +202,14 @@ pub fn matmul_into<T: Float>(out: &mut [T], accumulate: bool, a: &[T], ta: bool,
         if m >= n {
             let rb = block_size(m);
             out.par_chunks_mut(rb * n).enumerate().for_each(|(blk, o)| {
-                faer_matmul(o, accumulate, am, ta, bm, tb, m, k, n, blk * rb, o.len() / n);
+                faer_matmul(o, accumulate, Product { a: am, ta, b: bm, tb, m, k, n }, blk * rb, o.len() / n);
             });
         } else {
-            matmul_col_blocks(out, accumulate, am, ta, bm, tb, m, k, n, block_size(n));
+            matmul_col_blocks(out, accumulate, Product { a: am, ta, b: bm, tb, m, k, n }, block_size(n));
         }
     } else {
         out.chunks_mut(mn).zip(plan.offsets.iter()).for_each(|(o, off)| one(o, off));
     }
-}
-
-/// faer views of `op(A)` (`m x k`) and `op(B)` (`k x n`) over row-major storage; a transpose
-/// is a swap of strides, not a copy.
-fn views<'a, T: Float>(
-    a: &'a [T],
-    ta: bool,
-    b: &'a [T],
-    tb: bool,
-    m: usize,
-    k: usize,
-    n: usize,
-) -> (MatRef<'a, T>, MatRef<'a, T>) {
-    let lhs =
-        if ta { MatRef::from_row_major_slice(a, k, m).transpose() } else { MatRef::from_row_major_slice(a, m, k) };
-    let rhs =
-        if tb { MatRef::from_row_major_slice(b, n, k).transpose() } else { MatRef::from_row_major_slice(b, k, n) };
-    (lhs, rhs)
 }
 
 /// A pointer that may cross threads; each thread writes a disjoint block through it.
@@ -205,54 +218,37 @@ struct SendPtr<T>(*mut T);
 unsafe impl<T> Send for SendPtr<T> {}
 unsafe impl<T> Sync for SendPtr<T> {}
 
+impl<T> SendPtr<T> {
+    /// The pointer (a method, so closures capture the whole `SendPtr`, which is `Send`).
+    fn get(self) -> *mut T {
+        self.0
+    }
+}
+
 /// `op(A) @ op(B)` split into fixed blocks of columns computed in parallel (for outputs
 /// with few rows and many columns, such as weight gradients `x^T g`). Each output element
 /// is computed by one thread, so the result does not depend on the thread count.
-#[allow(clippy::too_many_arguments)]
-fn matmul_col_blocks<T: Float>(
-    out: &mut [T],
-    accumulate: bool,
-    a: &[T],
-    ta: bool,
-    b: &[T],
-    tb: bool,
-    m: usize,
-    k: usize,
-    n: usize,
-    cb: usize,
-) {
+fn matmul_col_blocks<T: Float>(out: &mut [T], accumulate: bool, p: Product<'_, T>, cb: usize) {
+    let (m, n) = (p.m, p.n);
     assert_eq!(out.len(), m * n);
-    let (lhs, rhs) = views(a, ta, b, tb, m, k, n);
+    let (lhs, rhs) = p.views();
     let ptr = SendPtr(out.as_mut_ptr());
     let accum = if accumulate { Accum::Add } else { Accum::Replace };
     (0..n.div_ceil(cb)).into_par_iter().for_each(|blk| {
         let c0 = blk * cb;
         let nc = cb.min(n - c0);
-        let p = ptr;
         // SAFETY: `out` holds m x n elements in row-major order and outlives this scope; block
         // `blk` covers columns c0..c0+nc of every row, disjoint from every other block, so no
         // two threads write the same element and nothing else reads `out` meanwhile.
-        let dst: MatMut<'_, T> = unsafe { MatMut::from_raw_parts_mut(p.0.add(c0), m, nc, n as isize, 1) };
+        let dst: MatMut<'_, T> = unsafe { MatMut::from_raw_parts_mut(ptr.get().add(c0), m, nc, n as isize, 1) };
         faer::linalg::matmul::matmul(dst, accum, lhs, rhs.subcols(c0, nc), T::ONE, Par::Seq);
     });
 }
 
 /// Rows `r0..r0+rows` of `op(A) @ op(B)` through faer, single-threaded.
-#[allow(clippy::too_many_arguments)]
-fn faer_matmul<T: Float>(
-    out: &mut [T],
-    accumulate: bool,
-    a: &[T],
-    ta: bool,
-    b: &[T],
-    tb: bool,
-    m: usize,
-    k: usize,
-    n: usize,
-    r0: usize,
-    rows: usize,
-) {
-    let (lhs, rhs) = views(a, ta, b, tb, m, k, n);
+fn faer_matmul<T: Float>(out: &mut [T], accumulate: bool, p: Product<'_, T>, r0: usize, rows: usize) {
+    let n = p.n;
+    let (lhs, rhs) = p.views();
     let lhs = lhs.subrows(r0, rows);
     let dst: MatMut<'_, T> = MatMut::from_row_major_slice_mut(out, rows, n);
     let accum = if accumulate { Accum::Add } else { Accum::Replace };
@@ -260,18 +256,8 @@ fn faer_matmul<T: Float>(
 }
 
 /// Direct loops for tiny products; the inner loop runs over contiguous memory.
-#[allow(clippy::too_many_arguments)]
-fn small_matmul<T: Float>(
-    out: &mut [T],
-    accumulate: bool,
-    a: &[T],
-    ta: bool,
-    b: &[T],
-    tb: bool,
-    m: usize,
-    k: usize,
-    n: usize,
-) {
+fn small_matmul<T: Float>(out: &mut [T], accumulate: bool, p: Product<'_, T>) {
+    let Product { a, ta, b, tb, m, k, n } = p;
     if !accumulate {
         out.iter_mut().for_each(|v| *v = T::ZERO);
     }
@@ -360,16 +346,16 @@ pub fn small_batched_backward<T: Float>(
     // dA (stored layout) and dB (stored layout) of one batch entry.
     let grad_a = |out: &mut [T], gi: &[T], bi: &[T]| {
         if !ta {
-            small_matmul(out, true, gi, false, bi, !tb, m, n, k);
+            small_matmul(out, true, Product { a: gi, ta: false, b: bi, tb: !tb, m, k: n, n: k });
         } else {
-            small_matmul(out, true, bi, tb, gi, true, k, n, m);
+            small_matmul(out, true, Product { a: bi, ta: tb, b: gi, tb: true, m: k, k: n, n: m });
         }
     };
     let grad_b = |out: &mut [T], gi: &[T], ai: &[T]| {
         if !tb {
-            small_matmul(out, true, ai, !ta, gi, false, k, m, n);
+            small_matmul(out, true, Product { a: ai, ta: !ta, b: gi, tb: false, m: k, k: m, n });
         } else {
-            small_matmul(out, true, gi, true, ai, ta, n, m, k);
+            small_matmul(out, true, Product { a: gi, ta: true, b: ai, tb: ta, m: n, k: m, n: k });
         }
     };
     match db {
