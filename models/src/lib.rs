@@ -6,7 +6,8 @@
 //!   ([`entity_graph`]) and the entity-level subequivariant message passing with the LRF
 //!   vector ([`entity_mp`]);
 //! - the policy/critic interface and the models built by name ([`policy`]: `shnn`,
-//!   `shnn_og3`, `shnn_so3`, `mlp`, `mlp_hn`).
+//!   `shnn_og3`, `shnn_so3`, `mlp`, `mlp_hn`, `transformer_hn`, `shtransformer`; the Transformer
+//!   body head in [`transformer_head`]).
 
 pub mod assignment;
 pub mod distribution;
@@ -16,6 +17,7 @@ pub mod error;
 pub mod frame;
 pub mod input;
 pub mod policy;
+pub mod transformer_head;
 
 pub use assignment::{Assigner, AssignmentMethod, UNASSIGNED, distance_matrix};
 pub use entity_graph::{EntityGraph, GraphBuilder, GraphTask};
@@ -23,3 +25,4 @@ pub use entity_mp::{EntityFeatures, EntityMp, EntityMpConfig};
 pub use error::{ModelError, Result};
 pub use input::{AgentBody, EntityAbstraction, EntityInputs, InputProcessor, ObsBatch, Translation};
 pub use policy::{AgentPolicy, MODEL_NAMES, Model, ModelConfig, MpSizes, PolicyOutput};
+pub use transformer_head::TransformerHead;

@@ -11,8 +11,11 @@
 //! ([`PolicyOutput`]).
 //!
 //! Parameter names under the scope: `entity.*` (the entity-level message passing, shared by
-//! the team's agents), `actor.<a>.*` (one body head per agent `a`, scene agent index) and
-//! `critic.*`. Within a team only the entity stage is shared (paper section 5).
+//! the team's agents), `actor.<a>.*` (one MLP body head per agent `a`, scene agent index) or
+//! `actor.*` (the Transformer head every agent of the team shares) and `critic.*`. With MLP
+//! heads only the entity stage is shared within a team (paper section 5); the Transformer
+//! head is one network for all nodes and morphologies (paper appendix "Model Comparison":
+//! Transformer and GNN "share parameters across different morphologies").
 //!
 //! # Models
 //! - `shnn` (paper section 3): the entity stage ([`EntityMp`]: input processing, task
@@ -37,11 +40,20 @@
 //!   ([`crate::frame::heading_frame`] of [`Observation::heading`]) with positions relative to
 //!   the agent's root; the critic reads the scene in the frame of the team's first agent.
 //!
-//! The other models of issue 6 (`shtransformer`, `shgnn`, `transformer_hn`, `hnn`,
-//! `hnn_hn`, `hnn_dn`) are listed in [`PLANNED_MODELS`] and rejected for now.
+//! - `transformer_hn` (Transformer+HN, paper section "Extended Evaluations on
+//!   Transformer"): the nodes of `mlp_hn`'s agent view, each in the agent's heading frame,
+//!   are the tokens of one shared [`TransformerHead`] (128/256/3/2, no positional encoding,
+//!   decoder conditioned on the token); each DoF node's output gives that DoF's `loc`,
+//!   `scale`. Critic as `mlp_hn`'s.
+//! - `shtransformer` (SHTransformer): `shnn` with the MLP head replaced by the shared
+//!   [`TransformerHead`] over the agent's own nodes, token `k` = `[O_a^T Z_{a,k}, h_{a,k},
+//!   h'_a]` (`shnn`'s head input, one node per token). Critic as `shnn`'s.
+//!
+//! The other models of issue 6 (`shgnn`, `hnn`, `hnn_hn`, `hnn_dn`) are listed in
+//! [`PLANNED_MODELS`] and rejected for now.
 
 use envs::tasks::{N_SCALARS, ObsSpec, Observation};
-use nn::{Bound, Mlp, ParamStore, Scope};
+use nn::{Bound, Mlp, ParamStore, Scope, TransformerConfig};
 use tensor::{Activation, Float, Tensor, Var};
 
 use crate::assignment::AssignmentMethod;
@@ -51,12 +63,13 @@ use crate::entity_mp::{EntityMp, EntityMpConfig};
 use crate::error::{ModelError, Result};
 use crate::frame::to_frame;
 use crate::input::{EntityAbstraction, InputProcessor, ObsBatch, ObsElement, Translation};
+use crate::transformer_head::TransformerHead;
 
 /// The models [`Model::new`] builds.
-pub const MODEL_NAMES: [&str; 5] = ["shnn", "shnn_og3", "shnn_so3", "mlp", "mlp_hn"];
+pub const MODEL_NAMES: [&str; 7] = ["shnn", "shnn_og3", "shnn_so3", "mlp", "mlp_hn", "transformer_hn", "shtransformer"];
 
 /// Models of the paper that are not implemented yet (an error names them as planned).
-pub const PLANNED_MODELS: [&str; 6] = ["shtransformer", "shgnn", "transformer_hn", "hnn", "hnn_hn", "hnn_dn"];
+pub const PLANNED_MODELS: [&str; 4] = ["shgnn", "hnn", "hnn_hn", "hnn_dn"];
 
 /// The option keys [`ModelConfig::parse`] accepts.
 pub const OPTION_KEYS: [&str; 6] = ["assignment", "translation", "abstraction", "seed", "head", "critic"];
@@ -99,9 +112,11 @@ pub struct ModelConfig {
     pub abstraction: Option<EntityAbstraction>,
     /// Entity message-passing sizes (SHNN models; default [`MpSizes::default`]).
     pub mp: Option<MpSizes>,
-    /// Hidden widths of each agent's head (default 256, 256 for SHNN; 256 x 3 for MLPs).
+    /// Hidden widths of each agent's MLP head (default 256, 256 for SHNN; 256 x 3 for MLPs;
+    /// not an option of the Transformer models).
     pub head_hidden: Option<Vec<usize>>,
-    /// Hidden widths of the critic (default as the head's).
+    /// Hidden widths of the critic (default as the head's; 256, 256 for `shtransformer`,
+    /// 256 x 3 for `transformer_hn`).
     pub critic_hidden: Option<Vec<usize>>,
     /// Seed of the stochastic assignment.
     pub seed: u64,
@@ -214,13 +229,20 @@ enum FrameKind {
     Channels,
 }
 
+/// Body-level heads: one MLP per agent, or one Transformer for the team.
+#[derive(Clone, Debug)]
+enum Heads {
+    Mlp(Vec<Mlp>),
+    Transformer(Box<TransformerHead>),
+}
+
 #[derive(Clone, Debug)]
 struct Shnn {
     proc: InputProcessor,
     graph: GraphBuilder,
     mp: EntityMp,
     frame: FrameKind,
-    heads: Vec<Mlp>,
+    heads: Heads,
     critic: Mlp,
     /// Entity order of the critic input (own agents, other agents, balls).
     critic_entities: Vec<usize>,
@@ -231,7 +253,7 @@ struct MlpModel {
     heading: bool,
     /// Per agent its view (node list).
     views: Vec<Vec<usize>>,
-    heads: Vec<Mlp>,
+    heads: Heads,
     critic: Mlp,
 }
 
@@ -265,7 +287,16 @@ impl Model {
         if agents.is_empty() {
             return Err(ModelError::Input(format!("team {team} has no agent")));
         }
-        let shnn = config.name.starts_with("shnn");
+        // The models with SHNN's entity stage, and those with a Transformer body head.
+        let shnn = config.name.starts_with("sh");
+        let transformer = config.name.contains("transformer");
+        if transformer && config.head_hidden.is_some() {
+            return Err(ModelError::Option(format!(
+                "model `{}` takes no option `head` (its body head is a Transformer; `head` applies to shnn, \
+                 shnn_og3, shnn_so3, mlp, mlp_hn)",
+                config.name
+            )));
+        }
         let hidden = |h: &Option<Vec<usize>>, default: &[usize]| -> Result<Vec<usize>> {
             let h = h.clone().unwrap_or_else(|| default.to_vec());
             if h.is_empty() || h.contains(&0) {
@@ -306,14 +337,22 @@ impl Model {
                 FrameKind::Channels => m.vectors,
             };
             let mut actor = s.sub("actor");
-            let heads = agents
-                .iter()
-                .map(|&a| {
-                    let k = 1 + spec.agent_dof[a];
-                    let input = k * (3 * channels + N_SCALARS) + m.scalars;
-                    Mlp::new(&mut actor.sub(a), &sizes(input, &head_hidden, 2 * spec.agent_dof[a]), Activation::Relu)
-                })
-                .collect::<nn::Result<Vec<_>>>()?;
+            let heads = if transformer {
+                let features = 3 * channels + N_SCALARS + m.scalars;
+                Heads::Transformer(Box::new(TransformerHead::new(&mut actor, features, TransformerConfig::default())?))
+            } else {
+                Heads::Mlp(
+                    agents
+                        .iter()
+                        .map(|&a| {
+                            let k = 1 + spec.agent_dof[a];
+                            let input = k * (3 * channels + N_SCALARS) + m.scalars;
+                            let sz = sizes(input, &head_hidden, 2 * spec.agent_dof[a]);
+                            Mlp::new(&mut actor.sub(a), &sz, Activation::Relu)
+                        })
+                        .collect::<nn::Result<Vec<_>>>()?,
+                )
+            };
             let ne = spec.entity_root_node.len();
             let critic = Mlp::new(&mut s.sub("critic"), &sizes(ne * m.scalars, &critic_hidden, 1), Activation::Relu)?;
             let mut critic_entities = agents.clone();
@@ -329,28 +368,40 @@ impl Model {
             ] {
                 if set {
                     return Err(ModelError::Option(format!(
-                        "model `{}` takes no option `{key}` (it applies to shnn, shnn_og3, shnn_so3; \
-                         {} takes head, critic)",
-                        config.name, config.name
+                        "model `{}` takes no option `{key}` (it applies to shnn, shnn_og3, shnn_so3, \
+                         shtransformer; {} takes {})",
+                        config.name,
+                        config.name,
+                        if transformer { "critic" } else { "head, critic" }
                     )));
                 }
             }
             let views: Vec<Vec<usize>> = agents.iter().map(|&a| spec.agent_view(a)).collect();
             let mut actor = s.sub("actor");
-            let heads = agents
-                .iter()
-                .zip(&views)
-                .map(|(&a, v)| {
-                    let sz = sizes(v.len() * NODE_FEATURES, &head_hidden, 2 * spec.agent_dof[a]);
-                    Mlp::new(&mut actor.sub(a), &sz, Activation::Relu)
-                })
-                .collect::<nn::Result<Vec<_>>>()?;
+            let heads = if transformer {
+                Heads::Transformer(Box::new(TransformerHead::new(
+                    &mut actor,
+                    NODE_FEATURES,
+                    TransformerConfig::default(),
+                )?))
+            } else {
+                Heads::Mlp(
+                    agents
+                        .iter()
+                        .zip(&views)
+                        .map(|(&a, v)| {
+                            let sz = sizes(v.len() * NODE_FEATURES, &head_hidden, 2 * spec.agent_dof[a]);
+                            Mlp::new(&mut actor.sub(a), &sz, Activation::Relu)
+                        })
+                        .collect::<nn::Result<Vec<_>>>()?,
+                )
+            };
             let critic = Mlp::new(
                 &mut s.sub("critic"),
                 &sizes(spec.n_nodes * NODE_FEATURES, &critic_hidden, 1),
                 Activation::Relu,
             )?;
-            Arch::Mlp(MlpModel { heading: config.name == "mlp_hn", views, heads, critic })
+            Arch::Mlp(MlpModel { heading: config.name.ends_with("_hn"), views, heads, critic })
         };
         Ok(Self { name: config.name.clone(), team, agents, spec: spec.clone(), prefix, arch })
     }
@@ -458,19 +509,33 @@ impl Shnn {
         };
         let channels = frame.shape()[2];
         let mut out = Vec::with_capacity(agents.len());
-        for (head, body) in self.heads.iter().zip(&bodies) {
+        for (i, body) in bodies.iter().enumerate() {
             let k = body.z.shape()[1];
+            let dof = spec.agent_dof[body.agent];
             let rows = inputs.rows_of(body.agent);
             let node_rows: Vec<usize> = rows.iter().flat_map(|&r| std::iter::repeat_n(r, k)).collect();
             // Eq. (lrf): O_a^T Z_{a,k} for every node of the agent.
             let o = frame.index_select(0, &node_rows)?;
             let z = tape.constant(body.z.reshape(&[nb * k, 3, 3])?);
-            let local = to_frame(o, z)?.reshape(&[nb, k * channels * 3])?;
-            let hb = tape.constant(body.h.reshape(&[nb, k * N_SCALARS])?);
+            let local = to_frame(o, z)?;
             let ha = f.h.index_select(0, &rows)?;
-            // Eq. (pi): the head on [O^T Z, h, h'_a].
-            let hidden = head.forward_hidden_parts(p, &[local, hb, ha])?;
-            out.push(split_head(head, p, hidden, body.agent, spec.agent_dof[body.agent])?);
+            match &self.heads {
+                Heads::Mlp(heads) => {
+                    // Eq. (pi): the head on [O^T Z, h, h'_a].
+                    let local = local.reshape(&[nb, k * channels * 3])?;
+                    let hb = tape.constant(body.h.reshape(&[nb, k * N_SCALARS])?);
+                    let hidden = heads[i].forward_hidden_parts(p, &[local, hb, ha])?;
+                    out.push(split_head(&heads[i], p, hidden, body.agent, dof)?);
+                }
+                Heads::Transformer(head) => {
+                    // One token per node: [O^T Z_k, h_k, h'_a]; the DoF nodes follow the root.
+                    let local = local.reshape(&[nb, k, channels * 3])?;
+                    let hb = tape.constant(body.h.clone());
+                    let ha = ha.reshape(&[nb, 1, ha.shape()[1]])?.expand(&[nb, k, ha.shape()[1]])?;
+                    let (loc, scale) = head.forward(p, tape.cat(&[local, hb, ha], 2)?, 1, dof)?;
+                    out.push(AgentPolicy { agent: body.agent, loc, scale });
+                }
+            }
         }
         // Eq. (value): the critic on h' of all entities.
         let ne = inputs.entities;
@@ -542,10 +607,21 @@ impl MlpModel {
     ) -> Result<PolicyOutput<'t, T>> {
         let tape = p.tape();
         let mut out = Vec::with_capacity(agents.len());
-        for ((&a, view), head) in agents.iter().zip(&self.views).zip(&self.heads) {
-            let x = tape.constant(self.features(obs, heading, spec, a, view)?);
-            let hidden = head.forward_hidden(p, x)?;
-            out.push(split_head(head, p, hidden, a, spec.agent_dof[a])?);
+        for (i, (&a, view)) in agents.iter().zip(&self.views).enumerate() {
+            let x = self.features(obs, heading, spec, a, view)?;
+            let dof = spec.agent_dof[a];
+            match &self.heads {
+                Heads::Mlp(heads) => {
+                    let hidden = heads[i].forward_hidden(p, tape.constant(x))?;
+                    out.push(split_head(&heads[i], p, hidden, a, dof)?);
+                }
+                Heads::Transformer(head) => {
+                    // One token per node of the view; its DoF nodes follow its root.
+                    let tokens = tape.constant(x.reshape(&[obs.batch, view.len(), NODE_FEATURES])?);
+                    let (loc, scale) = head.forward(p, tokens, 1, dof)?;
+                    out.push(AgentPolicy { agent: a, loc, scale });
+                }
+            }
         }
         // The critic sees every node, in the frame of the team's first agent.
         let all: Vec<usize> = (0..spec.n_nodes).collect();

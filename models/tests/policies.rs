@@ -1,6 +1,7 @@
-//! Tests of the policy/critic interface (`models::policy`): invariance of the SHNN policies
-//! and values, heading normalisation, the MLP baseline's lack of invariance, forward on
-//! every built-in environment, a gradient check through a whole small SHNN, and errors.
+//! Tests of the policy/critic interface (`models::policy`): invariance of the SHNN and
+//! SHTransformer policies and values, heading normalisation (`mlp_hn`, `transformer_hn`),
+//! the MLP baseline's lack of invariance, forward on every built-in environment, a gradient
+//! check through a whole small SHNN, parameter counts, and errors.
 
 use std::cell::RefCell;
 
@@ -102,6 +103,8 @@ fn shnn_policies_and_values_are_invariant_under_rotations_about_gravity_and_tran
         ("shnn", "team_reach/2_ant_claw", 0),
         ("shnn_og3", "team_reach/2_ants", 0),
         ("shnn_so3", "team_sumo/2_ants", 1),
+        ("shtransformer", "team_reach/2_ant_claw", 0),
+        ("shtransformer", "team_sumo/2_ants", 1),
     ];
     for (model_name, env, team) in cases {
         let (spec, vectors, scalars, heading) = observations(env, B, 11);
@@ -150,7 +153,7 @@ fn mlp_hn_is_invariant_under_yaw_and_mlp_is_not() {
     for (env, team) in [("team_reach/2_ant_claw", 0), ("team_sumo/2_ants", 1)] {
         let (spec, vectors, scalars, heading) = observations(env, B, 13);
         let (v, h) = transform(&vectors, &heading, 2.1, [3.0, -1.5]);
-        for (name, invariant) in [("mlp_hn", true), ("mlp", false)] {
+        for (name, invariant) in [("mlp_hn", true), ("transformer_hn", true), ("mlp", false)] {
             let (store, mut model) = build(&ModelConfig::new(name), &spec, team, 6);
             let base = run(&mut model, &store, &spec, &vectors, &scalars, &heading);
             let moved = run(&mut model, &store, &spec, &v, &scalars, &h);
@@ -197,14 +200,17 @@ fn forward_on_every_builtin_environment_for_every_model() {
                     assert_eq!(pol.scale.shape(), [2, dof], "{name} on {env} agent {a}");
                     assert!(pol.loc.value().all_finite() && pol.scale.value().all_finite(), "{name} on {env}");
                     assert!(pol.std().value().data().iter().all(|&s| s >= 0.001));
-                    // One head per agent.
-                    assert!(store.num_elements_under(&format!("{prefix}.actor.{a}.")) > 0);
+                    // One MLP head per agent, or one Transformer head for the team.
+                    let own_head = store.num_elements_under(&format!("{prefix}.actor.{a}."));
+                    assert_eq!(own_head > 0, !name.contains("transformer"), "{name}");
                 }
                 assert_eq!(out.value.shape(), [2], "{name} on {env}");
                 assert!(out.value.value().all_finite(), "{name} on {env}");
-                // Only the entity stage is shared: its parameters exist once per team.
+                // The entity stage (and a Transformer head) exist once per team.
                 let shared = store.num_elements_under(&format!("{prefix}.entity."));
-                assert_eq!(shared > 0, name.starts_with("shnn"), "{name}");
+                assert_eq!(shared > 0, name.starts_with("sh"), "{name}");
+                let head = store.num_elements_under(&format!("{prefix}.actor.encoder."));
+                assert_eq!(head > 0, name.contains("transformer"), "{name}");
             }
         }
     }
@@ -278,6 +284,10 @@ fn unknown_names_and_options_are_errors_listing_the_known_ones() {
     assert!(e.contains("assignment") && e.contains("shnn"), "{e}");
     assert!(err(&ModelConfig::new("shnn"), 1).contains("team 1"));
     assert!(err(&ModelConfig { head_hidden: Some(vec![]), ..ModelConfig::new("mlp_hn") }, 0).contains("hidden"));
+    let e = err(&ModelConfig { head_hidden: Some(vec![8]), ..ModelConfig::new("shtransformer") }, 0);
+    assert!(e.contains("head") && e.contains("Transformer"), "{e}");
+    let e = err(&ModelConfig { translation: Some(Translation::None), ..ModelConfig::new("transformer_hn") }, 0);
+    assert!(e.contains("translation") && e.contains("shtransformer"), "{e}");
     // Parsing.
     let c = ModelConfig::parse("shnn:assignment=hungarian;translation=root_mean;abstraction=mean;seed=4;head=32x16")
         .unwrap();
@@ -362,4 +372,32 @@ fn shnn_so3_message_passing_is_equivariant_under_any_rotation_with_fixed_scalars
             .entity_stage()
             .is_none()
     );
+}
+
+/// The parameter counts of the table in `docs/ARCHITECTURE.md` ("Policies and critics"),
+/// team 0 of `team_reach/3_ant_claw_centipede` (all three agents), with every part.
+#[test]
+fn parameter_counts_of_the_docs_table() {
+    let (spec, ..) = observations("team_reach/3_ant_claw_centipede", 1, 0);
+    // (model, total, entity stage, actor, critic)
+    let expected = [
+        ("shnn", 933_389, 302_528, 466_252, 164_609),
+        ("shnn_og3", 1_846_541, 302_528, 1_379_404, 164_609),
+        ("shnn_so3", 933_293, 302_432, 466_252, 164_609),
+        ("mlp", 1_033_549, 0, 687_436, 346_113),
+        ("mlp_hn", 1_033_549, 0, 687_436, 346_113),
+        ("transformer_hn", 746_409, 0, 400_296, 346_113),
+        ("shtransformer", 875_753, 302_528, 408_616, 164_609),
+    ];
+    // One Transformer encoder (128/256/3/2) is 3 x 132,480 parameters.
+    let encoder = 3 * 132_480;
+    for (name, total, entity, actor, critic) in expected {
+        let (store, model) = build(&ModelConfig::new(name), &spec, 0, 0);
+        let part = |p: &str| store.num_elements_under(&format!("team.{p}"));
+        let got = (model.num_params(&store), part("entity."), part("actor."), part("critic."));
+        assert_eq!(got, (total, entity, actor, critic), "{name}: update the table in docs/ARCHITECTURE.md");
+        if name.contains("transformer") {
+            assert_eq!(part("actor.encoder."), encoder, "{name}");
+        }
+    }
 }
