@@ -6,10 +6,11 @@
 //!   ([`entity_graph`]) and the entity-level subequivariant message passing with the LRF
 //!   vector ([`entity_mp`]);
 //! - the policy/critic interface and the models built by name ([`policy`]: `shnn`,
-//!   `shnn_og3`, `shnn_so3`, `mlp`, `mlp_hn`, `transformer_hn`, `shtransformer`; the Transformer
-//!   body head in [`transformer_head`]).
+//!   `shnn_og3`, `shnn_so3`, `mlp`, `mlp_hn`, `transformer_hn`, `shtransformer`, `shgnn`; the Transformer
+//!   body head in [`transformer_head`], the body GNN in [`body_gnn`]).
 
 pub mod assignment;
+pub mod body_gnn;
 pub mod distribution;
 pub mod entity_graph;
 pub mod entity_mp;
@@ -20,6 +21,7 @@ pub mod policy;
 pub mod transformer_head;
 
 pub use assignment::{Assigner, AssignmentMethod, UNASSIGNED, distance_matrix};
+pub use body_gnn::{BodyGnn, BodyGnnConfig};
 pub use entity_graph::{EntityGraph, GraphBuilder, GraphTask};
 pub use entity_mp::{EntityFeatures, EntityMp, EntityMpConfig};
 pub use error::{ModelError, Result};

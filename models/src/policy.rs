@@ -49,7 +49,14 @@
 //!   [`TransformerHead`] over the agent's own nodes, token `k` = `[O_a^T Z_{a,k}, h_{a,k},
 //!   h'_a]` (`shnn`'s head input, one node per token). Critic as `shnn`'s.
 //!
-//! The other models of issue 6 (`shgnn`, `hnn`, `hnn_hn`, `hnn_dn`) are listed in
+//! - `shgnn` (SHGNN, paper appendix section `sec:sgnn`): `shnn` with the MLP head replaced
+//!   by one body-level subequivariant GNN ([`BodyGnn`]) shared by the team's agents and
+//!   morphologies: message passing with gravity over each agent's morphology graph (root and
+//!   DoF nodes, parent/child edges both ways), node inputs `Z_{a,k}`, `[h_{a,k}, h'_a,
+//!   p^z_{a,k}]`; each DoF node decoded to `loc`, `scale` from its output vectors in `O_a`
+//!   and its scalars. Critic as `shnn`'s.
+//!
+//! The other models of issue 6 (`hnn`, `hnn_hn`, `hnn_dn`) are listed in
 //! [`PLANNED_MODELS`] and rejected for now.
 
 use envs::tasks::{N_SCALARS, ObsSpec, Observation};
@@ -57,6 +64,7 @@ use nn::{Bound, Mlp, ParamStore, Scope, TransformerConfig};
 use tensor::{Activation, Float, Tensor, Var};
 
 use crate::assignment::AssignmentMethod;
+use crate::body_gnn::{BodyGnn, BodyGnnConfig};
 use crate::distribution::std_from_scale;
 use crate::entity_graph::GraphBuilder;
 use crate::entity_mp::{EntityMp, EntityMpConfig};
@@ -66,10 +74,11 @@ use crate::input::{EntityAbstraction, InputProcessor, ObsBatch, ObsElement, Tran
 use crate::transformer_head::TransformerHead;
 
 /// The models [`Model::new`] builds.
-pub const MODEL_NAMES: [&str; 7] = ["shnn", "shnn_og3", "shnn_so3", "mlp", "mlp_hn", "transformer_hn", "shtransformer"];
+pub const MODEL_NAMES: [&str; 8] =
+    ["shnn", "shnn_og3", "shnn_so3", "mlp", "mlp_hn", "transformer_hn", "shtransformer", "shgnn"];
 
 /// Models of the paper that are not implemented yet (an error names them as planned).
-pub const PLANNED_MODELS: [&str; 4] = ["shgnn", "hnn", "hnn_hn", "hnn_dn"];
+pub const PLANNED_MODELS: [&str; 3] = ["hnn", "hnn_hn", "hnn_dn"];
 
 /// The option keys [`ModelConfig::parse`] accepts.
 pub const OPTION_KEYS: [&str; 6] = ["assignment", "translation", "abstraction", "seed", "head", "critic"];
@@ -229,11 +238,12 @@ enum FrameKind {
     Channels,
 }
 
-/// Body-level heads: one MLP per agent, or one Transformer for the team.
+/// Body-level heads: one MLP per agent, or one Transformer or GNN for the team.
 #[derive(Clone, Debug)]
 enum Heads {
     Mlp(Vec<Mlp>),
     Transformer(Box<TransformerHead>),
+    Gnn(Box<BodyGnn>),
 }
 
 #[derive(Clone, Debug)]
@@ -290,6 +300,7 @@ impl Model {
         // The models with SHNN's entity stage, and those with a Transformer body head.
         let shnn = config.name.starts_with("sh");
         let transformer = config.name.contains("transformer");
+        let gnn = config.name == "shgnn";
         if transformer && config.head_hidden.is_some() {
             return Err(ModelError::Option(format!(
                 "model `{}` takes no option `head` (its body head is a Transformer; `head` applies to shnn, \
@@ -305,8 +316,9 @@ impl Model {
             Ok(h)
         };
         let default_hidden: &[usize] = if shnn { &[256, 256] } else { &[256, 256, 256] };
-        let head_hidden = hidden(&config.head_hidden, default_hidden)?;
-        let critic_hidden = hidden(&config.critic_hidden, &head_hidden)?;
+        // shgnn's `head` is its per-node decoder (default one hidden layer of 64).
+        let head_hidden = hidden(&config.head_hidden, if gnn { &[64] } else { default_hidden })?;
+        let critic_hidden = hidden(&config.critic_hidden, if gnn { default_hidden } else { &head_hidden })?;
         let sizes = |input: usize, h: &[usize], out: usize| {
             let mut v = vec![input];
             v.extend_from_slice(h);
@@ -337,7 +349,19 @@ impl Model {
                 FrameKind::Channels => m.vectors,
             };
             let mut actor = s.sub("actor");
-            let heads = if transformer {
+            let heads = if gnn {
+                let cfg = BodyGnnConfig {
+                    vectors: m.vectors,
+                    scalars: m.scalars,
+                    hidden: m.hidden,
+                    layers: m.layers,
+                    steps: m.steps,
+                    entity_scalars: m.scalars,
+                    decoder_hidden: head_hidden.clone(),
+                    gravity: spec.gravity_dir.map(f64::from),
+                };
+                Heads::Gnn(Box::new(BodyGnn::new(&mut actor, cfg, spec, &agents)?))
+            } else if transformer {
                 let features = 3 * channels + N_SCALARS + m.scalars;
                 Heads::Transformer(Box::new(TransformerHead::new(&mut actor, features, TransformerConfig::default())?))
             } else {
@@ -513,6 +537,13 @@ impl Shnn {
             let k = body.z.shape()[1];
             let dof = spec.agent_dof[body.agent];
             let rows = inputs.rows_of(body.agent);
+            if let Heads::Gnn(head) = &self.heads {
+                // The shared body GNN on the agent's morphology graph, read in O_a.
+                let (ha, o) = (f.h.index_select(0, &rows)?, f.frame.index_select(0, &rows)?);
+                let (loc, scale) = head.forward(p, body, ha, o)?;
+                out.push(AgentPolicy { agent: body.agent, loc, scale });
+                continue;
+            }
             let node_rows: Vec<usize> = rows.iter().flat_map(|&r| std::iter::repeat_n(r, k)).collect();
             // Eq. (lrf): O_a^T Z_{a,k} for every node of the agent.
             let o = frame.index_select(0, &node_rows)?;
@@ -535,6 +566,8 @@ impl Shnn {
                     let (loc, scale) = head.forward(p, tape.cat(&[local, hb, ha], 2)?, 1, dof)?;
                     out.push(AgentPolicy { agent: body.agent, loc, scale });
                 }
+                // Taken before the frame transform above.
+                Heads::Gnn(_) => return Err(ModelError::Input("body GNN head reached the MLP path".into())),
             }
         }
         // Eq. (value): the critic on h' of all entities.
@@ -620,6 +653,9 @@ impl MlpModel {
                     let tokens = tape.constant(x.reshape(&[obs.batch, view.len(), NODE_FEATURES])?);
                     let (loc, scale) = head.forward(p, tokens, 1, dof)?;
                     out.push(AgentPolicy { agent: a, loc, scale });
+                }
+                Heads::Gnn(_) => {
+                    return Err(ModelError::Option("a body GNN head needs the entity stage".into()));
                 }
             }
         }

@@ -1,7 +1,8 @@
-//! Tests of the policy/critic interface (`models::policy`): invariance of the SHNN and
-//! SHTransformer policies and values, heading normalisation (`mlp_hn`, `transformer_hn`),
-//! the MLP baseline's lack of invariance, forward on every built-in environment, a gradient
-//! check through a whole small SHNN, parameter counts, and errors.
+//! Tests of the policy/critic interface (`models::policy`): invariance of the SHNN,
+//! SHTransformer and SHGNN policies and values, heading normalisation (`mlp_hn`,
+//! `transformer_hn`), the MLP baseline's lack of invariance, forward on every built-in
+//! environment, a gradient check through a whole small SHNN and SHGNN, parameter counts, and
+//! errors.
 
 use std::cell::RefCell;
 
@@ -105,6 +106,9 @@ fn shnn_policies_and_values_are_invariant_under_rotations_about_gravity_and_tran
         ("shnn_so3", "team_sumo/2_ants", 1),
         ("shtransformer", "team_reach/2_ant_claw", 0),
         ("shtransformer", "team_sumo/2_ants", 1),
+        ("shgnn", "team_reach/2_ant_claw", 0),
+        ("shgnn", "team_reach/3_ant_claw_centipede", 0),
+        ("shgnn", "team_sumo/2_ants", 1),
     ];
     for (model_name, env, team) in cases {
         let (spec, vectors, scalars, heading) = observations(env, B, 11);
@@ -200,9 +204,9 @@ fn forward_on_every_builtin_environment_for_every_model() {
                     assert_eq!(pol.scale.shape(), [2, dof], "{name} on {env} agent {a}");
                     assert!(pol.loc.value().all_finite() && pol.scale.value().all_finite(), "{name} on {env}");
                     assert!(pol.std().value().data().iter().all(|&s| s >= 0.001));
-                    // One MLP head per agent, or one Transformer head for the team.
+                    // One MLP head per agent, or one Transformer or GNN head for the team.
                     let own_head = store.num_elements_under(&format!("{prefix}.actor.{a}."));
-                    assert_eq!(own_head > 0, !name.contains("transformer"), "{name}");
+                    assert_eq!(own_head > 0, !name.contains("transformer") && name != "shgnn", "{name}");
                 }
                 assert_eq!(out.value.shape(), [2], "{name} on {env}");
                 assert!(out.value.value().all_finite(), "{name} on {env}");
@@ -211,17 +215,19 @@ fn forward_on_every_builtin_environment_for_every_model() {
                 assert_eq!(shared > 0, name.starts_with("sh"), "{name}");
                 let head = store.num_elements_under(&format!("{prefix}.actor.encoder."));
                 assert_eq!(head > 0, name.contains("transformer"), "{name}");
+                let gnn = store.num_elements_under(&format!("{prefix}.actor.mp."));
+                assert_eq!(gnn > 0, name == "shgnn", "{name}");
             }
         }
     }
 }
 
-fn tiny() -> ModelConfig {
+fn tiny(name: &str) -> ModelConfig {
     ModelConfig {
         mp: Some(MpSizes { vectors: 3, scalars: 4, hidden: 5, layers: 1, steps: 2 }),
         head_hidden: Some(vec![6]),
         critic_hidden: Some(vec![5]),
-        ..ModelConfig::new("shnn")
+        ..ModelConfig::new(name)
     }
 }
 
@@ -246,10 +252,12 @@ fn whole<'t>(
 }
 
 #[test]
-fn gradients_through_a_whole_small_shnn() {
-    for (env, team) in [("team_reach/2_ants", 0), ("team_sumo/1_centipede", 1)] {
+fn gradients_through_a_whole_small_shnn_and_shgnn() {
+    for (name, env, team) in
+        [("shnn", "team_reach/2_ants", 0), ("shnn", "team_sumo/1_centipede", 1), ("shgnn", "team_reach/2_ant_claw", 0)]
+    {
         let (spec, vectors, scalars, heading) = observations(env, 2, 21);
-        let (store, model) = build(&tiny(), &spec, team, 9);
+        let (store, model) = build(&tiny(name), &spec, team, 9);
         let model = RefCell::new(model);
         let obs = ObsBatch::new(2, spec.n_nodes, &vectors[..], &scalars[..]).unwrap();
         let params: Vec<Tensor<f64>> = store.values().to_vec();
@@ -279,7 +287,7 @@ fn unknown_names_and_options_are_errors_listing_the_known_ones() {
     for name in MODEL_NAMES.iter().chain(&PLANNED_MODELS) {
         assert!(e.contains(name), "{e}");
     }
-    assert!(err(&ModelConfig::new("shgnn"), 0).contains("not implemented yet"));
+    assert!(err(&ModelConfig::new("hnn"), 0).contains("not implemented yet"));
     let e = err(&ModelConfig { assignment: Some(AssignmentMethod::Hungarian), ..ModelConfig::new("mlp") }, 0);
     assert!(e.contains("assignment") && e.contains("shnn"), "{e}");
     assert!(err(&ModelConfig::new("shnn"), 1).contains("team 1"));
@@ -388,6 +396,7 @@ fn parameter_counts_of_the_docs_table() {
         ("mlp_hn", 1_033_549, 0, 687_436, 346_113),
         ("transformer_hn", 746_409, 0, 400_296, 346_113),
         ("shtransformer", 875_753, 302_528, 408_616, 164_609),
+        ("shgnn", 778_915, 302_528, 311_778, 164_609),
     ];
     // One Transformer encoder (128/256/3/2) is 3 x 132,480 parameters.
     let encoder = 3 * 132_480;
