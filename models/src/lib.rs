@@ -6,7 +6,7 @@
 //!   ([`entity_graph`]) and the entity-level subequivariant message passing with the LRF
 //!   vector ([`entity_mp`]);
 //! - the policy/critic interface and the models built by name ([`policy`]: `shnn`,
-//!   `shnn_og3`, `shnn_so3`, `mlp`, `mlp_hn`, `transformer_hn`, `shtransformer`, `shgnn`; the Transformer
+//!   `shnn_og3`, `shnn_so3`, `mlp`, `mlp_hn`, `transformer_hn`, `shtransformer`, `shgnn`, `hnn`, `hnn_hn`, `hnn_dn`; the Transformer
 //!   body head in [`transformer_head`], the body GNN in [`body_gnn`]).
 
 pub mod assignment;
@@ -16,6 +16,7 @@ pub mod entity_graph;
 pub mod entity_mp;
 pub mod error;
 pub mod frame;
+pub mod hnn;
 pub mod input;
 pub mod policy;
 pub mod transformer_head;

@@ -55,9 +55,10 @@
 //!   DoF nodes, parent/child edges both ways), node inputs `Z_{a,k}`, `[h_{a,k}, h'_a,
 //!   p^z_{a,k}]`; each DoF node decoded to `loc`, `scale` from its output vectors in `O_a`
 //!   and its scalars. Critic as `shnn`'s.
-//!
-//! The other models of issue 6 (`hnn`, `hnn_hn`, `hnn_dn`) are listed in
-//! [`PLANNED_MODELS`] and rejected for now.
+//! - `hnn`, `hnn_hn`, `hnn_dn` (ablations HNN, HNN+HN, HNN+DN; [`crate::hnn`]): SHNN's
+//!   hierarchy with the vectors flattened into scalars and plain MLP message passing, in the
+//!   world frame, the agent's heading frame, or the frame of the goal (assigned entity)
+//!   direction. Per-agent MLP heads and the critic as `shnn`'s.
 
 use envs::tasks::{N_SCALARS, ObsSpec, Observation};
 use nn::{Bound, Mlp, ParamStore, Scope, TransformerConfig};
@@ -70,15 +71,27 @@ use crate::entity_graph::GraphBuilder;
 use crate::entity_mp::{EntityMp, EntityMpConfig};
 use crate::error::{ModelError, Result};
 use crate::frame::to_frame;
+use crate::hnn::{Hnn, HnnFrame, ScalarMpSizes};
 use crate::input::{EntityAbstraction, InputProcessor, ObsBatch, ObsElement, Translation};
 use crate::transformer_head::TransformerHead;
 
 /// The models [`Model::new`] builds.
-pub const MODEL_NAMES: [&str; 8] =
-    ["shnn", "shnn_og3", "shnn_so3", "mlp", "mlp_hn", "transformer_hn", "shtransformer", "shgnn"];
+pub const MODEL_NAMES: [&str; 11] = [
+    "shnn",
+    "shnn_og3",
+    "shnn_so3",
+    "mlp",
+    "mlp_hn",
+    "transformer_hn",
+    "shtransformer",
+    "shgnn",
+    "hnn",
+    "hnn_hn",
+    "hnn_dn",
+];
 
 /// Models of the paper that are not implemented yet (an error names them as planned).
-pub const PLANNED_MODELS: [&str; 3] = ["hnn", "hnn_hn", "hnn_dn"];
+pub const PLANNED_MODELS: [&str; 0] = [];
 
 /// The option keys [`ModelConfig::parse`] accepts.
 pub const OPTION_KEYS: [&str; 6] = ["assignment", "translation", "abstraction", "seed", "head", "critic"];
@@ -195,11 +208,9 @@ fn check_name(name: &str) -> Result<()> {
         return Ok(());
     }
     let planned = if PLANNED_MODELS.contains(&name) { " is not implemented yet" } else { " is unknown" };
-    Err(ModelError::Option(format!(
-        "model `{name}`{planned} (known models: {}; planned: {})",
-        MODEL_NAMES.join(", "),
-        PLANNED_MODELS.join(", ")
-    )))
+    let later =
+        if PLANNED_MODELS.is_empty() { String::new() } else { format!("; planned: {}", PLANNED_MODELS.join(", ")) };
+    Err(ModelError::Option(format!("model `{name}`{planned} (known models: {}{later})", MODEL_NAMES.join(", "))))
 }
 
 /// One agent's action-distribution parameters.
@@ -270,6 +281,7 @@ struct MlpModel {
 #[derive(Clone, Debug)]
 enum Arch {
     Shnn(Box<Shnn>),
+    Hnn(Box<Hnn>),
     Mlp(MlpModel),
 }
 
@@ -299,6 +311,7 @@ impl Model {
         }
         // The models with SHNN's entity stage, and those with a Transformer body head.
         let shnn = config.name.starts_with("sh");
+        let hnn = config.name.starts_with("hnn");
         let transformer = config.name.contains("transformer");
         let gnn = config.name == "shgnn";
         if transformer && config.head_hidden.is_some() {
@@ -315,7 +328,7 @@ impl Model {
             }
             Ok(h)
         };
-        let default_hidden: &[usize] = if shnn { &[256, 256] } else { &[256, 256, 256] };
+        let default_hidden: &[usize] = if shnn || hnn { &[256, 256] } else { &[256, 256, 256] };
         // shgnn's `head` is its per-node decoder (default one hidden layer of 64).
         let head_hidden = hidden(&config.head_hidden, if gnn { &[64] } else { default_hidden })?;
         let critic_hidden = hidden(&config.critic_hidden, if gnn { default_hidden } else { &head_hidden })?;
@@ -326,7 +339,20 @@ impl Model {
             v
         };
         let prefix = s.full_name("");
-        let arch = if shnn {
+        let arch = if hnn {
+            let proc = InputProcessor::new(spec, config.translation.unwrap_or_default())?
+                .with_abstraction(config.abstraction.unwrap_or_default());
+            let method = config.assignment.unwrap_or(AssignmentMethod::Greedy);
+            let graph = GraphBuilder::new(spec, method, team, config.seed)?;
+            let m = config.mp.unwrap_or_default();
+            let sizes = ScalarMpSizes { scalars: m.scalars, hidden: m.hidden, layers: m.layers, steps: m.steps };
+            let frame = match config.name.as_str() {
+                "hnn_hn" => HnnFrame::Heading,
+                "hnn_dn" => HnnFrame::Goal,
+                _ => HnnFrame::World,
+            };
+            Arch::Hnn(Box::new(Hnn::new(s, proc, graph, frame, sizes, &head_hidden, &critic_hidden, spec, &agents)?))
+        } else if shnn {
             let translation = config.translation.unwrap_or_default();
             let abstraction = config.abstraction.unwrap_or_default();
             let method = config.assignment.unwrap_or(AssignmentMethod::Greedy);
@@ -392,8 +418,8 @@ impl Model {
             ] {
                 if set {
                     return Err(ModelError::Option(format!(
-                        "model `{}` takes no option `{key}` (it applies to shnn, shnn_og3, shnn_so3, \
-                         shtransformer; {} takes {})",
+                        "model `{}` takes no option `{key}` (it applies to shnn, shnn_og3, shnn_so3, shgnn, hnn, \
+                         hnn_hn, hnn_dn, shtransformer; {} takes {})",
                         config.name,
                         config.name,
                         if transformer { "critic" } else { "head, critic" }
@@ -455,11 +481,11 @@ impl Model {
         &self.prefix
     }
 
-    /// The entity-level message passing of the SHNN models (`None` for the MLPs).
+    /// The entity-level message passing of the SHNN models (`None` for the MLPs and HNNs).
     pub fn entity_stage(&self) -> Option<&EntityMp> {
         match &self.arch {
             Arch::Shnn(m) => Some(&m.mp),
-            Arch::Mlp(_) => None,
+            Arch::Hnn(_) | Arch::Mlp(_) => None,
         }
     }
 
@@ -493,6 +519,7 @@ impl Model {
         }
         match &mut self.arch {
             Arch::Shnn(m) => m.forward(p, obs, &self.agents, &self.spec),
+            Arch::Hnn(m) => m.forward(p, obs, heading, &self.agents, &self.spec),
             Arch::Mlp(m) => m.forward(p, obs, heading, &self.agents, &self.spec),
         }
     }

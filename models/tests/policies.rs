@@ -1,8 +1,8 @@
 //! Tests of the policy/critic interface (`models::policy`): invariance of the SHNN,
-//! SHTransformer and SHGNN policies and values, heading normalisation (`mlp_hn`,
-//! `transformer_hn`), the MLP baseline's lack of invariance, forward on every built-in
-//! environment, a gradient check through a whole small SHNN and SHGNN, parameter counts, and
-//! errors.
+//! SHTransformer and SHGNN policies and values, heading and goal-direction normalisation
+//! (`mlp_hn`, `transformer_hn`, `hnn_hn`, `hnn_dn`), the MLP and HNN baselines' lack of
+//! invariance, forward on every built-in environment, gradient checks through whole small
+//! SHNN, SHGNN and HNN+DN models, parameter counts, and errors.
 
 use std::cell::RefCell;
 
@@ -176,6 +176,34 @@ fn mlp_hn_is_invariant_under_yaw_and_mlp_is_not() {
 }
 
 #[test]
+fn hnn_hn_and_hnn_dn_are_invariant_under_yaw_and_hnn_only_under_translation() {
+    for (env, team) in [("team_reach/2_ant_claw", 0), ("team_sumo/2_ants", 1)] {
+        let (spec, vectors, scalars, heading) = observations(env, B, 14);
+        // Same parameters, different frames: the goal direction is not the heading.
+        let outputs = |name: &str| {
+            let (store, mut model) = build(&ModelConfig::new(name), &spec, team, 7);
+            run(&mut model, &store, &spec, &vectors, &scalars, &heading)
+        };
+        assert!(max_diff(&outputs("hnn_hn"), &outputs("hnn_dn")) > 1e-6, "{env}");
+        for (name, yaw_invariant) in [("hnn_hn", true), ("hnn_dn", true), ("hnn", false)] {
+            let (store, mut model) = build(&ModelConfig::new(name), &spec, team, 7);
+            let base = run(&mut model, &store, &spec, &vectors, &scalars, &heading);
+            // A horizontal translation alone leaves every HNN unchanged.
+            let (v, h) = transform(&vectors, &heading, 0.0, [2.5, -4.0]);
+            let d = max_diff(&run(&mut model, &store, &spec, &v, &scalars, &h), &base);
+            assert!(d < 1e-9, "{name} on {env}, translation: {d}");
+            let (v, h) = transform(&vectors, &heading, 2.1, [3.0, -1.5]);
+            let d = max_diff(&run(&mut model, &store, &spec, &v, &scalars, &h), &base);
+            if yaw_invariant {
+                assert!(d < 1e-9, "{name} on {env}: {d}");
+            } else {
+                assert!(d > 1e-3, "{name} on {env} should change under a rotation: {d}");
+            }
+        }
+    }
+}
+
+#[test]
 fn forward_on_every_builtin_environment_for_every_model() {
     for env in BUILTIN_NAMES {
         let mut venv = VecEnv::from_name(env, 2, 1, StartMode::Random).unwrap();
@@ -212,7 +240,7 @@ fn forward_on_every_builtin_environment_for_every_model() {
                 assert!(out.value.value().all_finite(), "{name} on {env}");
                 // The entity stage (and a Transformer head) exist once per team.
                 let shared = store.num_elements_under(&format!("{prefix}.entity."));
-                assert_eq!(shared > 0, name.starts_with("sh"), "{name}");
+                assert_eq!(shared > 0, name.starts_with("sh") || name.starts_with("hnn"), "{name}");
                 let head = store.num_elements_under(&format!("{prefix}.actor.encoder."));
                 assert_eq!(head > 0, name.contains("transformer"), "{name}");
                 let gnn = store.num_elements_under(&format!("{prefix}.actor.mp."));
@@ -252,10 +280,13 @@ fn whole<'t>(
 }
 
 #[test]
-fn gradients_through_a_whole_small_shnn_and_shgnn() {
-    for (name, env, team) in
-        [("shnn", "team_reach/2_ants", 0), ("shnn", "team_sumo/1_centipede", 1), ("shgnn", "team_reach/2_ant_claw", 0)]
-    {
+fn gradients_through_whole_small_shnn_shgnn_and_hnn_dn() {
+    for (name, env, team) in [
+        ("shnn", "team_reach/2_ants", 0),
+        ("shnn", "team_sumo/1_centipede", 1),
+        ("shgnn", "team_reach/2_ant_claw", 0),
+        ("hnn_dn", "team_sumo/2_ants", 1),
+    ] {
         let (spec, vectors, scalars, heading) = observations(env, 2, 21);
         let (store, model) = build(&tiny(name), &spec, team, 9);
         let model = RefCell::new(model);
@@ -287,7 +318,6 @@ fn unknown_names_and_options_are_errors_listing_the_known_ones() {
     for name in MODEL_NAMES.iter().chain(&PLANNED_MODELS) {
         assert!(e.contains(name), "{e}");
     }
-    assert!(err(&ModelConfig::new("hnn"), 0).contains("not implemented yet"));
     let e = err(&ModelConfig { assignment: Some(AssignmentMethod::Hungarian), ..ModelConfig::new("mlp") }, 0);
     assert!(e.contains("assignment") && e.contains("shnn"), "{e}");
     assert!(err(&ModelConfig::new("shnn"), 1).contains("team 1"));
@@ -397,6 +427,9 @@ fn parameter_counts_of_the_docs_table() {
         ("transformer_hn", 746_409, 0, 400_296, 346_113),
         ("shtransformer", 875_753, 302_528, 408_616, 164_609),
         ("shgnn", 778_915, 302_528, 311_778, 164_609),
+        ("hnn", 665_549, 34_688, 466_252, 164_609),
+        ("hnn_hn", 665_549, 34_688, 466_252, 164_609),
+        ("hnn_dn", 665_549, 34_688, 466_252, 164_609),
     ];
     // One Transformer encoder (128/256/3/2) is 3 x 132,480 parameters.
     let encoder = 3 * 132_480;

@@ -1,0 +1,243 @@
+//! The non-equivariant ablations `hnn`, `hnn_hn` and `hnn_dn` (paper section "Ablations":
+//! HNN, HNN+HN, HNN+DN): SHNN's hierarchy (input processing, task-assignment entity graph,
+//! entity-level message passing, per-agent body MLP heads, critic on `h'`) with every vector
+//! flattened and treated as scalars, and plain MLP message passing.
+//!
+//! The vectors are first expressed in a frame ([`HnnFrame`]): the world axes (`hnn`), the
+//! agent's heading (`hnn_hn`), or the horizontal direction from the agent's root to its
+//! assigned entity, the goal direction (`hnn_dn`; the heading when the agent has no
+//! assignment or sits on it). The entity stage sees all entities in the frame of the team's
+//! first agent; each agent's head sees its own nodes in its own frame. Positions are relative
+//! to the scene origin (entities) and to the assigned entity's root (bodies) as in `shnn`,
+//! so all three are translation invariant; `hnn_hn` and `hnn_dn` are also invariant under
+//! rotations about the vertical, `hnn` is not.
+//!
+//! Message passing ([`ScalarMp`]): `h = [vec(Z_i), h_i] W + b`, then `steps` rounds of
+//! `m_ij = MLP_e([h_i, h_j, x_j - x_i])`, `m_i = mean_j m_ij`, `h_i += MLP_n([h_i, m_i])`.
+
+use envs::tasks::{N_SCALARS, ObsSpec};
+use nn::{Bound, EdgeList, Linear, Mlp, Scope};
+use tensor::{Activation, Float, Tensor, Var};
+
+use crate::assignment::UNASSIGNED;
+use crate::entity_graph::GraphBuilder;
+use crate::error::{ModelError, Result};
+use crate::input::{ENTITY_SCALARS, InputProcessor, NODE_VECTORS, ObsBatch, ObsElement};
+use crate::policy::{AgentPolicy, PolicyOutput};
+
+/// The frame the HNN models express vectors in.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum HnnFrame {
+    /// World axes (`hnn`).
+    World,
+    /// The agent's heading (`hnn_hn`).
+    Heading,
+    /// The horizontal direction to the agent's assigned entity (`hnn_dn`).
+    Goal,
+}
+
+/// Sizes of [`ScalarMp`].
+#[derive(Clone, Copy, Debug)]
+pub struct ScalarMpSizes {
+    /// Node features.
+    pub scalars: usize,
+    /// Hidden width of both MLPs.
+    pub hidden: usize,
+    /// Hidden layers of both MLPs.
+    pub layers: usize,
+    /// Propagation steps of the shared layer.
+    pub steps: usize,
+}
+
+/// Plain (non-equivariant) message passing on flattened entity features (module docs).
+/// Parameters under its scope: `embed.*`, `mlp_e.*`, `mlp_n.*`.
+#[derive(Clone, Debug)]
+pub struct ScalarMp {
+    /// `[vec(Z_i), h_i]` -> node features.
+    pub embed: Linear,
+    /// Message MLP on `[h_i, h_j, x_j - x_i]`.
+    pub mlp_e: Mlp,
+    /// Update MLP on `[h_i, m_i]`.
+    pub mlp_n: Mlp,
+    /// The sizes.
+    pub sizes: ScalarMpSizes,
+}
+
+impl ScalarMp {
+    /// A layer for `input` features per node.
+    pub fn new<T: Float>(s: &mut Scope<'_, T>, input: usize, sizes: ScalarMpSizes) -> Result<Self> {
+        let ScalarMpSizes { scalars, hidden, layers, steps } = sizes;
+        if scalars == 0 || hidden == 0 || layers == 0 || steps == 0 {
+            return Err(ModelError::Option(format!("HNN message passing sizes {sizes:?} must be positive")));
+        }
+        let mlp = |i: usize| {
+            let mut v = vec![i];
+            v.extend(std::iter::repeat_n(hidden, layers));
+            v.push(scalars);
+            v
+        };
+        Ok(Self {
+            embed: Linear::new(&mut s.sub("embed"), input, scalars)?,
+            mlp_e: Mlp::new(&mut s.sub("mlp_e"), &mlp(2 * scalars + 3), Activation::Relu)?,
+            mlp_n: Mlp::new(&mut s.sub("mlp_n"), &mlp(2 * scalars), Activation::Relu)?,
+            sizes,
+        })
+    }
+
+    /// Node inputs `x0: [n, input]`, positions `pos: [n, 3]` -> features `[n, scalars]`.
+    pub fn forward<'t, T: Float>(
+        &self,
+        p: &Bound<'t, T>,
+        x0: Var<'t, T>,
+        pos: Var<'t, T>,
+        edges: &EdgeList,
+    ) -> Result<Var<'t, T>> {
+        let tape = p.tape();
+        let n = edges.num_nodes;
+        let mut h = self.embed.forward(p, x0)?;
+        if edges.is_empty() {
+            return Ok(h);
+        }
+        let e = pos.index_select(0, &edges.dst)?.sub(pos.index_select(0, &edges.src)?)?;
+        for _ in 0..self.sizes.steps {
+            let hij = tape.cat(&[h.index_select(0, &edges.src)?, h.index_select(0, &edges.dst)?, e], 1)?;
+            let m = self.mlp_e.forward(p, hij)?.segment_mean(&edges.src, n)?;
+            h = h.add(self.mlp_n.forward(p, tape.cat(&[h, m], 1)?)?)?;
+        }
+        Ok(h)
+    }
+}
+
+/// `v` (a 3-vector) in the horizontal frame whose first axis is `(c, s, 0)`.
+fn rotate(v: [f64; 3], (s, c): (f64, f64)) -> [f64; 3] {
+    [c * v[0] + s * v[1], -s * v[0] + c * v[1], v[2]]
+}
+
+/// Rotates every `[3, NODE_VECTORS]` block of `z` (spatial rows) into the frame of its
+/// block's scene, `frames[block / per_scene]`.
+fn rotate_blocks<T: Float>(z: &Tensor<T>, per_scene: usize, frames: &[(f64, f64)]) -> Result<Tensor<T>> {
+    let shape = z.shape().to_vec();
+    let mut out = z.to_vec();
+    for (i, blk) in out.chunks_mut(3 * NODE_VECTORS).enumerate() {
+        let f = frames[i / per_scene];
+        for k in 0..NODE_VECTORS {
+            let v = rotate([0, 1, 2].map(|r| blk[r * NODE_VECTORS + k].to_f64()), f);
+            (0..3).for_each(|r| blk[r * NODE_VECTORS + k] = T::from_f64(v[r]));
+        }
+    }
+    Ok(Tensor::new(out, &shape)?)
+}
+
+/// An HNN model (module docs).
+#[derive(Clone, Debug)]
+pub struct Hnn {
+    proc: InputProcessor,
+    graph: GraphBuilder,
+    frame: HnnFrame,
+    mp: ScalarMp,
+    heads: Vec<Mlp>,
+    critic: Mlp,
+    /// Entity order of the critic input (own agents, other agents, balls).
+    critic_entities: Vec<usize>,
+}
+
+impl Hnn {
+    /// Builds the entity stage under `entity`, one head per agent under `actor.<a>` and the
+    /// critic under `critic` of scope `s`.
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn new<T: Float>(
+        s: &mut Scope<'_, T>,
+        proc: InputProcessor,
+        graph: GraphBuilder,
+        frame: HnnFrame,
+        sizes: ScalarMpSizes,
+        head_hidden: &[usize],
+        critic_hidden: &[usize],
+        spec: &ObsSpec,
+        agents: &[usize],
+    ) -> Result<Self> {
+        let mp = ScalarMp::new(&mut s.sub("entity"), 3 * NODE_VECTORS + ENTITY_SCALARS, sizes)?;
+        let widths = |input: usize, h: &[usize], out: usize| {
+            let mut v = vec![input];
+            v.extend_from_slice(h);
+            v.push(out);
+            v
+        };
+        let mut actor = s.sub("actor");
+        let heads = agents
+            .iter()
+            .map(|&a| {
+                let k = 1 + spec.agent_dof[a];
+                let sz = widths(k * (3 * NODE_VECTORS + N_SCALARS) + sizes.scalars, head_hidden, 2 * spec.agent_dof[a]);
+                Mlp::new(&mut actor.sub(a), &sz, Activation::Relu)
+            })
+            .collect::<nn::Result<Vec<_>>>()?;
+        let ne = spec.entity_root_node.len();
+        let critic = Mlp::new(&mut s.sub("critic"), &widths(ne * sizes.scalars, critic_hidden, 1), Activation::Relu)?;
+        let mut critic_entities = agents.to_vec();
+        critic_entities.extend((0..spec.n_agents).filter(|a| !agents.contains(a)));
+        critic_entities.extend(spec.n_agents..ne);
+        Ok(Self { proc, graph, frame, mp, heads, critic, critic_entities })
+    }
+
+    /// Policy and value (module docs).
+    pub(crate) fn forward<'t, T: Float, S: ObsElement>(
+        &mut self,
+        p: &Bound<'t, T>,
+        obs: &ObsBatch<'_, S>,
+        heading: &[S],
+        agents: &[usize],
+        spec: &ObsSpec,
+    ) -> Result<PolicyOutput<'t, T>> {
+        let tape = p.tape();
+        let (nb, na) = (obs.batch, spec.n_agents);
+        let inputs = self.proc.entities::<T, S>(obs)?;
+        let graph = self.graph.build(&inputs)?;
+        // Per agent and scene the horizontal frame (sin, cos).
+        let frame_of = |a: usize, b: usize| -> (f64, f64) {
+            let yaw: f64 = heading[b * na + a].into();
+            match self.frame {
+                HnnFrame::World => (0.0, 1.0),
+                HnnFrame::Heading => yaw.sin_cos(),
+                HnnFrame::Goal => {
+                    let e = graph.agent_entity[b * na + a];
+                    let root = obs.vec3(b, spec.agent_root_node[a], 0);
+                    let d = if e == UNASSIGNED { [0.0; 3] } else { inputs.world_position(b, e) };
+                    let (dx, dy) = (d[0] - root[0], d[1] - root[1]);
+                    let r = dx.hypot(dy);
+                    if e == UNASSIGNED || r < 1e-9 { yaw.sin_cos() } else { (dy / r, dx / r) }
+                }
+            }
+        };
+        // Entity stage in the frame of the team's first agent.
+        let ne = inputs.entities;
+        let first: Vec<(f64, f64)> = (0..nb).map(|b| frame_of(agents[0], b)).collect();
+        let z = rotate_blocks(&inputs.z, ne, &first)?;
+        let n = nb * ne;
+        let zv = tape.constant(z.reshape(&[n, 3, NODE_VECTORS])?);
+        let pos = zv.narrow(2, 0, 1)?.reshape(&[n, 3])?;
+        let x0 = tape.cat(&[zv.reshape(&[n, 3 * NODE_VECTORS])?, tape.constant(inputs.h.clone())], 1)?;
+        let h = self.mp.forward(p, x0, pos, &graph.edges)?;
+        // Body heads: own nodes in the agent's frame, with h'_a.
+        let bodies = self.proc.bodies(obs, &inputs, &graph.agent_entity, agents)?;
+        let mut out = Vec::with_capacity(agents.len());
+        for (body, head) in bodies.iter().zip(&self.heads) {
+            let (a, k) = (body.agent, body.z.shape()[1]);
+            let dof = spec.agent_dof[a];
+            let frames: Vec<(f64, f64)> = (0..nb).map(|b| frame_of(a, b)).collect();
+            let zb = rotate_blocks(&body.z, k, &frames)?.reshape(&[nb, k * 3 * NODE_VECTORS])?;
+            let hb = body.h.reshape(&[nb, k * N_SCALARS])?;
+            let ha = h.index_select(0, &inputs.rows_of(a))?;
+            let hidden = head.forward_hidden_parts(p, &[tape.constant(zb), tape.constant(hb), ha])?;
+            out.push(AgentPolicy {
+                agent: a,
+                loc: head.forward_output_columns(p, hidden, 0, dof)?,
+                scale: head.forward_output_columns(p, hidden, dof, dof)?,
+            });
+        }
+        let rows: Vec<usize> = (0..nb).flat_map(|b| self.critic_entities.iter().map(move |&e| b * ne + e)).collect();
+        let s = h.shape()[1];
+        let value = self.critic.forward(p, h.index_select(0, &rows)?.reshape(&[nb, ne * s])?)?.reshape(&[nb])?;
+        Ok(PolicyOutput { agents: out, value })
+    }
+}
