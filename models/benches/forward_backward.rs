@@ -1,6 +1,6 @@
 //! Forward + backward of policy and value on a 5120-transition minibatch (issue 6,
 //! "Benchmark"): for `team_reach/2_ants` and `team_reach/3_ant_claw_centipede`, team 0, the
-//! implemented models among `shnn`, `mlp_hn`, `shtransformer`, in f32. The minibatch is 512
+//! models `shnn`, `mlp_hn`, `shtransformer` and `shgnn`, in f32. The minibatch is 512
 //! observations of the vectorised environment (after a few random steps) replicated 10
 //! times. The loss sums the means of every agent's `loc`, `std` and the value, so the
 //! backward pass reaches every parameter. Prints `<env> <model> median_ms=...` per pair.
@@ -41,7 +41,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let scalars = o.scalars.repeat(rep);
         let heading = o.heading.repeat(rep);
         let obs = ObsBatch::new(MINIBATCH, spec.n_nodes, &vectors[..], &scalars[..])?;
-        for name in ["shnn", "mlp_hn", "shtransformer"] {
+        for name in ["shnn", "mlp_hn", "shtransformer", "shgnn"] {
             let label = format!("{env_name} {name}");
             if filter.as_ref().is_some_and(|f| !label.contains(f.as_str())) {
                 continue;
