@@ -1,6 +1,9 @@
 //! Tests of SHNN's entity stage on real MeBen observations: input processing, the task
 //! assignment graph, entity-level message passing and the local reference frame.
 
+mod common;
+
+use common::{max_diff, rng, transform};
 use envs::tasks::{ObsSpec, StartMode, VecEnv};
 use models::entity_graph::GraphTask;
 use models::frame::to_frame;
@@ -10,16 +13,11 @@ use models::{
     InputProcessor, Translation, UNASSIGNED,
 };
 use nn::{Aggregation, Bound, EdgeDistance, EdgeList, ParamStore};
-use rand::{RngExt, SeedableRng};
-use rand_chacha::ChaCha8Rng;
+use rand::RngExt;
 use tensor::gradcheck::check_gradients;
 use tensor::{Tape, Tensor};
 
 const B: usize = 3;
-
-fn rng(seed: u64) -> ChaCha8Rng {
-    ChaCha8Rng::seed_from_u64(seed)
-}
 
 /// Observations of `name` after a few random control steps (so that velocities are not
 /// zero), converted to `f64`: `(spec, vectors, scalars)`.
@@ -36,23 +34,6 @@ fn observations(name: &str, seed: u64) -> (ObsSpec, Vec<f64>, Vec<f64>) {
     (spec, o.vectors.iter().map(|&x| x as f64).collect(), o.scalars.iter().map(|&x| x as f64).collect())
 }
 
-/// Rotates every 3-vector of the observation arrays about the vertical by `angle` and
-/// translates the positions by `(tx, ty, 0)`.
-fn transform(vectors: &[f64], angle: f64, t: [f64; 2]) -> Vec<f64> {
-    let (s, c) = angle.sin_cos();
-    let mut out = vectors.to_vec();
-    for (i, v) in out.chunks_mut(3).enumerate() {
-        let (x, y) = (v[0], v[1]);
-        v[0] = c * x - s * y;
-        v[1] = s * x + c * y;
-        if i % 3 == 0 {
-            v[0] += t[0];
-            v[1] += t[1];
-        }
-    }
-    out
-}
-
 /// Left-multiplies every `[3, m]` block of `x` by the rotation about z by `angle`.
 fn rotate_rows(x: &[f64], m: usize, angle: f64) -> Vec<f64> {
     let (s, c) = angle.sin_cos();
@@ -65,11 +46,6 @@ fn rotate_rows(x: &[f64], m: usize, angle: f64) -> Vec<f64> {
         }
     }
     out
-}
-
-fn max_diff(a: &[f64], b: &[f64]) -> f64 {
-    assert_eq!(a.len(), b.len());
-    a.iter().zip(b).map(|(x, y)| (x - y).abs() / x.abs().max(1.0)).fold(0.0, f64::max)
 }
 
 struct Stage {

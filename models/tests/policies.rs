@@ -4,6 +4,9 @@
 //! invariance, forward on every built-in environment, gradient checks through whole small
 //! SHNN, SHGNN and HNN+DN models, parameter counts, and errors.
 
+mod common;
+
+use common::{max_diff, rng};
 use std::cell::RefCell;
 
 use envs::tasks::{BUILTIN_NAMES, ObsSpec, StartMode, VecEnv};
@@ -13,16 +16,12 @@ use models::{
     AssignmentMethod, EntityAbstraction, GraphBuilder, Model, ModelConfig, MpSizes, PolicyOutput, Translation,
 };
 use nn::{Bound, ParamStore};
-use rand::{RngExt, SeedableRng};
+use rand::RngExt;
 use rand_chacha::ChaCha8Rng;
 use tensor::gradcheck::check_gradients;
 use tensor::{Tape, Tensor, Var};
 
 const B: usize = 3;
-
-fn rng(seed: u64) -> ChaCha8Rng {
-    ChaCha8Rng::seed_from_u64(seed)
-}
 
 /// `batch` observations of `name` after a few random control steps, in `f64`:
 /// `(spec, vectors, scalars, headings)`.
@@ -42,18 +41,7 @@ fn observations(name: &str, batch: usize, seed: u64) -> (ObsSpec, Vec<f64>, Vec<
 /// Rotates every 3-vector about the vertical by `angle`, translates positions by
 /// `(tx, ty, 0)` and shifts the headings by `angle`.
 fn transform(vectors: &[f64], heading: &[f64], angle: f64, t: [f64; 2]) -> (Vec<f64>, Vec<f64>) {
-    let (s, c) = angle.sin_cos();
-    let mut out = vectors.to_vec();
-    for (i, v) in out.chunks_mut(3).enumerate() {
-        let (x, y) = (v[0], v[1]);
-        v[0] = c * x - s * y;
-        v[1] = s * x + c * y;
-        if i % 3 == 0 {
-            v[0] += t[0];
-            v[1] += t[1];
-        }
-    }
-    (out, heading.iter().map(|h| h + angle).collect())
+    (common::transform(vectors, angle, t), heading.iter().map(|h| h + angle).collect())
 }
 
 /// Reflects every 3-vector through the vertical plane y = 0 (`y -> -y`) and negates the
@@ -63,11 +51,6 @@ fn reflect(vectors: &[f64], heading: &[f64]) -> (Vec<f64>, Vec<f64>) {
     let mut out = vectors.to_vec();
     out.chunks_mut(3).for_each(|v| v[1] = -v[1]);
     (out, heading.iter().map(|h| -h).collect())
-}
-
-fn max_diff(a: &[f64], b: &[f64]) -> f64 {
-    assert_eq!(a.len(), b.len());
-    a.iter().zip(b).map(|(x, y)| (x - y).abs() / x.abs().max(1.0)).fold(0.0, f64::max)
 }
 
 fn build(config: &ModelConfig, spec: &ObsSpec, team: usize, seed: u64) -> (ParamStore<f64>, Model) {
