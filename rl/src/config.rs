@@ -1,0 +1,389 @@
+//! The training configuration: every hyper-parameter of MAPPO as the reference release sets
+//! it (`../shared/reference/MEBEN.md` section 6), overridable from a TOML file and from the
+//! command line.
+//!
+//! A configuration is resolved in layers, each overriding the one before:
+//! 1. a preset: `quick` (the built-in default of `meben train`: `shnn` on `team_reach/1_ant`
+//!    in about ten minutes on 2 cores) or `paper` (the reference schedule: 2048
+//!    environments, 50M steps for Team Reach, 20M and batch 128 for Team Sumo);
+//! 2. a TOML file (`--config file.toml`), whose keys are the fields of [`TrainConfig`] (and
+//!    `preset`);
+//! 3. command-line options (`--env`, `--model`, `--set field=value`, ...).
+//!
+//! The resolved configuration is written to the run directory as `config.toml`; a run is
+//! resumed and evaluated from it.
+
+use std::path::Path;
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::{Result, RlError};
+
+/// Which observation normaliser to use.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum ObsNormKind {
+    /// `rotation` for the models that are equivariant by construction (`shnn`, `shnn_og3`,
+    /// `shnn_so3`, `shtransformer`, `shgnn`), `elementwise` for the others.
+    #[default]
+    Auto,
+    /// Running mean and standard deviation of every observation element (the reference).
+    Elementwise,
+    /// Vectors divided by a running root-mean-square norm per node and vector kind (no mean
+    /// subtracted, so rotations commute with it); scalars element-wise.
+    Rotation,
+    /// No normalisation.
+    None,
+}
+
+/// The named starting points of a configuration (module docs).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum Preset {
+    /// About ten minutes on 2 cores: smaller batches, shorter schedule.
+    #[default]
+    Quick,
+    /// The reference release's schedule (MEBEN.md section 6).
+    Paper,
+}
+
+impl Preset {
+    /// Parses `quick` or `paper`.
+    pub fn parse(s: &str, source: &str) -> Result<Preset> {
+        match s {
+            "quick" => Ok(Preset::Quick),
+            "paper" => Ok(Preset::Paper),
+            _ => Err(RlError::config(source, "preset", s, "expected `quick` or `paper`")),
+        }
+    }
+}
+
+/// Everything that defines a training run.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TrainConfig {
+    /// Environment name (`envs::tasks::BUILTIN_NAMES` or a custom composition).
+    pub env: String,
+    /// Model of team 0, with options: `shnn` or `shnn:assignment=hungarian;seed=3`
+    /// (`models::ModelConfig::parse`).
+    pub model: String,
+    /// Model of team 1 in Team Sumo (default: the same as `model`); must be empty for Reach.
+    pub opponent: String,
+    /// Seed of everything random in the run.
+    pub seed: u64,
+    /// Environment steps to train for (the run stops at the first iteration boundary at or
+    /// past it).
+    pub steps: u64,
+    /// Environments stepped together.
+    pub num_envs: usize,
+    /// Control steps per unroll.
+    pub unroll_length: usize,
+    /// Unrolls per minibatch.
+    pub batch_size: usize,
+    /// Minibatches per epoch (an iteration collects `batch_size * num_minibatches` unrolls).
+    pub num_minibatches: usize,
+    /// Passes over the iteration's data.
+    pub epochs: usize,
+    /// Discount `gamma`.
+    pub discount: f64,
+    /// GAE `lambda`.
+    pub gae_lambda: f64,
+    /// PPO clip `epsilon`.
+    pub clip_epsilon: f64,
+    /// Weight of the value loss `mean((V - V_target)^2)` (the reference's `0.5 * 0.5`).
+    pub value_coef: f64,
+    /// Weight of the entropy bonus.
+    pub entropy_coef: f64,
+    /// Adam learning rate.
+    pub learning_rate: f64,
+    /// Every gradient element is clipped to `[-grad_clip, grad_clip]` (0 turns it off).
+    pub grad_clip: f64,
+    /// Observation normaliser.
+    pub obs_norm: ObsNormKind,
+    /// Rewards are multiplied by this before GAE.
+    pub reward_scaling: f64,
+    /// Team Sumo: the curriculum factor goes linearly from 1 (dense) to 0 (sparse) over
+    /// this fraction of the run.
+    pub curriculum_fraction: f64,
+    /// Evaluations during the run (evenly spaced, the last at the end; 0: none).
+    pub num_evals: usize,
+    /// Episodes per evaluation.
+    pub eval_episodes: usize,
+    /// Evaluate with the mean action `tanh(loc)` instead of sampling.
+    pub eval_deterministic: bool,
+    /// Write a checkpoint every this many iterations (and after every evaluation and at the
+    /// end; 0: only then).
+    pub checkpoint_every: usize,
+    /// Worker threads (0: every core). Results do not depend on it.
+    pub threads: usize,
+}
+
+impl TrainConfig {
+    /// The preset's configuration for `env` (module docs).
+    pub fn preset(preset: Preset, env: &str) -> TrainConfig {
+        let sumo = env.starts_with("team_sumo");
+        let paper = TrainConfig {
+            env: env.to_string(),
+            model: "shnn".into(),
+            opponent: String::new(),
+            seed: 0,
+            steps: if sumo { 20_000_000 } else { 50_000_000 },
+            num_envs: 2048,
+            unroll_length: 5,
+            batch_size: if sumo { 128 } else { 1024 },
+            num_minibatches: 32,
+            epochs: 4,
+            discount: 0.97,
+            gae_lambda: 0.95,
+            clip_epsilon: 0.3,
+            value_coef: 0.25,
+            entropy_coef: 1e-2,
+            learning_rate: 3e-4,
+            grad_clip: 0.1,
+            obs_norm: ObsNormKind::Auto,
+            reward_scaling: 1.0,
+            curriculum_fraction: 0.25,
+            num_evals: 50,
+            eval_episodes: 1024,
+            eval_deterministic: true,
+            checkpoint_every: 10,
+            threads: 0,
+        };
+        match preset {
+            Preset::Paper => paper,
+            Preset::Quick => TrainConfig {
+                steps: 1_500_000,
+                num_envs: 256,
+                batch_size: 64,
+                num_minibatches: 8,
+                num_evals: 10,
+                eval_episodes: 128,
+                checkpoint_every: 20,
+                ..paper
+            },
+        }
+    }
+
+    /// Resolves a configuration from its layers (module docs): `preset` (else the file's
+    /// `preset` key, else `quick`), the TOML `file`, then `overrides` (`field = value`
+    /// pairs, values in TOML syntax or bare strings), and validates it.
+    pub fn resolve(preset: Option<Preset>, file: Option<&Path>, overrides: &[(String, String)]) -> Result<TrainConfig> {
+        let mut table = toml::Table::new();
+        if let Some(path) = file {
+            let text = std::fs::read_to_string(path).map_err(|e| RlError::file(path, format!("cannot read: {e}")))?;
+            table = text.parse::<toml::Table>().map_err(|e| RlError::file(path, format!("invalid TOML: {e}")))?;
+        }
+        let file_source = file.map(|p| p.display().to_string()).unwrap_or_else(|| "built-in".into());
+        for (field, value) in overrides {
+            table.insert(field.clone(), parse_override(value));
+        }
+        let preset = match (preset, table.remove("preset")) {
+            (Some(p), _) => p,
+            (None, Some(toml::Value::String(s))) => Preset::parse(&s, &file_source)?,
+            (None, Some(v)) => return Err(RlError::config(&file_source, "preset", v, "expected `quick` or `paper`")),
+            (None, None) => Preset::Quick,
+        };
+        let env = match table.get("env") {
+            Some(toml::Value::String(s)) => s.clone(),
+            Some(v) => return Err(RlError::config(&file_source, "env", v, "expected a string")),
+            None => "team_reach/1_ant".to_string(),
+        };
+        let base = TrainConfig::preset(preset, &env);
+        let mut merged =
+            toml::Table::try_from(&base).map_err(|e| RlError::config("built-in", "*", "", e.to_string()))?;
+        let source = if overrides.is_empty() { file_source } else { format!("{file_source} + command line") };
+        for (k, v) in table {
+            if !merged.contains_key(&k) {
+                let known: Vec<&str> = merged.keys().map(|s| s.as_str()).collect();
+                return Err(RlError::config(
+                    &source,
+                    &k,
+                    v,
+                    format!("unknown field; known fields: preset, {}", known.join(", ")),
+                ));
+            }
+            merged.insert(k, v);
+        }
+        let config: TrainConfig = toml::Value::Table(merged)
+            .try_into()
+            .map_err(|e: toml::de::Error| RlError::config(&source, "*", "", e.to_string()))?;
+        config.validate(&source)?;
+        Ok(config)
+    }
+
+    /// Reads a resolved configuration written by [`TrainConfig::save`] (a run's
+    /// `config.toml`); every field must be present.
+    pub fn load(path: &Path) -> Result<TrainConfig> {
+        let text = std::fs::read_to_string(path).map_err(|e| RlError::file(path, format!("cannot read: {e}")))?;
+        let config: TrainConfig =
+            toml::from_str(&text).map_err(|e| RlError::file(path, format!("invalid run configuration: {e}")))?;
+        config.validate(&path.display().to_string())?;
+        Ok(config)
+    }
+
+    /// The configuration as TOML.
+    pub fn to_toml(&self) -> String {
+        toml::to_string(self).unwrap_or_else(|e| unreachable!("a TrainConfig always serialises: {e}"))
+    }
+
+    /// Writes the configuration as TOML, atomically.
+    pub fn save(&self, path: &Path) -> Result<()> {
+        nn::write_atomic(path, self.to_toml().as_bytes())?;
+        Ok(())
+    }
+
+    /// Whether the environment is a Team Sumo scene.
+    pub fn is_sumo(&self) -> bool {
+        self.env.starts_with("team_sumo")
+    }
+
+    /// Env steps collected per iteration: `batch_size * num_minibatches * unroll_length`.
+    pub fn steps_per_iteration(&self) -> u64 {
+        (self.batch_size * self.num_minibatches * self.unroll_length) as u64
+    }
+
+    /// Unrolls of all `num_envs` environments per iteration.
+    pub fn unrolls_per_iteration(&self) -> usize {
+        self.batch_size * self.num_minibatches / self.num_envs
+    }
+
+    /// Iterations the run does: `ceil(steps / steps_per_iteration)`.
+    pub fn iterations(&self) -> u64 {
+        self.steps.div_ceil(self.steps_per_iteration())
+    }
+
+    /// The model specification of `team` (team 1 of Sumo plays `opponent` if set).
+    pub fn team_model(&self, team: usize) -> &str {
+        if team == 1 && !self.opponent.is_empty() { &self.opponent } else { &self.model }
+    }
+
+    /// Checks every value; errors name `source`, the field and the value.
+    pub fn validate(&self, source: &str) -> Result<()> {
+        let err =
+            |field: &str, value: &dyn ToString, msg: &str| Err(RlError::config(source, field, value.to_string(), msg));
+        envs::tasks::TaskSpec::from_name(&self.env)
+            .map_err(|e| RlError::config(source, "env", &self.env, e.to_string()))?;
+        for (field, spec) in [("model", &self.model), ("opponent", &self.opponent)] {
+            if field == "opponent" && spec.is_empty() {
+                continue;
+            }
+            models::ModelConfig::parse(spec).map_err(|e| RlError::config(source, field, spec, e.to_string()))?;
+        }
+        if !self.opponent.is_empty() && !self.is_sumo() {
+            return err("opponent", &self.opponent, "only Team Sumo has a second team");
+        }
+        for (field, v) in [
+            ("num_envs", self.num_envs),
+            ("unroll_length", self.unroll_length),
+            ("batch_size", self.batch_size),
+            ("num_minibatches", self.num_minibatches),
+            ("epochs", self.epochs),
+        ] {
+            if v == 0 {
+                return err(field, &v, "must be at least 1");
+            }
+        }
+        if self.num_envs > 1 << 20 {
+            return err("num_envs", &self.num_envs, "at most 1048576 environments");
+        }
+        if (self.batch_size * self.num_minibatches) % self.num_envs != 0 {
+            return err(
+                "num_envs",
+                &self.num_envs,
+                &format!(
+                    "must divide batch_size * num_minibatches = {} x {} = {} (an iteration is a whole number of \
+                     unrolls of every environment)",
+                    self.batch_size,
+                    self.num_minibatches,
+                    self.batch_size * self.num_minibatches
+                ),
+            );
+        }
+        if self.steps == 0 {
+            return err("steps", &self.steps, "must be at least 1");
+        }
+        for (field, v, lo, hi) in [
+            ("discount", self.discount, 0.0, 1.0),
+            ("gae_lambda", self.gae_lambda, 0.0, 1.0),
+            ("curriculum_fraction", self.curriculum_fraction, 0.0, 1.0),
+        ] {
+            if !(lo..=hi).contains(&v) {
+                return err(field, &v, &format!("must lie in [{lo}, {hi}]"));
+            }
+        }
+        for (field, v) in [
+            ("clip_epsilon", self.clip_epsilon),
+            ("value_coef", self.value_coef),
+            ("entropy_coef", self.entropy_coef),
+            ("grad_clip", self.grad_clip),
+            ("reward_scaling", self.reward_scaling),
+        ] {
+            if !v.is_finite() || v < 0.0 {
+                return err(field, &v, "must be finite and non-negative");
+            }
+        }
+        if !self.learning_rate.is_finite() || self.learning_rate <= 0.0 {
+            return err("learning_rate", &self.learning_rate, "must be finite and positive");
+        }
+        if self.num_evals > 0 && self.eval_episodes == 0 {
+            return err("eval_episodes", &self.eval_episodes, "must be at least 1 when num_evals > 0");
+        }
+        Ok(())
+    }
+}
+
+/// A command-line value as TOML: numbers, booleans, arrays as written, anything else as a
+/// string (so `--set model=shnn` needs no quotes).
+fn parse_override(value: &str) -> toml::Value {
+    let doc = format!("v = {value}");
+    match doc.parse::<toml::Table>() {
+        Ok(mut t) => t.remove("v").unwrap_or_else(|| toml::Value::String(value.into())),
+        Err(_) => toml::Value::String(value.into()),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn presets_are_valid_and_paper_matches_the_reference() {
+        for env in ["team_reach/1_ant", "team_sumo/2_ants"] {
+            for p in [Preset::Quick, Preset::Paper] {
+                TrainConfig::preset(p, env).validate("test").unwrap();
+            }
+        }
+        let p = TrainConfig::preset(Preset::Paper, "team_reach/1_ant");
+        assert_eq!(p.steps_per_iteration(), 163_840);
+        assert_eq!(p.unrolls_per_iteration(), 16);
+        assert_eq!(TrainConfig::preset(Preset::Paper, "team_sumo/2_ants").batch_size, 128);
+    }
+
+    #[test]
+    fn overrides_and_round_trip() {
+        let ov = vec![("num_envs".to_string(), "128".to_string()), ("model".to_string(), "mlp_hn".to_string())];
+        let c = TrainConfig::resolve(Some(Preset::Paper), None, &ov).unwrap();
+        assert_eq!(c.num_envs, 128);
+        assert_eq!(c.model, "mlp_hn");
+        let back: TrainConfig = toml::from_str(&c.to_toml()).unwrap();
+        assert_eq!(back, c);
+    }
+
+    #[test]
+    fn bad_values_name_the_field() {
+        let cases = [
+            ("num_envs", "0", "num_envs"),
+            ("env", "team_reach/no_such", "env"),
+            ("model", "resnet", "model"),
+            ("discount", "1.5", "discount"),
+            ("num_envs", "\"many\"", "num_envs"),
+            ("colour", "3", "colour"),
+            ("num_envs", "100", "num_envs"),
+        ];
+        for (field, value, named) in cases {
+            let e = TrainConfig::resolve(None, None, &[(field.to_string(), value.to_string())]).unwrap_err();
+            let msg = e.to_string();
+            assert!(msg.contains(named), "{field}={value}: {msg}");
+        }
+    }
+}
