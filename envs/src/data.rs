@@ -2,9 +2,15 @@
 //! `ctrl`, contact warm starts) plus scratch buffers, all sized once from the [`Model`] by
 //! [`Data::new`] so that stepping does not allocate (the constraint buffers grow only when a
 //! scene produces more simultaneous contacts than ever before, and then keep their capacity).
+//!
+//! [`DataState`] ([`Data::state`], [`Data::set_state`]) is the part of a `Data` that carries
+//! over from one step to the next, for exact checkpoints: everything else is recomputed by
+//! every step before it is read.
 
 use crate::math::{Mat3, Quat, SpatialInertia, Vec3, Vec6};
 use crate::model::Model;
+use serde::{Deserialize, Serialize};
+use std::fmt;
 
 /// One contact point found by collision detection.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -235,5 +241,132 @@ impl Data {
     /// Whether every entry of the state (qpos, qvel) is finite.
     pub fn is_finite(&self) -> bool {
         self.qpos.iter().chain(self.qvel.iter()).all(|x| x.is_finite())
+    }
+
+    /// The state that carries over to the next step ([`DataState`]): stepping a `Data` whose
+    /// state was set from it with [`Data::set_state`] gives the same bits as stepping this one.
+    pub fn state(&self) -> DataState {
+        debug_assert!(
+            self.warm.iter().enumerate().all(|(s, w)| *w == [0.0; 4] || self.warm_used.contains(&s)),
+            "a contact warm start outside warm_used"
+        );
+        DataState {
+            time: self.time,
+            qpos: self.qpos.clone(),
+            qvel: self.qvel.clone(),
+            ctrl: self.ctrl.clone(),
+            qfrc_applied: self.qfrc_applied.clone(),
+            warm_contacts: self.warm_used.iter().map(|&slot| WarmStart { slot, force: self.warm[slot] }).collect(),
+            warm_limit: self.warm_limit.clone(),
+        }
+    }
+
+    /// Sets the state carried between steps from `s` (checked against `m` first: nothing
+    /// changes on error). The derived quantities (poses, velocities, contacts, `qacc`) are left
+    /// as they are: [`crate::forward`] or [`crate::kinematics::kinematics`] brings them up to
+    /// date; the next step recomputes them anyway.
+    pub fn set_state(&mut self, m: &Model, s: &DataState) -> Result<(), StateMismatch> {
+        s.check(m)?;
+        self.time = s.time;
+        self.qpos.copy_from_slice(&s.qpos);
+        self.qvel.copy_from_slice(&s.qvel);
+        self.ctrl.copy_from_slice(&s.ctrl);
+        self.qfrc_applied.copy_from_slice(&s.qfrc_applied);
+        self.warm.iter_mut().for_each(|w| *w = [0.0; 4]);
+        self.warm_used.clear();
+        for w in &s.warm_contacts {
+            self.warm[w.slot] = w.force;
+            self.warm_used.push(w.slot);
+        }
+        self.warm_limit.copy_from_slice(&s.warm_limit);
+        Ok(())
+    }
+}
+
+/// Everything of a [`Data`] that a step reads before writing it, so that
+/// [`Data::set_state`] followed by stepping reproduces the original's steps bit for bit:
+/// - `time`, `qpos`, `qvel`: the state proper;
+/// - `ctrl`, `qfrc_applied`: inputs kept between steps (the tasks rewrite `ctrl` every
+///   control step, but a plain simulator user may not);
+/// - the constraint solver's warm starts: the forces of the contact slots used by the last
+///   step (every other slot's warm start is zero, and only these are cleared by the next
+///   step) and of the joint limits.
+///
+/// Everything else in `Data` (poses, inertias, mass matrix and factors, bias, contacts,
+/// constraint rows, accelerations) is written by a step before it is read. Numbers are stored
+/// as they are, non-finite ones included.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct DataState {
+    /// Simulation time (s).
+    pub time: f64,
+    /// Generalised positions (`Model::nq`).
+    pub qpos: Vec<f64>,
+    /// Generalised velocities (`Model::nv`).
+    pub qvel: Vec<f64>,
+    /// Actuator controls (`Model::nu()`).
+    pub ctrl: Vec<f64>,
+    /// User-applied generalised forces (`Model::nv`).
+    pub qfrc_applied: Vec<f64>,
+    /// Warm starts of the contact slots used by the last step, in the order they were used.
+    pub warm_contacts: Vec<WarmStart>,
+    /// Warm-start forces of the joint limits, per joint (`Model::joints`).
+    pub warm_limit: Vec<f64>,
+}
+
+/// The warm start of one contact slot (a fixed geom pair and capsule end).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct WarmStart {
+    /// The slot (`0..Model::nslot`).
+    pub slot: usize,
+    /// Normal force, then the friction force as a world-frame vector.
+    pub force: [f64; 4],
+}
+
+/// Why a [`DataState`] does not fit a model: the field, what it holds, what the model needs.
+#[derive(Clone, Debug, PartialEq)]
+pub struct StateMismatch {
+    /// The field (e.g. `qpos`, `warm_contacts[3].slot`).
+    pub field: String,
+    /// What the state holds (a length or a value).
+    pub value: String,
+    /// What the model expects.
+    pub expected: String,
+}
+
+impl fmt::Display for StateMismatch {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{} = {}, expected {}", self.field, self.value, self.expected)
+    }
+}
+
+impl std::error::Error for StateMismatch {}
+
+impl DataState {
+    /// Checks that every array has the model's size and every warm-start slot exists.
+    pub fn check(&self, m: &Model) -> Result<(), StateMismatch> {
+        let len = |field: &str, got: usize, want: usize, what: &str| {
+            if got == want {
+                Ok(())
+            } else {
+                Err(StateMismatch {
+                    field: field.into(),
+                    value: format!("{got} entries"),
+                    expected: format!("{want} ({what})"),
+                })
+            }
+        };
+        len("qpos", self.qpos.len(), m.nq, "nq")?;
+        len("qvel", self.qvel.len(), m.nv, "nv")?;
+        len("ctrl", self.ctrl.len(), m.nu(), "actuators")?;
+        len("qfrc_applied", self.qfrc_applied.len(), m.nv, "nv")?;
+        len("warm_limit", self.warm_limit.len(), m.joints.len(), "joints")?;
+        if let Some((i, w)) = self.warm_contacts.iter().enumerate().find(|(_, w)| w.slot >= m.nslot) {
+            return Err(StateMismatch {
+                field: format!("warm_contacts[{i}].slot"),
+                value: w.slot.to_string(),
+                expected: format!("a contact slot below {}", m.nslot),
+            });
+        }
+        Ok(())
     }
 }

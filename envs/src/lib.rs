@@ -4,7 +4,8 @@
 //! - [`ModelBuilder`] builds an immutable [`Model`]; [`Data`] holds one environment's state;
 //! - `step` advances one `Data` by one time step; `step_batch` many in parallel;
 //! - `mjcf` loads MuJoCo XML files, `brax` MeBen's agent configs;
-//! - `tasks`: the MeBen tasks (Team Reach, Team Sumo) as batched multi-agent environments.
+//! - `tasks`: the MeBen tasks (Team Reach, Team Sumo) as batched multi-agent environments;
+//! - [`rollout_tool`]: the open-loop MJCF rollout program (`--example rollout`, `meben sim`).
 
 pub mod batch;
 pub mod brax;
@@ -20,11 +21,12 @@ pub mod math;
 pub mod mjcf;
 pub mod model;
 pub mod rne;
+pub mod rollout_tool;
 pub mod tasks;
 
 pub use batch::{step_batch, step_batch_ctrl};
 pub use builder::{GeomSpec, HingeSpec, ModelBuilder};
-pub use data::{Contact, Data};
+pub use data::{Contact, Data, DataState};
 pub use integrator::{forward, step};
 pub use model::{
     ActuatorId, BodyId, CapsuleEnds, GeomId, Integrator, JointId, JointKind, Model, ModelError, Options, Shape,

@@ -7,10 +7,11 @@ use super::placement::{Start, sample_start};
 use super::scene::Scene;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
+use serde::{Deserialize, Serialize};
 
 /// A fixed start: the start drawn with `seed`, rotated by `angle` (rad) about the vertical
 /// through `point` (x, y); `angle = 0` is the unrotated scene.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct FixedStart {
     /// Seed of the start.
     pub seed: u64,
@@ -21,7 +22,7 @@ pub struct FixedStart {
 }
 
 /// How each episode starts.
-#[derive(Clone, Copy, Debug, PartialEq, Default)]
+#[derive(Clone, Copy, Debug, PartialEq, Default, Serialize, Deserialize)]
 pub enum StartMode {
     /// A fresh random start every episode, from the environment's own random stream.
     #[default]

@@ -35,4 +35,4 @@ pub use outcome::{Outcome, RootState};
 pub use placement::Start;
 pub use scene::Scene;
 pub use spec::{BUILTIN_NAMES, TaskKind, TaskSpec};
-pub use vec_env::{StepOutput, VecEnv};
+pub use vec_env::{StepOutput, VecEnv, VecEnvState};

@@ -1,8 +1,10 @@
 //! How an environment's current step ended, and the horizontal root state that rewards and
 //! outcomes are computed from.
 
+use serde::{Deserialize, Serialize};
+
 /// The state of an episode after a control step.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Serialize, Deserialize)]
 pub enum Outcome {
     /// The episode goes on.
     #[default]

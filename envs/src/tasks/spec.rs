@@ -12,6 +12,7 @@
 //! config files (ending in `.txt`).
 
 use super::error::TaskError;
+use serde::{Deserialize, Serialize};
 
 /// Control step (s): one action per 0.05 s.
 pub const CONTROL_DT: f64 = 0.05;
@@ -22,7 +23,7 @@ pub const PHYSICS_STEPS_PER_CONTROL: usize = 5;
 pub const EPISODE_STEPS: usize = 1000;
 
 /// Which game.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub enum TaskKind {
     /// Team Reach: one team of N agents covers M fixed balls.
     Reach,
@@ -31,7 +32,7 @@ pub enum TaskKind {
 }
 
 /// A complete composition: everything needed to build a scene.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct TaskSpec {
     /// The name it was made from (built-in or custom string).
     pub name: String,

@@ -11,6 +11,9 @@
 //!   episode ended is reset at once: `obs` holds the first observation of its next episode
 //!   and `final_obs` the true last observation of the episode that ended (rows of other
 //!   environments in `final_obs` are stale).
+//! - Checkpoints: [`VecEnv::snapshot`] returns a serialisable [`VecEnvState`] with everything
+//!   that determines the future steps; [`VecEnv::restore`] continues from it bit for bit (also
+//!   in a `VecEnv` built with another seed).
 //!
 //! Actions: `[B, n_actions]` `f32`, each row the agents' action vectors concatenated in agent
 //! order (agent `a` at `ObsSpec::agent_action_offset[a]`, length `agent_dof[a]`, in the order
@@ -31,6 +34,9 @@ use crate::step;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
+
+mod state;
+pub use state::{EnvState, FinalObsRow, LastOutput, RngState, VEC_ENV_STATE_VERSION, VecEnvState};
 
 /// The random stream of environment `env` in a run seeded with `seed`.
 pub fn env_rng(seed: u64, env: usize) -> ChaCha8Rng {

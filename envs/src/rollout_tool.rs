@@ -1,0 +1,161 @@
+//! Open-loop rollout of an MJCF model, to hold the simulator against another engine: the
+//! program behind `cargo run -p envs --example rollout` and `meben sim` (both parse
+//! [`RolloutArgs`] and call [`run`]).
+//!
+//! ```text
+//! cargo run --release -p envs --example rollout -- --mjcf FILE --controls CTRL.csv \
+//!     --out OUT.csv --frames 5 [--qpos q0,q1,...]
+//! ```
+//!
+//! Loads the model, sets the initial qpos (MuJoCo layout: free joint `x y z qw qx qy qz`, then
+//! hinge angles in file order; default: the model's own initial pose) at rest, applies each
+//! row of CTRL.csv (no header, one column per actuator in file order; blank lines skipped) for
+//! `--frames` physics steps and writes OUT.csv: a header line `q0,q1,...`, then one row of
+//! qpos per control step (`{:e}`, exact), the initial state first. It prints nothing on
+//! success; every bad input is a [`RolloutError`] naming the flag or file, line and column
+//! (the programs print it on stderr and exit with a non-zero code).
+
+use crate::data::Data;
+use crate::mjcf::{self, MjcfError};
+use std::fmt;
+use std::io::Write;
+use std::path::PathBuf;
+
+/// Open-loop rollout of an MJCF model; writes qpos per control step.
+#[derive(clap::Args, Clone, Debug, PartialEq)]
+pub struct RolloutArgs {
+    /// MJCF (MuJoCo XML) model file.
+    #[arg(long)]
+    pub mjcf: PathBuf,
+    /// Controls: one row per control step, one column per actuator, no header.
+    #[arg(long)]
+    pub controls: PathBuf,
+    /// Output CSV of qpos, one row per control step (initial state first).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Physics steps per control step.
+    #[arg(long, default_value_t = 5)]
+    pub frames: usize,
+    /// Initial qpos, comma-separated (default: the model's initial pose).
+    #[arg(long)]
+    pub qpos: Option<String>,
+}
+
+/// Why a rollout failed.
+#[derive(Debug)]
+pub enum RolloutError {
+    /// A command-line value that is malformed or out of range (`--frames`, `--qpos`).
+    Argument {
+        /// The flag.
+        flag: String,
+        /// What is wrong.
+        message: String,
+    },
+    /// The model file could not be loaded (boxed: the error is large and rare).
+    Model(Box<MjcfError>),
+    /// A file could not be read or written, or a controls row is malformed.
+    File {
+        /// The file, with `:line` for a controls row.
+        path: String,
+        /// What is wrong.
+        message: String,
+    },
+    /// The state stopped being finite (the output file holds the whole rollout).
+    NonFinite {
+        /// The first control step (1-based) after which the state was not finite.
+        control_step: usize,
+    },
+}
+
+impl fmt::Display for RolloutError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            RolloutError::Argument { flag, message } => write!(f, "{flag}: {message}"),
+            RolloutError::Model(e) => write!(f, "{e}"),
+            RolloutError::File { path, message } => write!(f, "{path}: {message}"),
+            RolloutError::NonFinite { control_step } => {
+                write!(f, "the state became non-finite (first after control step {control_step})")
+            }
+        }
+    }
+}
+
+impl std::error::Error for RolloutError {}
+
+impl From<MjcfError> for RolloutError {
+    fn from(e: MjcfError) -> Self {
+        RolloutError::Model(Box::new(e))
+    }
+}
+
+/// Parses a comma-separated row of finite numbers; errors name the column (1-based).
+fn parse_row(text: &str) -> Result<Vec<f64>, String> {
+    text.split(',')
+        .enumerate()
+        .map(|(i, t)| {
+            let t = t.trim();
+            t.parse::<f64>()
+                .ok()
+                .filter(|x| x.is_finite())
+                .ok_or_else(|| format!("column {}: \"{t}\" is not a finite number", i + 1))
+        })
+        .collect()
+}
+
+/// Runs the rollout `args` describes (module docs), writing `args.out`.
+pub fn run(args: &RolloutArgs) -> Result<(), RolloutError> {
+    let arg = |flag: &str, message: String| RolloutError::Argument { flag: flag.into(), message };
+    if args.frames == 0 {
+        return Err(arg("--frames", "must be at least 1".into()));
+    }
+    let model = mjcf::load_file(&args.mjcf)?;
+    let mut data = Data::new(&model);
+    if let Some(q) = &args.qpos {
+        let q = parse_row(q).map_err(|e| arg("--qpos", e))?;
+        data.reset_to(&model, &q).map_err(|e| arg("--qpos", e))?;
+    }
+    let controls_path = args.controls.display().to_string();
+    let text = std::fs::read_to_string(&args.controls)
+        .map_err(|e| RolloutError::File { path: controls_path.clone(), message: format!("cannot read: {e}") })?;
+    let mut controls = Vec::new();
+    for (i, line) in text.lines().enumerate() {
+        if line.trim().is_empty() {
+            continue;
+        }
+        let at = || format!("{controls_path}:{}", i + 1);
+        let row = parse_row(line).map_err(|message| RolloutError::File { path: at(), message })?;
+        if row.len() != model.nu() {
+            let message = format!("{} columns, but the model has {} actuators", row.len(), model.nu());
+            return Err(RolloutError::File { path: at(), message });
+        }
+        controls.push(row);
+    }
+    let out_path = args.out.display().to_string();
+    let file = std::fs::File::create(&args.out)
+        .map_err(|e| RolloutError::File { path: out_path.clone(), message: format!("cannot create: {e}") })?;
+    let mut out = std::io::BufWriter::new(file);
+    let io = |e: std::io::Error| RolloutError::File { path: out_path.clone(), message: format!("write failed: {e}") };
+    let header: Vec<String> = (0..model.nq).map(|i| format!("q{i}")).collect();
+    writeln!(out, "{}", header.join(",")).map_err(io)?;
+    let write_row = |out: &mut std::io::BufWriter<std::fs::File>, q: &[f64]| {
+        let row: Vec<String> = q.iter().map(|x| format!("{x:e}")).collect();
+        writeln!(out, "{}", row.join(",")).map_err(io)
+    };
+    write_row(&mut out, &data.qpos)?;
+    let mut first_non_finite = None;
+    for (k, row) in controls.iter().enumerate() {
+        data.ctrl.copy_from_slice(row);
+        for _ in 0..args.frames {
+            crate::step(&model, &mut data);
+        }
+        write_row(&mut out, &data.qpos)?;
+        if first_non_finite.is_none() && !data.is_finite() {
+            first_non_finite = Some(k + 1);
+        }
+    }
+    out.flush().map_err(io)?;
+    match first_non_finite {
+        Some(control_step) => Err(RolloutError::NonFinite { control_step }),
+        None => Ok(()),
+    }
+}
