@@ -7,6 +7,8 @@
 //!   [`Tape::backward`] walks it backwards once and returns [`Gradients`] for every leaf
 //!   created with [`Tape::var`].
 //! - Gradient rules live in one file (`backprop.rs`); forward kernels in `kernels/`.
+//! - With [`Tape::enable_profiling`], the tape times every op and counts its floating-point
+//!   operations ([`Tape::profile_report`], [`Tape::profile_flops`]; conventions in [`flops`]).
 //! - [`gradcheck`] compares gradients with central finite differences (in `f64`).
 //!
 //! ```
@@ -21,6 +23,7 @@
 mod backprop;
 pub mod element;
 pub mod error;
+pub mod flops;
 pub mod gradcheck;
 pub mod kernels;
 pub mod op;
@@ -32,6 +35,7 @@ mod var_ops;
 
 pub use element::Float;
 pub use error::{Result, TensorError};
+pub use flops::FlopCount;
 pub use op::{Activation, BinaryOp, ReduceOp, UnaryOp};
 pub use tape::{Gradients, NoGradGuard, Tape, Var};
 pub use tensor::Tensor;

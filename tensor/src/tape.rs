@@ -12,6 +12,7 @@ use std::time::{Duration, Instant};
 use crate::backprop::{GradStore, propagate};
 use crate::element::Float;
 use crate::error::{Result, invalid};
+use crate::flops::{self, FlopCount, OpFlops};
 use crate::op::{NodeId, Op};
 use crate::tensor::Tensor;
 
@@ -31,12 +32,47 @@ pub struct Tape<T: Float> {
     profile: RefCell<Option<Profile>>,
 }
 
-/// Time spent per op, forward and backward (see [`Tape::enable_profiling`]).
+/// Time and flops per op, forward and backward (see [`Tape::enable_profiling`]).
 #[derive(Default)]
 struct Profile {
-    forward: HashMap<&'static str, (u64, Duration)>,
-    backward: HashMap<&'static str, (u64, Duration)>,
+    forward: HashMap<&'static str, OpStats>,
+    backward: HashMap<&'static str, OpStats>,
     last: Option<Instant>,
+}
+
+/// What the profile records about one op name in one direction.
+#[derive(Clone, Copy, Default)]
+struct OpStats {
+    calls: u64,
+    time: Duration,
+    flops: OpFlops,
+}
+
+impl OpStats {
+    fn add(&mut self, time: Duration, flops: OpFlops) {
+        self.calls += 1;
+        self.time += time;
+        self.flops += flops;
+    }
+}
+
+impl Profile {
+    /// Flops summed over op names.
+    fn flops(&self) -> FlopCount {
+        let sum = |t: &HashMap<&'static str, OpStats>| {
+            t.values().fold(OpFlops::default(), |mut acc, s| {
+                acc += s.flops;
+                acc
+            })
+        };
+        let (f, b) = (sum(&self.forward), sum(&self.backward));
+        FlopCount {
+            matmul_forward: f.matmul,
+            matmul_backward: b.matmul,
+            other_forward: f.other,
+            other_backward: b.other,
+        }
+    }
 }
 
 impl<T: Float> Default for Tape<T> {
@@ -63,25 +99,52 @@ impl<T: Float> Tape<T> {
         Self { nodes: RefCell::new(Vec::new()), grad_enabled: Cell::new(true), profile: RefCell::new(None) }
     }
 
-    /// Starts recording the wall time of every op: forward time is the time since the
-    /// previous node was recorded (so it includes any caller code in between), backward time
-    /// is that of the op's gradient rule. Read it with [`Tape::profile_report`].
+    /// Starts recording the wall time and the floating-point operations of every op:
+    /// forward time is the time since the previous node was recorded (so it includes any
+    /// caller code in between), backward time is that of the op's gradient rule. Flops are
+    /// counted by the conventions of [`crate::flops`]: `2 m n k` per matrix product, one per
+    /// element of other arithmetic. Read them with
+    /// [`Tape::profile_report`] and [`Tape::profile_flops`]. Without this call nothing is
+    /// timed or counted.
     pub fn enable_profiling(&self) {
         *self.profile.borrow_mut() = Some(Profile { last: Some(Instant::now()), ..Profile::default() });
     }
 
-    /// A table of time per op (forward and backward, slowest first), if profiling is on.
+    /// Floating-point operations recorded since [`Tape::enable_profiling`] (forward ops
+    /// recorded and gradient rules run), or `None` if profiling is off.
+    pub fn profile_flops(&self) -> Option<FlopCount> {
+        self.profile.borrow().as_ref().map(Profile::flops)
+    }
+
+    /// A table per direction (forward, then backward; slowest op first) of calls, time,
+    /// millions of flops and the achieved GFLOP/s of each op, if profiling is on. Forward
+    /// times include caller code between ops, so forward rates are lower bounds.
     pub fn profile_report(&self) -> Option<String> {
         let prof = self.profile.borrow();
         let prof = prof.as_ref()?;
         let mut out = String::new();
         for (title, table) in [("forward", &prof.forward), ("backward", &prof.backward)] {
             let mut rows: Vec<_> = table.iter().collect();
-            rows.sort_by_key(|r| std::cmp::Reverse(r.1.1));
-            let total: Duration = rows.iter().map(|r| r.1.1).sum();
-            out.push_str(&format!("{title}: {:.2} ms\n", total.as_secs_f64() * 1e3));
-            for (name, (count, t)) in rows {
-                out.push_str(&format!("  {name:<14} {count:>6} calls {:>10.3} ms\n", t.as_secs_f64() * 1e3));
+            rows.sort_by(|a, b| b.1.time.cmp(&a.1.time).then(a.0.cmp(b.0)));
+            let total: Duration = rows.iter().map(|r| r.1.time).sum();
+            let flops: u64 = rows.iter().map(|r| r.1.flops.matmul + r.1.flops.other).sum();
+            let mm: u64 = rows.iter().map(|r| r.1.flops.matmul).sum();
+            out.push_str(&format!(
+                "{title}: {:.2} ms, {:.3} GFLOP ({:.3} in matmuls), {}\n",
+                total.as_secs_f64() * 1e3,
+                flops as f64 * 1e-9,
+                mm as f64 * 1e-9,
+                rate(flops, total),
+            ));
+            for (name, s) in rows {
+                let f = s.flops.matmul + s.flops.other;
+                out.push_str(&format!(
+                    "  {name:<14} {:>6} calls {:>10.3} ms {:>12.3} MFLOP {:>14}\n",
+                    s.calls,
+                    s.time.as_secs_f64() * 1e3,
+                    f as f64 * 1e-6,
+                    rate(f, s.time),
+                ));
             }
         }
         Some(out)
@@ -125,9 +188,8 @@ impl<T: Float> Tape<T> {
         let requires_grad = requires_grad && self.grad_enabled.get();
         if let Some(prof) = self.profile.borrow_mut().as_mut() {
             let now = Instant::now();
-            let e = prof.forward.entry(op.name()).or_default();
-            e.0 += 1;
-            e.1 += now - prof.last.unwrap_or(now);
+            let f = flops::forward(&self.nodes.borrow(), &op, value.shape());
+            prof.forward.entry(op.name()).or_default().add(now - prof.last.unwrap_or(now), f);
             prof.last = Some(now);
         }
         let op = if requires_grad { op } else { Op::Leaf };
@@ -175,9 +237,9 @@ impl<T: Float> Tape<T> {
                 propagate(&nodes, id, &mut g, &mut store);
                 crate::pool::recycle(g);
                 if let Some(prof) = self.profile.borrow_mut().as_mut() {
-                    let e = prof.backward.entry(nodes[id].op.name()).or_default();
-                    e.0 += 1;
-                    e.1 += start.elapsed();
+                    let elapsed = start.elapsed();
+                    let f = flops::backward(&nodes, id);
+                    prof.backward.entry(nodes[id].op.name()).or_default().add(elapsed, f);
                 }
             }
         }
@@ -188,6 +250,12 @@ impl<T: Float> Tape<T> {
     pub(crate) fn check_same(&self, v: Var<'_, T>) {
         assert!(std::ptr::eq(self, v.tape), "a Var from another tape was used");
     }
+}
+
+/// `flops / time` as "12.34 GFLOP/s", or "-" when either is zero.
+fn rate(flops: u64, time: Duration) -> String {
+    let secs = time.as_secs_f64();
+    if flops == 0 || secs == 0.0 { "-".to_owned() } else { format!("{:.2} GFLOP/s", flops as f64 * 1e-9 / secs) }
 }
 
 /// Gradients of the leaves of one backward pass, indexed by [`Var`].
