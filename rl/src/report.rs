@@ -1,0 +1,531 @@
+//! `meben report <root>`: the results of many runs (a sweep, or any directory tree of runs)
+//! as the paper reports them: a table of final success (Team Reach) or win and draw rates
+//! (Team Sumo) in percent, mean ± standard error over seeds, and learning curves.
+//!
+//! - Every directory under the root holding `config.toml` and `metrics.csv` is a run
+//!   ([`find_run_dirs`]).
+//! - Runs are grouped by environment, model, opponent and *variant*: the run directory's
+//!   path relative to the root with its seed component (`seed<N>`) removed, so the runs
+//!   `team_reach_1_ant/shnn+no_entropy/seed{0,1,2}` of a sweep form one group.
+//! - A run's final value is its metric in the last row of `metrics.csv` that has it: Team
+//!   Reach `eval_success_rate`, Team Sumo `eval_win_rate_t0` (and `eval_draw_rate`). A run
+//!   without evaluation rows falls back to the training rate (`train_success_rate`,
+//!   `train_win_rate_t0`, `train_draw_rate`: episodes that ended during collection); the
+//!   table marks such groups. A run with neither is listed as having no result yet.
+//! - Per group: the number of seeds, the mean and the standard error (sample standard
+//!   deviation / sqrt(n); 0 for one seed) of the final values, and the env steps reached
+//!   (the last row's `env_steps`, min–max over the seeds).
+//! - Curves: per group, the mean over seeds with a shaded ± s.e. band. Seeds are aligned on
+//!   the env steps of the seed with the fewest points; every other seed contributes its
+//!   value at its last row at or before each of those env steps.
+//!
+//! Written under the root: `report.md` (a table per environment and its curves),
+//! `report.csv` (one line per group) and `curves/<env>.svg` (env name made file-name safe).
+
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use crate::config::TrainConfig;
+use crate::error::{Result, RlError};
+use crate::metrics;
+use crate::plot::LinePlot;
+use crate::run_dir::RunDir;
+use crate::sweep::sanitize_component;
+
+/// One point of a group's learning curve.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CurvePoint {
+    /// Env steps.
+    pub env_steps: f64,
+    /// Mean over the seeds, in percent.
+    pub mean: f64,
+    /// Standard error over the seeds, in percent.
+    pub se: f64,
+    /// Seeds with a value at or before this point.
+    pub seeds: usize,
+}
+
+/// The runs of one group and their statistics (module docs).
+#[derive(Clone, Debug, PartialEq)]
+pub struct GroupReport {
+    /// Environment name.
+    pub env: String,
+    /// Model of team 0.
+    pub model: String,
+    /// Model of team 1 (Team Sumo; empty: the same as `model`).
+    pub opponent: String,
+    /// The run path without its seed component, relative to the root (`/`-separated).
+    pub variant: String,
+    /// The name shown in the table and legend: `variant` without a leading environment
+    /// directory, or the model if that leaves nothing.
+    pub label: String,
+    /// The metrics column of the final value (`eval_success_rate`, `eval_win_rate_t0`, or
+    /// a `train_*` fallback).
+    pub metric: String,
+    /// Whether at least one run had no evaluation rows and used the training rate.
+    pub from_train: bool,
+    /// The run directories, relative to the root.
+    pub runs: Vec<PathBuf>,
+    /// The runs' seeds, in the order of `runs`.
+    pub seed_list: Vec<u64>,
+    /// Final values per run, in percent, in the order of `runs`.
+    pub finals: Vec<f64>,
+    /// Mean final value, in percent.
+    pub mean: f64,
+    /// Standard error of the final value, in percent.
+    pub se: f64,
+    /// Team Sumo: mean and standard error of the final draw rate, in percent.
+    pub draw: Option<(f64, f64)>,
+    /// Fewest and most env steps reached over the runs.
+    pub env_steps: (u64, u64),
+    /// The learning curve (mean and s.e. over seeds).
+    pub curve: Vec<CurvePoint>,
+}
+
+/// What [`report`] found and wrote.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Report {
+    /// The directory searched.
+    pub root: PathBuf,
+    /// The groups, by environment (built-in order first), then variant.
+    pub groups: Vec<GroupReport>,
+    /// Run directories without any value yet (relative to the root), with the reason.
+    pub pending: Vec<(PathBuf, String)>,
+    /// `<root>/report.md`.
+    pub markdown: PathBuf,
+    /// `<root>/report.csv`.
+    pub csv: PathBuf,
+    /// `<root>/curves/<env>.svg`, one per environment.
+    pub curves: Vec<PathBuf>,
+}
+
+/// Every run directory (holding `config.toml` and `metrics.csv`) at or under `root`,
+/// sorted; directories inside a run, hidden directories and symbolic links are not searched.
+pub fn find_run_dirs(root: &Path) -> Result<Vec<PathBuf>> {
+    if !root.is_dir() {
+        return Err(RlError::file(root, "not a directory"));
+    }
+    let mut found = Vec::new();
+    let mut stack = vec![root.to_path_buf()];
+    while let Some(dir) = stack.pop() {
+        let run = RunDir::new(&dir);
+        if run.config().is_file() && run.metrics().is_file() {
+            found.push(dir);
+            continue;
+        }
+        let entries = std::fs::read_dir(&dir).map_err(|e| RlError::file(&dir, format!("cannot list: {e}")))?;
+        for entry in entries {
+            let entry = entry.map_err(|e| RlError::file(&dir, format!("cannot list: {e}")))?;
+            let hidden = entry.file_name().to_string_lossy().starts_with('.');
+            if !hidden && entry.file_type().is_ok_and(|t| t.is_dir()) {
+                stack.push(entry.path());
+            }
+        }
+    }
+    found.sort();
+    Ok(found)
+}
+
+/// Mean and standard error (sample standard deviation / sqrt(n); 0 for one value) of
+/// `values`; `(NaN, NaN)` for none.
+pub fn mean_and_se(values: &[f64]) -> (f64, f64) {
+    let n = values.len();
+    if n == 0 {
+        return (f64::NAN, f64::NAN);
+    }
+    let mean = values.iter().sum::<f64>() / n as f64;
+    if n == 1 {
+        return (mean, 0.0);
+    }
+    let var = values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1) as f64;
+    (mean, (var / n as f64).sqrt())
+}
+
+/// Reads every run under `root`, writes `report.md`, `report.csv` and `curves/*.svg`
+/// there (module docs), prints the path of `report.md`, and returns what it found.
+pub fn report(root: &Path) -> Result<Report> {
+    let dirs = find_run_dirs(root)?;
+    if dirs.is_empty() {
+        return Err(RlError::file(
+            root,
+            "no run directories found (directories holding config.toml and metrics.csv, at any depth)",
+        ));
+    }
+    let mut pending = Vec::new();
+    let mut groups: BTreeMap<(usize, String, String, String, String), Vec<RunResult>> = BTreeMap::new();
+    for dir in &dirs {
+        let rel = dir.strip_prefix(root).unwrap_or(dir).to_path_buf();
+        match read_run(dir)? {
+            Ok(run) => {
+                let variant = variant_of(&rel);
+                let c = &run.config;
+                let key = (env_rank(&c.env), c.env.clone(), variant, c.model.clone(), c.opponent.clone());
+                groups.entry(key).or_default().push(RunResult { rel, ..run });
+            }
+            Err(reason) => pending.push((rel, reason)),
+        }
+    }
+    let groups: Vec<GroupReport> =
+        groups.into_iter().map(|((_, _, variant, _, _), runs)| summarise(variant, runs)).collect();
+
+    let markdown = root.join("report.md");
+    let csv = root.join("report.csv");
+    let curves_dir = root.join("curves");
+    let mut curves = Vec::new();
+    if !groups.is_empty() {
+        std::fs::create_dir_all(&curves_dir)
+            .map_err(|e| RlError::file(&curves_dir, format!("cannot create the directory: {e}")))?;
+    }
+    for env in envs_in_order(&groups) {
+        let path = curves_dir.join(format!("{}.svg", sanitize_component(env)));
+        nn::write_atomic(&path, curve_plot(env, &groups).to_svg().as_bytes())?;
+        curves.push(path);
+    }
+    nn::write_atomic(&markdown, render_markdown(root, &groups, &pending).as_bytes())?;
+    nn::write_atomic(&csv, render_csv(&groups).as_bytes())?;
+    println!("{}", markdown.display());
+    Ok(Report { root: root.to_path_buf(), groups, pending, markdown, csv, curves })
+}
+
+/// One run's values.
+struct RunResult {
+    rel: PathBuf,
+    config: TrainConfig,
+    metric: &'static str,
+    from_train: bool,
+    final_value: f64,
+    final_draw: Option<f64>,
+    env_steps: u64,
+    /// `(env_steps, value)`, env steps strictly increasing.
+    curve: Vec<(f64, f64)>,
+}
+
+/// Reads a run: `Ok(Err(reason))` if it has no value yet.
+fn read_run(dir: &Path) -> Result<std::result::Result<RunResult, String>> {
+    let run = RunDir::new(dir);
+    let config = TrainConfig::load(&run.config())?;
+    let path = run.metrics();
+    let text = std::fs::read_to_string(&path).map_err(|e| RlError::file(&path, format!("cannot read: {e}")))?;
+    let rows = metrics::parse_csv(&text).map_err(|e| RlError::file(&path, e))?;
+    let (eval, train, eval_draw, train_draw) = if config.is_sumo() {
+        ("eval_win_rate_t0", "train_win_rate_t0", Some("eval_draw_rate"), Some("train_draw_rate"))
+    } else {
+        ("eval_success_rate", "train_success_rate", None, None)
+    };
+    let has = |col: &str| rows.iter().any(|r| r.get(col).is_some_and(|v| v.is_finite()));
+    let (metric, draw, from_train) = if has(eval) {
+        (eval, eval_draw, false)
+    } else if has(train) {
+        (train, train_draw, true)
+    } else if rows.is_empty() {
+        return Ok(Err("no rows yet".into()));
+    } else {
+        return Ok(Err(format!("no {eval} or {train} values yet")));
+    };
+    let last = |col: &str| rows.iter().rev().find_map(|r| r.get(col).copied().filter(|v| v.is_finite()));
+    let final_value = last(metric).unwrap_or(f64::NAN);
+    let final_draw = draw.and_then(last);
+    let env_steps = rows.iter().rev().find_map(|r| r.get("env_steps").copied()).unwrap_or(0.0).max(0.0) as u64;
+    let mut curve: Vec<(f64, f64)> = Vec::new();
+    for r in &rows {
+        let (Some(&x), Some(&y)) = (r.get("env_steps"), r.get(metric)) else { continue };
+        if !(x.is_finite() && y.is_finite()) {
+            continue;
+        }
+        // A resumed run may repeat env steps: the later rows replace the earlier ones.
+        while curve.last().is_some_and(|&(px, _)| px >= x) {
+            curve.pop();
+        }
+        curve.push((x, y));
+    }
+    Ok(Ok(RunResult { rel: PathBuf::new(), config, metric, from_train, final_value, final_draw, env_steps, curve }))
+}
+
+/// The run path without `seed<N>` components, `/`-separated.
+fn variant_of(rel: &Path) -> String {
+    let parts: Vec<String> = rel
+        .components()
+        .map(|c| c.as_os_str().to_string_lossy().into_owned())
+        .filter(|c| !is_seed_component(c))
+        .collect();
+    parts.join("/")
+}
+
+fn is_seed_component(c: &str) -> bool {
+    c.strip_prefix("seed").is_some_and(|d| !d.is_empty() && d.bytes().all(|b| b.is_ascii_digit()))
+}
+
+/// Built-in environments in their order, then the others.
+fn env_rank(env: &str) -> usize {
+    envs::tasks::BUILTIN_NAMES.iter().position(|n| *n == env).unwrap_or(envs::tasks::BUILTIN_NAMES.len())
+}
+
+fn summarise(variant: String, mut runs: Vec<RunResult>) -> GroupReport {
+    runs.sort_by(|a, b| a.config.seed.cmp(&b.config.seed).then_with(|| a.rel.cmp(&b.rel)));
+    let c = &runs[0].config;
+    let env_dir = sanitize_component(&c.env);
+    let label = match variant.strip_prefix(&env_dir) {
+        Some(rest) if rest.is_empty() || rest.starts_with('/') => rest.trim_start_matches('/').to_string(),
+        _ => variant.clone(),
+    };
+    let label = if label.is_empty() { c.model.clone() } else { label };
+    let finals: Vec<f64> = runs.iter().map(|r| 100.0 * r.final_value).collect();
+    let (mean, se) = mean_and_se(&finals);
+    let draws: Vec<f64> = runs.iter().filter_map(|r| r.final_draw.map(|d| 100.0 * d)).collect();
+    let draw = (!draws.is_empty()).then(|| mean_and_se(&draws));
+    let from_train = runs.iter().any(|r| r.from_train);
+    let shown = if from_train { runs.iter().find(|r| r.from_train) } else { runs.first() };
+    let metric = shown.map(|r| r.metric).unwrap_or_default().to_string();
+    let steps = runs.iter().map(|r| r.env_steps);
+    let env_steps = (steps.clone().min().unwrap_or(0), steps.max().unwrap_or(0));
+    let curves: Vec<&[(f64, f64)]> = runs.iter().map(|r| r.curve.as_slice()).collect();
+    GroupReport {
+        env: c.env.clone(),
+        model: c.model.clone(),
+        opponent: c.opponent.clone(),
+        variant,
+        label,
+        metric,
+        from_train,
+        runs: runs.iter().map(|r| r.rel.clone()).collect(),
+        seed_list: runs.iter().map(|r| r.config.seed).collect(),
+        finals,
+        mean,
+        se,
+        draw,
+        env_steps,
+        curve: align_curves(&curves),
+    }
+}
+
+/// Mean and s.e. (in percent) over seeds of curves `(env_steps, fraction)`, aligned on the
+/// env steps of the curve with the fewest points (the first of those on ties); each curve
+/// contributes its value at its last point at or before each of those (none before its
+/// first point).
+fn align_curves(curves: &[&[(f64, f64)]]) -> Vec<CurvePoint> {
+    let Some(reference) = curves.iter().filter(|c| !c.is_empty()).min_by_key(|c| c.len()) else {
+        return Vec::new();
+    };
+    let mut out = Vec::new();
+    for &(x, _) in reference.iter() {
+        let values: Vec<f64> = curves
+            .iter()
+            .filter_map(|c| {
+                let k = c.partition_point(|p| p.0 <= x);
+                (k > 0).then(|| 100.0 * c[k - 1].1)
+            })
+            .collect();
+        if values.is_empty() {
+            continue;
+        }
+        let (mean, se) = mean_and_se(&values);
+        out.push(CurvePoint { env_steps: x, mean, se, seeds: values.len() });
+    }
+    out
+}
+
+fn envs_in_order(groups: &[GroupReport]) -> Vec<&str> {
+    let mut envs: Vec<&str> = Vec::new();
+    for g in groups {
+        if !envs.contains(&g.env.as_str()) {
+            envs.push(&g.env);
+        }
+    }
+    envs
+}
+
+fn metric_title(sumo: bool) -> &'static str {
+    if sumo { "win % (team 0)" } else { "success %" }
+}
+
+fn curve_plot(env: &str, groups: &[GroupReport]) -> LinePlot {
+    let sumo = env.starts_with("team_sumo");
+    let mut plot = LinePlot::new(env).x_label("env steps").y_label(metric_title(sumo)).y_range(0.0, 100.0);
+    for g in groups.iter().filter(|g| g.env == env) {
+        let points = g.curve.iter().map(|p| (p.env_steps, p.mean)).collect();
+        let band = g.curve.iter().map(|p| (p.mean - p.se, p.mean + p.se)).collect();
+        let mut name = format!("{} (n={})", g.label, g.runs.len());
+        if g.from_train {
+            name.push_str(" [train]");
+        }
+        plot = plot.series_with_band(name, points, band);
+    }
+    plot
+}
+
+/// `12.5M`, `800k`, `999`.
+fn format_steps(steps: u64) -> String {
+    let s = steps as f64;
+    let trim = |v: f64, d: usize| {
+        let t = format!("{v:.d$}");
+        if t.contains('.') { t.trim_end_matches('0').trim_end_matches('.').to_string() } else { t }
+    };
+    if s >= 1e9 {
+        format!("{}G", trim(s / 1e9, 2))
+    } else if s >= 1e6 {
+        format!("{}M", trim(s / 1e6, 2))
+    } else if s >= 1e3 {
+        format!("{}k", trim(s / 1e3, 1))
+    } else {
+        steps.to_string()
+    }
+}
+
+fn steps_range(g: &GroupReport) -> String {
+    let (lo, hi) = g.env_steps;
+    if lo == hi { format_steps(lo) } else { format!("{}–{}", format_steps(lo), format_steps(hi)) }
+}
+
+fn md_cell(s: &str) -> String {
+    s.replace('|', "\\|")
+}
+
+fn render_markdown(root: &Path, groups: &[GroupReport], pending: &[(PathBuf, String)]) -> String {
+    let mut md = String::new();
+    let runs: usize = groups.iter().map(|g| g.runs.len()).sum();
+    let _ = writeln!(md, "# Report: `{}`\n", root.display());
+    let _ = writeln!(
+        md,
+        "{runs} runs in {} groups. Final value of a run: its metric in the last row of `metrics.csv` that has it \
+         (Team Reach `eval_success_rate`, Team Sumo `eval_win_rate_t0` and `eval_draw_rate`), in percent; \
+         mean ± standard error over seeds (sample standard deviation / √n; 0 for one seed). Env steps: the last \
+         row's, over the seeds. Curves: mean over seeds with a ± s.e. band.\n",
+        groups.len()
+    );
+    for env in envs_in_order(groups) {
+        let sumo = env.starts_with("team_sumo");
+        let _ = writeln!(md, "## {env}\n");
+        if sumo {
+            let _ = writeln!(
+                md,
+                "| run | model | opponent | seeds | win % team 0 (mean ± s.e.) | draw % (mean ± s.e.) | env steps |"
+            );
+            let _ = writeln!(md, "|---|---|---|---:|---:|---:|---:|");
+        } else {
+            let _ = writeln!(md, "| run | model | seeds | success % (mean ± s.e.) | env steps |");
+            let _ = writeln!(md, "|---|---|---:|---:|---:|");
+        }
+        let mut any_train = false;
+        for g in groups.iter().filter(|g| g.env == env) {
+            let mark = if g.from_train { " †" } else { "" };
+            any_train |= g.from_train;
+            let value = format!("{:.2} ± {:.2}{mark}", g.mean, g.se);
+            if sumo {
+                let draw = g.draw.map(|(m, s)| format!("{m:.2} ± {s:.2}{mark}")).unwrap_or_else(|| "–".into());
+                let opponent = if g.opponent.is_empty() { "same".to_string() } else { format!("`{}`", g.opponent) };
+                let _ = writeln!(
+                    md,
+                    "| {} | `{}` | {} | {} | {value} | {draw} | {} |",
+                    md_cell(&g.label),
+                    md_cell(&g.model),
+                    md_cell(&opponent),
+                    g.runs.len(),
+                    steps_range(g)
+                );
+            } else {
+                let _ = writeln!(
+                    md,
+                    "| {} | `{}` | {} | {value} | {} |",
+                    md_cell(&g.label),
+                    md_cell(&g.model),
+                    g.runs.len(),
+                    steps_range(g)
+                );
+            }
+        }
+        if any_train {
+            let _ = writeln!(
+                md,
+                "\n† at least one run has no evaluation rows: its final value is the training rate \
+                 (`{}`: episodes that ended during collection), not an evaluation.",
+                if sumo { "train_win_rate_t0`, `train_draw_rate" } else { "train_success_rate" }
+            );
+        }
+        let _ = writeln!(md, "\n![{env}](curves/{}.svg)\n", sanitize_component(env));
+    }
+    if !pending.is_empty() {
+        let _ = writeln!(md, "## Runs without a result yet\n");
+        for (dir, reason) in pending {
+            let _ = writeln!(md, "- `{}`: {reason}", dir.display());
+        }
+        md.push('\n');
+    }
+    md
+}
+
+fn csv_field(s: &str) -> String {
+    if s.contains([',', '"', '\n']) { format!("\"{}\"", s.replace('"', "\"\"")) } else { s.to_string() }
+}
+
+fn render_csv(groups: &[GroupReport]) -> String {
+    let mut out = String::from(
+        "env,model,opponent,variant,metric,seeds,seed_list,mean_pct,se_pct,draw_mean_pct,draw_se_pct,\
+         env_steps_min,env_steps_max\n",
+    );
+    for g in groups {
+        let seeds: Vec<String> = g.seed_list.iter().map(|s| s.to_string()).collect();
+        let (dm, ds) = g.draw.map(|(m, s)| (m.to_string(), s.to_string())).unwrap_or_default();
+        let _ = writeln!(
+            out,
+            "{},{},{},{},{},{},{},{},{},{dm},{ds},{},{}",
+            csv_field(&g.env),
+            csv_field(&g.model),
+            csv_field(&g.opponent),
+            csv_field(&g.variant),
+            g.metric,
+            g.runs.len(),
+            seeds.join(" "),
+            g.mean,
+            g.se,
+            g.env_steps.0,
+            g.env_steps.1
+        );
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn mean_and_standard_error() {
+        let (m, s) = mean_and_se(&[10.0, 20.0, 30.0]);
+        assert!((m - 20.0).abs() < 1e-12);
+        // sample std 10, / sqrt(3)
+        assert!((s - 10.0 / 3f64.sqrt()).abs() < 1e-12);
+        assert_eq!(mean_and_se(&[7.0]), (7.0, 0.0));
+        assert!(mean_and_se(&[]).0.is_nan());
+    }
+
+    #[test]
+    fn curves_align_on_the_shortest_seed() {
+        let a: &[(f64, f64)] = &[(100.0, 0.1), (200.0, 0.2), (300.0, 0.3)];
+        let b: &[(f64, f64)] = &[(150.0, 0.5), (310.0, 0.7)];
+        let c = align_curves(&[a, b]);
+        // x from b; a's value at its last row at or before 150 (0.1) and 310 (0.3).
+        assert_eq!(c.len(), 2);
+        assert_eq!((c[0].env_steps, c[0].seeds), (150.0, 2));
+        assert!((c[0].mean - 30.0).abs() < 1e-9);
+        assert!((c[1].mean - 50.0).abs() < 1e-9);
+        assert!((c[1].se - mean_and_se(&[30.0, 70.0]).1).abs() < 1e-9);
+        // A seed without a row before the first reference x is left out there.
+        let late: &[(f64, f64)] = &[(250.0, 1.0), (400.0, 1.0)];
+        let c = align_curves(&[late, a]);
+        assert_eq!((c[0].env_steps, c[0].seeds, c[0].mean), (250.0, 2, 60.0));
+        let c = align_curves(&[b, late]);
+        assert_eq!((c[0].seeds, c[0].mean), (1, 50.0));
+        assert!(align_curves(&[]).is_empty());
+    }
+
+    #[test]
+    fn variants_drop_the_seed_component() {
+        assert_eq!(variant_of(Path::new("team_reach_1_ant/shnn+v/seed12")), "team_reach_1_ant/shnn+v");
+        assert_eq!(variant_of(Path::new("a/seedling/seed0")), "a/seedling");
+        assert_eq!(variant_of(Path::new("")), "");
+        assert_eq!(format_steps(50_000_000), "50M");
+        assert_eq!(format_steps(2_457_600), "2.46M");
+        assert_eq!(format_steps(81_920), "81.9k");
+    }
+}

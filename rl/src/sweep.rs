@@ -1,0 +1,800 @@
+//! Sweeps: many training runs from one TOML file (`meben ablate --sweep sweep.toml --out
+//! runs/sweep [--shard 3/8]`), restartable and split across machines.
+//!
+//! A sweep file:
+//!
+//! ```toml
+//! envs = ["team_reach/1_ant", "team_reach/2_ants"]
+//! models = ["shnn", "mlp_hn", "shnn:assignment=hungarian"]   # models::ModelConfig::parse syntax
+//! seeds = [0, 1, 2]
+//! preset = "paper"          # optional: `paper` (default) or `quick`
+//! include_base = true       # optional: also run without any variant (default true)
+//!
+//! [config]                  # optional: TrainConfig fields set for every run
+//! steps = 50000000
+//!
+//! [[variants]]              # optional: overrides crossed with everything else
+//! name = "no_entropy"
+//! config = { entropy_coef = 0.0 }
+//! ```
+//!
+//! Keys: [`SWEEP_KEYS`]. `env`, `model` and `seed` come from the lists and cannot be set in
+//! `[config]` or a variant. Each run's configuration is
+//! `TrainConfig::resolve(Some(preset), None, overrides)` with the overrides of `[config]`,
+//! then of the variant, then the run's env, model and seed.
+//!
+//! **Order.** The runs are the cross product env x model x variant x seed, in that nesting
+//! (env outermost, seed innermost), each list in file order; the variant without overrides
+//! (if `include_base`) comes before the named variants. The run named
+//! `<env>/<model>[+<variant>]/seed<seed>` (env and model made file-name safe by
+//! [`sanitize_component`]: `team_reach/1_ant` -> `team_reach_1_ant`,
+//! `shnn:assignment=hungarian` -> `shnn_assignment-hungarian`) lives in that directory
+//! under the output directory.
+//!
+//! **Shards.** `--shard k/n` runs the runs whose index `i` (0-based, in the order above)
+//! has `i % n == k - 1`; the `n` shards partition the sweep.
+//!
+//! **Restarts.** A run that is done (`done.json`) is skipped; one with a checkpoint is
+//! resumed, after checking that it was started with the same configuration (except
+//! `steps`, which may be raised to train longer); any other is trained from scratch. So a
+//! sweep is restarted by running the same command again.
+
+use std::collections::BTreeSet;
+use std::fmt;
+use std::path::Path;
+use std::str::FromStr;
+
+use crate::config::{Preset, TrainConfig};
+use crate::error::{Result, RlError};
+use crate::run_dir::{RunDir, RunStatus};
+use crate::train::RunSummary;
+
+/// The keys of a sweep file (module docs).
+pub const SWEEP_KEYS: [&str; 7] = ["envs", "models", "seeds", "preset", "include_base", "config", "variants"];
+
+/// The keys of a `[[variants]]` table.
+pub const VARIANT_KEYS: [&str; 2] = ["name", "config"];
+
+/// Fields that the sweep's lists set and `[config]` or a variant must not.
+const LIST_FIELDS: [(&str, &str); 4] =
+    [("env", "envs"), ("model", "models"), ("seed", "seeds"), ("preset", "preset (a top-level key)")];
+
+/// A named set of configuration overrides crossed with the rest of a sweep.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Variant {
+    /// Appended to the model's directory name after a `+`.
+    pub name: String,
+    /// `(field, value as TOML text)` pairs.
+    pub config: Vec<(String, String)>,
+}
+
+/// A parsed sweep file (module docs).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Sweep {
+    /// Where the sweep came from (its path), named in errors.
+    pub source: String,
+    /// The file's text, copied to the output directory.
+    pub text: String,
+    /// Environment names.
+    pub envs: Vec<String>,
+    /// Model specifications.
+    pub models: Vec<String>,
+    /// Seeds.
+    pub seeds: Vec<u64>,
+    /// The preset every run starts from.
+    pub preset: Preset,
+    /// `(field, value as TOML text)` overrides of every run.
+    pub config: Vec<(String, String)>,
+    /// Named variants (may be empty).
+    pub variants: Vec<Variant>,
+    /// Whether the runs without a variant are part of the sweep.
+    pub include_base: bool,
+}
+
+/// One run of a sweep.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SweepRun {
+    /// The run directory relative to the sweep's output directory, e.g.
+    /// `team_reach_1_ant/shnn+no_entropy/seed0`.
+    pub name: String,
+    /// The resolved configuration.
+    pub config: TrainConfig,
+}
+
+/// Shard `index` of `count` (1-based): the runs whose 0-based position `i` has
+/// `i % count == index - 1`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Shard {
+    /// Which shard, from 1 to `count`.
+    pub index: usize,
+    /// How many shards.
+    pub count: usize,
+}
+
+/// What [`run_sweep`] did.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct SweepOutcome {
+    /// Runs of the shard.
+    pub runs: usize,
+    /// Runs trained from scratch.
+    pub trained: usize,
+    /// Runs resumed from their checkpoint.
+    pub resumed: usize,
+    /// Runs already done.
+    pub skipped: usize,
+}
+
+impl Shard {
+    /// Parses `k/n` (1 <= k <= n); errors name the value and what is expected.
+    pub fn parse(s: &str) -> Result<Shard> {
+        let err = |msg: String| RlError::config("command line", "--shard", s, msg);
+        let usage = "expected k/n, shard k of n counted from 1 (e.g. 3/8)";
+        let (k, n) = s.split_once('/').ok_or_else(|| err(usage.into()))?;
+        let (Ok(index), Ok(count)) = (k.trim().parse::<usize>(), n.trim().parse::<usize>()) else {
+            return Err(err(usage.into()));
+        };
+        if count == 0 {
+            return Err(err("the number of shards n must be at least 1".into()));
+        }
+        if index == 0 || index > count {
+            return Err(err(format!("shard {index} of {count} does not exist: k must lie in 1..={count}")));
+        }
+        Ok(Shard { index, count })
+    }
+
+    /// Whether the run at 0-based position `i` of the sweep belongs to this shard.
+    pub fn contains(&self, i: usize) -> bool {
+        i % self.count == self.index - 1
+    }
+
+    /// The items of this shard, in order.
+    pub fn select<T>(&self, items: Vec<T>) -> Vec<T> {
+        items.into_iter().enumerate().filter(|(i, _)| self.contains(*i)).map(|(_, x)| x).collect()
+    }
+}
+
+impl fmt::Display for Shard {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}/{}", self.index, self.count)
+    }
+}
+
+impl FromStr for Shard {
+    type Err = RlError;
+    fn from_str(s: &str) -> Result<Shard> {
+        Shard::parse(s)
+    }
+}
+
+impl Sweep {
+    /// Reads and parses a sweep file.
+    pub fn load(path: &Path) -> Result<Sweep> {
+        let text = std::fs::read_to_string(path).map_err(|e| RlError::file(path, format!("cannot read: {e}")))?;
+        Sweep::parse(&text, &path.display().to_string())
+    }
+
+    /// Parses a sweep file's text; `source` (its path) is named in errors.
+    pub fn parse(text: &str, source: &str) -> Result<Sweep> {
+        let table: toml::Table = text.parse().map_err(|e| RlError::file(source, format!("invalid TOML: {e}")))?;
+        for (k, v) in &table {
+            if !SWEEP_KEYS.contains(&k.as_str()) {
+                return Err(RlError::config(
+                    source,
+                    k,
+                    v,
+                    format!("unknown key; known keys: {}", SWEEP_KEYS.join(", ")),
+                ));
+            }
+        }
+        let envs = string_list(&table, "envs", source)?;
+        let models = string_list(&table, "models", source)?;
+        let seeds = seed_list(&table, source)?;
+        let preset = match table.get("preset") {
+            None => Preset::Paper,
+            Some(toml::Value::String(s)) => Preset::parse(s, source)?,
+            Some(v) => return Err(RlError::config(source, "preset", v, "expected `quick` or `paper`")),
+        };
+        let include_base = match table.get("include_base") {
+            None => true,
+            Some(toml::Value::Boolean(b)) => *b,
+            Some(v) => return Err(RlError::config(source, "include_base", v, "expected true or false")),
+        };
+        let config = match table.get("config") {
+            None => Vec::new(),
+            Some(v) => overrides(v, "config", source)?,
+        };
+        let mut variants = Vec::new();
+        match table.get("variants") {
+            None => {}
+            Some(toml::Value::Array(items)) => {
+                for (i, item) in items.iter().enumerate() {
+                    variants.push(parse_variant(item, i, source, &variants)?);
+                }
+            }
+            Some(v) => {
+                return Err(RlError::config(source, "variants", v, "expected [[variants]] tables (name, config)"));
+            }
+        }
+        if !include_base && variants.is_empty() {
+            return Err(RlError::config(
+                source,
+                "include_base",
+                false,
+                "the sweep has no runs: include_base = false needs at least one [[variants]] table",
+            ));
+        }
+        Ok(Sweep {
+            source: source.into(),
+            text: text.into(),
+            envs,
+            models,
+            seeds,
+            preset,
+            config,
+            variants,
+            include_base,
+        })
+    }
+
+    /// Every run of the sweep, in the order of the module docs, each configuration resolved
+    /// and validated (errors name the sweep file and the run).
+    pub fn runs(&self) -> Result<Vec<SweepRun>> {
+        let mut variants: Vec<Option<&Variant>> = Vec::new();
+        if self.include_base {
+            variants.push(None);
+        }
+        variants.extend(self.variants.iter().map(Some));
+        let mut runs = Vec::new();
+        let mut names = BTreeSet::new();
+        for env in &self.envs {
+            for model in &self.models {
+                for variant in &variants {
+                    for &seed in &self.seeds {
+                        let suffix = variant.map(|v| format!("+{}", v.name)).unwrap_or_default();
+                        let name =
+                            format!("{}/{}{suffix}/seed{seed}", sanitize_component(env), sanitize_component(model));
+                        let mut ov = self.config.clone();
+                        if let Some(v) = variant {
+                            ov.extend(v.config.iter().cloned());
+                        }
+                        ov.push(("env".into(), toml::Value::String(env.clone()).to_string()));
+                        ov.push(("model".into(), toml::Value::String(model.clone()).to_string()));
+                        ov.push(("seed".into(), seed.to_string()));
+                        let config = TrainConfig::resolve(Some(self.preset), None, &ov)
+                            .map_err(|e| in_run(e, &self.source, &name))?;
+                        if !names.insert(name.clone()) {
+                            return Err(RlError::config(
+                                &self.source,
+                                "models",
+                                model,
+                                format!(
+                                    "two runs would share the directory {name}: env or model names that differ \
+                                     only in characters replaced in directory names (: ; = / and others)"
+                                ),
+                            ));
+                        }
+                        runs.push(SweepRun { name, config });
+                    }
+                }
+            }
+        }
+        Ok(runs)
+    }
+}
+
+/// Runs the runs of `shard` (all if `None`) of `sweep` under `out`, skipping finished runs,
+/// resuming partial ones (module docs) and calling `train_fn` for the others; writes a copy
+/// of the sweep file to `<out>/sweep.toml` if there is none.
+///
+/// A run that fails (its `train_fn` returns an error, or its checkpoint was made with a
+/// different configuration) does not stop the others; the error then lists every failed
+/// run. Progress is printed to standard error, one line per run.
+pub fn run_sweep(
+    sweep: &Sweep,
+    out: &Path,
+    shard: Option<Shard>,
+    mut train_fn: impl FnMut(&TrainConfig, &RunDir) -> Result<RunSummary>,
+) -> Result<SweepOutcome> {
+    let all = sweep.runs()?;
+    let total = all.len();
+    let runs: Vec<(usize, SweepRun)> =
+        all.into_iter().enumerate().filter(|(i, _)| shard.is_none_or(|s| s.contains(*i))).collect();
+    std::fs::create_dir_all(out).map_err(|e| RlError::file(out, format!("cannot create the directory: {e}")))?;
+    let copy = out.join("sweep.toml");
+    if !copy.exists()
+        && let Err(e) = nn::write_atomic(&copy, sweep.text.as_bytes())
+        && !copy.exists()
+    {
+        // Another shard may have written it at the same moment; only a missing copy fails.
+        return Err(e.into());
+    }
+    let mut outcome = SweepOutcome { runs: runs.len(), ..SweepOutcome::default() };
+    let mut failed: Vec<String> = Vec::new();
+    let shard_text = shard.map(|s| format!(" (shard {s})")).unwrap_or_default();
+    for (pos, (i, run)) in runs.iter().enumerate() {
+        let dir = RunDir::new(out.join(&run.name));
+        let status = dir.status();
+        let head = format!("[{}/{}{shard_text}, run {} of {total}] {}", pos + 1, runs.len(), i + 1, run.name);
+        let result = match status {
+            RunStatus::Done => {
+                if let Ok(saved) = TrainConfig::load(&dir.config()) {
+                    let diff = config_differences(&saved, &run.config, true);
+                    if !diff.is_empty() {
+                        eprintln!(
+                            "{head}: warning: finished with a configuration that differs from the sweep's: {}",
+                            diff.join("; ")
+                        );
+                    }
+                }
+                eprintln!("{head}: done, skipped");
+                outcome.skipped += 1;
+                continue;
+            }
+            RunStatus::Partial => check_resumable(&dir, &run.config).and_then(|()| {
+                eprintln!("{head}: resuming");
+                train_fn(&run.config, &dir)
+            }),
+            RunStatus::New => std::fs::create_dir_all(dir.root())
+                .map_err(|e| RlError::file(dir.root(), format!("cannot create the directory: {e}")))
+                .and_then(|()| {
+                    eprintln!("{head}: training");
+                    train_fn(&run.config, &dir)
+                }),
+        };
+        match result {
+            Ok(_) if status == RunStatus::Partial => outcome.resumed += 1,
+            Ok(_) => outcome.trained += 1,
+            Err(e) => {
+                eprintln!("{head}: failed: {e}");
+                failed.push(format!("{}: {e}", run.name));
+            }
+        }
+    }
+    if !failed.is_empty() {
+        return Err(RlError::file(
+            out,
+            format!(
+                "{} of {} runs{shard_text} failed ({} trained, {} resumed, {} skipped):\n  {}",
+                failed.len(),
+                runs.len(),
+                outcome.trained,
+                outcome.resumed,
+                outcome.skipped,
+                failed.join("\n  ")
+            ),
+        ));
+    }
+    Ok(outcome)
+}
+
+/// A path component made of `[A-Za-z0-9_.+-]` only: `/`, `:` and `;` become `_`, `=`
+/// becomes `-`, anything else `_` (so `team_reach/1_ant` -> `team_reach_1_ant`,
+/// `shnn:assignment=hungarian;seed=3` -> `shnn_assignment-hungarian_seed-3`).
+pub fn sanitize_component(s: &str) -> String {
+    let out: String = s
+        .chars()
+        .map(|c| match c {
+            '=' => '-',
+            c if c.is_ascii_alphanumeric() || matches!(c, '_' | '.' | '+' | '-') => c,
+            _ => '_',
+        })
+        .collect();
+    if out.chars().all(|c| c == '.') { format!("_{out}") } else { out }
+}
+
+/// Checks that a partial run's saved configuration is the sweep's, `steps` aside.
+fn check_resumable(dir: &RunDir, wanted: &TrainConfig) -> Result<()> {
+    let saved = TrainConfig::load(&dir.config())?;
+    let diff = config_differences(&saved, wanted, false);
+    if diff.is_empty() {
+        return Ok(());
+    }
+    Err(RlError::file(
+        dir.root(),
+        format!(
+            "the checkpoint was made with a different configuration than the sweep asks for ({}); use another \
+             --out directory, restore the sweep file, or delete this run directory to start it again",
+            diff.join("; ")
+        ),
+    ))
+}
+
+/// `field: saved X, sweep Y` for every field that differs (`steps` only if `with_steps`).
+fn config_differences(saved: &TrainConfig, wanted: &TrainConfig, with_steps: bool) -> Vec<String> {
+    let a = toml::Table::try_from(saved).unwrap_or_default();
+    let b = toml::Table::try_from(wanted).unwrap_or_default();
+    let keys: BTreeSet<&String> = a.keys().chain(b.keys()).collect();
+    keys.into_iter()
+        .filter(|k| with_steps || k.as_str() != "steps")
+        .filter(|k| a.get(*k) != b.get(*k))
+        .map(|k| {
+            let show = |v: Option<&toml::Value>| v.map(|v| v.to_string()).unwrap_or_else(|| "(absent)".into());
+            format!("{k}: saved {}, sweep {}", show(a.get(k)), show(b.get(k)))
+        })
+        .collect()
+}
+
+/// Puts the sweep file and the run into a configuration error's source.
+fn in_run(e: RlError, source: &str, run: &str) -> RlError {
+    match e {
+        RlError::Config { field, value, message, .. } => {
+            RlError::Config { source: format!("{source} (run {run})"), field, value, message }
+        }
+        e => e,
+    }
+}
+
+/// A required, non-empty list of distinct, non-empty strings.
+fn string_list(table: &toml::Table, key: &str, source: &str) -> Result<Vec<String>> {
+    let v = table.get(key).ok_or_else(|| RlError::config(source, key, "", "missing (a list of strings)"))?;
+    let items = v.as_array().ok_or_else(|| RlError::config(source, key, v, "expected a list of strings"))?;
+    if items.is_empty() {
+        return Err(RlError::config(source, key, v, "the list is empty"));
+    }
+    let mut out: Vec<String> = Vec::new();
+    for item in items {
+        let s = match item.as_str() {
+            Some(s) if !s.trim().is_empty() => s.trim().to_string(),
+            _ => return Err(RlError::config(source, key, item, "expected a non-empty string")),
+        };
+        if out.contains(&s) {
+            return Err(RlError::config(source, key, &s, "listed twice"));
+        }
+        out.push(s);
+    }
+    Ok(out)
+}
+
+/// The required, non-empty list of distinct non-negative integer seeds.
+fn seed_list(table: &toml::Table, source: &str) -> Result<Vec<u64>> {
+    let key = "seeds";
+    let v = table.get(key).ok_or_else(|| RlError::config(source, key, "", "missing (a list of integers)"))?;
+    let items = v.as_array().ok_or_else(|| RlError::config(source, key, v, "expected a list of integers"))?;
+    if items.is_empty() {
+        return Err(RlError::config(source, key, v, "the list is empty"));
+    }
+    let mut out = Vec::new();
+    for item in items {
+        let seed = item
+            .as_integer()
+            .and_then(|s| u64::try_from(s).ok())
+            .ok_or_else(|| RlError::config(source, key, item, "expected a non-negative integer"))?;
+        if out.contains(&seed) {
+            return Err(RlError::config(source, key, seed, "listed twice"));
+        }
+        out.push(seed);
+    }
+    Ok(out)
+}
+
+/// A table of TrainConfig overrides as `(field, TOML text)` pairs; `at` names the table
+/// (`config`, `variants.<name>.config`) in errors.
+fn overrides(v: &toml::Value, at: &str, source: &str) -> Result<Vec<(String, String)>> {
+    let table = v.as_table().ok_or_else(|| RlError::config(source, at, v, "expected a table of TrainConfig fields"))?;
+    let known = toml::Table::try_from(TrainConfig::preset(Preset::Quick, "team_reach/1_ant"))
+        .map_err(|e| RlError::config("built-in", "*", "", e.to_string()))?;
+    let mut out = Vec::new();
+    for (k, value) in table {
+        let field = format!("{at}.{k}");
+        if let Some((_, list)) = LIST_FIELDS.iter().find(|(f, _)| f == k) {
+            return Err(RlError::config(source, &field, value, format!("set by the sweep's `{list}`, not here")));
+        }
+        if !known.contains_key(k) {
+            let names: Vec<&str> =
+                known.keys().map(|s| s.as_str()).filter(|k| !matches!(*k, "env" | "model" | "seed")).collect();
+            return Err(RlError::config(
+                source,
+                &field,
+                value,
+                format!("unknown TrainConfig field; known fields: {}", names.join(", ")),
+            ));
+        }
+        out.push((k.clone(), value.to_string()));
+    }
+    Ok(out)
+}
+
+/// The `i`-th `[[variants]]` table.
+fn parse_variant(item: &toml::Value, i: usize, source: &str, before: &[Variant]) -> Result<Variant> {
+    let at = format!("variants[{i}]");
+    let table = item.as_table().ok_or_else(|| RlError::config(source, &at, item, "expected a table (name, config)"))?;
+    for (k, v) in table {
+        if !VARIANT_KEYS.contains(&k.as_str()) {
+            return Err(RlError::config(
+                source,
+                &format!("{at}.{k}"),
+                v,
+                format!("unknown key; known keys: {}", VARIANT_KEYS.join(", ")),
+            ));
+        }
+    }
+    let name = match table.get("name") {
+        Some(toml::Value::String(s)) => s.clone(),
+        Some(v) => return Err(RlError::config(source, &format!("{at}.name"), v, "expected a string")),
+        None => return Err(RlError::config(source, &format!("{at}.name"), "", "missing (every variant needs a name)")),
+    };
+    if name.is_empty()
+        || name.chars().all(|c| c == '.')
+        || !name.chars().all(|c| c.is_ascii_alphanumeric() || matches!(c, '_' | '-' | '.'))
+    {
+        return Err(RlError::config(
+            source,
+            &format!("{at}.name"),
+            &name,
+            "a variant name is part of directory names: use letters, digits, `_`, `-` and `.` only",
+        ));
+    }
+    if before.iter().any(|v| v.name == name) {
+        return Err(RlError::config(source, &format!("{at}.name"), &name, "two variants have this name"));
+    }
+    let config = match table.get("config") {
+        Some(v) => overrides(v, &format!("variants.{name}.config"), source)?,
+        None => Vec::new(),
+    };
+    Ok(Variant { name, config })
+}
+
+#[cfg(test)]
+mod tests {
+    use std::cell::RefCell;
+    use std::path::PathBuf;
+
+    use super::*;
+
+    const EXAMPLE: &str = r#"
+envs = ["team_reach/1_ant", "team_reach/2_ants"]
+models = ["shnn", "mlp_hn", "shnn:assignment=hungarian"]
+seeds = [0, 1, 2]
+preset = "paper"
+[config]
+steps = 50000000
+num_envs = 128
+[[variants]]
+name = "no_entropy"
+config = { entropy_coef = 0.0 }
+"#;
+
+    /// A fresh directory under the system temporary directory, removed when dropped.
+    struct TempDir(PathBuf);
+
+    impl TempDir {
+        fn new(name: &str) -> TempDir {
+            let p = std::env::temp_dir().join(format!("rl-sweep-{name}-{}", std::process::id()));
+            let _ = std::fs::remove_dir_all(&p);
+            std::fs::create_dir_all(&p).unwrap();
+            TempDir(p)
+        }
+    }
+
+    impl Drop for TempDir {
+        fn drop(&mut self) {
+            let _ = std::fs::remove_dir_all(&self.0);
+        }
+    }
+
+    fn err_of(text: &str) -> String {
+        Sweep::parse(text, "bad.toml").and_then(|s| s.runs()).unwrap_err().to_string()
+    }
+
+    #[test]
+    fn expands_in_the_documented_order() {
+        let sweep = Sweep::parse(EXAMPLE, "example.toml").unwrap();
+        let runs = sweep.runs().unwrap();
+        assert_eq!(runs.len(), 2 * 3 * 2 * 3);
+        assert_eq!(runs[0].name, "team_reach_1_ant/shnn/seed0");
+        assert_eq!(runs[2].name, "team_reach_1_ant/shnn/seed2");
+        assert_eq!(runs[3].name, "team_reach_1_ant/shnn+no_entropy/seed0");
+        assert_eq!(runs[6].name, "team_reach_1_ant/mlp_hn/seed0");
+        assert_eq!(runs[12].name, "team_reach_1_ant/shnn_assignment-hungarian/seed0");
+        assert_eq!(runs[18].name, "team_reach_2_ants/shnn/seed0");
+        let r = &runs[4];
+        assert_eq!((r.config.env.as_str(), r.config.model.as_str(), r.config.seed), ("team_reach/1_ant", "shnn", 1));
+        assert_eq!(r.config.entropy_coef, 0.0);
+        assert_eq!(r.config.num_envs, 128);
+        assert_eq!(r.config.steps, 50_000_000);
+        assert_eq!(runs[0].config.entropy_coef, 1e-2);
+        assert_eq!(runs[12].config.model, "shnn:assignment=hungarian");
+        // The paper preset is the default.
+        assert_eq!(runs[0].config.batch_size, 1024);
+
+        let no_base = EXAMPLE.replace("preset = \"paper\"", "include_base = false");
+        let runs = Sweep::parse(&no_base, "x").unwrap().runs().unwrap();
+        assert_eq!(runs.len(), 2 * 3 * 3);
+        assert!(runs.iter().all(|r| r.name.contains("+no_entropy")));
+    }
+
+    #[test]
+    fn sanitized_names() {
+        assert_eq!(sanitize_component("team_reach/1_ant"), "team_reach_1_ant");
+        assert_eq!(
+            sanitize_component("shnn:assignment=hungarian;translation=root_mean"),
+            "shnn_assignment-hungarian_translation-root_mean"
+        );
+        assert_eq!(sanitize_component(".."), "_..");
+        assert_eq!(sanitize_component("a b/c"), "a_b_c");
+    }
+
+    #[test]
+    fn shards_parse_and_partition() {
+        assert_eq!(Shard::parse("3/8").unwrap(), Shard { index: 3, count: 8 });
+        assert_eq!("1/1".parse::<Shard>().unwrap().to_string(), "1/1");
+        for bad in ["0/8", "9/8", "x/y", "3", "1/0", "-1/3", ""] {
+            let msg = Shard::parse(bad).unwrap_err().to_string();
+            assert!(msg.contains("--shard") && msg.contains(&format!("{bad:?}")), "{bad}: {msg}");
+        }
+        assert!(Shard::parse("9/8").unwrap_err().to_string().contains("1..=8"));
+        let runs = Sweep::parse(EXAMPLE, "x").unwrap().runs().unwrap();
+        let names: Vec<String> = runs.iter().map(|r| r.name.clone()).collect();
+        for n in 1..=7 {
+            let mut seen: Vec<String> = Vec::new();
+            for k in 1..=n {
+                let part = Shard { index: k, count: n }.select(names.clone());
+                assert!(part.len() >= names.len() / n && part.len() <= names.len().div_ceil(n));
+                seen.extend(part);
+            }
+            seen.sort();
+            let mut all = names.clone();
+            all.sort();
+            assert_eq!(seen, all, "{n} shards");
+        }
+        assert_eq!(Shard { index: 2, count: 3 }.select((0..7).collect()), vec![1, 4]);
+    }
+
+    #[test]
+    fn bad_sweep_files_name_the_file_and_field() {
+        let cases: &[(&str, &[&str])] = &[
+            (
+                "envs = [\"team_reach/1_ant\"]\nmodels = [\"shnn\"]\nseeds = [0]\ncolour = 1",
+                &["colour", "known keys", "envs, models"],
+            ),
+            ("envs = []\nmodels = [\"shnn\"]\nseeds = [0]", &["envs", "empty"]),
+            ("models = [\"shnn\"]\nseeds = [0]", &["envs", "missing"]),
+            ("envs = [\"team_reach/1_ant\"]\nmodels = [\"shnn\"]\nseeds = []", &["seeds", "empty"]),
+            ("envs = [\"team_reach/1_ant\"]\nmodels = [\"shnn\"]\nseeds = [-1]", &["seeds", "-1"]),
+            ("envs = [\"team_reach/1_ant\"]\nmodels = [\"shnn\", \"shnn\"]\nseeds = [0]", &["models", "twice"]),
+            (
+                "envs = [\"team_reach/1_ant\"]\nmodels = [\"resnet\"]\nseeds = [0]",
+                &["model", "resnet", "run team_reach_1_ant/resnet/seed0"],
+            ),
+            ("envs = [\"team_reach/nope\"]\nmodels = [\"shnn\"]\nseeds = [0]", &["env", "team_reach/nope"]),
+            ("envs = [\"team_reach/1_ant\"]\nmodels = [\"shnn\"]\nseeds = [0]\npreset = \"fast\"", &["preset", "fast"]),
+            (
+                "envs = [\"team_reach/1_ant\"]\nmodels = [\"shnn\"]\nseeds = [0]\n[config]\nenv = \"x\"",
+                &["config.env", "envs"],
+            ),
+            (
+                "envs = [\"team_reach/1_ant\"]\nmodels = [\"shnn\"]\nseeds = [0]\n[config]\nnum_env = 3",
+                &["config.num_env", "num_envs"],
+            ),
+            (
+                "envs = [\"team_reach/1_ant\"]\nmodels = [\"shnn\"]\nseeds = [0]\n[config]\nnum_envs = 0",
+                &["num_envs", "at least 1"],
+            ),
+            (
+                "envs = [\"team_reach/1_ant\"]\nmodels = [\"shnn\"]\nseeds = [0]\n[[variants]]\nname = \"a/b\"",
+                &["variants[0].name", "a/b"],
+            ),
+            (
+                "envs = [\"team_reach/1_ant\"]\nmodels = [\"shnn\"]\nseeds = [0]\n[[variants]]\nconfig = {}",
+                &["variants[0].name", "missing"],
+            ),
+            (
+                "envs = [\"team_reach/1_ant\"]\nmodels = [\"shnn\"]\nseeds = [0]\n[[variants]]\nname = \"v\"\nfoo = 1",
+                &["variants[0].foo", "name, config"],
+            ),
+            (
+                "envs = [\"team_reach/1_ant\"]\nmodels = [\"shnn\"]\nseeds = [0]\n[[variants]]\nname = \"v\"\nconfig = { seed = 3 }",
+                &["variants.v.config.seed", "seeds"],
+            ),
+            (
+                "envs = [\"team_reach/1_ant\"]\nmodels = [\"shnn\"]\nseeds = [0]\ninclude_base = false",
+                &["include_base", "no runs"],
+            ),
+            ("envs = [\"team_reach/1_ant\"\nmodels", &["bad.toml", "invalid TOML"]),
+        ];
+        for (text, wanted) in cases {
+            let msg = err_of(text);
+            assert!(msg.contains("bad.toml"), "{text}\n-> {msg}");
+            for w in *wanted {
+                assert!(msg.contains(w), "{text}\n-> {msg}\n(missing {w:?})");
+            }
+        }
+    }
+
+    #[test]
+    fn shipped_sweeps_parse_and_expand() {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("sweeps");
+        let mut found = 0;
+        for entry in std::fs::read_dir(&dir).unwrap() {
+            let path = entry.unwrap().path();
+            if path.extension().is_some_and(|e| e == "toml") {
+                let runs = Sweep::load(&path).unwrap().runs().unwrap();
+                assert!(!runs.is_empty());
+                found += 1;
+            }
+        }
+        assert!(found >= 2);
+        let table = Sweep::load(&dir.join("team_reach_table.toml")).unwrap();
+        let runs = table.runs().unwrap();
+        assert_eq!(runs.len(), 6 * 4 * 3);
+        assert!(runs.iter().all(|r| r.config.steps == 50_000_000 && r.config.num_envs == 2048));
+        let reach: Vec<&str> =
+            envs::tasks::BUILTIN_NAMES.iter().copied().filter(|n| n.starts_with("team_reach")).collect();
+        assert_eq!(table.envs, reach);
+        let ablation = Sweep::load(&dir.join("ablation_assignment.toml")).unwrap().runs().unwrap();
+        assert!(ablation.iter().any(|r| r.config.model == "shnn:assignment=stochastic"));
+        assert!(ablation.iter().any(|r| r.config.model == "hnn_dn"));
+    }
+
+    /// Writes what a trainer leaves behind: `config.toml`, then a checkpoint, then `done.json`.
+    fn fake_run(dir: &RunDir, config: &TrainConfig, done: bool) {
+        std::fs::create_dir_all(dir.root()).unwrap();
+        config.save(&dir.config()).unwrap();
+        std::fs::write(dir.checkpoint(), "{}").unwrap();
+        if done {
+            std::fs::write(dir.done(), "{}").unwrap();
+        }
+    }
+
+    #[test]
+    fn skips_done_resumes_partial_trains_new() {
+        let tmp = TempDir::new("resume");
+        let text = "envs = [\"team_reach/1_ant\"]\nmodels = [\"mlp_hn\", \"shnn\"]\nseeds = [0, 1]\npreset = \"quick\"";
+        let sweep = Sweep::parse(text, "s.toml").unwrap();
+        let runs = sweep.runs().unwrap();
+        // run 0: done; run 1: partial (started with fewer steps); runs 2, 3: new.
+        fake_run(&RunDir::new(tmp.0.join(&runs[0].name)), &runs[0].config, true);
+        let shorter = TrainConfig { steps: 1000, ..runs[1].config.clone() };
+        fake_run(&RunDir::new(tmp.0.join(&runs[1].name)), &shorter, false);
+        let calls = RefCell::new(Vec::new());
+        let fake_train = |c: &TrainConfig, r: &RunDir| {
+            calls.borrow_mut().push((c.model.clone(), c.seed, r.root().to_path_buf()));
+            fake_run(r, c, true);
+            Ok(RunSummary::default())
+        };
+        let outcome = run_sweep(&sweep, &tmp.0, None, fake_train).unwrap();
+        assert_eq!(outcome, SweepOutcome { runs: 4, trained: 2, resumed: 1, skipped: 1 });
+        let called: Vec<(String, u64)> = calls.borrow().iter().map(|(m, s, _)| (m.clone(), *s)).collect();
+        assert_eq!(called, [("mlp_hn".to_string(), 1), ("shnn".into(), 0), ("shnn".into(), 1)]);
+        assert_eq!(calls.borrow()[0].2, tmp.0.join("team_reach_1_ant/mlp_hn/seed1"));
+        assert_eq!(std::fs::read_to_string(tmp.0.join("sweep.toml")).unwrap(), text);
+
+        // Everything is done now.
+        calls.borrow_mut().clear();
+        let outcome = run_sweep(&sweep, &tmp.0, None, fake_train).unwrap();
+        assert_eq!(outcome, SweepOutcome { runs: 4, trained: 0, resumed: 0, skipped: 4 });
+        assert!(calls.borrow().is_empty());
+    }
+
+    #[test]
+    fn shards_run_only_their_runs_and_mismatched_checkpoints_fail() {
+        let tmp = TempDir::new("shard");
+        let text = "envs = [\"team_reach/1_ant\"]\nmodels = [\"mlp_hn\"]\nseeds = [0, 1, 2, 3, 4]\npreset = \"quick\"";
+        let sweep = Sweep::parse(text, "s.toml").unwrap();
+        let runs = sweep.runs().unwrap();
+        let mut seeds = Vec::new();
+        let outcome = run_sweep(&sweep, &tmp.0, Some(Shard::parse("2/2").unwrap()), |c, _| {
+            seeds.push(c.seed);
+            Ok(RunSummary::default())
+        })
+        .unwrap();
+        assert_eq!(seeds, [1, 3]);
+        assert_eq!(outcome.trained, 2);
+
+        // A partial run made with another learning rate is not resumed; the others still run.
+        let other = TrainConfig { learning_rate: 1e-3, num_evals: 3, ..runs[0].config.clone() };
+        fake_run(&RunDir::new(tmp.0.join(&runs[0].name)), &other, false);
+        let mut seeds = Vec::new();
+        let msg = run_sweep(&sweep, &tmp.0, Some(Shard::parse("1/2").unwrap()), |c, _| {
+            seeds.push(c.seed);
+            Ok(RunSummary::default())
+        })
+        .unwrap_err()
+        .to_string();
+        assert_eq!(seeds, [2, 4]);
+        for w in ["team_reach_1_ant/mlp_hn/seed0", "learning_rate", "num_evals", "1 of 3 runs"] {
+            assert!(msg.contains(w), "{msg} (missing {w})");
+        }
+        assert!(!msg.contains("steps:"), "{msg}");
+    }
+}

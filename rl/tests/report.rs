@@ -1,0 +1,224 @@
+//! `meben report` on synthetic run directories, and a sweep followed by a report (with a
+//! fake trainer that writes what a run leaves behind).
+
+use std::path::{Path, PathBuf};
+
+use rl::metrics::MetricsRow;
+use rl::{Preset, RunDir, RunSummary, Sweep, TrainConfig, report, run_sweep};
+
+/// A fresh directory under the system temporary directory, removed when dropped.
+struct TempDir(PathBuf);
+
+impl TempDir {
+    fn new(name: &str) -> TempDir {
+        let p = std::env::temp_dir().join(format!("rl-report-{name}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&p);
+        std::fs::create_dir_all(&p).unwrap();
+        TempDir(p)
+    }
+}
+
+impl Drop for TempDir {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+/// Writes `config.toml` and a `metrics.csv` of `rows` (each a list of column values).
+fn write_run(dir: &Path, config: &TrainConfig, rows: &[&[(&'static str, f64)]]) {
+    std::fs::create_dir_all(dir).unwrap();
+    let run = RunDir::new(dir);
+    config.save(&run.config()).unwrap();
+    let mut text = MetricsRow::header();
+    text.push('\n');
+    for (i, cells) in rows.iter().enumerate() {
+        let mut row = MetricsRow::default();
+        row.set("iteration", (i + 1) as f64);
+        for &(column, value) in cells.iter() {
+            row.set(column, value);
+        }
+        text.push_str(&row.to_csv());
+        text.push('\n');
+    }
+    std::fs::write(run.metrics(), text).unwrap();
+}
+
+fn config(env: &str, model: &str, seed: u64) -> TrainConfig {
+    TrainConfig { model: model.into(), seed, ..TrainConfig::preset(Preset::Quick, env) }
+}
+
+fn close(a: f64, b: f64) -> bool {
+    (a - b).abs() < 1e-9
+}
+
+#[test]
+fn report_of_synthetic_runs() {
+    let tmp = TempDir::new("synthetic");
+    let root = &tmp.0;
+    // Team Reach, shnn, three seeds: final eval successes 0.5, 0.6, 0.9; seed 2 has an
+    // extra evaluation, and rows without an evaluation in between.
+    let finals = [0.5, 0.6, 0.9];
+    for (seed, f) in finals.iter().enumerate() {
+        let dir = root.join(format!("team_reach_1_ant/shnn/seed{seed}"));
+        let mut rows: Vec<Vec<(&'static str, f64)>> = vec![
+            vec![("env_steps", 1000.0), ("train_success_rate", 0.0), ("eval_success_rate", 0.1)],
+            vec![("env_steps", 2000.0), ("train_success_rate", 0.3)],
+            vec![("env_steps", 3000.0), ("eval_success_rate", *f)],
+        ];
+        if seed == 2 {
+            rows.insert(2, vec![("env_steps", 2500.0), ("eval_success_rate", 0.2)]);
+        }
+        let rows: Vec<&[(&'static str, f64)]> = rows.iter().map(|r| r.as_slice()).collect();
+        write_run(&dir, &config("team_reach/1_ant", "shnn", seed as u64), &rows);
+    }
+    // A variant of it, one seed.
+    let variant = TrainConfig { entropy_coef: 0.0, ..config("team_reach/1_ant", "shnn", 0) };
+    write_run(
+        &root.join("team_reach_1_ant/shnn+no_entropy/seed0"),
+        &variant,
+        &[&[("env_steps", 1000.0), ("eval_success_rate", 0.25)]],
+    );
+    // mlp_hn without evaluations: falls back to the training success rate (last row having it).
+    write_run(
+        &root.join("team_reach_1_ant/mlp_hn/seed0"),
+        &config("team_reach/1_ant", "mlp_hn", 0),
+        &[
+            &[("env_steps", 1000.0), ("train_success_rate", 0.1)],
+            &[("env_steps", 2000.0), ("train_success_rate", 0.25)],
+            &[("env_steps", 3000.0)],
+        ],
+    );
+    // Team Sumo, two seeds: wins 0.4 and 0.7, draws 0.1 and 0.3.
+    for (seed, (win, draw)) in [(0.4, 0.1), (0.7, 0.3)].into_iter().enumerate() {
+        write_run(
+            &root.join(format!("team_sumo_2_ants/shnn/seed{seed}")),
+            &config("team_sumo/2_ants", "shnn", seed as u64),
+            &[&[("env_steps", 5000.0), ("eval_win_rate_t0", win), ("eval_draw_rate", draw)]],
+        );
+    }
+    // A run that has not written a row yet, and a directory that is no run.
+    write_run(&root.join("team_reach_1_ant/shnn/seed9"), &config("team_reach/1_ant", "shnn", 9), &[]);
+    std::fs::create_dir_all(root.join("notes/empty")).unwrap();
+
+    let r = report(root).unwrap();
+    let labels: Vec<(&str, &str)> = r.groups.iter().map(|g| (g.env.as_str(), g.label.as_str())).collect();
+    assert_eq!(
+        labels,
+        [
+            ("team_reach/1_ant", "mlp_hn"),
+            ("team_reach/1_ant", "shnn"),
+            ("team_reach/1_ant", "shnn+no_entropy"),
+            ("team_sumo/2_ants", "shnn"),
+        ]
+    );
+    assert_eq!(r.pending.len(), 1);
+    assert_eq!(r.pending[0].0, Path::new("team_reach_1_ant/shnn/seed9"));
+
+    let mlp = &r.groups[0];
+    assert!(mlp.from_train);
+    assert_eq!(mlp.metric, "train_success_rate");
+    assert!(close(mlp.mean, 25.0) && mlp.se == 0.0);
+    assert_eq!(mlp.env_steps, (3000, 3000));
+
+    let shnn = &r.groups[1];
+    assert_eq!(shnn.runs.len(), 3);
+    assert_eq!(shnn.seed_list, [0, 1, 2]);
+    assert!(!shnn.from_train);
+    // mean 66.667, sample std sqrt(((-16.667)^2 + (-6.667)^2 + 23.333^2) / 2) = 20.817, s.e. 12.019
+    assert!(close(shnn.mean, 200.0 / 3.0), "{}", shnn.mean);
+    let sd =
+        ((50.0f64 - 200.0 / 3.0).powi(2) + (60.0f64 - 200.0 / 3.0).powi(2) + (90.0f64 - 200.0 / 3.0).powi(2)) / 2.0;
+    assert!(close(shnn.se, (sd / 3.0).sqrt()), "{}", shnn.se);
+    assert!((shnn.se - 12.0185).abs() < 1e-4, "{}", shnn.se);
+    // Curve on the env steps of seed 0 (2 evaluations): 1000 and 3000.
+    let xs: Vec<f64> = shnn.curve.iter().map(|p| p.env_steps).collect();
+    assert_eq!(xs, [1000.0, 3000.0]);
+    assert!(close(shnn.curve[0].mean, 10.0) && close(shnn.curve[0].se, 0.0));
+    assert!(close(shnn.curve[1].mean, shnn.mean));
+
+    let sumo = &r.groups[3];
+    assert_eq!(sumo.metric, "eval_win_rate_t0");
+    assert!(close(sumo.mean, 55.0) && close(sumo.se, 15.0));
+    let (dm, ds) = sumo.draw.unwrap();
+    assert!(close(dm, 20.0) && close(ds, 10.0));
+
+    // Files.
+    assert_eq!(r.markdown, root.join("report.md"));
+    let md = std::fs::read_to_string(&r.markdown).unwrap();
+    for want in [
+        "## team_reach/1_ant",
+        "## team_sumo/2_ants",
+        "| shnn | `shnn` | 3 | 66.67 ± 12.02 | 3k |",
+        "25.00 ± 0.00 †",
+        "55.00 ± 15.00",
+        "20.00 ± 10.00",
+        "curves/team_reach_1_ant.svg",
+        "team_reach_1_ant/shnn/seed9",
+    ] {
+        assert!(md.contains(want), "report.md lacks {want:?}:\n{md}");
+    }
+    let csv = std::fs::read_to_string(&r.csv).unwrap();
+    assert_eq!(csv.lines().count(), 1 + 4);
+    assert!(
+        csv.lines()
+            .any(|l| l.starts_with("team_sumo/2_ants,shnn,,team_sumo_2_ants/shnn,eval_win_rate_t0,2,0 1,55,15,20,10,"))
+    );
+    assert_eq!(r.curves, [root.join("curves/team_reach_1_ant.svg"), root.join("curves/team_sumo_2_ants.svg")]);
+    for path in &r.curves {
+        let svg = std::fs::read_to_string(path).unwrap();
+        assert!(svg.starts_with("<svg") && svg.trim_end().ends_with("</svg>"));
+        assert!(svg.contains("<path") && svg.contains("fill-opacity"), "no band in {}", path.display());
+    }
+}
+
+#[test]
+fn report_errors() {
+    let tmp = TempDir::new("errors");
+    let msg = report(&tmp.0).unwrap_err().to_string();
+    assert!(msg.contains("no run directories") && msg.contains(&tmp.0.display().to_string()), "{msg}");
+    let missing = tmp.0.join("missing");
+    assert!(report(&missing).unwrap_err().to_string().contains("not a directory"));
+    // A damaged metrics file is named.
+    let dir = tmp.0.join("run");
+    write_run(&dir, &config("team_reach/1_ant", "shnn", 0), &[]);
+    std::fs::write(dir.join("metrics.csv"), "iteration,env_steps\n1,x\n").unwrap();
+    let msg = report(&tmp.0).unwrap_err().to_string();
+    assert!(msg.contains("metrics.csv") && msg.contains("env_steps"), "{msg}");
+}
+
+#[test]
+fn sweep_then_report() {
+    let tmp = TempDir::new("sweep");
+    let text = r#"
+envs = ["team_reach/1_ant", "team_sumo/2_ants"]
+models = ["mlp_hn", "shnn:assignment=hungarian"]
+seeds = [0, 1]
+preset = "quick"
+[[variants]]
+name = "lr_high"
+config = { learning_rate = 1e-3 }
+"#;
+    let sweep = Sweep::parse(text, "sweep.toml").unwrap();
+    // The fake trainer's final success depends on the seed and the learning rate.
+    let outcome = run_sweep(&sweep, &tmp.0, None, |c, run| {
+        let value = 0.1 * (c.seed + 1) as f64 + if c.learning_rate > 5e-4 { 0.5 } else { 0.0 };
+        let column = if c.is_sumo() { "eval_win_rate_t0" } else { "eval_success_rate" };
+        write_run(
+            run.root(),
+            c,
+            &[&[("env_steps", 100.0), (column, value / 2.0)], &[("env_steps", 200.0), (column, value)]],
+        );
+        std::fs::write(run.done(), "{}").unwrap();
+        Ok(RunSummary::default())
+    })
+    .unwrap();
+    assert_eq!(outcome.trained, 16);
+    let r = report(&tmp.0).unwrap();
+    assert_eq!(r.groups.len(), 8);
+    assert!(r.groups.iter().all(|g| g.runs.len() == 2));
+    let g =
+        r.groups.iter().find(|g| g.label == "shnn_assignment-hungarian+lr_high" && !g.env.contains("sumo")).unwrap();
+    assert_eq!(g.model, "shnn:assignment=hungarian");
+    assert!(close(g.mean, 65.0) && close(g.se, 5.0), "{} {}", g.mean, g.se);
+    assert!(tmp.0.join("sweep.toml").is_file());
+}
