@@ -132,6 +132,12 @@ impl GraphBuilder {
         })
     }
 
+    /// Restarts the random stream of the `random` assignment from `seed` (the trainer reseeds
+    /// it every iteration, so that a resumed run draws the same assignments).
+    pub fn reseed(&mut self, seed: u64) {
+        self.rng = ChaCha8Rng::seed_from_u64(seed);
+    }
+
     /// The assignment method.
     pub fn method(&self) -> AssignmentMethod {
         self.method

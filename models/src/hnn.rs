@@ -142,6 +142,11 @@ pub struct Hnn {
 }
 
 impl Hnn {
+    /// Restarts the random assignment stream ([`GraphBuilder::reseed`]).
+    pub fn reseed(&mut self, seed: u64) {
+        self.graph.reseed(seed);
+    }
+
     /// Builds the entity stage under `entity`, one head per agent under `actor.<a>` and the
     /// critic under `critic` of scope `s`.
     #[allow(clippy::too_many_arguments)]

@@ -489,6 +489,17 @@ impl Model {
         }
     }
 
+    /// Restarts the random stream of the `random` task assignment from `seed` (no effect on
+    /// the other models): the trainer reseeds it every iteration so that resumed runs are
+    /// exact.
+    pub fn reseed(&mut self, seed: u64) {
+        match &mut self.arch {
+            Arch::Shnn(m) => m.graph.reseed(seed),
+            Arch::Hnn(m) => m.reseed(seed),
+            Arch::Mlp(_) => {}
+        }
+    }
+
     /// Number of scalar parameters of the model in `store` (the one it was built in).
     pub fn num_params<T: Float>(&self, store: &ParamStore<T>) -> usize {
         store.num_elements_under(&self.prefix)

@@ -71,6 +71,9 @@ pub struct TrainConfig {
     pub opponent: String,
     /// Seed of everything random in the run.
     pub seed: u64,
+    /// Every episode starts from the same start (drawn from `seed`) instead of a fresh random
+    /// one: the training of the paper's equivariance test (evaluate with `--rotate`).
+    pub fixed_start: bool,
     /// Environment steps to train for (the run stops at the first iteration boundary at or
     /// past it).
     pub steps: u64,
@@ -127,6 +130,7 @@ impl TrainConfig {
             model: "shnn".into(),
             opponent: String::new(),
             seed: 0,
+            fixed_start: false,
             steps: if sumo { 20_000_000 } else { 50_000_000 },
             num_envs: 2048,
             unroll_length: 5,
@@ -232,6 +236,11 @@ impl TrainConfig {
         Ok(())
     }
 
+    /// How training episodes start: random, or the fixed start of `seed`.
+    pub fn start_mode(&self) -> envs::tasks::StartMode {
+        if self.fixed_start { envs::tasks::StartMode::fixed(self.seed) } else { envs::tasks::StartMode::Random }
+    }
+
     /// Whether the environment is a Team Sumo scene.
     pub fn is_sumo(&self) -> bool {
         self.env.starts_with("team_sumo")
@@ -286,7 +295,7 @@ impl TrainConfig {
         if self.num_envs > 1 << 20 {
             return err("num_envs", &self.num_envs, "at most 1048576 environments");
         }
-        if (self.batch_size * self.num_minibatches) % self.num_envs != 0 {
+        if !(self.batch_size * self.num_minibatches).is_multiple_of(self.num_envs) {
             return err(
                 "num_envs",
                 &self.num_envs,

@@ -7,14 +7,38 @@
 //! let summary = train(&config, &RunDir::new("runs/example"), &TrainOptions::default()).unwrap();
 //! println!("{summary:?}");
 //! ```
+//!
+//! One module per job: [`config`] (hyper-parameters and their layers), [`seeding`] (random
+//! streams), [`normalizer`] (observation statistics), [`team`] (one team's learner and its
+//! act step), [`rollout`] (an iteration's data and minibatches), [`gae`], [`ppo`] (the loss),
+//! [`train`] (the loop and the run directory), [`evaluate`], [`checkpoint`], [`metrics`],
+//! [`run_dir`], [`progress`], [`curve`].
 
+pub mod checkpoint;
 pub mod config;
+pub mod curve;
 pub mod error;
+pub mod evaluate;
+pub mod gae;
 pub mod metrics;
+pub mod normalizer;
+pub mod plot;
+pub mod ppo;
+pub mod progress;
+pub mod report;
+pub mod rollout;
 pub mod run_dir;
+pub mod seeding;
+pub mod sweep;
+pub mod team;
 pub mod train;
 
 pub use config::{ObsNormKind, Preset, TrainConfig};
 pub use error::{Result, RlError};
+pub use evaluate::{EvalOptions, evaluate};
+pub use plot::LinePlot;
+pub use report::{Report, report};
 pub use run_dir::{RunDir, RunStatus};
-pub use train::{EvalSummary, RunSummary, TrainOptions, train};
+pub use sweep::{Shard, Sweep, SweepOutcome, SweepRun, run_sweep};
+pub use team::Team;
+pub use train::{EvalSummary, RunSummary, TrainOptions, Trainer, train};

@@ -1,6 +1,337 @@
-//! The `meben` program (being written).
+//! `meben`: train, evaluate, sweep, report and render MeBen agents, and drive the simulator.
+//! `meben <command> --help` explains each command; with no command, `meben` trains `shnn` on
+//! `team_reach/1_ant` with the built-in `quick` budget (as `meben train`).
 
-fn main() {
-    eprintln!("meben: the command-line program is being written");
-    std::process::exit(2);
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use clap::{Args, Parser, Subcommand};
+use rl::{EvalOptions, Preset, RlError, RunDir, TrainConfig, TrainOptions};
+
+#[global_allocator]
+static ALLOC: mimalloc::MiMalloc = mimalloc::MiMalloc;
+
+#[derive(Parser)]
+#[command(
+    name = "meben",
+    version,
+    about = "Subequivariant multi-entity RL on MeBen: train, eval, ablate, report, render, sim"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Option<Command>,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Train a model (MAPPO). With no options: shnn on team_reach/1_ant, about ten minutes.
+    Train(Box<TrainArgs>),
+    /// Evaluate a trained run on N episodes.
+    Eval(EvalArgs),
+    /// Run a sweep of models x envs x seeds x variants (skips finished runs, resumes others).
+    Ablate(AblateArgs),
+    /// Tables (Markdown, CSV) and learning curves of a sweep or of runs under a directory.
+    Report(ReportArgs),
+    /// Record an episode of a trained run as an HTML animation (or CSV of body poses).
+    Render(RenderArgs),
+    /// The simulator's rollout tool (random actions, timing, trajectories).
+    Sim(envs::rollout_tool::RolloutArgs),
+}
+
+#[derive(Args, Default)]
+struct TrainArgs {
+    /// Environment (e.g. team_reach/1_ant, team_sumo/2_ants, or a custom composition).
+    #[arg(long)]
+    env: Option<String>,
+    /// Model of team 0 (shnn, shnn_og3, shnn_so3, mlp, mlp_hn, transformer_hn, shtransformer,
+    /// shgnn, hnn, hnn_hn, hnn_dn), optionally with options: "shnn:assignment=hungarian".
+    #[arg(long)]
+    model: Option<String>,
+    /// Team Sumo: model of team 1 (default: the same as --model).
+    #[arg(long)]
+    opponent: Option<String>,
+    /// Task assignment (ablation): greedy, hungarian or random (appended to the model options).
+    #[arg(long)]
+    assignment: Option<String>,
+    /// Translation of positions (ablation; see models::Translation).
+    #[arg(long)]
+    translation: Option<String>,
+    /// Entity abstraction (ablation; see models::EntityAbstraction).
+    #[arg(long)]
+    abstraction: Option<String>,
+    /// Seed of everything random.
+    #[arg(long)]
+    seed: Option<u64>,
+    /// Environment steps to train for.
+    #[arg(long)]
+    steps: Option<u64>,
+    /// Environments stepped together.
+    #[arg(long)]
+    num_envs: Option<usize>,
+    /// Worker threads (0: all cores; results do not depend on it).
+    #[arg(long)]
+    threads: Option<usize>,
+    /// Starting point: quick (default, ~10 minutes on 2 cores) or paper (the reference schedule).
+    #[arg(long)]
+    preset: Option<String>,
+    /// A TOML file of TrainConfig fields (see rl/configs/).
+    #[arg(long)]
+    config: Option<PathBuf>,
+    /// Any other field: --set entropy_coef=0.005 (repeatable).
+    #[arg(long = "set", value_name = "FIELD=VALUE")]
+    set: Vec<String>,
+    /// Run directory (default runs/<env>-<model>-seed<seed>). An existing run resumes.
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// No progress bar.
+    #[arg(long)]
+    quiet: bool,
+    /// Stop after this many iterations in total (with a checkpoint), as if interrupted.
+    #[arg(long, hide = true)]
+    stop_after: Option<u64>,
+}
+
+#[derive(Args)]
+struct EvalArgs {
+    /// Run directory (with config.toml and checkpoint.json).
+    #[arg(long)]
+    run: PathBuf,
+    /// Episodes.
+    #[arg(long, default_value_t = 1024)]
+    episodes: usize,
+    /// Sample actions instead of taking the mean action.
+    #[arg(long)]
+    stochastic: bool,
+    /// Start every episode from the fixed start of the run's seed.
+    #[arg(long)]
+    fixed: bool,
+    /// Start every episode from the fixed start rotated by this many degrees about the
+    /// vertical through the origin (implies --fixed): the paper's equivariance test.
+    #[arg(long)]
+    rotate: Option<f64>,
+    /// Seed of the evaluation's starts and noise.
+    #[arg(long, default_value_t = 12345)]
+    seed: u64,
+}
+
+#[derive(Args)]
+struct AblateArgs {
+    /// The sweep file (see rl/sweeps/).
+    #[arg(long)]
+    sweep: PathBuf,
+    /// Directory of the sweep's runs.
+    #[arg(long)]
+    out: PathBuf,
+    /// Only this shard, k/n (1-based): runs with index % n == k - 1.
+    #[arg(long)]
+    shard: Option<String>,
+    /// No progress bar.
+    #[arg(long)]
+    quiet: bool,
+}
+
+#[derive(Args)]
+struct ReportArgs {
+    /// Directory holding run directories (a sweep's --out).
+    root: PathBuf,
+}
+
+#[derive(Args)]
+struct RenderArgs {
+    /// Run directory.
+    #[arg(long)]
+    run: PathBuf,
+    /// Output file: .html (animation) or .csv (body poses per frame).
+    #[arg(long)]
+    out: PathBuf,
+    /// Seed of the episode's start.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Control steps at most (default: the episode length).
+    #[arg(long)]
+    steps: Option<usize>,
+    /// Sample actions instead of the mean action.
+    #[arg(long)]
+    stochastic: bool,
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        None => cmd_train(TrainArgs::default()),
+        Some(Command::Train(a)) => cmd_train(*a),
+        Some(Command::Eval(a)) => cmd_eval(a),
+        Some(Command::Ablate(a)) => cmd_ablate(a),
+        Some(Command::Report(a)) => cmd_report(a),
+        Some(Command::Render(a)) => cmd_render(a),
+        Some(Command::Sim(a)) => envs::rollout_tool::run(&a).map_err(|e| e.to_string()),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("meben: error: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn resolve_train_config(a: &TrainArgs) -> Result<TrainConfig, RlError> {
+    let preset = a.preset.as_deref().map(|p| Preset::parse(p, "command line")).transpose()?;
+    let mut ov: Vec<(String, String)> = Vec::new();
+    let quote = |s: &str| format!("{s:?}");
+    if let Some(v) = &a.env {
+        ov.push(("env".into(), quote(v)));
+    }
+    let mut model = a.model.clone();
+    let extra: Vec<String> =
+        [("assignment", &a.assignment), ("translation", &a.translation), ("abstraction", &a.abstraction)]
+            .iter()
+            .filter_map(|(k, v)| v.as_ref().map(|v| format!("{k}={v}")))
+            .collect();
+    if !extra.is_empty() {
+        let base = model.clone().unwrap_or_else(|| "shnn".into());
+        let sep = if base.contains(':') { ";" } else { ":" };
+        model = Some(format!("{base}{sep}{}", extra.join(";")));
+    }
+    if let Some(v) = &model {
+        ov.push(("model".into(), quote(v)));
+    }
+    if let Some(v) = &a.opponent {
+        ov.push(("opponent".into(), quote(v)));
+    }
+    for (k, v) in [("seed", a.seed), ("steps", a.steps)] {
+        if let Some(v) = v {
+            ov.push((k.into(), v.to_string()));
+        }
+    }
+    for (k, v) in [("num_envs", a.num_envs), ("threads", a.threads)] {
+        if let Some(v) = v {
+            ov.push((k.into(), v.to_string()));
+        }
+    }
+    for s in &a.set {
+        let (k, v) = s.split_once('=').ok_or_else(|| {
+            RlError::config("command line", "--set", s, "expected FIELD=VALUE, e.g. --set entropy_coef=0.005")
+        })?;
+        ov.push((k.trim().into(), v.trim().into()));
+    }
+    TrainConfig::resolve(preset, a.config.as_deref(), &ov)
+}
+
+fn cmd_train(a: TrainArgs) -> Result<(), String> {
+    let config = resolve_train_config(&a).map_err(|e| e.to_string())?;
+    let out = a.out.clone().unwrap_or_else(|| {
+        PathBuf::from("runs").join(format!(
+            "{}-{}-seed{}",
+            rl::sweep::sanitize_component(&config.env),
+            rl::sweep::sanitize_component(&config.model),
+            config.seed
+        ))
+    });
+    let run = RunDir::new(&out);
+    eprintln!(
+        "meben: training {} on {} for {} env steps ({} iterations of {}), seed {} -> {}",
+        config.model,
+        config.env,
+        config.steps,
+        config.iterations(),
+        config.steps_per_iteration(),
+        config.seed,
+        out.display()
+    );
+    let options = TrainOptions { progress: !a.quiet, stop_after: a.stop_after };
+    let s = rl::train(&config, &run, &options).map_err(|e| e.to_string())?;
+    print_summary(&config, &s);
+    eprintln!("meben: metrics in {}, learning curve in {}", run.metrics().display(), run.curve().display());
+    Ok(())
+}
+
+fn print_summary(config: &TrainConfig, s: &rl::RunSummary) {
+    println!("iterations {} env_steps {} wall_s {:.1}", s.iterations, s.env_steps, s.wall_s);
+    if let Some(e) = &s.final_eval {
+        print_eval(config.is_sumo(), e);
+    }
+}
+
+fn print_eval(sumo: bool, e: &rl::EvalSummary) {
+    if sumo {
+        println!(
+            "episodes {} win_rate_t0 {:.4} win_rate_t1 {:.4} draw_rate {:.4} mean_length {:.1}",
+            e.episodes, e.win_rate[0], e.win_rate[1], e.draw_rate, e.mean_length
+        );
+    } else {
+        println!(
+            "episodes {} success_rate {:.4} mean_return {:.1} mean_length {:.1}",
+            e.episodes, e.success_rate, e.mean_return[0], e.mean_length
+        );
+    }
+}
+
+fn cmd_eval(a: EvalArgs) -> Result<(), String> {
+    let run = RunDir::new(&a.run);
+    let (config, teams) = rl::checkpoint::load_policies(&run).map_err(|e| e.to_string())?;
+    if a.episodes == 0 {
+        return Err("--episodes must be at least 1".into());
+    }
+    let mode = match (a.rotate, a.fixed) {
+        (Some(deg), _) => envs::tasks::StartMode::fixed_rotated(config.seed, deg.to_radians(), [0.0, 0.0]),
+        (None, true) => envs::tasks::StartMode::fixed(config.seed),
+        (None, false) => envs::tasks::StartMode::Random,
+    };
+    mode.validate().map_err(|e| e.to_string())?;
+    let options = EvalOptions { episodes: a.episodes, deterministic: !a.stochastic, seed: a.seed, mode };
+    let e = rl::evaluate(&config.env, &teams, &options).map_err(|e| e.to_string())?;
+    print_eval(config.is_sumo(), &e);
+    let name = match a.rotate {
+        Some(d) => format!("eval_rotate{d}.json"),
+        None if a.fixed => "eval_fixed.json".into(),
+        None => "eval.json".into(),
+    };
+    let path = a.run.join(name);
+    let text = serde_json::to_string_pretty(&e).map_err(|e| e.to_string())?;
+    nn::write_atomic(&path, text.as_bytes()).map_err(|e| e.to_string())?;
+    eprintln!("meben: wrote {}", path.display());
+    Ok(())
+}
+
+fn cmd_ablate(a: AblateArgs) -> Result<(), String> {
+    let sweep = rl::sweep::Sweep::load(&a.sweep).map_err(|e| e.to_string())?;
+    let shard = a.shard.as_deref().map(rl::sweep::Shard::parse).transpose().map_err(|e| e.to_string())?;
+    let options = TrainOptions { progress: !a.quiet, stop_after: None };
+    let outcome = rl::sweep::run_sweep(&sweep, &a.out, shard, |c, r| {
+        eprintln!("meben: run {} ({} on {}, seed {})", r.root().display(), c.model, c.env, c.seed);
+        rl::train(c, r, &options)
+    })
+    .map_err(|e| e.to_string())?;
+    println!("{outcome:?}");
+    Ok(())
+}
+
+fn cmd_report(a: ReportArgs) -> Result<(), String> {
+    let r = rl::report::report(&a.root).map_err(|e| e.to_string())?;
+    let text = std::fs::read_to_string(&r.markdown).map_err(|e| format!("{}: {e}", r.markdown.display()))?;
+    println!("{text}");
+    eprintln!("meben: wrote {}", r.markdown.display());
+    Ok(())
+}
+
+fn cmd_render(a: RenderArgs) -> Result<(), String> {
+    let run = RunDir::new(&a.run);
+    let (config, mut teams) = rl::checkpoint::load_policies(&run).map_err(|e| e.to_string())?;
+    let ext = a.out.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
+    if ext != "html" && ext != "csv" {
+        return Err(format!("{}: unsupported output format {ext:?}; use .html or .csv", a.out.display()));
+    }
+    let spec = envs::tasks::TaskSpec::from_name(&config.env).map_err(|e| e.to_string())?;
+    let steps = a.steps.unwrap_or(spec.episode_steps);
+    let mut failure = None;
+    let traj = rl::team::record_episode(&config.env, &mut teams, a.seed, steps, !a.stochastic, &mut failure)
+        .map_err(|e| e.to_string())?;
+    if let Some(e) = failure {
+        return Err(e.to_string());
+    }
+    let text = if ext == "html" { traj.to_html() } else { traj.to_csv() };
+    nn::write_atomic(&a.out, text.as_bytes()).map_err(|e| e.to_string())?;
+    eprintln!("meben: wrote {} ({} frames)", a.out.display(), traj.len());
+    Ok(())
 }

@@ -1,15 +1,46 @@
-//! The training loop (placeholder signature; being written).
+//! MAPPO training (paper section 5; MEBEN.md section 6: Brax PPO per team), read top to
+//! bottom in [`Trainer::iterate`]:
+//!
+//! 1. **Collect** `U = batch_size * num_minibatches / num_envs` blocks of `unroll_length`
+//!    steps of all environments. Every team acts on the raw observations through its own
+//!    normaliser and policy with its own per-agent noise streams; the environments step
+//!    together; rewards (scaled), terminations, truncations and the final observations of
+//!    truncated episodes are stored (MEBEN.md section 8: bootstrap from the true final
+//!    observation). Team Sumo: the curriculum factor goes from 1 to 0 over the first
+//!    `curriculum_fraction` of the run.
+//! 2. **Normalise**: every team's observation statistics absorb the iteration's
+//!    observations (then stay frozen for the update, as in the reference).
+//! 3. **Update** every team: `epochs` passes, each over a fresh permutation of the
+//!    iteration's unrolls cut into `num_minibatches` minibatches of `batch_size` whole unrolls;
+//!    per minibatch the PPO loss ([`crate::ppo`]; GAE under the current critic), backward,
+//!    every gradient element clipped to `+-grad_clip`, one Adam step. A non-finite loss or
+//!    gradient stops the run ([`RlError::NonFinite`]); the last checkpoint is kept.
+//!
+//! [`train`] drives a [`Trainer`] in a run directory ([`crate::run_dir`]): metrics rows,
+//! evaluations, checkpoints, the learning curve, and exact resumption.
 
+use std::io::Write;
+use std::time::Instant;
+
+use envs::tasks::{ObsSpec, Outcome, TaskKind, TaskSpec, VecEnv};
 use serde::{Deserialize, Serialize};
+use tensor::Tape;
 
+use crate::checkpoint::{Checkpoint, TeamState, VERSION};
 use crate::config::TrainConfig;
-use crate::error::Result;
+use crate::error::{Result, RlError};
+use crate::evaluate::{EvalOptions, evaluate};
+use crate::metrics::MetricsRow;
+use crate::ppo::{LossStats, PpoParams, ppo_loss};
+use crate::rollout::{MinibatchBuf, Rollout};
 use crate::run_dir::RunDir;
+use crate::seeding::{RngState, derive_seed};
+use crate::team::{ActMode, ActScratch, Team, act};
 
 /// How [`train`] runs, beyond the configuration.
 #[derive(Clone, Debug, Default)]
 pub struct TrainOptions {
-    /// Show a progress bar on the terminal.
+    /// Show a progress bar on the terminal (and a line per evaluation otherwise).
     pub progress: bool,
     /// Stop (with a checkpoint) after this many iterations in total, as if interrupted.
     pub stop_after: Option<u64>,
@@ -45,8 +76,561 @@ pub struct RunSummary {
     pub final_eval: Option<EvalSummary>,
 }
 
-/// Trains `config` in `run` (starting, or resuming from its checkpoint).
+/// Episodes that ended during one iteration's collection.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct EpisodeStats {
+    /// Episodes ended.
+    pub episodes: usize,
+    /// Sum of their returns per team.
+    pub return_sum: Vec<f64>,
+    /// Reach successes.
+    pub successes: usize,
+    /// Sumo wins per team.
+    pub wins: [usize; 2],
+    /// Sumo draws (including time limits).
+    pub draws: usize,
+    /// Sum of their lengths.
+    pub length_sum: u64,
+}
+
+/// One iteration's figures.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct IterationStats {
+    /// Episodes ended while collecting.
+    pub episodes: EpisodeStats,
+    /// Per team, the mean of the minibatch loss statistics.
+    pub losses: Vec<LossStats>,
+    /// The curriculum factor used.
+    pub alpha: f64,
+}
+
+/// The whole training state (module docs).
+pub struct Trainer {
+    /// The configuration.
+    pub config: TrainConfig,
+    /// The training environments.
+    pub env: VecEnv,
+    /// Their observation layout.
+    pub spec: ObsSpec,
+    /// One learner per team.
+    pub teams: Vec<Team>,
+    /// Iterations done.
+    pub iteration: u64,
+    /// Environment steps collected.
+    pub env_steps: u64,
+    /// Evaluations done.
+    pub evals_done: u64,
+    /// `[E, teams]` returns of running episodes.
+    pub episode_returns: Vec<f64>,
+    rollout: Rollout,
+    actions: Vec<f32>,
+    logp: Vec<f32>,
+    scratch: ActScratch,
+    mb: MinibatchBuf,
+    norm_v: Vec<f32>,
+    norm_s: Vec<f32>,
+}
+
+impl Trainer {
+    /// A fresh run of `config`.
+    pub fn new(config: &TrainConfig) -> Result<Trainer> {
+        config.validate("config")?;
+        let spec = TaskSpec::from_name(&config.env)?;
+        let env_seed = derive_seed(config.seed, "envs", 0, 0);
+        let mut env = VecEnv::new(&spec, config.num_envs, env_seed, config.start_mode())?;
+        env.reset();
+        let obs_spec = env.scene().obs_spec.clone();
+        let mut teams = (0..obs_spec.n_teams).map(|k| Team::build(config, &obs_spec, k)).collect::<Result<Vec<_>>>()?;
+        // The normalisers start from the first observations, so that the first iteration's
+        // behaviour policy does not see raw values.
+        for t in &mut teams {
+            t.norm.update(&env.obs().vectors, &env.obs().scalars);
+        }
+        let nt = obs_spec.n_teams;
+        let rollout = Rollout::new(
+            config.unrolls_per_iteration(),
+            config.unroll_length,
+            config.num_envs,
+            env.obs(),
+            env.n_actions(),
+            nt,
+        );
+        let na = env.n_actions();
+        Ok(Trainer {
+            config: config.clone(),
+            spec: obs_spec,
+            teams,
+            iteration: 0,
+            env_steps: 0,
+            evals_done: 0,
+            episode_returns: vec![0.0; config.num_envs * nt],
+            rollout,
+            actions: vec![0.0; config.num_envs * na],
+            logp: vec![0.0; config.num_envs],
+            scratch: ActScratch::default(),
+            mb: MinibatchBuf::default(),
+            norm_v: Vec::new(),
+            norm_s: Vec::new(),
+            env,
+        })
+    }
+
+    /// The run restored from a checkpoint (its configuration, except `steps`, `num_evals`,
+    /// `checkpoint_every` and `threads`, which may be changed to extend a run).
+    pub fn from_checkpoint(c: &Checkpoint, config: &TrainConfig, path: &std::path::Path) -> Result<Trainer> {
+        let bad = |m: String| RlError::Checkpoint { path: path.to_path_buf(), message: m };
+        let mut fixed = c.config.clone();
+        fixed.steps = config.steps;
+        fixed.num_evals = config.num_evals;
+        fixed.checkpoint_every = config.checkpoint_every;
+        fixed.threads = config.threads;
+        if &fixed != config {
+            let a = toml::Table::try_from(&fixed).unwrap_or_default();
+            let b = toml::Table::try_from(config).unwrap_or_default();
+            let diff: Vec<String> = a
+                .iter()
+                .filter(|(k, v)| b.get(*k) != Some(v))
+                .map(|(k, v)| {
+                    format!("{k} = {v} in the checkpoint, {} now", b.get(k).map(|x| x.to_string()).unwrap_or_default())
+                })
+                .collect();
+            return Err(bad(format!("was written by another configuration: {}", diff.join("; "))));
+        }
+        let mut t = Trainer::new(config)?;
+        if c.teams.len() != t.teams.len() || c.episode_returns.len() != t.episode_returns.len() {
+            return Err(bad(format!(
+                "{} teams and {} returns do not fit the scene",
+                c.teams.len(),
+                c.episode_returns.len()
+            )));
+        }
+        for (team, s) in t.teams.iter_mut().zip(&c.teams) {
+            s.params.load_into(&mut team.store).map_err(|e| bad(e.to_string()))?;
+            team.adam = s.adam.clone();
+            if s.normalizer.nodes != team.norm.nodes || s.normalizer.kind != team.norm.kind {
+                return Err(bad(format!("normaliser of team {} does not fit", team.index)));
+            }
+            team.norm = s.normalizer.clone();
+            if s.noise.len() != team.noise.len() {
+                return Err(bad(format!("{} noise streams for {} agents", s.noise.len(), team.noise.len())));
+            }
+            team.noise = s.noise.iter().map(|r| r.restore()).collect::<Result<Vec<_>>>()?;
+            team.shuffle = s.shuffle.restore()?;
+        }
+        t.env.restore(&c.env).map_err(|e| bad(e.to_string()))?;
+        t.iteration = c.iteration;
+        t.env_steps = c.env_steps;
+        t.evals_done = c.evals_done;
+        t.episode_returns = c.episode_returns.clone();
+        Ok(t)
+    }
+
+    /// The state to save.
+    pub fn checkpoint(&self, wall_s: f64, last_eval: Option<EvalSummary>) -> Checkpoint {
+        Checkpoint {
+            version: VERSION,
+            config: self.config.clone(),
+            iteration: self.iteration,
+            env_steps: self.env_steps,
+            wall_s,
+            evals_done: self.evals_done,
+            teams: self
+                .teams
+                .iter()
+                .map(|t| TeamState {
+                    params: nn::StateDict::from_store(&t.store),
+                    adam: t.adam.clone(),
+                    normalizer: t.norm.clone(),
+                    noise: t.noise.iter().map(RngState::of).collect(),
+                    shuffle: RngState::of(&t.shuffle),
+                })
+                .collect(),
+            env: self.env.snapshot(),
+            episode_returns: self.episode_returns.clone(),
+            last_eval,
+        }
+    }
+
+    /// The Team Sumo curriculum factor at the current step (1 for Reach).
+    pub fn curriculum_alpha(&self) -> f64 {
+        if self.env.scene().kind() != TaskKind::Sumo || self.config.curriculum_fraction == 0.0 {
+            return if self.env.scene().kind() == TaskKind::Sumo { 0.0 } else { 1.0 };
+        }
+        let span = self.config.curriculum_fraction * self.config.steps as f64;
+        (1.0 - self.env_steps as f64 / span).clamp(0.0, 1.0)
+    }
+
+    /// One iteration: collect, normalise, update (module docs).
+    pub fn iterate(&mut self) -> Result<IterationStats> {
+        let alpha = self.curriculum_alpha();
+        self.env.set_curriculum_alpha(alpha)?;
+        for t in &mut self.teams {
+            t.model.reseed(derive_seed(self.config.seed, "assign", t.index as u64, self.iteration));
+        }
+        let episodes = self.collect()?;
+        for t in &mut self.teams {
+            for (v, s) in self.rollout.visited_obs() {
+                t.norm.update(v, s);
+            }
+        }
+        let losses = self.update()?;
+        self.iteration += 1;
+        self.env_steps += self.config.steps_per_iteration();
+        Ok(IterationStats { episodes, losses, alpha })
+    }
+
+    /// The current iteration's data (after [`Trainer::collect`]).
+    pub fn rollout(&self) -> &Rollout {
+        &self.rollout
+    }
+
+    /// Step 1 of [`Trainer::iterate`]: plays one iteration's unrolls with the current
+    /// policies and normalisers, storing them in [`Trainer::rollout`].
+    pub fn collect(&mut self) -> Result<EpisodeStats> {
+        let (t_len, e_n, nt) = (self.config.unroll_length, self.config.num_envs, self.spec.n_teams);
+        let scale = self.config.reward_scaling as f32;
+        let na = self.env.n_actions();
+        let mut stats = EpisodeStats { return_sum: vec![0.0; nt], ..Default::default() };
+        self.rollout.clear_finals();
+        let mut pre = vec![0.0f32; e_n * na];
+        for b in 0..self.rollout.blocks {
+            self.rollout.store_obs(b, 0, self.env.obs());
+            for t in 0..t_len {
+                for team in &mut self.teams {
+                    let raw = self.rollout.obs(b, t);
+                    act(
+                        &mut team.model,
+                        &team.store,
+                        &team.norm,
+                        &self.spec,
+                        raw,
+                        ActMode::Sample,
+                        &mut team.noise,
+                        &mut self.actions,
+                        &mut pre,
+                        &mut self.logp,
+                        &mut self.scratch,
+                    )?;
+                    let tr = self.rollout.transition(b, t);
+                    for e in 0..e_n {
+                        self.rollout.logp[(tr + e) * nt + team.index] = self.logp[e];
+                    }
+                }
+                let tr = self.rollout.transition(b, t);
+                self.rollout.actions[tr * na..(tr + e_n) * na].copy_from_slice(&pre);
+                let out = self.env.step(&self.actions)?;
+                self.rollout.store_step(b, t, out, scale);
+                for e in 0..e_n {
+                    for k in 0..nt {
+                        self.episode_returns[e * nt + k] += out.reward[e * nt + k] as f64;
+                    }
+                    if out.terminated[e] || out.truncated[e] {
+                        stats.episodes += 1;
+                        stats.length_sum += out.episode_len[e] as u64;
+                        for k in 0..nt {
+                            stats.return_sum[k] += self.episode_returns[e * nt + k];
+                            self.episode_returns[e * nt + k] = 0.0;
+                        }
+                        match out.outcome[e] {
+                            Outcome::Success => stats.successes += 1,
+                            Outcome::Win(k) if k < 2 => stats.wins[k] += 1,
+                            Outcome::Draw | Outcome::TimeLimit if nt > 1 => stats.draws += 1,
+                            _ => {}
+                        }
+                    }
+                }
+                self.rollout.store_obs(b, t + 1, self.env.obs());
+            }
+        }
+        Ok(stats)
+    }
+
+    fn update(&mut self) -> Result<Vec<LossStats>> {
+        let c = &self.config;
+        let hp = PpoParams {
+            clip_epsilon: c.clip_epsilon,
+            value_coef: c.value_coef,
+            entropy_coef: c.entropy_coef,
+            discount: c.discount,
+            gae_lambda: c.gae_lambda,
+        };
+        let n_unrolls = self.rollout.blocks * self.rollout.envs;
+        let mut all = Vec::with_capacity(self.teams.len());
+        for team in &mut self.teams {
+            let mut sum = LossStats::default();
+            let mut count = 0.0;
+            for epoch in 0..c.epochs {
+                let perm = permutation(n_unrolls, &mut team.shuffle);
+                for (k, ids) in perm.chunks_exact(c.batch_size).enumerate() {
+                    self.rollout.gather(ids, team.index, &mut self.mb);
+                    team.norm.apply(&self.mb.vectors, &self.mb.scalars, &mut self.norm_v, &mut self.norm_s);
+                    let tape = Tape::<f32>::new();
+                    let p = team.store.bind(&tape);
+                    let mb = self.mb.view(&self.norm_v, &self.norm_s);
+                    let (loss, stats) = ppo_loss(&mut team.model, &self.spec, &p, &mb, &hp)?;
+                    let where_ = || {
+                        format!(
+                            "team {} at iteration {}, epoch {epoch}, minibatch {k} (policy loss {}, value loss {}, \
+                             entropy {})",
+                            team.index, self.iteration, stats.policy_loss, stats.value_loss, stats.entropy
+                        )
+                    };
+                    if !stats.loss.is_finite() {
+                        return Err(RlError::NonFinite { message: format!("loss {} of {}", stats.loss, where_()) });
+                    }
+                    let g = tape.backward(loss)?;
+                    let mut grads = p.grads(&g);
+                    if let Some((i, _)) = grads.iter().enumerate().find(|(_, g)| !g.all_finite()) {
+                        return Err(RlError::NonFinite {
+                            message: format!("gradient of {} of {}", team.store.names()[i], where_()),
+                        });
+                    }
+                    if c.grad_clip > 0.0 {
+                        nn::clip_elementwise(&mut grads, c.grad_clip);
+                    }
+                    team.adam.step(&mut team.store, &grads)?;
+                    add_stats(&mut sum, &stats);
+                    count += 1.0;
+                }
+            }
+            all.push(scale_stats(&sum, 1.0 / count));
+        }
+        Ok(all)
+    }
+
+    /// Evaluates the current policies (module [`crate::evaluate`]).
+    pub fn evaluate(&self, options: &EvalOptions) -> Result<EvalSummary> {
+        evaluate(&self.config.env, &self.teams, options)
+    }
+
+    /// The evaluation options of the run's `k`-th scheduled evaluation.
+    pub fn scheduled_eval(&self, k: u64) -> EvalOptions {
+        EvalOptions {
+            episodes: self.config.eval_episodes,
+            deterministic: self.config.eval_deterministic,
+            seed: derive_seed(self.config.seed, "eval", k, 0),
+            mode: self.config.start_mode(),
+        }
+    }
+}
+
+/// A uniformly random permutation of `0..n` (Fisher-Yates, from the end).
+fn permutation(n: usize, rng: &mut rand_chacha::ChaCha8Rng) -> Vec<usize> {
+    use rand::RngExt;
+    let mut p: Vec<usize> = (0..n).collect();
+    for i in (1..n).rev() {
+        let j = rng.random_range(0..=i);
+        p.swap(i, j);
+    }
+    p
+}
+
+fn add_stats(a: &mut LossStats, b: &LossStats) {
+    a.loss += b.loss;
+    a.policy_loss += b.policy_loss;
+    a.value_loss += b.value_loss;
+    a.entropy += b.entropy;
+    a.approx_kl += b.approx_kl;
+    a.clip_fraction += b.clip_fraction;
+    a.explained_variance += b.explained_variance;
+    a.mean_ratio += b.mean_ratio;
+    a.mean_advantage += b.mean_advantage;
+}
+
+fn scale_stats(a: &LossStats, s: f64) -> LossStats {
+    LossStats {
+        loss: a.loss * s,
+        policy_loss: a.policy_loss * s,
+        value_loss: a.value_loss * s,
+        entropy: a.entropy * s,
+        approx_kl: a.approx_kl * s,
+        clip_fraction: a.clip_fraction * s,
+        explained_variance: a.explained_variance * s,
+        mean_ratio: a.mean_ratio * s,
+        mean_advantage: a.mean_advantage * s,
+    }
+}
+
+/// Whether evaluation `evals_done` (0-based) falls after iteration `i` (1-based) of `n`:
+/// `num_evals` evenly spaced, the last at the end.
+fn eval_due(i: u64, n: u64, num_evals: u64) -> bool {
+    num_evals > 0 && (i * num_evals / n) > ((i - 1) * num_evals / n)
+}
+
+/// Fills a metrics row from an iteration's figures.
+fn metrics_row(t: &Trainer, s: &IterationStats, wall: f64, sps: f64, eval: Option<&EvalSummary>) -> MetricsRow {
+    const LOSS: [[&str; 6]; 2] = [
+        ["policy_loss_t0", "value_loss_t0", "entropy_t0", "approx_kl_t0", "clip_fraction_t0", "explained_variance_t0"],
+        ["policy_loss_t1", "value_loss_t1", "entropy_t1", "approx_kl_t1", "clip_fraction_t1", "explained_variance_t1"],
+    ];
+    let sumo = t.spec.n_teams > 1;
+    let mut r = MetricsRow::default();
+    r.set("iteration", t.iteration as f64);
+    r.set("env_steps", t.env_steps as f64);
+    r.set("wall_s", wall);
+    r.set("steps_per_s", sps);
+    r.set("curriculum_alpha", s.alpha);
+    let ep = &s.episodes;
+    r.set("train_episodes", ep.episodes as f64);
+    if ep.episodes > 0 {
+        let n = ep.episodes as f64;
+        r.set("train_return_t0", ep.return_sum[0] / n);
+        r.set("train_length", ep.length_sum as f64 / n);
+        if sumo {
+            r.set("train_return_t1", ep.return_sum[1] / n);
+            r.set("train_win_rate_t0", ep.wins[0] as f64 / n);
+            r.set("train_win_rate_t1", ep.wins[1] as f64 / n);
+            r.set("train_draw_rate", ep.draws as f64 / n);
+        } else {
+            r.set("train_success_rate", ep.successes as f64 / n);
+        }
+    }
+    if let Some(e) = eval {
+        r.set("eval_episodes", e.episodes as f64);
+        r.set("eval_return_t0", e.mean_return[0]);
+        r.set("eval_length", e.mean_length);
+        if sumo {
+            r.set("eval_return_t1", e.mean_return[1]);
+            r.set("eval_win_rate_t0", e.win_rate[0]);
+            r.set("eval_win_rate_t1", e.win_rate[1]);
+            r.set("eval_draw_rate", e.draw_rate);
+        } else {
+            r.set("eval_success_rate", e.success_rate);
+        }
+    }
+    for (k, l) in s.losses.iter().enumerate().take(2) {
+        let v = [l.policy_loss, l.value_loss, l.entropy, l.approx_kl, l.clip_fraction, l.explained_variance];
+        for (name, x) in LOSS[k].iter().zip(v) {
+            r.set(name, x);
+        }
+    }
+    r
+}
+
+/// Keeps the metrics rows of iterations up to `iteration` (a resumed run drops rows written
+/// after its checkpoint) and returns the file's text.
+fn metrics_upto(path: &std::path::Path, iteration: u64) -> String {
+    let mut out = MetricsRow::header();
+    out.push('\n');
+    if let Ok(text) = std::fs::read_to_string(path) {
+        for line in text.lines().skip(1) {
+            let complete = line.split(',').count() == crate::metrics::COLUMNS.len();
+            match line.split(',').next().and_then(|c| c.parse::<u64>().ok()) {
+                Some(i) if complete && i <= iteration => {
+                    out.push_str(line);
+                    out.push('\n');
+                }
+                _ => {}
+            }
+        }
+    }
+    out
+}
+
+/// Trains `config` in `run`: from scratch, or from the run's checkpoint (module docs). The
+/// resolved configuration goes to `config.toml`, a row per iteration to `metrics.csv`, the
+/// state to `checkpoint.json` and the summary to `done.json` at the end. A run whose
+/// `done.json` exists and whose steps are reached returns its summary at once.
 pub fn train(config: &TrainConfig, run: &RunDir, options: &TrainOptions) -> Result<RunSummary> {
-    let _ = (config, run, options);
-    todo!("trainer being written")
+    let threads = config.threads;
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .map_err(|e| RlError::config("config", "threads", threads, e.to_string()))?;
+    pool.install(|| train_in_pool(config, run, options))
+}
+
+fn train_in_pool(config: &TrainConfig, run: &RunDir, options: &TrainOptions) -> Result<RunSummary> {
+    std::fs::create_dir_all(run.root()).map_err(|e| RlError::file(run.root(), format!("cannot create: {e}")))?;
+    let ckpt_path = run.checkpoint();
+    let (mut trainer, mut wall_before, mut last_eval) = if ckpt_path.is_file() {
+        let c = Checkpoint::load(&ckpt_path)?;
+        let t = Trainer::from_checkpoint(&c, config, &ckpt_path)?;
+        (t, c.wall_s, c.last_eval)
+    } else {
+        (Trainer::new(config)?, 0.0, None)
+    };
+    let total = config.iterations();
+    if trainer.iteration >= total
+        && let Ok(text) = std::fs::read_to_string(run.done())
+        && let Ok(s) = serde_json::from_str::<RunSummary>(&text)
+    {
+        return Ok(s);
+    }
+    let _ = std::fs::remove_file(run.done());
+    config.save(&run.config())?;
+    let metrics_path = run.metrics();
+    nn::write_atomic(&metrics_path, metrics_upto(&metrics_path, trainer.iteration).as_bytes())?;
+    let mut metrics = std::fs::OpenOptions::new()
+        .append(true)
+        .open(&metrics_path)
+        .map_err(|e| RlError::file(&metrics_path, format!("cannot open: {e}")))?;
+    let bar = crate::progress::Progress::new(options.progress, config, trainer.env_steps);
+    let start = Instant::now();
+    let mut since_ckpt = 0u64;
+    while trainer.iteration < total {
+        if options.stop_after.is_some_and(|s| trainer.iteration >= s) {
+            break;
+        }
+        let t0 = Instant::now();
+        let stats = trainer.iterate()?;
+        let dt = t0.elapsed().as_secs_f64();
+        let sps = config.steps_per_iteration() as f64 / dt;
+        let mut eval = None;
+        if eval_due(trainer.iteration, total, config.num_evals as u64) {
+            let e = trainer.evaluate(&trainer.scheduled_eval(trainer.evals_done))?;
+            trainer.evals_done += 1;
+            eval = Some(e.clone());
+            last_eval = Some(e);
+        }
+        let wall = wall_before + start.elapsed().as_secs_f64();
+        let row = metrics_row(&trainer, &stats, wall, sps, eval.as_ref());
+        writeln!(metrics, "{}", row.to_csv())
+            .map_err(|e| RlError::file(&metrics_path, format!("cannot write: {e}")))?;
+        bar.update(&row, trainer.env_steps);
+        since_ckpt += 1;
+        let last = trainer.iteration >= total || options.stop_after.is_some_and(|s| trainer.iteration >= s);
+        if eval.is_some() || last || (config.checkpoint_every > 0 && since_ckpt >= config.checkpoint_every as u64) {
+            trainer.checkpoint(wall, last_eval.clone()).save(&ckpt_path)?;
+            since_ckpt = 0;
+        }
+        if eval.is_some() {
+            crate::curve::write_run_curve(run)?;
+        }
+    }
+    bar.finish();
+    let wall = wall_before + start.elapsed().as_secs_f64();
+    wall_before = wall;
+    let summary = RunSummary {
+        iterations: trainer.iteration,
+        env_steps: trainer.env_steps,
+        wall_s: wall_before,
+        final_eval: last_eval,
+    };
+    if trainer.iteration >= total {
+        let text = serde_json::to_string_pretty(&summary).unwrap_or_default();
+        nn::write_atomic(&run.done(), text.as_bytes())?;
+    }
+    Ok(summary)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn evaluations_are_evenly_spaced_and_end_at_the_end() {
+        let due: Vec<u64> = (1..=10).filter(|&i| eval_due(i, 10, 4)).collect();
+        assert_eq!(due, vec![3, 5, 8, 10]);
+        assert_eq!((1..=7).filter(|&i| eval_due(i, 7, 50)).count(), 7);
+        assert!(!(1..=7).any(|i| eval_due(i, 7, 0)));
+    }
+
+    #[test]
+    fn permutations_are_permutations() {
+        let mut r = crate::seeding::stream(0, "t", 0, 0);
+        let mut p = permutation(100, &mut r);
+        p.sort();
+        assert_eq!(p, (0..100).collect::<Vec<_>>());
+    }
 }

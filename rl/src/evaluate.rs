@@ -1,0 +1,110 @@
+//! Evaluation: `N` episodes of the trained teams, one per environment of a batch, each
+//! played to its end (success, win, draw or the time limit), with sampled or mean actions,
+//! from random starts or the fixed and rotated starts of `envs::tasks::StartMode`.
+
+use envs::tasks::{Outcome, StartMode, TaskSpec, VecEnv};
+use rand_chacha::ChaCha8Rng;
+
+use crate::error::Result;
+use crate::seeding::stream;
+use crate::team::{ActMode, ActScratch, Team, act};
+use crate::train::EvalSummary;
+
+/// What to evaluate.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct EvalOptions {
+    /// Episodes (environments).
+    pub episodes: usize,
+    /// Mean actions instead of samples.
+    pub deterministic: bool,
+    /// Seed of the starts and the action noise.
+    pub seed: u64,
+    /// How episodes start.
+    pub mode: StartMode,
+}
+
+/// Plays `options.episodes` episodes of `env` with `teams` (not changed: their models are
+/// cloned so that the training's random streams are untouched) and summarises them.
+pub fn evaluate(env: &str, teams: &[Team], options: &EvalOptions) -> Result<EvalSummary> {
+    let spec = TaskSpec::from_name(env)?;
+    let mut venv = VecEnv::new(&spec, options.episodes, options.seed, options.mode)?;
+    venv.set_auto_reset(false);
+    let obs_spec = venv.scene().obs_spec.clone();
+    let (b, na, nt) = (options.episodes, venv.n_actions(), venv.scene().n_teams());
+    let mut models: Vec<_> = teams.iter().map(|t| t.model.clone()).collect();
+    for (k, m) in models.iter_mut().enumerate() {
+        m.reseed(crate::seeding::derive_seed(options.seed, "evalasgn", k as u64, 0));
+    }
+    let mut noise: Vec<Vec<ChaCha8Rng>> = teams
+        .iter()
+        .map(|t| t.model.agents().iter().map(|&a| stream(options.seed, "evalnois", t.index as u64, a as u64)).collect())
+        .collect();
+    let mode = if options.deterministic { ActMode::Mean } else { ActMode::Sample };
+    let (mut actions, mut u, mut logp) = (vec![0.0f32; b * na], vec![0.0f32; b * na], vec![0.0f32; b]);
+    let mut scratch = ActScratch::default();
+    let mut alive = vec![true; b];
+    let mut returns = vec![0.0f64; b * nt];
+    let mut outcome = vec![Outcome::Running; b];
+    let mut length = vec![0u32; b];
+    let mut remaining = b;
+    let max_steps = spec.episode_steps + 1;
+    for _ in 0..max_steps {
+        if remaining == 0 {
+            break;
+        }
+        for (k, team) in teams.iter().enumerate() {
+            let o = venv.obs();
+            act(
+                &mut models[k],
+                &team.store,
+                &team.norm,
+                &obs_spec,
+                (&o.vectors, &o.scalars, &o.heading),
+                mode,
+                &mut noise[k],
+                &mut actions,
+                &mut u,
+                &mut logp,
+                &mut scratch,
+            )?;
+        }
+        let out = venv.step(&actions)?;
+        for e in 0..b {
+            if !alive[e] {
+                continue;
+            }
+            for k in 0..nt {
+                returns[e * nt + k] += out.reward[e * nt + k] as f64;
+            }
+            if out.terminated[e] || out.truncated[e] {
+                alive[e] = false;
+                remaining -= 1;
+                outcome[e] = out.outcome[e];
+                length[e] = out.episode_len[e];
+            }
+        }
+    }
+    Ok(summarise(&outcome, &returns, &length, nt))
+}
+
+/// Rates, mean returns and lengths of ended episodes.
+pub fn summarise(outcome: &[Outcome], returns: &[f64], length: &[u32], teams: usize) -> EvalSummary {
+    let n = outcome.len();
+    if n == 0 {
+        return EvalSummary {
+            episodes: 0,
+            win_rate: vec![0.0; 2],
+            mean_return: vec![0.0; teams],
+            ..Default::default()
+        };
+    }
+    let frac = |f: &dyn Fn(&Outcome) -> bool| outcome.iter().filter(|o| f(o)).count() as f64 / n as f64;
+    EvalSummary {
+        episodes: n,
+        success_rate: frac(&|o| *o == Outcome::Success),
+        win_rate: (0..2).map(|k| frac(&|o| *o == Outcome::Win(k))).collect(),
+        draw_rate: if teams > 1 { frac(&|o| matches!(o, Outcome::Draw | Outcome::TimeLimit)) } else { 0.0 },
+        mean_return: (0..teams).map(|k| (0..n).map(|e| returns[e * teams + k]).sum::<f64>() / n as f64).collect(),
+        mean_length: length.iter().map(|&l| l as f64).sum::<f64>() / n as f64,
+    }
+}

@@ -1,0 +1,190 @@
+//! The PPO loss of one team on one minibatch of whole unrolls (MEBEN.md section 6; the
+//! reference release's Brax PPO loss): values of every state of the unrolls under the
+//! current critic, advantages and value targets by GAE from them ([`crate::gae`], held
+//! constant), then
+//!
+//! `L = -mean(min(rho A, clip(rho, 1 - eps, 1 + eps) A)) + c_v mean((V - v_target)^2)
+//!      - c_H mean(H)`,
+//!
+//! with `rho = exp(log pi(u | s) - log pi_old(u | s))`. The log-probabilities are those of
+//! the pre-squash action `u` under the policy's Normal: the Tanh Jacobian at `u` is the same
+//! for both policies and cancels in `rho`. `H` is the entropy of the Normal part (the Tanh
+//! correction does not depend on the parameters at a fixed `u`). The observation rows are
+//! time-major: `T + 1` rows per unroll (the last is the state after the unroll), then one
+//! row per truncated transition holding its final observation.
+
+use envs::tasks::ObsSpec;
+use models::distribution::{normal_entropy, normal_log_prob, std_from_scale};
+use models::{Model, ObsBatch};
+use nn::Bound;
+use tensor::{Tensor, Var};
+
+use crate::error::Result;
+use crate::gae::{Unrolls, gae};
+
+/// The loss weights and return parameters.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PpoParams {
+    /// Clip `epsilon`.
+    pub clip_epsilon: f64,
+    /// Value loss weight `c_v`.
+    pub value_coef: f64,
+    /// Entropy weight `c_H`.
+    pub entropy_coef: f64,
+    /// Discount.
+    pub discount: f64,
+    /// GAE lambda.
+    pub gae_lambda: f64,
+}
+
+/// One team's minibatch: normalised observations and the behaviour data.
+#[derive(Clone, Copy, Debug)]
+pub struct Minibatch<'a> {
+    /// Steps per unroll `T`.
+    pub steps: usize,
+    /// Unrolls `M`.
+    pub unrolls: usize,
+    /// Observation rows `(T + 1) M + K` (K truncated transitions), `[R, N, 3, 3]`.
+    pub vectors: &'a [f32],
+    /// `[R, N, N_SCALARS]`.
+    pub scalars: &'a [f32],
+    /// `[R, A]` agent headings.
+    pub heading: &'a [f32],
+    /// `[T M, n_actions]` pre-squash actions of every agent (the scene's action layout).
+    pub actions: &'a [f32],
+    /// `[T M]` the team's behaviour log-probabilities.
+    pub logp_old: &'a [f32],
+    /// `[T M]` the team's rewards, scaled.
+    pub rewards: &'a [f32],
+    /// `[T M]`.
+    pub terminated: &'a [bool],
+    /// `[T M]`.
+    pub truncated: &'a [bool],
+    /// `[T M]`: for truncated transitions, the row of their final observation.
+    pub final_row: &'a [u32],
+}
+
+/// Diagnostics of one loss evaluation.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct LossStats {
+    /// The total loss.
+    pub loss: f64,
+    /// The clipped surrogate term.
+    pub policy_loss: f64,
+    /// `mean((V - v_target)^2)` (before the weight).
+    pub value_loss: f64,
+    /// Mean entropy of the Normal part, summed over the team's action dimensions.
+    pub entropy: f64,
+    /// `mean((rho - 1) - ln rho)` (an estimate of KL(old, new)).
+    pub approx_kl: f64,
+    /// Fraction of transitions with `|rho - 1| > epsilon`.
+    pub clip_fraction: f64,
+    /// `1 - Var(v_target - V) / Var(v_target)`.
+    pub explained_variance: f64,
+    /// Mean ratio `rho`.
+    pub mean_ratio: f64,
+    /// Mean advantage.
+    pub mean_advantage: f64,
+}
+
+/// The loss on the tape of `p` and its diagnostics (module docs).
+pub fn ppo_loss<'t>(
+    model: &mut Model,
+    spec: &ObsSpec,
+    p: &Bound<'t, f32>,
+    mb: &Minibatch<'_>,
+    hp: &PpoParams,
+) -> Result<(Var<'t, f32>, LossStats)> {
+    let tape = p.tape();
+    let (t_len, m) = (mb.steps, mb.unrolls);
+    let n = t_len * m;
+    let rows = mb.heading.len() / spec.n_agents.max(1);
+    let obs = ObsBatch::new(rows, spec.n_nodes, mb.vectors, mb.scalars)?;
+    let out = model.forward_batch(p, &obs, mb.heading)?;
+
+    // GAE from the current critic, held constant.
+    let values = out.value.value();
+    let vals = values.data();
+    let final_values: Vec<f32> =
+        (0..n).map(|i| if mb.final_row[i] != u32::MAX { vals[mb.final_row[i] as usize] } else { 0.0 }).collect();
+    let u = Unrolls {
+        steps: t_len,
+        unrolls: m,
+        rewards: mb.rewards,
+        terminated: mb.terminated,
+        truncated: mb.truncated,
+        values: &vals[..(t_len + 1) * m],
+        final_values: &final_values,
+    };
+    let (adv, targets) = gae(&u, hp.discount, hp.gae_lambda);
+
+    // Value loss on the T M transitions.
+    let v = out.value.narrow(0, 0, n)?;
+    let target = tape.constant(Tensor::new(targets.clone(), &[n])?);
+    let value_loss = v.sub(target)?.square().mean_all()?;
+
+    // Log-probabilities and entropy of the team's agents.
+    let na = mb.actions.len() / n.max(1);
+    let mut logp: Option<Var<'t, f32>> = None;
+    let mut entropy: Option<Var<'t, f32>> = None;
+    for a in &out.agents {
+        let (off, dof) = (spec.agent_action_offset[a.agent], spec.agent_dof[a.agent]);
+        let mut ua = Vec::with_capacity(n * dof);
+        for row in mb.actions.chunks_exact(na) {
+            ua.extend_from_slice(&row[off..off + dof]);
+        }
+        let ua = tape.constant(Tensor::new(ua, &[n, dof])?);
+        let loc = a.loc.narrow(0, 0, n)?;
+        let std = std_from_scale(a.scale.narrow(0, 0, n)?);
+        let lp = normal_log_prob(ua, loc, std)?;
+        let h = normal_entropy(std)?;
+        logp = Some(match logp {
+            None => lp,
+            Some(x) => x.add(lp)?,
+        });
+        entropy = Some(match entropy {
+            None => h,
+            Some(x) => x.add(h)?,
+        });
+    }
+    let (logp, entropy) = match (logp, entropy) {
+        (Some(l), Some(h)) => (l, h.mean_all()?),
+        _ => unreachable!("a model acts for at least one agent"),
+    };
+    let logp_old = tape.constant(Tensor::new(mb.logp_old.to_vec(), &[n])?);
+    let ratio = logp.sub(logp_old)?.exp();
+    let adv_t = tape.constant(Tensor::new(adv.clone(), &[n])?);
+    let eps = hp.clip_epsilon;
+    let s1 = ratio.mul(adv_t)?;
+    let s2 = ratio.clamp(1.0 - eps, 1.0 + eps).mul(adv_t)?;
+    let policy_loss = s1.minimum(s2)?.mean_all()?.neg();
+    let loss = policy_loss.add(value_loss.scale(hp.value_coef))?.sub(entropy.scale(hp.entropy_coef))?;
+
+    // Diagnostics.
+    let r = ratio.value();
+    let rs = r.data();
+    let approx_kl = rs.iter().map(|&x| (x as f64 - 1.0) - (x as f64).ln()).sum::<f64>() / n as f64;
+    let clip_fraction = rs.iter().filter(|&&x| ((x as f64) - 1.0).abs() > eps).count() as f64 / n as f64;
+    let vv = v.value();
+    let resid: Vec<f64> = targets.iter().zip(vv.data()).map(|(&t, &v)| t as f64 - v as f64).collect();
+    let var = |xs: &mut dyn Iterator<Item = f64>| {
+        let xs: Vec<f64> = xs.collect();
+        let mean = xs.iter().sum::<f64>() / xs.len() as f64;
+        xs.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / xs.len() as f64
+    };
+    let var_t = var(&mut targets.iter().map(|&x| x as f64));
+    let explained_variance = if var_t > 0.0 { 1.0 - var(&mut resid.into_iter()) / var_t } else { 0.0 };
+    let item = |x: Var<'t, f32>| -> Result<f64> { Ok(x.value().item()? as f64) };
+    let stats = LossStats {
+        loss: item(loss)?,
+        policy_loss: item(policy_loss)?,
+        value_loss: item(value_loss)?,
+        entropy: item(entropy)?,
+        approx_kl,
+        clip_fraction,
+        explained_variance,
+        mean_ratio: rs.iter().map(|&x| x as f64).sum::<f64>() / n as f64,
+        mean_advantage: adv.iter().map(|&x| x as f64).sum::<f64>() / n as f64,
+    };
+    Ok((loss, stats))
+}

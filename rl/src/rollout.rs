@@ -1,0 +1,250 @@
+//! The data of one iteration: `U` blocks, each one unroll of `T` control steps of all `E`
+//! environments, and the minibatches of whole unrolls cut from it.
+//!
+//! Observation rows (raw, not normalised) are stored block by block, `T + 1` per block:
+//! row `(b, t, e)` at `(b (T + 1) + t) E + e`, row `t = T` being the state after the block.
+//! Transitions `(b, t, e)` are at `(b T + t) E + e`. A transition truncated by the time limit
+//! keeps its final observation in the `final_*` arrays.
+
+use envs::tasks::{N_SCALARS, Observation, StepOutput};
+
+use crate::ppo::Minibatch;
+
+/// Marks a transition without a final observation.
+pub const NO_FINAL: u32 = u32::MAX;
+
+/// One iteration's data (module docs).
+#[derive(Clone, Debug)]
+pub struct Rollout {
+    /// Blocks `U`.
+    pub blocks: usize,
+    /// Steps per unroll `T`.
+    pub steps: usize,
+    /// Environments `E`.
+    pub envs: usize,
+    /// Nodes per observation.
+    pub nodes: usize,
+    /// Agents per scene.
+    pub agents: usize,
+    /// Actions per environment.
+    pub n_actions: usize,
+    /// Teams.
+    pub teams: usize,
+    /// `[U (T + 1) E, N, 3, 3]`.
+    pub vectors: Vec<f32>,
+    /// `[U (T + 1) E, N, N_SCALARS]`.
+    pub scalars: Vec<f32>,
+    /// `[U (T + 1) E, A]`.
+    pub heading: Vec<f32>,
+    /// `[U T E, n_actions]` pre-squash actions.
+    pub actions: Vec<f32>,
+    /// `[U T E, teams]` behaviour log-probabilities.
+    pub logp: Vec<f32>,
+    /// `[U T E, teams]` scaled rewards.
+    pub rewards: Vec<f32>,
+    /// `[U T E]`.
+    pub terminated: Vec<bool>,
+    /// `[U T E]`.
+    pub truncated: Vec<bool>,
+    /// `[U T E]` index into the final observations, or [`NO_FINAL`].
+    pub final_index: Vec<u32>,
+    /// Final observations of truncated transitions.
+    pub final_vectors: Vec<f32>,
+    /// Their scalars.
+    pub final_scalars: Vec<f32>,
+    /// Their headings.
+    pub final_heading: Vec<f32>,
+}
+
+/// A gathered minibatch of one team (owned arrays behind a [`Minibatch`]).
+#[derive(Clone, Debug, Default)]
+pub struct MinibatchBuf {
+    /// Raw observation rows `(T + 1) M + K`.
+    pub vectors: Vec<f32>,
+    /// Their scalars.
+    pub scalars: Vec<f32>,
+    /// Their headings.
+    pub heading: Vec<f32>,
+    /// `[T M, n_actions]`.
+    pub actions: Vec<f32>,
+    /// `[T M]`.
+    pub logp_old: Vec<f32>,
+    /// `[T M]`.
+    pub rewards: Vec<f32>,
+    /// `[T M]`.
+    pub terminated: Vec<bool>,
+    /// `[T M]`.
+    pub truncated: Vec<bool>,
+    /// `[T M]` rows of final observations.
+    pub final_row: Vec<u32>,
+    /// Unrolls `M`.
+    pub unrolls: usize,
+    /// Steps `T`.
+    pub steps: usize,
+}
+
+impl MinibatchBuf {
+    /// The minibatch with normalised observation arrays `vectors`, `scalars` (same rows).
+    pub fn view<'a>(&'a self, vectors: &'a [f32], scalars: &'a [f32]) -> Minibatch<'a> {
+        Minibatch {
+            steps: self.steps,
+            unrolls: self.unrolls,
+            vectors,
+            scalars,
+            heading: &self.heading,
+            actions: &self.actions,
+            logp_old: &self.logp_old,
+            rewards: &self.rewards,
+            terminated: &self.terminated,
+            truncated: &self.truncated,
+            final_row: &self.final_row,
+        }
+    }
+}
+
+impl Rollout {
+    /// Storage for `blocks` unrolls of `steps` steps of `envs` environments.
+    pub fn new(blocks: usize, steps: usize, envs: usize, obs: &Observation, n_actions: usize, teams: usize) -> Self {
+        let (nodes, agents) = (obs.nodes, obs.agents);
+        let rows = blocks * (steps + 1) * envs;
+        let tr = blocks * steps * envs;
+        Self {
+            blocks,
+            steps,
+            envs,
+            nodes,
+            agents,
+            n_actions,
+            teams,
+            vectors: vec![0.0; rows * nodes * 9],
+            scalars: vec![0.0; rows * nodes * N_SCALARS],
+            heading: vec![0.0; rows * agents],
+            actions: vec![0.0; tr * n_actions],
+            logp: vec![0.0; tr * teams],
+            rewards: vec![0.0; tr * teams],
+            terminated: vec![false; tr],
+            truncated: vec![false; tr],
+            final_index: vec![NO_FINAL; tr],
+            final_vectors: Vec::new(),
+            final_scalars: Vec::new(),
+            final_heading: Vec::new(),
+        }
+    }
+
+    /// Forgets the final observations of the previous iteration.
+    pub fn clear_finals(&mut self) {
+        self.final_vectors.clear();
+        self.final_scalars.clear();
+        self.final_heading.clear();
+        self.final_index.iter_mut().for_each(|x| *x = NO_FINAL);
+    }
+
+    /// First observation row of block `b`, step `t`.
+    pub fn obs_row(&self, b: usize, t: usize) -> usize {
+        (b * (self.steps + 1) + t) * self.envs
+    }
+
+    /// First transition of block `b`, step `t`.
+    pub fn transition(&self, b: usize, t: usize) -> usize {
+        (b * self.steps + t) * self.envs
+    }
+
+    /// Copies all environments' observations into rows `(b, t, *)`.
+    pub fn store_obs(&mut self, b: usize, t: usize, obs: &Observation) {
+        let r = self.obs_row(b, t);
+        let (nv, ns, na) = (self.nodes * 9, self.nodes * N_SCALARS, self.agents);
+        let e = self.envs;
+        self.vectors[r * nv..(r + e) * nv].copy_from_slice(&obs.vectors);
+        self.scalars[r * ns..(r + e) * ns].copy_from_slice(&obs.scalars);
+        self.heading[r * na..(r + e) * na].copy_from_slice(&obs.heading);
+    }
+
+    /// The raw observation arrays of rows `(b, t, *)`.
+    pub fn obs(&self, b: usize, t: usize) -> (&[f32], &[f32], &[f32]) {
+        let r = self.obs_row(b, t);
+        let (nv, ns, na) = (self.nodes * 9, self.nodes * N_SCALARS, self.agents);
+        let e = self.envs;
+        (&self.vectors[r * nv..(r + e) * nv], &self.scalars[r * ns..(r + e) * ns], &self.heading[r * na..(r + e) * na])
+    }
+
+    /// Records the outcome of step `(b, t)`: scaled rewards, ends, final observations.
+    pub fn store_step(&mut self, b: usize, t: usize, out: &StepOutput, reward_scaling: f32) {
+        let tr = self.transition(b, t);
+        let (nv, ns, na, nt) = (self.nodes * 9, self.nodes * N_SCALARS, self.agents, self.teams);
+        for e in 0..self.envs {
+            let i = tr + e;
+            for k in 0..nt {
+                self.rewards[i * nt + k] = out.reward[e * nt + k] * reward_scaling;
+            }
+            self.terminated[i] = out.terminated[e];
+            self.truncated[i] = out.truncated[e];
+            if out.truncated[e] && !out.terminated[e] {
+                self.final_index[i] = (self.final_heading.len() / na.max(1)) as u32;
+                let f = &out.final_obs;
+                self.final_vectors.extend_from_slice(&f.vectors[e * nv..(e + 1) * nv]);
+                self.final_scalars.extend_from_slice(&f.scalars[e * ns..(e + 1) * ns]);
+                self.final_heading.extend_from_slice(&f.heading[e * na..(e + 1) * na]);
+            } else {
+                self.final_index[i] = NO_FINAL;
+            }
+        }
+    }
+
+    /// Observation rows of the iteration without the rows after each block: what the
+    /// normaliser is updated with. Returns (vectors, scalars) slices per block.
+    pub fn visited_obs(&self) -> Vec<(&[f32], &[f32])> {
+        let (nv, ns) = (self.nodes * 9, self.nodes * N_SCALARS);
+        (0..self.blocks)
+            .map(|b| {
+                let (r0, r1) = (self.obs_row(b, 0), self.obs_row(b, self.steps));
+                (&self.vectors[r0 * nv..r1 * nv], &self.scalars[r0 * ns..r1 * ns])
+            })
+            .collect()
+    }
+
+    /// Gathers team `team`'s minibatch of unrolls `ids` (unroll `q` is block `q / E`,
+    /// environment `q % E`) into `mb`, time-major (module docs of [`crate::ppo`]).
+    pub fn gather(&self, ids: &[usize], team: usize, mb: &mut MinibatchBuf) {
+        let (t_len, m, e_n) = (self.steps, ids.len(), self.envs);
+        let (nv, ns, na, nt, nact) = (self.nodes * 9, self.nodes * N_SCALARS, self.agents, self.teams, self.n_actions);
+        mb.unrolls = m;
+        mb.steps = t_len;
+        for v in [&mut mb.vectors, &mut mb.scalars, &mut mb.heading, &mut mb.actions, &mut mb.logp_old, &mut mb.rewards]
+        {
+            v.clear();
+        }
+        mb.terminated.clear();
+        mb.truncated.clear();
+        mb.final_row.clear();
+        for t in 0..=t_len {
+            for &q in ids {
+                let r = self.obs_row(q / e_n, t) + q % e_n;
+                mb.vectors.extend_from_slice(&self.vectors[r * nv..(r + 1) * nv]);
+                mb.scalars.extend_from_slice(&self.scalars[r * ns..(r + 1) * ns]);
+                mb.heading.extend_from_slice(&self.heading[r * na..(r + 1) * na]);
+            }
+        }
+        let mut next_row = ((t_len + 1) * m) as u32;
+        for t in 0..t_len {
+            for &q in ids {
+                let i = self.transition(q / e_n, t) + q % e_n;
+                mb.actions.extend_from_slice(&self.actions[i * nact..(i + 1) * nact]);
+                mb.logp_old.push(self.logp[i * nt + team]);
+                mb.rewards.push(self.rewards[i * nt + team]);
+                mb.terminated.push(self.terminated[i]);
+                mb.truncated.push(self.truncated[i]);
+                let f = self.final_index[i];
+                if f == NO_FINAL {
+                    mb.final_row.push(NO_FINAL);
+                } else {
+                    let f = f as usize;
+                    mb.vectors.extend_from_slice(&self.final_vectors[f * nv..(f + 1) * nv]);
+                    mb.scalars.extend_from_slice(&self.final_scalars[f * ns..(f + 1) * ns]);
+                    mb.heading.extend_from_slice(&self.final_heading[f * na..(f + 1) * na]);
+                    mb.final_row.push(next_row);
+                    next_row += 1;
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,107 @@
+//! The `meben` program end to end on a tiny budget: train -> eval -> report -> render produce
+//! their files; bad configurations, names and files give clear errors and a non-zero exit.
+
+mod common;
+
+use std::path::Path;
+use std::process::Command;
+
+fn meben(args: &[&str]) -> (bool, String, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_meben")).args(args).output().unwrap();
+    (out.status.success(), String::from_utf8_lossy(&out.stdout).into(), String::from_utf8_lossy(&out.stderr).into())
+}
+
+const TINY: &[&str] = &[
+    "--set",
+    "batch_size=4",
+    "--set",
+    "num_minibatches=4",
+    "--set",
+    "epochs=1",
+    "--set",
+    "num_evals=2",
+    "--set",
+    "eval_episodes=2",
+    "--num-envs",
+    "8",
+    "--steps",
+    "160",
+    "--quiet",
+];
+
+#[test]
+fn train_eval_report_render_produce_their_files() {
+    let dir = common::temp_dir("cli");
+    let root = dir.join("sweep");
+    let run = root.join("run0");
+    let run_s = run.to_str().unwrap();
+    let mut args = vec!["train", "--model", "mlp_hn", "--out", run_s];
+    args.extend_from_slice(TINY);
+    let (ok, stdout, stderr) = meben(&args);
+    assert!(ok, "train failed: {stderr}");
+    assert!(stdout.contains("success_rate"), "{stdout}");
+    for f in ["config.toml", "metrics.csv", "checkpoint.json", "curve.svg", "done.json"] {
+        assert!(run.join(f).is_file(), "{f} missing");
+    }
+    let svg = std::fs::read_to_string(run.join("curve.svg")).unwrap();
+    assert!(svg.starts_with("<svg") || svg.starts_with("<?xml"), "{}", &svg[..50.min(svg.len())]);
+
+    let (ok, stdout, stderr) = meben(&["eval", "--run", run_s, "--episodes", "3", "--rotate", "180"]);
+    assert!(ok, "eval failed: {stderr}");
+    assert!(stdout.contains("episodes 3"), "{stdout}");
+    assert!(run.join("eval_rotate180.json").is_file());
+
+    let (ok, stdout, stderr) = meben(&["report", root.to_str().unwrap()]);
+    assert!(ok, "report failed: {stderr}");
+    assert!(stdout.contains("mlp_hn"), "{stdout}");
+    assert!(root.join("report.md").is_file() && root.join("report.csv").is_file());
+
+    let html = dir.join("episode.html");
+    let (ok, _, stderr) = meben(&["render", "--run", run_s, "--out", html.to_str().unwrap(), "--steps", "20"]);
+    assert!(ok, "render failed: {stderr}");
+    assert!(std::fs::read_to_string(&html).unwrap().contains("<canvas"));
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+fn fails_with(args: &[&str], needles: &[&str]) {
+    let (ok, _, stderr) = meben(args);
+    assert!(!ok, "{args:?} should fail");
+    assert!(!stderr.contains("panicked"), "{args:?} panicked: {stderr}");
+    for n in needles {
+        assert!(stderr.contains(n), "{args:?}: {n:?} not in {stderr}");
+    }
+}
+
+#[test]
+fn bad_input_gives_clear_errors() {
+    let dir = common::temp_dir("cli-bad");
+    let out = dir.join("r");
+    let out_s = out.to_str().unwrap();
+    fails_with(
+        &["train", "--env", "team_reach/9_ants", "--out", out_s],
+        &["env", "team_reach/9_ants", "known environments"],
+    );
+    fails_with(&["train", "--model", "resnet", "--out", out_s], &["model", "resnet", "shnn"]);
+    fails_with(&["train", "--num-envs", "0", "--out", out_s], &["num_envs", "0"]);
+    fails_with(&["train", "--set", "discount=2", "--out", out_s], &["discount", "2"]);
+    fails_with(&["train", "--set", "colour=red", "--out", out_s], &["colour", "unknown field"]);
+    fails_with(&["train", "--set", "nonsense", "--out", out_s], &["FIELD=VALUE"]);
+    fails_with(&["train", "--preset", "fast", "--out", out_s], &["preset", "fast"]);
+    fails_with(&["train", "--opponent", "mlp", "--out", out_s], &["opponent", "Team Sumo"]);
+    let bad = dir.join("bad.toml");
+    for (text, needles) in [
+        ("num_envs = \"many\"\n", vec!["bad.toml", "num_envs"]),
+        ("num_envs = 8\nnum_envs = 9\n", vec!["bad.toml", "invalid TOML"]),
+        ("learning_rate = -1.0\n", vec!["bad.toml", "learning_rate"]),
+    ] {
+        std::fs::write(&bad, text).unwrap();
+        let mut args = vec!["train", "--config", bad.to_str().unwrap(), "--out", out_s];
+        args.push("--quiet");
+        fails_with(&args, &needles);
+    }
+    fails_with(&["train", "--config", "/no/such/file.toml"], &["/no/such/file.toml", "cannot read"]);
+    fails_with(&["eval", "--run", dir.join("nothing").to_str().unwrap()], &["config.toml", "not a run directory"]);
+    fails_with(&["report", dir.join("nothing").to_str().unwrap()], &["nothing"]);
+    assert!(!Path::new(out_s).join("checkpoint.json").exists());
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -1,0 +1,37 @@
+//! Helpers shared by the `rl` integration tests.
+#![allow(dead_code)]
+
+use std::path::PathBuf;
+
+use rl::{Preset, TrainConfig};
+
+/// A tiny configuration: 8 environments, 2 blocks of 5 steps per iteration (80 env steps),
+/// 4 minibatches of 4 unrolls, 2 epochs, `iterations` iterations, evaluations of 4 episodes.
+pub fn tiny(env: &str, model: &str, iterations: u64, extra: &[(&str, &str)]) -> TrainConfig {
+    let steps = (80 * iterations).to_string();
+    let mut ov: Vec<(String, String)> = [
+        ("env", format!("{env:?}")),
+        ("model", format!("{model:?}")),
+        ("num_envs", "8".into()),
+        ("batch_size", "4".into()),
+        ("num_minibatches", "4".into()),
+        ("epochs", "2".into()),
+        ("steps", steps),
+        ("num_evals", "1".into()),
+        ("eval_episodes", "2".into()),
+        ("checkpoint_every", "1".into()),
+    ]
+    .into_iter()
+    .map(|(k, v)| (k.to_string(), v))
+    .collect();
+    ov.extend(extra.iter().map(|(k, v)| (k.to_string(), v.to_string())));
+    TrainConfig::resolve(Some(Preset::Quick), None, &ov).unwrap()
+}
+
+/// A fresh empty directory under the system's temporary directory.
+pub fn temp_dir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("meben-test-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}

@@ -1,0 +1,134 @@
+//! The PPO loss against values computed by hand from the model's outputs, and the first
+//! minibatch of an iteration with the normaliser frozen: ratio 1 and policy loss
+//! `-mean(advantage)`.
+
+mod common;
+
+use models::distribution::std_from_scale;
+use rl::gae::{Unrolls, gae};
+use rl::ppo::{PpoParams, ppo_loss};
+use rl::rollout::{MinibatchBuf, NO_FINAL};
+use rl::{TrainConfig, Trainer};
+use tensor::Tape;
+
+fn params(c: &TrainConfig) -> PpoParams {
+    PpoParams {
+        clip_epsilon: c.clip_epsilon,
+        value_coef: c.value_coef,
+        entropy_coef: c.entropy_coef,
+        discount: c.discount,
+        gae_lambda: c.gae_lambda,
+    }
+}
+
+/// Collects one iteration without updating the normaliser and gathers team 0's first
+/// minibatch of the identity permutation.
+fn first_minibatch(config: &TrainConfig) -> (Trainer, MinibatchBuf) {
+    let mut t = Trainer::new(config).unwrap();
+    t.collect().unwrap();
+    let ids: Vec<usize> = (0..config.batch_size).collect();
+    let mut mb = MinibatchBuf::default();
+    t.rollout().gather(&ids, 0, &mut mb);
+    (t, mb)
+}
+
+#[test]
+fn frozen_normaliser_gives_ratio_one_and_minus_mean_advantage() {
+    for model in ["mlp_hn", "shnn"] {
+        let config = common::tiny("team_reach/1_ant", model, 1, &[]);
+        let (mut t, mb) = first_minibatch(&config);
+        let team = &mut t.teams[0];
+        let (mut v, mut s) = (Vec::new(), Vec::new());
+        team.norm.apply(&mb.vectors, &mb.scalars, &mut v, &mut s);
+        let tape = Tape::<f32>::new();
+        let p = team.store.bind(&tape);
+        let (_, st) = ppo_loss(&mut team.model, &t.spec, &p, &mb.view(&v, &s), &params(&config)).unwrap();
+        assert!((st.mean_ratio - 1.0).abs() < 1e-4, "{model}: mean ratio {}", st.mean_ratio);
+        assert!(st.clip_fraction == 0.0 && st.approx_kl < 1e-8, "{model}: {st:?}");
+        let expected = -st.mean_advantage;
+        assert!(
+            (st.policy_loss - expected).abs() <= 1e-4 * (1.0 + expected.abs()),
+            "{model}: policy loss {} vs -mean(A) {expected}",
+            st.policy_loss
+        );
+    }
+}
+
+#[test]
+fn loss_matches_a_hand_computation_from_the_model_outputs() {
+    let mut config = common::tiny("team_reach/1_ant", "mlp_hn", 1, &[]);
+    config.clip_epsilon = 0.2;
+    let (mut t, mut mb) = first_minibatch(&config);
+    // Perturb the behaviour log-probabilities so that some ratios are clipped on each side.
+    for (i, l) in mb.logp_old.iter_mut().enumerate() {
+        *l += [0.5f32, -0.5, 0.05, 0.0][i % 4];
+    }
+    let team = &mut t.teams[0];
+    let (mut v, mut s) = (Vec::new(), Vec::new());
+    team.norm.apply(&mb.vectors, &mb.scalars, &mut v, &mut s);
+    let hp = params(&config);
+    let tape = Tape::<f32>::new();
+    let p = team.store.bind(&tape);
+    let (loss, st) = ppo_loss(&mut team.model.clone(), &t.spec, &p, &mb.view(&v, &s), &hp).unwrap();
+
+    // The same model outputs, then every term by hand in f64.
+    let tape2 = Tape::<f32>::new();
+    let p2 = team.store.bind(&tape2);
+    let obs = models::ObsBatch::new(mb.heading.len() / t.spec.n_agents, t.spec.n_nodes, &v[..], &s[..]).unwrap();
+    let out = team.model.forward_batch(&p2, &obs, &mb.heading).unwrap();
+    let (tl, m) = (mb.steps, mb.unrolls);
+    let n = tl * m;
+    let values = out.value.value().to_vec();
+    let finals: Vec<f32> =
+        (0..n).map(|i| if mb.final_row[i] != NO_FINAL { values[mb.final_row[i] as usize] } else { 0.0 }).collect();
+    let (adv, targets) = gae(
+        &Unrolls {
+            steps: tl,
+            unrolls: m,
+            rewards: &mb.rewards,
+            terminated: &mb.terminated,
+            truncated: &mb.truncated,
+            values: &values[..(tl + 1) * m],
+            final_values: &finals,
+        },
+        hp.discount,
+        hp.gae_lambda,
+    );
+    let na = mb.actions.len() / n;
+    let (mut logp, mut ent) = (vec![0.0f64; n], 0.0f64);
+    for a in &out.agents {
+        let (off, dof) = (t.spec.agent_action_offset[a.agent], t.spec.agent_dof[a.agent]);
+        let loc = a.loc.value().to_vec();
+        let std = std_from_scale(a.scale).value().to_vec();
+        for i in 0..n {
+            for k in 0..dof {
+                let (mu, sd, u) =
+                    (loc[i * dof + k] as f64, std[i * dof + k] as f64, mb.actions[i * na + off + k] as f64);
+                let z = (u - mu) / sd;
+                logp[i] += -0.5 * z * z - sd.ln() - 0.5 * (2.0 * std::f64::consts::PI).ln();
+                ent += sd.ln() + 0.5 + 0.5 * (2.0 * std::f64::consts::PI).ln();
+            }
+        }
+    }
+    ent /= n as f64;
+    let eps = hp.clip_epsilon;
+    let (mut pl, mut vl, mut clipped) = (0.0, 0.0, 0);
+    for i in 0..n {
+        let r = (logp[i] - mb.logp_old[i] as f64).exp();
+        let a = adv[i] as f64;
+        pl += (r * a).min(r.clamp(1.0 - eps, 1.0 + eps) * a);
+        vl += (values[i] as f64 - targets[i] as f64).powi(2);
+        clipped += ((r - 1.0).abs() > eps) as usize;
+    }
+    pl = -pl / n as f64;
+    vl /= n as f64;
+    let total = pl + hp.value_coef * vl - hp.entropy_coef * ent;
+    assert!(clipped > 0 && clipped < n, "the perturbation should clip some ratios ({clipped} of {n})");
+    let close = |a: f64, b: f64, what: &str| assert!((a - b).abs() <= 1e-4 * (1.0 + b.abs()), "{what}: {a} vs {b}");
+    close(st.policy_loss, pl, "policy loss");
+    close(st.value_loss, vl, "value loss");
+    close(st.entropy, ent, "entropy");
+    close(st.loss, total, "total");
+    close(loss.value().item().unwrap() as f64, total, "loss on the tape");
+    close(st.clip_fraction, clipped as f64 / n as f64, "clip fraction");
+}

@@ -1,0 +1,90 @@
+//! Checkpoints: a run stopped and resumed gives the same bits as an uninterrupted run (Team
+//! Reach and Team Sumo with two teams, different models and the curriculum), whatever the
+//! thread count; damaged checkpoints and changed configurations are refused with the file
+//! named.
+
+mod common;
+
+use rl::checkpoint::Checkpoint;
+use rl::metrics::parse_csv;
+use rl::{RunDir, TrainOptions, train};
+
+/// Metrics without the wall-clock columns.
+fn metrics(run: &RunDir) -> Vec<Vec<(String, f64)>> {
+    let rows = parse_csv(&std::fs::read_to_string(run.metrics()).unwrap()).unwrap();
+    rows.into_iter().map(|r| r.into_iter().filter(|(k, _)| k != "wall_s" && k != "steps_per_s").collect()).collect()
+}
+
+fn params(run: &RunDir) -> Vec<Vec<f64>> {
+    let c = Checkpoint::load(&run.checkpoint()).unwrap();
+    c.teams.iter().flat_map(|t| t.params.tensors.iter().map(|x| x.data.clone())).collect()
+}
+
+#[test]
+fn resumed_runs_are_bit_identical_to_uninterrupted_ones() {
+    let dir = common::temp_dir("resume");
+    for (env, model, extra) in [
+        ("team_reach/1_ant", "shnn", vec![]),
+        ("team_sumo/2_ants", "shnn", vec![("opponent", "mlp_hn"), ("curriculum_fraction", "0.5")]),
+    ] {
+        let config = common::tiny(env, model, 4, &extra);
+        let whole = RunDir::new(dir.join(format!("{}-whole", env.replace('/', "_"))));
+        let s1 = train(&config, &whole, &TrainOptions::default()).unwrap();
+        assert_eq!(s1.iterations, 4);
+
+        // Stopped after 1 and after 3 iterations, on 1 thread, then finished on 2.
+        let parts = RunDir::new(dir.join(format!("{}-parts", env.replace('/', "_"))));
+        let mut c1 = config.clone();
+        c1.threads = 1;
+        let s = train(&c1, &parts, &TrainOptions { stop_after: Some(1), ..Default::default() }).unwrap();
+        assert_eq!(s.iterations, 1);
+        assert!(!parts.done().exists());
+        train(&c1, &parts, &TrainOptions { stop_after: Some(3), ..Default::default() }).unwrap();
+        let mut c2 = config.clone();
+        c2.threads = 2;
+        let s2 = train(&c2, &parts, &TrainOptions::default()).unwrap();
+        assert!(parts.done().exists());
+
+        assert_eq!(metrics(&whole), metrics(&parts), "{env}: metrics differ");
+        assert_eq!(params(&whole), params(&parts), "{env}: parameters differ");
+        assert_eq!(s1.final_eval, s2.final_eval, "{env}: final evaluations differ");
+        let m = metrics(&whole);
+        assert_eq!(m.len(), 4);
+        if env.starts_with("team_sumo") {
+            let alpha: Vec<f64> =
+                m.iter().map(|r| r.iter().find(|(k, _)| k == "curriculum_alpha").unwrap().1).collect();
+            assert_eq!(alpha, vec![1.0, 0.5, 0.0, 0.0], "curriculum over the first half of 4 iterations");
+        }
+        // A finished run returns its summary without training.
+        let again = train(&config, &whole, &TrainOptions::default()).unwrap();
+        assert_eq!(again, s1);
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn bad_checkpoints_and_changed_configurations_are_refused() {
+    let dir = common::temp_dir("badckpt");
+    let config = common::tiny("team_reach/1_ant", "mlp_hn", 2, &[]);
+    let run = RunDir::new(dir.join("run"));
+    train(&config, &run, &TrainOptions { stop_after: Some(1), ..Default::default() }).unwrap();
+
+    let mut other = config.clone();
+    other.entropy_coef = 0.5;
+    let e = train(&other, &run, &TrainOptions::default()).unwrap_err().to_string();
+    assert!(e.contains("checkpoint.json") && e.contains("entropy_coef"), "{e}");
+
+    let good = std::fs::read(run.checkpoint()).unwrap();
+    for damaged in [&good[..good.len() / 2], b"not json" as &[u8]] {
+        std::fs::write(run.checkpoint(), damaged).unwrap();
+        let e = train(&config, &run, &TrainOptions::default()).unwrap_err().to_string();
+        assert!(e.contains("checkpoint.json") && e.contains("not a valid checkpoint"), "{e}");
+    }
+    // The checkpoint of another model.
+    std::fs::write(run.checkpoint(), &good).unwrap();
+    let mut shnn = config.clone();
+    shnn.model = "shnn".into();
+    let e = train(&shnn, &run, &TrainOptions::default()).unwrap_err().to_string();
+    assert!(e.contains("checkpoint.json") && e.contains("model"), "{e}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
