@@ -107,7 +107,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             let floor = rate * 1e9 / per_step;
             let mut sorted = sps.clone();
             sorted.sort_by(f64::total_cmp);
-            let median = sorted[sorted.len() / 2];
+            let k = sorted.len();
+            let median = if k % 2 == 1 { sorted[k / 2] } else { 0.5 * (sorted[k / 2 - 1] + sorted[k / 2]) };
             let all: Vec<String> = sps.iter().map(|x| format!("{x:.0}")).collect();
             println!(
                 "{label} env_steps_per_s={median:.0} iterations=[{}] update_flops_per_step={:.3e} \

@@ -12,7 +12,8 @@
 //! streams), [`normalizer`] (observation statistics), [`team`] (one team's learner and its
 //! act step), [`rollout`] (an iteration's data and minibatches), [`gae`], [`ppo`] (the loss),
 //! [`train`] (the loop and the run directory), [`evaluate`], [`checkpoint`], [`metrics`],
-//! [`run_dir`], [`progress`], [`curve`].
+//! [`run_dir`], [`progress`], [`curve`], [`plot`] (SVG line plots), [`sweep`] (`meben ablate`),
+//! [`report`] (`meben report`).
 
 pub mod checkpoint;
 pub mod config;
