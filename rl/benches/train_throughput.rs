@@ -61,13 +61,7 @@ fn minibatch_flops(t: &mut Trainer, c: &TrainConfig) -> Result<u64, Box<dyn std:
     let team = &mut t.teams[0];
     let (mut v, mut s) = (Vec::new(), Vec::new());
     team.norm.apply(&mb.vectors, &mb.scalars, &mut v, &mut s);
-    let hp = PpoParams {
-        clip_epsilon: c.clip_epsilon,
-        value_coef: c.value_coef,
-        entropy_coef: c.entropy_coef,
-        discount: c.discount,
-        gae_lambda: c.gae_lambda,
-    };
+    let hp = PpoParams::from_config(c);
     let tape = Tape::<f32>::new();
     tape.enable_profiling();
     let p = team.store.bind(&tape);

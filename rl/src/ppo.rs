@@ -37,6 +37,19 @@ pub struct PpoParams {
     pub gae_lambda: f64,
 }
 
+impl PpoParams {
+    /// The loss parameters of a training configuration.
+    pub fn from_config(c: &crate::TrainConfig) -> Self {
+        Self {
+            clip_epsilon: c.clip_epsilon,
+            value_coef: c.value_coef,
+            entropy_coef: c.entropy_coef,
+            discount: c.discount,
+            gae_lambda: c.gae_lambda,
+        }
+    }
+}
+
 /// One team's minibatch: normalised observations and the behaviour data.
 #[derive(Clone, Copy, Debug)]
 pub struct Minibatch<'a> {

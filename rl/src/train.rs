@@ -347,13 +347,7 @@ impl Trainer {
 
     fn update(&mut self) -> Result<Vec<LossStats>> {
         let c = &self.config;
-        let hp = PpoParams {
-            clip_epsilon: c.clip_epsilon,
-            value_coef: c.value_coef,
-            entropy_coef: c.entropy_coef,
-            discount: c.discount,
-            gae_lambda: c.gae_lambda,
-        };
+        let hp = PpoParams::from_config(c);
         let n_unrolls = self.rollout.blocks * self.rollout.envs;
         let mut all = Vec::with_capacity(self.teams.len());
         for team in &mut self.teams {

@@ -12,13 +12,7 @@ use rl::{TrainConfig, Trainer};
 use tensor::Tape;
 
 fn params(c: &TrainConfig) -> PpoParams {
-    PpoParams {
-        clip_epsilon: c.clip_epsilon,
-        value_coef: c.value_coef,
-        entropy_coef: c.entropy_coef,
-        discount: c.discount,
-        gae_lambda: c.gae_lambda,
-    }
+    PpoParams::from_config(c)
 }
 
 /// Collects one iteration without updating the normaliser and gathers team 0's first
