@@ -1,11 +1,11 @@
 //! Records one episode of a MeBen task with uniform random actions and writes it as a
-//! self-contained HTML player and a CSV of body poses.
+//! self-contained HTML player, an animated GIF and a CSV of body poses.
 //!
 //! `cargo run --release -p envs --example tasks_render -- team_sumo/2_ants 0 300 episode`
-//! writes `episode.html` and `episode.csv` (arguments: environment name or composition,
-//! seed, control steps, output path without extension).
+//! writes `episode.html`, `episode.gif` and `episode.csv` (arguments: environment name or
+//! composition, seed, control steps, output path without extension).
 
-use envs::tasks::render::record_episode;
+use envs::tasks::render::{GifOptions, record_episode};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -37,7 +37,14 @@ fn main() {
             std::process::exit(1);
         }
     };
-    for (ext, text) in [("html", traj.to_html()), ("csv", traj.to_csv())] {
+    let gif = match traj.to_gif(&GifOptions::default()) {
+        Ok(g) => g,
+        Err(e) => {
+            eprintln!("error: {e}");
+            std::process::exit(1);
+        }
+    };
+    for (ext, text) in [("html", traj.to_html().into_bytes()), ("gif", gif), ("csv", traj.to_csv().into_bytes())] {
         let path = format!("{out}.{ext}");
         if let Err(e) = std::fs::write(&path, text) {
             eprintln!("error: cannot write {path}: {e}");

@@ -141,7 +141,7 @@ struct RenderArgs {
     /// Run directory.
     #[arg(long)]
     run: PathBuf,
-    /// Output file: .html (animation) or .csv (body poses per frame).
+    /// Output file: .html (interactive animation), .gif (animated image) or .csv (body poses per frame).
     #[arg(long)]
     out: PathBuf,
     /// Seed of the episode's start.
@@ -319,8 +319,8 @@ fn cmd_render(a: RenderArgs) -> Result<(), String> {
     let run = RunDir::new(&a.run);
     let (config, mut teams) = rl::checkpoint::load_policies(&run).map_err(|e| e.to_string())?;
     let ext = a.out.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
-    if ext != "html" && ext != "csv" {
-        return Err(format!("{}: unsupported output format {ext:?}; use .html or .csv", a.out.display()));
+    if !["html", "gif", "csv"].contains(&ext.as_str()) {
+        return Err(format!("{}: unsupported output format {ext:?}; use .html, .gif or .csv", a.out.display()));
     }
     let spec = envs::tasks::TaskSpec::from_name(&config.env).map_err(|e| e.to_string())?;
     let steps = a.steps.unwrap_or(spec.episode_steps);
@@ -330,8 +330,12 @@ fn cmd_render(a: RenderArgs) -> Result<(), String> {
     if let Some(e) = failure {
         return Err(e.to_string());
     }
-    let text = if ext == "html" { traj.to_html() } else { traj.to_csv() };
-    nn::write_atomic(&a.out, text.as_bytes()).map_err(|e| e.to_string())?;
+    let bytes = match ext.as_str() {
+        "html" => traj.to_html().into_bytes(),
+        "gif" => traj.to_gif(&envs::tasks::render::GifOptions::default()).map_err(|e| e.to_string())?,
+        _ => traj.to_csv().into_bytes(),
+    };
+    nn::write_atomic(&a.out, &bytes).map_err(|e| e.to_string())?;
     eprintln!("meben: wrote {} ({} frames)", a.out.display(), traj.len());
     Ok(())
 }

@@ -14,7 +14,7 @@
 //! One module per job: [`spec`] (names, compositions), [`scene`] (one model per
 //! composition), [`placement`] (random starts), [`eval_modes`] (fixed and rotated starts),
 //! [`reach`] and [`sumo`] (rewards, outcomes), [`outcome`], [`observation`] (layout and
-//! filling), [`vec_env`] (batched stepping), [`render`] (trajectories to HTML), [`error`].
+//! filling), [`vec_env`] (batched stepping), [`render`] (trajectories to CSV, HTML and GIF), [`error`].
 
 pub mod error;
 pub mod eval_modes;

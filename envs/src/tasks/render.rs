@@ -1,15 +1,24 @@
 //! Saving an episode and looking at it: a [`Trajectory`] holds every body's world pose and
-//! the balls at each control step; it is written as CSV ([`Trajectory::to_csv`]) or as a
+//! the balls at each control step; it is written as CSV ([`Trajectory::to_csv`]), as a
 //! self-contained HTML page ([`Trajectory::to_html`]) that plays it back on a canvas with no
-//! network access: capsules and spheres under a simple perspective camera, play/pause, a
-//! step slider, drag to turn the camera, wheel to zoom. The red circle is the Sumo arena
-//! (about the centre ball) or the Reach placement disc (about the origin).
+//! network access (capsules and spheres under a simple perspective camera, play/pause, a
+//! step slider, drag to turn the camera, wheel to zoom; the red circle is the Sumo arena
+//! about the centre ball or the Reach placement disc about the origin), or as an animated
+//! GIF ([`Trajectory::to_gif`] with [`GifOptions`]: the same scene under a fixed camera,
+//! drawn by a small software rasterizer, `render/gif_writer.rs` and `render/raster.rs`).
 //!
 //! ```no_run
 //! use envs::tasks::render::record_episode;
 //! let traj = record_episode("team_reach/1_ant", 3, 200, |_obs, actions| actions.fill(0.5)).unwrap();
 //! std::fs::write("episode.html", traj.to_html()).unwrap();
+//! let gif = traj.to_gif(&envs::tasks::render::GifOptions::default()).unwrap();
+//! std::fs::write("episode.gif", gif).unwrap();
 //! ```
+
+mod gif_writer;
+mod raster;
+
+pub use gif_writer::GifOptions;
 
 use super::error::TaskError;
 use super::eval_modes::StartMode;
@@ -18,7 +27,7 @@ use super::scene::{BALL_RADIUS, Scene};
 use super::spec::TaskKind;
 use super::vec_env::VecEnv;
 use crate::data::Data;
-use crate::math::{add, mat_vec, quat_to_mat};
+use crate::math::{add, mat_vec, quat_to_mat, sub};
 use crate::model::Shape;
 use std::fmt::Write;
 
@@ -78,27 +87,13 @@ impl Trajectory {
 
     /// The self-contained HTML player (module docs).
     pub fn to_html(&self) -> String {
-        let m = &self.scene.model;
         // Primitives: every agent geom (sphere or capsule), then the balls.
-        let mut kinds = Vec::new();
-        let mut radii = Vec::new();
-        let mut colours = Vec::new();
-        let agent_of = |body: usize| self.scene.agents.iter().position(|a| a.bodies.contains(&body));
-        let palette = ["#3b7dd8", "#e07b39", "#4aa564", "#b04fc0", "#c9a227", "#d94f5c"];
-        let geoms: Vec<usize> = (0..m.geoms.len()).filter(|&g| agent_of(m.geoms[g].body).is_some()).collect();
-        for &g in &geoms {
-            let a = agent_of(m.geoms[g].body).unwrap_or(0);
-            let colour = if self.scene.n_teams() == 2 { self.scene.agents[a].team } else { a };
-            let (kind, r) = match m.geoms[g].shape {
-                Shape::Sphere { radius } => (0, radius),
-                Shape::Capsule { radius, .. } => (1, radius),
-                Shape::Plane => (0, 0.0),
-            };
-            kinds.push(kind);
-            radii.push(r);
-            colours.push(palette[colour % palette.len()]);
-        }
-        let ball_colour = if self.scene.n_teams() == 2 { "#888888" } else { "#e8c547" };
+        let geoms = self.agent_geoms();
+        let kinds: Vec<u8> = geoms.iter().map(|g| u8::from(!g.sphere)).collect();
+        let radii: Vec<f64> = geoms.iter().map(|g| g.radius).collect();
+        let hex = |[r, g, b]: [u8; 3]| format!("#{r:02x}{g:02x}{b:02x}");
+        let colours: Vec<String> = geoms.iter().map(|g| hex(AGENT_COLOURS[g.colour])).collect();
+        let ball_colour = hex(if self.scene.n_teams() == 2 { SUMO_BALL_COLOUR } else { REACH_BALL_COLOUR });
         let mut frames = String::from("[");
         for (f, (bodies, balls)) in self.bodies.iter().zip(&self.balls).enumerate() {
             frames.push_str(if f == 0 { "[" } else { ",\n[" });
@@ -110,21 +105,10 @@ impl Trajectory {
                 first = false;
                 let _ = write!(s, "{}", (x * 1000.0).round() / 1000.0);
             };
-            for &g in &geoms {
-                let geom = &m.geoms[g];
-                let (p, q) = bodies[geom.body];
-                let r = quat_to_mat(q);
-                let c = add(p, mat_vec(&r, geom.pos));
-                let half = match geom.shape {
-                    Shape::Capsule { half_length, .. } => half_length,
-                    _ => 0.0,
-                };
-                let axis = mat_vec(&r, mat_vec(&geom.mat, [0.0, 0.0, half]));
-                for k in 0..3 {
-                    num(&mut frames, c[k] - axis[k]);
-                }
-                for k in 0..3 {
-                    num(&mut frames, c[k] + axis[k]);
+            for g in &geoms {
+                let (a, b) = self.segment(g.geom, bodies);
+                for x in a.into_iter().chain(b) {
+                    num(&mut frames, x);
                 }
             }
             for b in balls {
@@ -148,7 +132,67 @@ impl Trajectory {
         );
         format!("{HTML_HEAD}<script>\nconst D = {data};\n{PLAYER_JS}</script>\n</body>\n</html>\n")
     }
+
+    /// The drawn agent geoms (spheres and capsules of bodies that belong to an agent), in
+    /// model order, with their colour slots: by team when there are two teams, else by agent.
+    fn agent_geoms(&self) -> Vec<AgentGeom> {
+        let m = &self.scene.model;
+        let agent_of = |body: usize| self.scene.agents.iter().position(|a| a.bodies.contains(&body));
+        let mut out = Vec::new();
+        for (g, geom) in m.geoms.iter().enumerate() {
+            let Some(a) = agent_of(geom.body) else { continue };
+            let colour = if self.scene.n_teams() == 2 { self.scene.agents[a].team } else { a };
+            let (sphere, radius) = match geom.shape {
+                Shape::Sphere { radius } => (true, radius),
+                Shape::Capsule { radius, .. } => (false, radius),
+                Shape::Plane => (true, 0.0),
+            };
+            out.push(AgentGeom { geom: g, colour: colour % AGENT_COLOURS.len(), sphere, radius });
+        }
+        out
+    }
+
+    /// The world-frame axis of geom `g` in a frame's body poses: the end points of a
+    /// capsule's segment, or the centre twice for a sphere.
+    fn segment(&self, g: usize, bodies: &[([f64; 3], [f64; 4])]) -> ([f64; 3], [f64; 3]) {
+        let geom = &self.scene.model.geoms[g];
+        let (p, q) = bodies[geom.body];
+        let r = quat_to_mat(q);
+        let c = add(p, mat_vec(&r, geom.pos));
+        let half = match geom.shape {
+            Shape::Capsule { half_length, .. } => half_length,
+            _ => 0.0,
+        };
+        let axis = mat_vec(&r, mat_vec(&geom.mat, [0.0, 0.0, half]));
+        (sub(c, axis), add(c, axis))
+    }
 }
+
+/// One drawn agent geom (see `Trajectory::agent_geoms`).
+struct AgentGeom {
+    /// Model geom index.
+    geom: usize,
+    /// Index into [`AGENT_COLOURS`].
+    colour: usize,
+    /// Sphere (drawn as a disc) or capsule (a thick segment).
+    sphere: bool,
+    /// Radius (m).
+    radius: f64,
+}
+
+/// Agent colours (sRGB), one per team in Sumo, one per agent in Reach (cycled).
+const AGENT_COLOURS: [[u8; 3]; 6] = [
+    [0x3b, 0x7d, 0xd8],
+    [0xe0, 0x7b, 0x39],
+    [0x4a, 0xa5, 0x64],
+    [0xb0, 0x4f, 0xc0],
+    [0xc9, 0xa2, 0x27],
+    [0xd9, 0x4f, 0x5c],
+];
+/// Reach's goal balls.
+const REACH_BALL_COLOUR: [u8; 3] = [0xe8, 0xc5, 0x47];
+/// Sumo's centre ball.
+const SUMO_BALL_COLOUR: [u8; 3] = [0x88, 0x88, 0x88];
 
 /// Plays `steps` control steps (or until the episode ends) of one environment of `name`
 /// with the fixed start of `seed`, asking `policy(observation, actions)` for each action
