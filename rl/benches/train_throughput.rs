@@ -12,7 +12,8 @@
 //!
 //! Run: `cargo bench -p rl --bench train_throughput [-- <filter>]` (a substring of
 //! `<env> <model>`). `ITERATIONS=k` measures k iterations (default 2) after one warm-up
-//! iteration (`WARMUP=0` for none).
+//! iteration (`WARMUP=0` for none). `TENSOR_PROFILE=1` prints the per-op profile of the
+//! counted minibatch update.
 
 use std::time::Instant;
 
@@ -68,6 +69,11 @@ fn minibatch_flops(t: &mut Trainer, c: &TrainConfig) -> Result<u64, Box<dyn std:
     let mut model = team.model.clone();
     let (loss, _) = ppo_loss(&mut model, &spec, &p, &mb.view(&v, &s), &hp)?;
     tape.backward(loss)?;
+    if std::env::var_os("TENSOR_PROFILE").is_some()
+        && let Some(r) = tape.profile_report()
+    {
+        eprintln!("{r}");
+    }
     Ok(tape.profile_flops().map(|f| f.total()).unwrap_or(0))
 }
 
@@ -90,10 +96,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 t.iterate()?;
             }
             let mut sps = Vec::new();
+            let (mut collect, mut update) = (0.0, 0.0);
             for _ in 0..iterations {
                 let s = Instant::now();
-                t.iterate()?;
+                let st = t.iterate()?;
                 sps.push(config.steps_per_iteration() as f64 / s.elapsed().as_secs_f64());
+                collect += st.collect_s / iterations as f64;
+                update += st.update_s / iterations as f64;
             }
             let flops = minibatch_flops(&mut t, &config)? as f64;
             let per_step =
@@ -106,7 +115,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             let all: Vec<String> = sps.iter().map(|x| format!("{x:.0}")).collect();
             println!(
                 "{label} env_steps_per_s={median:.0} iterations=[{}] update_flops_per_step={:.3e} \
-                 floor_steps_per_s={floor:.0} floor_ratio={:.2}",
+                 floor_steps_per_s={floor:.0} floor_ratio={:.2} collect_s={collect:.1} update_s={update:.1}",
                 all.join(","),
                 per_step,
                 floor / median

@@ -4,7 +4,8 @@
 //!
 //! A configuration is resolved in layers, each overriding the one before:
 //! 1. a preset: `quick` (the built-in default of `meben train`: `shnn` on `team_reach/1_ant`
-//!    in about ten minutes on 2 cores) or `paper` (the reference schedule: 2048
+//!    in about ten minutes on 2 cores: 256 environments, batch 128 unrolls x 8 minibatches,
+//!    1.5M steps, learning rate decayed linearly to 0) or `paper` (the reference schedule: 2048
 //!    environments, 50M steps for Team Reach, 20M and batch 128 for Team Sumo);
 //! 2. a TOML file (`--config file.toml`), whose keys are the fields of [`TrainConfig`] (and
 //!    `preset`);
@@ -99,6 +100,9 @@ pub struct TrainConfig {
     pub entropy_coef: f64,
     /// Adam learning rate.
     pub learning_rate: f64,
+    /// The learning rate falls linearly to 0 over the run's updates (CleanRL's `anneal_lr`;
+    /// the reference keeps it constant).
+    pub lr_decay: bool,
     /// Every gradient element is clipped to `[-grad_clip, grad_clip]` (0 turns it off).
     pub grad_clip: f64,
     /// Observation normaliser.
@@ -143,6 +147,7 @@ impl TrainConfig {
             value_coef: 0.25,
             entropy_coef: 1e-2,
             learning_rate: 3e-4,
+            lr_decay: false,
             grad_clip: 0.1,
             obs_norm: ObsNormKind::Auto,
             reward_scaling: 1.0,
@@ -158,7 +163,8 @@ impl TrainConfig {
             Preset::Quick => TrainConfig {
                 steps: 1_500_000,
                 num_envs: 256,
-                batch_size: 64,
+                batch_size: 128,
+                lr_decay: true,
                 num_minibatches: 8,
                 num_evals: 10,
                 eval_episodes: 128,

@@ -30,9 +30,10 @@ enum Command {
     Eval(EvalArgs),
     /// Run a sweep of models x envs x seeds x variants (skips finished runs, resumes others).
     Ablate(AblateArgs),
-    /// Tables (Markdown, CSV) and learning curves of a sweep or of runs under a directory.
+    /// Tables (Markdown, CSV) and learning curves of a sweep or of runs under a directory
+    /// (also redraws each run's curve.svg).
     Report(ReportArgs),
-    /// Record an episode of a trained run as an HTML animation (or CSV of body poses).
+    /// Record an episode of a trained run: .html (animation), .gif, or .csv (body poses).
     Render(RenderArgs),
     /// The simulator's rollout tool (random actions, timing, trajectories).
     Sim(envs::rollout_tool::RolloutArgs),
@@ -309,6 +310,10 @@ fn cmd_ablate(a: AblateArgs) -> Result<(), String> {
 
 fn cmd_report(a: ReportArgs) -> Result<(), String> {
     let r = rl::report::report(&a.root).map_err(|e| e.to_string())?;
+    // Every run's own learning curve is redrawn too (runs written by older versions).
+    for dir in rl::report::find_run_dirs(&a.root).map_err(|e| e.to_string())? {
+        rl::curve::write_run_curve(&RunDir::new(dir)).map_err(|e| e.to_string())?;
+    }
     let text = std::fs::read_to_string(&r.markdown).map_err(|e| format!("{}: {e}", r.markdown.display()))?;
     println!("{text}");
     eprintln!("meben: wrote {}", r.markdown.display());

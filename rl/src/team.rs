@@ -71,12 +71,22 @@ impl Team {
         let mut init = stream(config.seed, "init", team as u64, 0);
         let model = Model::new(&mut store.scope(&format!("team{team}"), &mut init), &mc, spec, team)
             .map_err(|e| RlError::config("config", field, spec_str, e.to_string()))?;
-        let adam_config = AdamConfig { lr: LrSchedule::Constant(config.learning_rate), ..AdamConfig::default() };
+        let adam_config = AdamConfig { lr: lr_schedule(config), ..AdamConfig::default() };
         let adam = Adam::new(adam_config, &store);
         let norm = ObsNormalizer::new(norm_kind(config.obs_norm, &mc.name), spec.n_nodes);
         let noise = model.agents().iter().map(|&a| stream(config.seed, "noise", team as u64, a as u64)).collect();
         let shuffle = stream(config.seed, "shuffle", team as u64, 0);
         Ok(Team { index: team, model, store, adam, norm, noise, shuffle })
+    }
+}
+
+/// The learning-rate schedule of a run: constant, or linear to 0 over all its updates.
+pub fn lr_schedule(config: &TrainConfig) -> LrSchedule {
+    if config.lr_decay {
+        let updates = config.iterations() * (config.epochs * config.num_minibatches) as u64;
+        LrSchedule::Linear { start: config.learning_rate, end: 0.0, steps: updates }
+    } else {
+        LrSchedule::Constant(config.learning_rate)
     }
 }
 
@@ -201,4 +211,22 @@ pub fn record_episode(
         }
     })?;
     Ok(traj)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::Preset;
+
+    #[test]
+    fn learning_rate_decays_to_zero_over_the_run_or_stays() {
+        let mut c = TrainConfig::preset(Preset::Quick, "team_reach/1_ant");
+        let updates = c.iterations() * (c.epochs * c.num_minibatches) as u64;
+        let s = lr_schedule(&c);
+        assert_eq!(s.at(0), c.learning_rate);
+        assert!((s.at(updates / 2) - c.learning_rate / 2.0).abs() < 1e-9);
+        assert_eq!(s.at(updates), 0.0);
+        c.lr_decay = false;
+        assert_eq!(lr_schedule(&c).at(updates), c.learning_rate);
+    }
 }

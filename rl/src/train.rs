@@ -102,6 +102,10 @@ pub struct IterationStats {
     pub losses: Vec<LossStats>,
     /// The curriculum factor used.
     pub alpha: f64,
+    /// Seconds spent collecting (acting and stepping the environments).
+    pub collect_s: f64,
+    /// Seconds spent normalising and updating.
+    pub update_s: f64,
 }
 
 /// The whole training state (module docs).
@@ -206,7 +210,11 @@ impl Trainer {
         }
         for (team, s) in t.teams.iter_mut().zip(&c.teams) {
             s.params.load_into(&mut team.store).map_err(|e| bad(e.to_string()))?;
+            // The moments and count from the checkpoint; the schedule of this configuration
+            // (its length follows `steps`, which may have been extended).
+            let schedule = team.adam.config.lr;
             team.adam = s.adam.clone();
+            team.adam.config.lr = schedule;
             if s.normalizer.nodes != team.norm.nodes || s.normalizer.kind != team.norm.kind {
                 return Err(bad(format!("normaliser of team {} does not fit", team.index)));
             }
@@ -267,16 +275,19 @@ impl Trainer {
         for t in &mut self.teams {
             t.model.reseed(derive_seed(self.config.seed, "assign", t.index as u64, self.iteration));
         }
+        let t0 = Instant::now();
         let episodes = self.collect()?;
+        let collect_s = t0.elapsed().as_secs_f64();
         for t in &mut self.teams {
             for (v, s) in self.rollout.visited_obs() {
                 t.norm.update(v, s);
             }
         }
         let losses = self.update()?;
+        let update_s = t0.elapsed().as_secs_f64() - collect_s;
         self.iteration += 1;
         self.env_steps += self.config.steps_per_iteration();
-        Ok(IterationStats { episodes, losses, alpha })
+        Ok(IterationStats { episodes, losses, alpha, collect_s, update_s })
     }
 
     /// The current iteration's data (after [`Trainer::collect`]).

@@ -60,6 +60,12 @@ fn train_eval_report_render_produce_their_files() {
     let (ok, _, stderr) = meben(&["render", "--run", run_s, "--out", html.to_str().unwrap(), "--steps", "20"]);
     assert!(ok, "render failed: {stderr}");
     assert!(std::fs::read_to_string(&html).unwrap().contains("<canvas"));
+    let gif = dir.join("episode.gif");
+    let (ok, _, stderr) = meben(&["render", "--run", run_s, "--out", gif.to_str().unwrap(), "--steps", "10"]);
+    assert!(ok, "render gif failed: {stderr}");
+    assert!(std::fs::read(&gif).unwrap().starts_with(b"GIF89a"));
+    let (ok, _, stderr) = meben(&["render", "--run", run_s, "--out", dir.join("e.mp4").to_str().unwrap()]);
+    assert!(!ok && stderr.contains("e.mp4"), "{stderr}");
     let _ = std::fs::remove_dir_all(&dir);
 }
 
