@@ -101,7 +101,8 @@ pub struct TrainConfig {
     /// Adam learning rate.
     pub learning_rate: f64,
     /// The learning rate falls linearly to 0 over the run's updates (CleanRL's `anneal_lr`;
-    /// the reference keeps it constant).
+    /// the reference keeps it constant). Absent from files written before it existed: false.
+    #[serde(default)]
     pub lr_decay: bool,
     /// Every gradient element is clipped to `[-grad_clip, grad_clip]` (0 turns it off).
     pub grad_clip: f64,
