@@ -43,6 +43,17 @@ fn allocations_do_not_grow_with_the_batch() {
         let o = env.obs();
         let n = spec.n_nodes;
         let proc = InputProcessor::new(&spec, Translation::Assigned).unwrap();
+        // Warm-up: one-time lazy initialisations (the thread pool's workers, thread-locals)
+        // allocate on first use, possibly on other threads while a later call is counted
+        // (the counter sees every thread); they must not be attributed to a batch size.
+        {
+            let obs = ObsBatch::new(40, n, &o.vectors[..40 * n * 9], &o.scalars[..40 * n * N_SCALARS]).unwrap();
+            let mut builder = GraphBuilder::new(&spec, AssignmentMethod::Greedy, 0, 0).unwrap();
+            let e = proc.entities::<f32, f32>(&obs).unwrap();
+            let g = builder.build(&e).unwrap();
+            proc.bodies(&obs, &e, &g.agent_entity, &[0, 1]).unwrap();
+            std::thread::sleep(std::time::Duration::from_millis(50));
+        }
         let mut counts = Vec::new();
         for batch in [2, 40] {
             let obs =
