@@ -133,7 +133,15 @@ pub fn ppo_loss<'t>(
 
     // Value loss on the T M transitions.
     let v = out.value.narrow(0, 0, n)?;
-    let target = tape.constant(Tensor::new(targets.clone(), &[n])?);
+    let mean_advantage = adv.iter().map(|&x| x as f64).sum::<f64>() / n as f64;
+    let var = |xs: &mut dyn Iterator<Item = f64>| {
+        let xs: Vec<f64> = xs.collect();
+        let mean = xs.iter().sum::<f64>() / xs.len() as f64;
+        xs.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / xs.len() as f64
+    };
+    let var_t = var(&mut targets.iter().map(|&x| x as f64));
+    let target_values: Vec<f64> = targets.iter().map(|&x| x as f64).collect();
+    let target = tape.constant(Tensor::new(targets, &[n])?);
     let value_loss = v.sub(target)?.square().mean_all()?;
 
     // Log-probabilities and entropy of the team's agents.
@@ -166,7 +174,7 @@ pub fn ppo_loss<'t>(
     };
     let logp_old = tape.constant(Tensor::new(mb.logp_old.to_vec(), &[n])?);
     let ratio = logp.sub(logp_old)?.exp();
-    let adv_t = tape.constant(Tensor::new(adv.clone(), &[n])?);
+    let adv_t = tape.constant(Tensor::new(adv, &[n])?);
     let eps = hp.clip_epsilon;
     let s1 = ratio.mul(adv_t)?;
     let s2 = ratio.clamp(1.0 - eps, 1.0 + eps).mul(adv_t)?;
@@ -179,13 +187,7 @@ pub fn ppo_loss<'t>(
     let approx_kl = rs.iter().map(|&x| (x as f64 - 1.0) - (x as f64).ln()).sum::<f64>() / n as f64;
     let clip_fraction = rs.iter().filter(|&&x| ((x as f64) - 1.0).abs() > eps).count() as f64 / n as f64;
     let vv = v.value();
-    let resid: Vec<f64> = targets.iter().zip(vv.data()).map(|(&t, &v)| t as f64 - v as f64).collect();
-    let var = |xs: &mut dyn Iterator<Item = f64>| {
-        let xs: Vec<f64> = xs.collect();
-        let mean = xs.iter().sum::<f64>() / xs.len() as f64;
-        xs.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / xs.len() as f64
-    };
-    let var_t = var(&mut targets.iter().map(|&x| x as f64));
+    let resid: Vec<f64> = target_values.iter().zip(vv.data()).map(|(&t, &v)| t - v as f64).collect();
     let explained_variance = if var_t > 0.0 { 1.0 - var(&mut resid.into_iter()) / var_t } else { 0.0 };
     let item = |x: Var<'t, f32>| -> Result<f64> { Ok(x.value().item()? as f64) };
     let stats = LossStats {
@@ -197,7 +199,7 @@ pub fn ppo_loss<'t>(
         clip_fraction,
         explained_variance,
         mean_ratio: rs.iter().map(|&x| x as f64).sum::<f64>() / n as f64,
-        mean_advantage: adv.iter().map(|&x| x as f64).sum::<f64>() / n as f64,
+        mean_advantage,
     };
     Ok((loss, stats))
 }

@@ -261,11 +261,12 @@ impl Trainer {
 
     /// The Team Sumo curriculum factor at the current step (1 for Reach).
     pub fn curriculum_alpha(&self) -> f64 {
-        if self.env.scene().kind() != TaskKind::Sumo || self.config.curriculum_fraction == 0.0 {
-            return if self.env.scene().kind() == TaskKind::Sumo { 0.0 } else { 1.0 };
+        if self.env.scene().kind() != TaskKind::Sumo {
+            return 1.0;
         }
+        // A zero fraction makes the span 0 and the factor 0 from the start (sparse only).
         let span = self.config.curriculum_fraction * self.config.steps as f64;
-        (1.0 - self.env_steps as f64 / span).clamp(0.0, 1.0)
+        if span == 0.0 { 0.0 } else { (1.0 - self.env_steps as f64 / span).clamp(0.0, 1.0) }
     }
 
     /// One iteration: collect, normalise, update (module docs).
@@ -548,7 +549,7 @@ pub fn train(config: &TrainConfig, run: &RunDir, options: &TrainOptions) -> Resu
 fn train_in_pool(config: &TrainConfig, run: &RunDir, options: &TrainOptions) -> Result<RunSummary> {
     std::fs::create_dir_all(run.root()).map_err(|e| RlError::file(run.root(), format!("cannot create: {e}")))?;
     let ckpt_path = run.checkpoint();
-    let (mut trainer, mut wall_before, mut last_eval) = if ckpt_path.is_file() {
+    let (mut trainer, wall_before, mut last_eval) = if ckpt_path.is_file() {
         let c = Checkpoint::load(&ckpt_path)?;
         let t = Trainer::from_checkpoint(&c, config, &ckpt_path)?;
         (t, c.wall_s, c.last_eval)
@@ -604,12 +605,10 @@ fn train_in_pool(config: &TrainConfig, run: &RunDir, options: &TrainOptions) -> 
         }
     }
     bar.finish();
-    let wall = wall_before + start.elapsed().as_secs_f64();
-    wall_before = wall;
     let summary = RunSummary {
         iterations: trainer.iteration,
         env_steps: trainer.env_steps,
-        wall_s: wall_before,
+        wall_s: wall_before + start.elapsed().as_secs_f64(),
         final_eval: last_eval,
     };
     if trainer.iteration >= total {

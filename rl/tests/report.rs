@@ -1,28 +1,14 @@
 //! `meben report` on synthetic run directories, and a sweep followed by a report (with a
 //! fake trainer that writes what a run leaves behind).
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use rl::metrics::MetricsRow;
 use rl::{Preset, RunDir, RunSummary, Sweep, TrainConfig, report, run_sweep};
 
-/// A fresh directory under the system temporary directory, removed when dropped.
-struct TempDir(PathBuf);
+mod common;
 
-impl TempDir {
-    fn new(name: &str) -> TempDir {
-        let p = std::env::temp_dir().join(format!("rl-report-{name}-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&p);
-        std::fs::create_dir_all(&p).unwrap();
-        TempDir(p)
-    }
-}
-
-impl Drop for TempDir {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
+use common::TempDir;
 
 /// Writes `config.toml` and a `metrics.csv` of `rows` (each a list of column values).
 fn write_run(dir: &Path, config: &TrainConfig, rows: &[&[(&'static str, f64)]]) {
