@@ -407,8 +407,10 @@ impl InputProcessor {
                 return Err(ModelError::Input(format!("agent {a} out of range for {na} agents")));
             }
             let (root, k) = (self.spec.agent_root_node[a], 1 + self.spec.agent_dof[a]);
-            let mut z = Vec::with_capacity(nb * k * 9);
-            let mut h = Vec::with_capacity(nb * k * N_SCALARS);
+            // Pooled storage: these arrays are as large as an activation and are rebuilt for
+            // every minibatch.
+            let mut z = tensor::pool::with_capacity(nb * k * 9);
+            let mut h = tensor::pool::with_capacity(nb * k * N_SCALARS);
             let mut origin = Vec::with_capacity(nb);
             for b in 0..nb {
                 let o = match self.translation {
@@ -419,14 +421,17 @@ impl InputProcessor {
                     _ => entities.origin[b],
                 };
                 origin.push(o);
-                for node in root..root + k {
-                    let p = obs.vec3(b, node, 0);
-                    let rel = [p[0] - o[0], p[1] - o[1], p[2] - o[2]];
-                    let (v, w) = (obs.vec3(b, node, 1), obs.vec3(b, node, 2));
+                let first = (b * obs.nodes + root) * 9;
+                let vectors = &obs.vectors[first..first + k * 9];
+                let first = (b * obs.nodes + root) * N_SCALARS;
+                let scalars = &obs.scalars[first..first + k * N_SCALARS];
+                for (v, sc) in vectors.chunks_exact(9).zip(scalars.chunks_exact(N_SCALARS)) {
+                    // v = [p, v, w] (3 each); Z rows r = [p_r - o_r, v_r, w_r].
                     for r in 0..3 {
-                        z.extend([rel[r], v[r], w[r]].map(T::from_f64));
+                        let rel = v[r].into() - o[r];
+                        z.extend([rel, v[3 + r].into(), v[6 + r].into()].map(T::from_f64));
                     }
-                    h.extend((0..N_SCALARS).map(|s| T::from_f64(obs.scalar(b, node, s))));
+                    h.extend(sc.iter().map(|&x| T::from_f64(x.into())));
                 }
             }
             out.push(AgentBody {

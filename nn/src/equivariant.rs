@@ -51,6 +51,18 @@ pub fn norm_plus_one<'t, T: Float>(x: Var<'t, T>) -> Result<Var<'t, T>> {
     Ok(x.norm_last(1e-12).add_scalar(1.0))
 }
 
+/// `||Z^T Z||_F + 1` of vector features `z: [N, 3, m]`, `[N, 1]`: the normaliser of eq.
+/// (subeq2), equal to [`norm_plus_one`] of [`gram`]`(z)` but computed from the `3 x 3` matrix
+/// `Z Z^T`, since `||Z^T Z||_F^2 = tr(Z^T Z Z^T Z) = tr(Z Z^T Z Z^T) = ||Z Z^T||_F^2`. It reads
+/// `3 m` numbers a row instead of the `m^2` of the Gram matrix (whose pass over memory cost
+/// more than the rest of the normaliser), and it is as invariant: `Z -> R Z` maps `Z Z^T` to
+/// `R Z Z^T R^T`, of the same norm.
+pub fn gram_norm_plus_one<'t, T: Float>(z: Var<'t, T>) -> Result<Var<'t, T>> {
+    let n = z.shape()[0];
+    let outer = z.matmul_t(z, false, true)?.reshape(&[n, 9])?;
+    norm_plus_one(outer)
+}
+
 /// Appends the gravity direction as one more vector channel: `[N.., 3, m] -> [N.., 3, m+1]`.
 pub fn append_gravity<'t, T: Float>(z: Var<'t, T>, g: [f64; 3]) -> Result<Var<'t, T>> {
     let mut s = z.shape();
@@ -150,7 +162,7 @@ pub fn mix_by_invariants<'t, T: Float>(
     let mut parts = vec![g];
     parts.extend_from_slice(scalars);
     let hidden = mlp.forward_hidden_parts(p, &parts)?;
-    let norm = norm_plus_one(g)?; // [N, 1]
+    let norm = gram_norm_plus_one(m)?; // [N, 1], = ||g|| + 1
     // The output layer is applied in two column blocks (vector coefficients, scalars): the
     // same arithmetic as one layer followed by slicing, without copying the large output.
     // The division by the norm is applied after the product with `m` (one scalar per row

@@ -57,6 +57,24 @@ fn vector_linear_and_gram() {
     check_layer(&store, vec![uniform(&mut r, &[2, 3, 4])], |p, v| nn::gram(vl.forward(p, v[0])?));
 }
 
+/// The normaliser from `Z Z^T` equals `||Z^T Z||_F + 1` computed from the Gram matrix, and
+/// its gradient checks.
+#[test]
+fn gram_norm_from_the_outer_product() {
+    let mut r = rng(7);
+    let z = uniform(&mut r, &[5, 3, 6]);
+    let tape = tensor::Tape::<f64>::new();
+    let zv = tape.var(z.clone());
+    let direct = nn::equivariant::norm_plus_one(nn::gram(zv).unwrap()).unwrap().value();
+    let outer = nn::equivariant::gram_norm_plus_one(zv).unwrap().value();
+    assert_eq!(outer.shape(), [5, 1]);
+    for (a, b) in direct.data().iter().zip(outer.data()) {
+        assert!((a - b).abs() < 1e-12 * a.abs(), "{a} vs {b}");
+    }
+    let store = ParamStore::<f64>::new();
+    check_layer(&store, vec![z], |_, v| nn::equivariant::gram_norm_plus_one(v[0]));
+}
+
 #[test]
 fn subequivariant_function() {
     let mut r = rng(4);

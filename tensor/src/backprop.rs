@@ -45,16 +45,25 @@ impl<T: Float> GradStore<T> {
         self.grads[id].get_or_insert_with(|| crate::pool::zeros(len))
     }
 
-    /// The gradient buffers of two different nodes at once (zero-initialised on first use).
-    fn slots2(&mut self, a: NodeId, la: usize, b: NodeId, lb: usize) -> (&mut [T], &mut [T]) {
+    /// Node `id`'s gradient buffer for a kernel that writes every element, and whether it
+    /// must add to it: `false` on first use, when the buffer holds unspecified values to be
+    /// overwritten (no zeroing pass over a buffer the kernel writes anyway).
+    fn slot_to_write(&mut self, id: NodeId, len: usize) -> (&mut [T], bool) {
+        let accumulate = self.grads[id].is_some();
+        (self.grads[id].get_or_insert_with(|| crate::pool::for_overwrite(len)), accumulate)
+    }
+
+    /// [`GradStore::slot_to_write`] of two different nodes at once.
+    #[allow(clippy::type_complexity)]
+    fn slots2_to_write(&mut self, a: NodeId, la: usize, b: NodeId, lb: usize) -> ((&mut [T], bool), (&mut [T], bool)) {
         assert_ne!(a, b);
-        self.slot(a, la);
-        self.slot(b, lb);
+        let acc_a = self.slot_to_write(a, la).1;
+        let acc_b = self.slot_to_write(b, lb).1;
         let (lo, hi, swap) = if a < b { (a, b, false) } else { (b, a, true) };
         let (first, second) = self.grads.split_at_mut(hi);
         let x = first[lo].as_deref_mut().expect("initialised above");
         let y = second[0].as_deref_mut().expect("initialised above");
-        if swap { (y, x) } else { (x, y) }
+        if swap { ((y, acc_a), (x, acc_b)) } else { ((x, acc_a), (y, acc_b)) }
     }
 
     /// Removes and returns node `id`'s gradient.
@@ -129,9 +138,9 @@ pub(crate) fn propagate<T: Float>(nodes: &[Node<T>], id: NodeId, g: &mut Vec<T>,
                 // Many tiny products (e.g. Gram matrices Z^T Z of 3 x 32 blocks): both gradients
                 // in one pass over the batch, while each block is in cache.
                 let (da, db) = if a == b {
-                    (store.slot(*a, av.numel()), None)
+                    (store.slot_to_write(*a, av.numel()), None)
                 } else {
-                    let (sa, sb) = store.slots2(*a, av.numel(), *b, bv.numel());
+                    let (sa, sb) = store.slots2_to_write(*a, av.numel(), *b, bv.numel());
                     (sa, Some(sb))
                 };
                 let (ad, bd) = (av.data(), bv.data());
@@ -166,14 +175,14 @@ pub(crate) fn propagate<T: Float>(nodes: &[Node<T>], id: NodeId, g: &mut Vec<T>,
             if store.wants(*x) {
                 let plan =
                     matmul::MatMulPlan::new(&[rows, n], &[k, n], false, true).expect("shapes checked in forward");
-                let slot = store.slot(*x, rows * k);
-                matmul::matmul_into(slot, true, gpre, false, wv.data(), true, &plan);
+                let (slot, accumulate) = store.slot_to_write(*x, rows * k);
+                matmul::matmul_into(slot, accumulate, gpre, false, wv.data(), true, &plan);
             }
             if store.wants(*w) {
                 let plan =
                     matmul::MatMulPlan::new(&[rows, k], &[rows, n], true, false).expect("shapes checked in forward");
-                let slot = store.slot(*w, k * n);
-                matmul::matmul_into(slot, true, xv.data(), true, gpre, false, &plan);
+                let (slot, accumulate) = store.slot_to_write(*w, k * n);
+                matmul::matmul_into(slot, accumulate, xv.data(), true, gpre, false, &plan);
             }
             if let Some(b) = b
                 && store.wants(*b)
@@ -298,8 +307,8 @@ fn accumulate_product<T: Float>(
 ) {
     let plan = matmul::MatMulPlan::new(l.shape(), r.shape(), tl, tr).expect("shapes checked in forward");
     if plan.out_shape() == target_shape {
-        let slot = store.slot(target, target_shape.iter().product());
-        matmul::matmul_into(slot, true, l.data(), tl, r.data(), tr, &plan);
+        let (slot, accumulate) = store.slot_to_write(target, target_shape.iter().product());
+        matmul::matmul_into(slot, accumulate, l.data(), tl, r.data(), tr, &plan);
     } else {
         let full = matmul::matmul(l, r, tl, tr).expect("shapes checked in forward");
         store.add(target, reduce::sum_to_shape(full, target_shape).into_vec());

@@ -37,22 +37,46 @@ impl<T> Default for BufferPool<T> {
 /// An empty vector with capacity for at least `n` elements, recycled when one fits (the
 /// smallest free buffer of capacity between `n` and `2n`).
 pub fn with_capacity<T: Float>(n: usize) -> Vec<T> {
-    if n >= MIN_POOLED
-        && let Ok(mut free) = T::pool().free.lock()
-    {
-        let best = free
-            .iter()
-            .enumerate()
-            .filter(|(_, v)| v.capacity() >= n && v.capacity() <= 2 * n)
-            .min_by_key(|(_, v)| v.capacity())
-            .map(|(i, _)| i);
-        if let Some(i) = best {
-            let mut v = free.swap_remove(i);
+    match take(n) {
+        Some(mut v) => {
             v.clear();
-            return v;
+            v
         }
+        None => Vec::with_capacity(n),
     }
-    Vec::with_capacity(n)
+}
+
+/// The smallest free buffer of capacity between `n` and `2n`, as it was recycled (its old
+/// length and contents), if `n` is large enough to be pooled and one is free.
+fn take<T: Float>(n: usize) -> Option<Vec<T>> {
+    if n < MIN_POOLED {
+        return None;
+    }
+    let mut free = T::pool().free.lock().ok()?;
+    let best = free
+        .iter()
+        .enumerate()
+        .filter(|(_, v)| v.capacity() >= n && v.capacity() <= 2 * n)
+        .min_by_key(|(_, v)| v.capacity())
+        .map(|(i, _)| i)?;
+    Some(free.swap_remove(best))
+}
+
+/// A vector of `n` elements with unspecified values, for a kernel that overwrites every one:
+/// recycled storage keeps whatever it held (only a tail beyond its old length is zeroed), so
+/// the output is not written twice. Never read an element before writing it.
+pub fn for_overwrite<T: Float>(n: usize) -> Vec<T> {
+    match take(n) {
+        Some(mut v) => {
+            if v.len() >= n {
+                v.truncate(n);
+            } else {
+                v.resize(n, T::ZERO);
+            }
+            v
+        }
+        None => vec![T::ZERO; n],
+    }
 }
 
 /// A vector of `n` copies of `value` (recycled storage when possible).
@@ -120,5 +144,22 @@ mod tests {
         let again: Vec<f64> = with_capacity(n);
         assert_eq!(again.as_ptr(), ptr);
         assert!(again.is_empty());
+    }
+
+    #[test]
+    fn buffers_for_overwriting_keep_their_contents_and_zero_a_new_tail() {
+        let n = MIN_POOLED * 2 + 3;
+        let mut v: Vec<f32> = filled(n, 5.0);
+        let ptr = v.as_ptr();
+        v.truncate(n - 10);
+        recycle(v);
+        // Longer than the recycled length: the old values, then zeros.
+        let w: Vec<f32> = for_overwrite(n);
+        assert_eq!((w.as_ptr(), w.len()), (ptr, n));
+        assert!(w[..n - 10].iter().all(|&x| x == 5.0) && w[n - 10..].iter().all(|&x| x == 0.0));
+        recycle(w);
+        // Shorter: truncated.
+        let u: Vec<f32> = for_overwrite(n - 100);
+        assert_eq!((u.as_ptr(), u.len()), (ptr, n - 100));
     }
 }

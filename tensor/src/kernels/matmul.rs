@@ -125,7 +125,8 @@ impl MatMulPlan {
 /// `op(a) @ op(b)` as a new tensor.
 pub fn matmul<T: Float>(a: &Tensor<T>, b: &Tensor<T>, ta: bool, tb: bool) -> Result<Tensor<T>> {
     let plan = MatMulPlan::new(a.shape(), b.shape(), ta, tb)?;
-    let mut out = crate::pool::zeros(numel(&plan.out_shape()));
+    // Every element is written (not accumulated), so the buffer need not be cleared first.
+    let mut out = crate::pool::for_overwrite(numel(&plan.out_shape()));
     matmul_into(&mut out, false, a.data(), ta, b.data(), tb, &plan);
     Ok(Tensor::from_parts(out, plan.out_shape()))
 }
@@ -255,13 +256,37 @@ fn faer_matmul<T: Float>(out: &mut [T], accumulate: bool, p: Product<'_, T>, r0:
     faer::linalg::matmul::matmul(dst, accum, lhs, rhs, T::ONE, Par::Seq);
 }
 
+/// Widest output row [`small_matmul`] accumulates on the stack.
+const ROW_ACC: usize = 64;
+
 /// Direct loops for tiny products; the inner loop runs over contiguous memory.
 fn small_matmul<T: Float>(out: &mut [T], accumulate: bool, p: Product<'_, T>) {
     let Product { a, ta, b, tb, m, k, n } = p;
-    if !accumulate {
-        out.iter_mut().for_each(|v| *v = T::ZERO);
-    }
     let a_at = |i: usize, p: usize| if ta { a[p * m + i] } else { a[i * k + p] };
+    if !tb && n > 0 && n <= ROW_ACC {
+        // out[i, :] (+)= sum_p a[i, p] * b[p, :], summed in a row on the stack and stored once
+        // (the same additions in the same order as summing in place).
+        let mut acc = [T::ZERO; ROW_ACC];
+        let acc = &mut acc[..n];
+        for (i, row) in out.chunks_exact_mut(n).enumerate().take(m) {
+            if accumulate {
+                acc.copy_from_slice(row);
+            } else {
+                acc.fill(T::ZERO);
+            }
+            for (p, br) in b.chunks_exact(n).enumerate().take(k) {
+                let s = a_at(i, p);
+                for (o, &bv) in acc.iter_mut().zip(br) {
+                    *o += s * bv;
+                }
+            }
+            row.copy_from_slice(acc);
+        }
+        return;
+    }
+    if !accumulate {
+        out[..m * n].iter_mut().for_each(|v| *v = T::ZERO);
+    }
     if !tb {
         // out[i, :] += a[i, p] * b[p, :]
         for i in 0..m {
@@ -326,8 +351,9 @@ pub fn fused_small_backward_applies(a: &[usize], b: &[usize], ta: bool, tb: bool
 }
 
 /// Gradients of a batch of tiny products `C_i = op(A_i) op(B_i)` given `G_i = dL/dC_i`, both
-/// accumulated in one pass over the batch: `dA` into `da`, `dB` into `db`; when `A` and `B`
-/// are the same tensor (`db` is `None`), both contributions go to `da`.
+/// in one pass over the batch: `dA` into `da.0`, `dB` into `db.0`, each added to the buffer
+/// when its flag is set and written over it otherwise; when `A` and `B` are the same tensor
+/// (`db` is `None`), both contributions go to `da`.
 #[allow(clippy::too_many_arguments)]
 pub fn small_batched_backward<T: Float>(
     g: &[T],
@@ -337,33 +363,34 @@ pub fn small_batched_backward<T: Float>(
     tb: bool,
     a_shape: &[usize],
     b_shape: &[usize],
-    da: &mut [T],
-    db: Option<&mut [T]>,
+    da: (&mut [T], bool),
+    db: Option<(&mut [T], bool)>,
 ) {
     let (m, k) = if ta { (a_shape[2], a_shape[1]) } else { (a_shape[1], a_shape[2]) };
     let n = if tb { b_shape[1] } else { b_shape[2] };
     let (la, lb, lg) = (m * k, k * n, m * n);
     // dA (stored layout) and dB (stored layout) of one batch entry.
-    let grad_a = |out: &mut [T], gi: &[T], bi: &[T]| {
+    let grad_a = |out: &mut [T], acc: bool, gi: &[T], bi: &[T]| {
         if !ta {
-            small_matmul(out, true, Product { a: gi, ta: false, b: bi, tb: !tb, m, k: n, n: k });
+            small_matmul(out, acc, Product { a: gi, ta: false, b: bi, tb: !tb, m, k: n, n: k });
         } else {
-            small_matmul(out, true, Product { a: bi, ta: tb, b: gi, tb: true, m: k, k: n, n: m });
+            small_matmul(out, acc, Product { a: bi, ta: tb, b: gi, tb: true, m: k, k: n, n: m });
         }
     };
-    let grad_b = |out: &mut [T], gi: &[T], ai: &[T]| {
+    let grad_b = |out: &mut [T], acc: bool, gi: &[T], ai: &[T]| {
         if !tb {
-            small_matmul(out, true, Product { a: ai, ta: !ta, b: gi, tb: false, m: k, k: m, n });
+            small_matmul(out, acc, Product { a: ai, ta: !ta, b: gi, tb: false, m: k, k: m, n });
         } else {
-            small_matmul(out, true, Product { a: gi, ta: true, b: ai, tb: ta, m: n, k: m, n: k });
+            small_matmul(out, acc, Product { a: gi, ta: true, b: ai, tb: ta, m: n, k: m, n: k });
         }
     };
+    let (da, acc_a) = da;
     match db {
-        Some(db) => {
+        Some((db, acc_b)) => {
             da.par_chunks_mut(la).zip(db.par_chunks_mut(lb)).enumerate().for_each(|(i, (oa, ob))| {
                 let gi = &g[i * lg..(i + 1) * lg];
-                grad_a(oa, gi, &b[i * lb..(i + 1) * lb]);
-                grad_b(ob, gi, &a[i * la..(i + 1) * la]);
+                grad_a(oa, acc_a, gi, &b[i * lb..(i + 1) * lb]);
+                grad_b(ob, acc_b, gi, &a[i * la..(i + 1) * la]);
             });
         }
         None => {
@@ -371,8 +398,8 @@ pub fn small_batched_backward<T: Float>(
             da.par_chunks_mut(la).enumerate().for_each(|(i, oa)| {
                 let gi = &g[i * lg..(i + 1) * lg];
                 let xi = &a[i * la..(i + 1) * la];
-                grad_a(oa, gi, xi);
-                grad_b(oa, gi, xi);
+                grad_a(oa, acc_a, gi, xi);
+                grad_b(oa, true, gi, xi);
             });
         }
     }
