@@ -184,7 +184,19 @@ pub fn ppo_loss<'t>(
     // Diagnostics.
     let r = ratio.value();
     let rs = r.data();
-    let approx_kl = rs.iter().map(|&x| (x as f64 - 1.0) - (x as f64).ln()).sum::<f64>() / n as f64;
+    // From the log-ratio in f64: `rho - 1 - ln rho = expm1(d) - d`. (Through the f32 ratio it
+    // was infinite whenever `rho` underflowed to 0, which a few far-off-policy samples do.)
+    let lp = logp.value();
+    let approx_kl = lp
+        .data()
+        .iter()
+        .zip(mb.logp_old)
+        .map(|(&l, &o)| {
+            let d = l as f64 - o as f64;
+            d.exp_m1() - d
+        })
+        .sum::<f64>()
+        / n as f64;
     let clip_fraction = rs.iter().filter(|&&x| ((x as f64) - 1.0).abs() > eps).count() as f64 / n as f64;
     let vv = v.value();
     let resid: Vec<f64> = target_values.iter().zip(vv.data()).map(|(&t, &v)| t - v as f64).collect();

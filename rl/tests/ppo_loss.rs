@@ -106,9 +106,10 @@ fn loss_matches_a_hand_computation_from_the_model_outputs() {
     }
     ent /= n as f64;
     let eps = hp.clip_epsilon;
-    let (mut pl, mut vl, mut clipped) = (0.0, 0.0, 0);
+    let (mut pl, mut vl, mut clipped, mut kl) = (0.0, 0.0, 0, 0.0);
     for i in 0..n {
         let r = (logp[i] - mb.logp_old[i] as f64).exp();
+        kl += r - 1.0 - r.ln();
         let a = adv[i] as f64;
         pl += (r * a).min(r.clamp(1.0 - eps, 1.0 + eps) * a);
         vl += (values[i] as f64 - targets[i] as f64).powi(2);
@@ -125,4 +126,23 @@ fn loss_matches_a_hand_computation_from_the_model_outputs() {
     close(st.loss, total, "total");
     close(loss.value().item().unwrap() as f64, total, "loss on the tape");
     close(st.clip_fraction, clipped as f64 / n as f64, "clip fraction");
+    close(st.approx_kl, kl / n as f64, "approx KL");
+}
+
+/// A behaviour log-probability so far above the current one that the f32 ratio underflows
+/// to 0 still gives a finite approximate KL (it was infinite through `ln(0)`).
+#[test]
+fn approx_kl_is_finite_when_a_ratio_underflows() {
+    let config = common::tiny("team_reach/1_ant", "mlp_hn", 1, &[]);
+    let (mut t, mut mb) = first_minibatch(&config);
+    mb.logp_old[0] += 200.0;
+    let team = &mut t.teams[0];
+    let (mut v, mut s) = (Vec::new(), Vec::new());
+    team.norm.apply(&mb.vectors, &mb.scalars, &mut v, &mut s);
+    let tape = Tape::<f32>::new();
+    let p = team.store.bind(&tape);
+    let (_, st) = ppo_loss(&mut team.model, &t.spec, &p, &mb.view(&v, &s), &params(&config)).unwrap();
+    let n = (mb.steps * mb.unrolls) as f64;
+    // The one sample contributes expm1(d) - d ~ 200 (d ~ -200); the rest are near 0.
+    assert!(st.approx_kl.is_finite() && st.approx_kl > 190.0 / n && st.approx_kl < 210.0 / n, "{st:?}");
 }
