@@ -8,12 +8,19 @@
 //! arithmetic floor: the floating-point operations of the update per env step (forward and
 //! backward of one minibatch counted on a profiled tape, times minibatches and epochs, divided
 //! by the iteration's env steps), the f32 matmul rate measured here, and the floor
-//! `floor_steps_per_s = rate / flops_per_step` with the ratio `floor / measured`.
+//! `floor_steps_per_s = rate / flops_per_step` with the ratio `floor / measured`
+//! (`floor_ratio`, collection and update together), and the same ratio for the update alone
+//! (`update_floor_ratio`: its wall seconds against its FLOPs at the matmul rate). The rate is
+//! sampled before the first and after every measured iteration and the median taken: on a
+//! shared VM it moves by a third within minutes (`matmul_rate_gflops=median [min..max]`).
+//! `minibatch_ms` is the median of `MINIBATCH_REPS` (default 5) forward-and-backward passes of
+//! one minibatch, with its own ratio.
 //!
 //! Run: `cargo bench -p rl --bench train_throughput [-- <filter>]` (a substring of
 //! `<env> <model>`). `ITERATIONS=k` measures k iterations (default 2) after one warm-up
-//! iteration (`WARMUP=0` for none). `TENSOR_PROFILE=1` prints the per-op profile of the
-//! counted minibatch update.
+//! iteration (`WARMUP=0` for none); `ITERATIONS=0` collects one iteration's data and times
+//! only the minibatch passes, a quick check of the update's efficiency. `TENSOR_PROFILE=1`
+//! prints the per-op profile of the counted minibatch update.
 
 use std::time::Instant;
 
@@ -53,8 +60,21 @@ fn matmul_rate() -> Result<f64, Box<dyn std::error::Error>> {
     Ok(rates[rates.len() / 2])
 }
 
-/// FLOPs of one minibatch update of team 0 (forward and backward), counted on a profiled tape.
-fn minibatch_flops(t: &mut Trainer, c: &TrainConfig) -> Result<u64, Box<dyn std::error::Error>> {
+/// The median of `xs` (`NaN` if empty).
+fn median(xs: &[f64]) -> f64 {
+    let mut v = xs.to_vec();
+    v.sort_by(f64::total_cmp);
+    match v.len() {
+        0 => f64::NAN,
+        k if k % 2 == 1 => v[k / 2],
+        k => 0.5 * (v[k / 2 - 1] + v[k / 2]),
+    }
+}
+
+/// FLOPs of one minibatch update of team 0 (forward and backward), counted on a profiled tape,
+/// and the median wall seconds of `reps` unprofiled forward-and-backward passes of it (after
+/// one untimed pass).
+fn minibatch_flops(t: &mut Trainer, c: &TrainConfig, reps: usize) -> Result<(u64, f64), Box<dyn std::error::Error>> {
     let ids: Vec<usize> = (0..c.batch_size).collect();
     let mut mb = MinibatchBuf::default();
     t.rollout().gather(&ids, 0, &mut mb);
@@ -63,6 +83,18 @@ fn minibatch_flops(t: &mut Trainer, c: &TrainConfig) -> Result<u64, Box<dyn std:
     let (mut v, mut s) = (Vec::new(), Vec::new());
     team.norm.apply(&mb.vectors, &mb.scalars, &mut v, &mut s);
     let hp = PpoParams::from_config(c);
+    let mut times = Vec::new();
+    for rep in 0..=reps {
+        let start = Instant::now();
+        let tape = Tape::<f32>::new();
+        let p = team.store.bind(&tape);
+        let mut model = team.model.clone();
+        let (loss, _) = ppo_loss(&mut model, &spec, &p, &mb.view(&v, &s), &hp)?;
+        std::hint::black_box(tape.backward(loss)?);
+        if rep > 0 {
+            times.push(start.elapsed().as_secs_f64());
+        }
+    }
     let tape = Tape::<f32>::new();
     tape.enable_profiling();
     let p = team.store.bind(&tape);
@@ -74,15 +106,14 @@ fn minibatch_flops(t: &mut Trainer, c: &TrainConfig) -> Result<u64, Box<dyn std:
     {
         eprintln!("{r}");
     }
-    Ok(tape.profile_flops().map(|f| f.total()).unwrap_or(0))
+    Ok((tape.profile_flops().map(|f| f.total()).unwrap_or(0), median(&times)))
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let filter: Option<String> = std::env::args().skip(1).find(|a| !a.starts_with('-'));
-    let iterations = env_usize("ITERATIONS", 2).max(1);
+    let iterations = env_usize("ITERATIONS", 2);
+    let reps = env_usize("MINIBATCH_REPS", 5);
     let warmup = env_usize("WARMUP", 1);
-    let rate = matmul_rate()?;
-    println!("matmul_rate_gflops={rate:.1}");
     for env in ["team_reach/1_ant", "team_reach/3_ant_claw_centipede"] {
         for model in ["shnn", "mlp_hn"] {
             let label = format!("{env} {model}");
@@ -92,33 +123,57 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             let ov = vec![("env".to_string(), format!("{env:?}")), ("model".to_string(), format!("{model:?}"))];
             let config = TrainConfig::resolve(Some(Preset::Paper), None, &ov)?;
             let mut t = Trainer::new(&config)?;
-            for _ in 0..warmup {
-                t.iterate()?;
+            if iterations == 0 {
+                t.collect()?;
+            } else {
+                for _ in 0..warmup {
+                    t.iterate()?;
+                }
             }
-            let mut sps = Vec::new();
-            let (mut collect, mut update) = (0.0, 0.0);
+            let mut rates = vec![matmul_rate()?];
+            let (mut sps, mut collect, mut update) = (Vec::new(), Vec::new(), Vec::new());
             for _ in 0..iterations {
                 let s = Instant::now();
                 let st = t.iterate()?;
                 sps.push(config.steps_per_iteration() as f64 / s.elapsed().as_secs_f64());
-                collect += st.collect_s / iterations as f64;
-                update += st.update_s / iterations as f64;
+                collect.push(st.collect_s);
+                update.push(st.update_s);
+                rates.push(matmul_rate()?);
             }
-            let flops = minibatch_flops(&mut t, &config)? as f64;
-            let per_step =
-                flops * (config.num_minibatches * config.epochs) as f64 / config.steps_per_iteration() as f64;
-            let floor = rate * 1e9 / per_step;
-            let mut sorted = sps.clone();
-            sorted.sort_by(f64::total_cmp);
-            let k = sorted.len();
-            let median = if k % 2 == 1 { sorted[k / 2] } else { 0.5 * (sorted[k / 2 - 1] + sorted[k / 2]) };
+            let (flops, mb_s) = minibatch_flops(&mut t, &config, reps)?;
+            rates.push(matmul_rate()?);
+            let rate = median(&rates) * 1e9;
+            let range = format!(
+                "{:.0} [{:.0}..{:.0}]",
+                rate * 1e-9,
+                rates.iter().copied().fold(f64::INFINITY, f64::min),
+                rates.iter().copied().fold(0.0, f64::max)
+            );
+            let flops = flops as f64;
+            let mb_line = format!(
+                "minibatch_ms={:.1} minibatch_floor_ms={:.1} minibatch_floor_ratio={:.2} matmul_rate_gflops={range}",
+                mb_s * 1e3,
+                flops / rate * 1e3,
+                mb_s * rate / flops
+            );
+            if iterations == 0 {
+                println!("{label} {mb_line}");
+                continue;
+            }
+            let update_flops = flops * (config.num_minibatches * config.epochs) as f64;
+            let per_step = update_flops / config.steps_per_iteration() as f64;
+            let floor = rate / per_step;
+            let measured = median(&sps);
             let all: Vec<String> = sps.iter().map(|x| format!("{x:.0}")).collect();
             println!(
-                "{label} env_steps_per_s={median:.0} iterations=[{}] update_flops_per_step={:.3e} \
-                 floor_steps_per_s={floor:.0} floor_ratio={:.2} collect_s={collect:.1} update_s={update:.1}",
+                "{label} env_steps_per_s={measured:.0} iterations=[{}] update_flops_per_step={per_step:.3e} \
+                 floor_steps_per_s={floor:.0} floor_ratio={:.2} collect_s={:.1} update_s={:.1} \
+                 update_floor_ratio={:.2} {mb_line}",
                 all.join(","),
-                per_step,
-                floor / median
+                floor / measured,
+                median(&collect),
+                median(&update),
+                median(&update) * rate / update_flops,
             );
         }
     }
