@@ -11,7 +11,10 @@
 //! for both policies and cancels in `rho`. `H` is the entropy of the Normal part (the Tanh
 //! correction does not depend on the parameters at a fixed `u`). The observation rows are
 //! time-major: `T + 1` rows per unroll (the last is the state after the unroll), then one
-//! row per truncated transition holding its final observation.
+//! row per truncated transition holding its final observation. Only the first `T M` rows
+//! (the transitions) go through the model on the tape; the rest only bootstrap the returns
+//! and go through it in a no-grad pass (same values, no backward work: 1/6 less backward at
+//! the reference's `T = 5`).
 
 use envs::tasks::ObsSpec;
 use models::distribution::{normal_entropy, normal_log_prob, std_from_scale};
@@ -112,12 +115,35 @@ pub fn ppo_loss<'t>(
     let (t_len, m) = (mb.steps, mb.unrolls);
     let n = t_len * m;
     let rows = mb.heading.len() / spec.n_agents.max(1);
-    let obs = ObsBatch::new(rows, spec.n_nodes, mb.vectors, mb.scalars)?;
-    let out = model.forward_batch(p, &obs, mb.heading)?;
+    let slice = |r0: usize, r1: usize| -> Result<(ObsBatch<'_, f32>, &[f32])> {
+        let (nv, ns, na) = (spec.n_nodes * 9, spec.n_nodes * envs::tasks::N_SCALARS, spec.n_agents);
+        let obs = ObsBatch::new(r1 - r0, spec.n_nodes, &mb.vectors[r0 * nv..r1 * nv], &mb.scalars[r0 * ns..r1 * ns])?;
+        Ok((obs, &mb.heading[r0 * na..r1 * na]))
+    };
+    if rows <= n || mb.vectors.len() != rows * spec.n_nodes * 9 {
+        return Err(models::ModelError::Input(format!(
+            "a minibatch of {n} transitions needs more than {n} observation rows of {} nodes; got {rows} \
+             ({} vector numbers)",
+            spec.n_nodes,
+            mb.vectors.len()
+        ))
+        .into());
+    }
+    // The transitions on the tape; the rows that only bootstrap the returns (the state after
+    // each unroll, final observations of truncated episodes) in a no-grad pass: their values
+    // are constants of the loss, so their share of the backward pass would be products with
+    // zero gradients.
+    let (obs, heading) = slice(0, n)?;
+    let out = model.forward_batch(p, &obs, heading)?;
+    let bootstrap = {
+        let _no_grad = tape.no_grad();
+        let (obs, heading) = slice(n, rows)?;
+        model.forward_batch(p, &obs, heading)?.value.value()
+    };
 
     // GAE from the current critic, held constant.
     let values = out.value.value();
-    let vals = values.data();
+    let vals: Vec<f32> = values.data().iter().chain(bootstrap.data()).copied().collect();
     let final_values: Vec<f32> =
         (0..n).map(|i| if mb.final_row[i] != u32::MAX { vals[mb.final_row[i] as usize] } else { 0.0 }).collect();
     let u = Unrolls {
@@ -132,7 +158,7 @@ pub fn ppo_loss<'t>(
     let (adv, targets) = gae(&u, hp.discount, hp.gae_lambda);
 
     // Value loss on the T M transitions.
-    let v = out.value.narrow(0, 0, n)?;
+    let v = out.value;
     let mean_advantage = adv.iter().map(|&x| x as f64).sum::<f64>() / n as f64;
     let var = |xs: &mut dyn Iterator<Item = f64>| {
         let xs: Vec<f64> = xs.collect();
@@ -155,8 +181,7 @@ pub fn ppo_loss<'t>(
             ua.extend_from_slice(&row[off..off + dof]);
         }
         let ua = tape.constant(Tensor::new(ua, &[n, dof])?);
-        let loc = a.loc.narrow(0, 0, n)?;
-        let std = std_from_scale(a.scale.narrow(0, 0, n)?);
+        let (loc, std) = (a.loc, std_from_scale(a.scale));
         let lp = normal_log_prob(ua, loc, std)?;
         let h = normal_entropy(std)?;
         logp = Some(match logp {
