@@ -46,9 +46,12 @@ fn filled(shape: &[usize], seed: usize) -> Tensor<f32> {
     Tensor::new((0..n).map(|i| (((i * 7 + seed) % 101) as f32 - 50.0) * 0.01).collect(), shape).expect("sizes")
 }
 
+/// One product: name, `A`'s shape, whether it is transposed, the same for `B`, and whether
+/// `B` is `A` itself.
+type Case = (&'static str, [usize; 3], bool, [usize; 3], bool, bool);
+
 fn main() {
-    // (name, a shape, ta, b shape, tb, same operand)
-    let cases: [(&str, [usize; 3], bool, [usize; 3], bool, bool); 4] = [
+    let cases: [Case; 4] = [
         ("gram", [N, 3, 32], true, [N, 3, 32], false, true),
         ("coef", [N, 3, 32], false, [N, 32, 32], false, false),
         ("outer", [N, 3, 32], false, [N, 3, 32], true, true),
