@@ -26,17 +26,22 @@ fn first_minibatch(config: &TrainConfig) -> (Trainer, MinibatchBuf) {
     (t, mb)
 }
 
+/// The loss statistics of team 0 on `mb` under the trainer's current parameters.
+fn loss_stats(t: &mut Trainer, mb: &MinibatchBuf, config: &TrainConfig) -> rl::ppo::LossStats {
+    let team = &mut t.teams[0];
+    let (mut v, mut s) = (Vec::new(), Vec::new());
+    team.norm.apply(&mb.vectors, &mb.scalars, &mut v, &mut s);
+    let tape = Tape::<f32>::new();
+    let p = team.store.bind(&tape);
+    ppo_loss(&mut team.model, &t.spec, &p, &mb.view(&v, &s), &params(config)).unwrap().1
+}
+
 #[test]
 fn frozen_normaliser_gives_ratio_one_and_minus_mean_advantage() {
     for model in ["mlp_hn", "shnn"] {
         let config = common::tiny("team_reach/1_ant", model, 1, &[]);
         let (mut t, mb) = first_minibatch(&config);
-        let team = &mut t.teams[0];
-        let (mut v, mut s) = (Vec::new(), Vec::new());
-        team.norm.apply(&mb.vectors, &mb.scalars, &mut v, &mut s);
-        let tape = Tape::<f32>::new();
-        let p = team.store.bind(&tape);
-        let (_, st) = ppo_loss(&mut team.model, &t.spec, &p, &mb.view(&v, &s), &params(&config)).unwrap();
+        let st = loss_stats(&mut t, &mb, &config);
         assert!((st.mean_ratio - 1.0).abs() < 1e-4, "{model}: mean ratio {}", st.mean_ratio);
         assert!(st.clip_fraction == 0.0 && st.approx_kl < 1e-8, "{model}: {st:?}");
         let expected = -st.mean_advantage;
@@ -136,12 +141,7 @@ fn approx_kl_is_finite_when_a_ratio_underflows() {
     let config = common::tiny("team_reach/1_ant", "mlp_hn", 1, &[]);
     let (mut t, mut mb) = first_minibatch(&config);
     mb.logp_old[0] += 200.0;
-    let team = &mut t.teams[0];
-    let (mut v, mut s) = (Vec::new(), Vec::new());
-    team.norm.apply(&mb.vectors, &mb.scalars, &mut v, &mut s);
-    let tape = Tape::<f32>::new();
-    let p = team.store.bind(&tape);
-    let (_, st) = ppo_loss(&mut team.model, &t.spec, &p, &mb.view(&v, &s), &params(&config)).unwrap();
+    let st = loss_stats(&mut t, &mb, &config);
     let n = (mb.steps * mb.unrolls) as f64;
     // The one sample contributes expm1(d) - d ~ 200 (d ~ -200); the rest are near 0.
     assert!(st.approx_kl.is_finite() && st.approx_kl > 190.0 / n && st.approx_kl < 210.0 / n, "{st:?}");
