@@ -11,9 +11,9 @@
 //! One module per job: [`config`] (hyper-parameters and their layers), [`seeding`] (random
 //! streams), [`normalizer`] (observation statistics), [`team`] (one team's learner and its
 //! act step), [`rollout`] (an iteration's data and minibatches), [`gae`], [`ppo`] (the loss),
-//! [`train`] (the loop and the run directory), [`evaluate`], [`checkpoint`], [`metrics`],
+//! [`train`](mod@train) (the loop and the run directory), [`evaluate`](mod@evaluate), [`checkpoint`], [`metrics`],
 //! [`run_dir`], [`progress`], [`curve`], [`plot`] (SVG line plots), [`sweep`] (`meben ablate`),
-//! [`report`] (`meben report`).
+//! [`report`](mod@report) (`meben report`).
 
 pub mod checkpoint;
 pub mod config;

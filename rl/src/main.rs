@@ -2,6 +2,10 @@
 //! `meben <command> --help` explains each command; with no command, `meben` trains `shnn` on
 //! `team_reach/1_ant` with the built-in `quick` budget (as `meben train`).
 
+// The doc comments of the argument structs are the `--help` text, written for a terminal
+// (`runs/<env>-<model>-seed<seed>`), not HTML.
+#![allow(rustdoc::invalid_html_tags)]
+
 use std::path::PathBuf;
 use std::process::ExitCode;
 

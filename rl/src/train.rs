@@ -404,7 +404,7 @@ impl Trainer {
         Ok(all)
     }
 
-    /// Evaluates the current policies (module [`crate::evaluate`]).
+    /// Evaluates the current policies (module [`crate::evaluate`](mod@crate::evaluate)).
     pub fn evaluate(&self, options: &EvalOptions) -> Result<EvalSummary> {
         evaluate(&self.config.env, &self.teams, options)
     }
