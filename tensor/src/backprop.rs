@@ -239,8 +239,8 @@ pub(crate) fn propagate<T: Float>(nodes: &[Node<T>], id: NodeId, g: &mut Vec<T>,
                 let xv = val(x);
                 let len = xv.shape()[*axis];
                 if store.wants(x) {
-                    let slot = store.slot(x, xv.numel());
-                    layout::narrow_add_into(slot, g, y.shape(), *axis, start, len);
+                    let (slot, accumulate) = store.slot_to_write(x, xv.numel());
+                    layout::narrow_add_into(slot, accumulate, g, y.shape(), *axis, start, len);
                 }
                 start += len;
             }

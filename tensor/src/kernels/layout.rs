@@ -71,13 +71,25 @@ pub fn narrow_backward_into<T: Float>(dst: &mut [T], dst_shape: &[usize], g: &[T
 }
 
 /// Adds entries `start..start+len` of `axis` of `src` (shape `src_shape`) into `dst`, which
-/// has `len` entries on that axis (the adjoint of concatenation).
-pub fn narrow_add_into<T: Float>(dst: &mut [T], src: &[T], src_shape: &[usize], axis: usize, start: usize, len: usize) {
+/// has `len` entries on that axis (the adjoint of concatenation), or with `accumulate` false
+/// writes them over it (every element of `dst` is written).
+pub fn narrow_add_into<T: Float>(
+    dst: &mut [T],
+    accumulate: bool,
+    src: &[T],
+    src_shape: &[usize],
+    axis: usize,
+    start: usize,
+    len: usize,
+) {
     let (outer, n, inner) = split_at_axis(src_shape, axis);
     for o in 0..outer {
         let s = &src[(o * n + start) * inner..(o * n + start + len) * inner];
-        for (a, &b) in dst[o * len * inner..(o + 1) * len * inner].iter_mut().zip(s) {
-            *a += b;
+        let d = &mut dst[o * len * inner..(o + 1) * len * inner];
+        if accumulate {
+            d.iter_mut().zip(s).for_each(|(a, &b)| *a += b);
+        } else {
+            d.copy_from_slice(s);
         }
     }
 }
