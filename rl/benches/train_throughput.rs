@@ -74,33 +74,34 @@ fn median(xs: &[f64]) -> f64 {
 /// FLOPs of one minibatch update of team 0 (forward and backward), counted on a profiled tape,
 /// and the median wall seconds of `reps` unprofiled forward-and-backward passes of it (after
 /// one untimed pass).
-fn minibatch_flops(t: &mut Trainer, c: &TrainConfig, reps: usize) -> Result<(u64, f64), Box<dyn std::error::Error>> {
+fn minibatch_flops(t: &Trainer, c: &TrainConfig, reps: usize) -> Result<(u64, f64), Box<dyn std::error::Error>> {
     let ids: Vec<usize> = (0..c.batch_size).collect();
     let mut mb = MinibatchBuf::default();
     t.rollout().gather(&ids, 0, &mut mb);
-    let spec = t.spec.clone();
-    let team = &mut t.teams[0];
+    let spec = &t.spec;
+    let team = &t.teams[0];
     let (mut v, mut s) = (Vec::new(), Vec::new());
     team.norm.apply(&mb.vectors, &mb.scalars, &mut v, &mut s);
     let hp = PpoParams::from_config(c);
+    // One forward-and-backward pass of the minibatch on `tape`.
+    let pass = |tape: &Tape<f32>| -> Result<(), Box<dyn std::error::Error>> {
+        let p = team.store.bind(tape);
+        let mut model = team.model.clone();
+        let (loss, _) = ppo_loss(&mut model, spec, &p, &mb.view(&v, &s), &hp)?;
+        std::hint::black_box(tape.backward(loss)?);
+        Ok(())
+    };
     let mut times = Vec::new();
     for rep in 0..=reps {
         let start = Instant::now();
-        let tape = Tape::<f32>::new();
-        let p = team.store.bind(&tape);
-        let mut model = team.model.clone();
-        let (loss, _) = ppo_loss(&mut model, &spec, &p, &mb.view(&v, &s), &hp)?;
-        std::hint::black_box(tape.backward(loss)?);
+        pass(&Tape::new())?;
         if rep > 0 {
             times.push(start.elapsed().as_secs_f64());
         }
     }
     let tape = Tape::<f32>::new();
     tape.enable_profiling();
-    let p = team.store.bind(&tape);
-    let mut model = team.model.clone();
-    let (loss, _) = ppo_loss(&mut model, &spec, &p, &mb.view(&v, &s), &hp)?;
-    tape.backward(loss)?;
+    pass(&tape)?;
     if std::env::var_os("TENSOR_PROFILE").is_some()
         && let Some(r) = tape.profile_report()
     {
@@ -140,7 +141,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 update.push(st.update_s);
                 rates.push(matmul_rate()?);
             }
-            let (flops, mb_s) = minibatch_flops(&mut t, &config, reps)?;
+            let (flops, mb_s) = minibatch_flops(&t, &config, reps)?;
             rates.push(matmul_rate()?);
             let rate = median(&rates) * 1e9;
             let range = format!(

@@ -115,20 +115,18 @@ pub fn ppo_loss<'t>(
     let (t_len, m) = (mb.steps, mb.unrolls);
     let n = t_len * m;
     let rows = mb.heading.len() / spec.n_agents.max(1);
+    let all = ObsBatch::new(rows, spec.n_nodes, mb.vectors, mb.scalars)?;
+    if rows <= n {
+        return Err(
+            models::ModelError::Input(format!("{rows} observation rows for {n} transitions (needs more)")).into()
+        );
+    }
+    // Rows r0..r1 of the observations and headings.
     let slice = |r0: usize, r1: usize| -> Result<(ObsBatch<'_, f32>, &[f32])> {
-        let (nv, ns, na) = (spec.n_nodes * 9, spec.n_nodes * envs::tasks::N_SCALARS, spec.n_agents);
-        let obs = ObsBatch::new(r1 - r0, spec.n_nodes, &mb.vectors[r0 * nv..r1 * nv], &mb.scalars[r0 * ns..r1 * ns])?;
+        let (nv, ns, na) = (all.vectors.len() / rows, all.scalars.len() / rows, spec.n_agents);
+        let obs = ObsBatch::new(r1 - r0, spec.n_nodes, &all.vectors[r0 * nv..r1 * nv], &all.scalars[r0 * ns..r1 * ns])?;
         Ok((obs, &mb.heading[r0 * na..r1 * na]))
     };
-    if rows <= n || mb.vectors.len() != rows * spec.n_nodes * 9 {
-        return Err(models::ModelError::Input(format!(
-            "a minibatch of {n} transitions needs more than {n} observation rows of {} nodes; got {rows} \
-             ({} vector numbers)",
-            spec.n_nodes,
-            mb.vectors.len()
-        ))
-        .into());
-    }
     // The transitions on the tape; the rows that only bootstrap the returns (the state after
     // each unroll, final observations of truncated episodes) in a no-grad pass: their values
     // are constants of the loss, so their share of the backward pass would be products with

@@ -68,11 +68,7 @@ fn take<T: Float>(n: usize) -> Option<Vec<T>> {
 pub fn for_overwrite<T: Float>(n: usize) -> Vec<T> {
     match take(n) {
         Some(mut v) => {
-            if v.len() >= n {
-                v.truncate(n);
-            } else {
-                v.resize(n, T::ZERO);
-            }
+            v.resize(n, T::ZERO); // truncates, or zeroes only the new tail
             v
         }
         None => vec![T::ZERO; n],

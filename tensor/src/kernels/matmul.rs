@@ -262,44 +262,47 @@ const ROW_ACC: usize = 64;
 /// Direct loops for tiny products; the inner loop runs over contiguous memory.
 fn small_matmul<T: Float>(out: &mut [T], accumulate: bool, p: Product<'_, T>) {
     let Product { a, ta, b, tb, m, k, n } = p;
+    if m == 0 || n == 0 {
+        return;
+    }
     let a_at = |i: usize, p: usize| if ta { a[p * m + i] } else { a[i * k + p] };
-    if !tb && n > 0 && n <= ROW_ACC {
-        // out[i, :] (+)= sum_p a[i, p] * b[p, :], summed in a row on the stack and stored once
-        // (the same additions in the same order as summing in place).
-        let mut acc = [T::ZERO; ROW_ACC];
-        let acc = &mut acc[..n];
-        for (i, row) in out.chunks_exact_mut(n).enumerate().take(m) {
-            if accumulate {
-                acc.copy_from_slice(row);
-            } else {
-                acc.fill(T::ZERO);
-            }
+    if !tb {
+        // out[i, :] (+)= sum_p a[i, p] * b[p, :]. Rows up to ROW_ACC wide are summed on the
+        // stack and stored once (the same additions in the same order as in place).
+        let add_row = |acc: &mut [T], i: usize| {
             for (p, br) in b.chunks_exact(n).enumerate().take(k) {
                 let s = a_at(i, p);
-                for (o, &bv) in acc.iter_mut().zip(br) {
-                    *o += s * bv;
-                }
+                acc.iter_mut().zip(br).for_each(|(o, &bv)| *o += s * bv);
             }
-            row.copy_from_slice(acc);
+        };
+        let rows = out.chunks_exact_mut(n).enumerate().take(m);
+        if n <= ROW_ACC {
+            let mut stack = [T::ZERO; ROW_ACC];
+            let acc = &mut stack[..n];
+            for (i, row) in rows {
+                if accumulate {
+                    acc.copy_from_slice(row);
+                } else {
+                    acc.fill(T::ZERO);
+                }
+                add_row(acc, i);
+                row.copy_from_slice(acc);
+            }
+        } else {
+            for (i, row) in rows {
+                if !accumulate {
+                    row.fill(T::ZERO);
+                }
+                add_row(row, i);
+            }
         }
         return;
     }
     if !accumulate {
         out[..m * n].iter_mut().for_each(|v| *v = T::ZERO);
     }
-    if !tb {
-        // out[i, :] += a[i, p] * b[p, :]
-        for i in 0..m {
-            let row = &mut out[i * n..(i + 1) * n];
-            for p in 0..k {
-                let s = a_at(i, p);
-                let br = &b[p * n..(p + 1) * n];
-                for (o, &bv) in row.iter_mut().zip(br) {
-                    *o += s * bv;
-                }
-            }
-        }
-    } else if !ta {
+    // op(B) = B^T from here on.
+    if !ta {
         // out[i, j] += dot(a[i, :], b[j, :])
         for i in 0..m {
             let ar = &a[i * k..(i + 1) * k];
