@@ -341,8 +341,8 @@ impl InputProcessor {
     pub fn entities<T: Float, S: ObsElement>(&self, obs: &ObsBatch<'_, S>) -> Result<EntityInputs<T>> {
         obs.check(&self.spec)?;
         let (nb, ne) = (obs.batch, self.n_entities());
-        let mut z = Vec::with_capacity(nb * ne * 9);
-        let mut h = Vec::with_capacity(nb * ne * ENTITY_SCALARS);
+        let mut z = tensor::pool::with_capacity(nb * ne * 9);
+        let mut h = tensor::pool::with_capacity(nb * ne * ENTITY_SCALARS);
         let mut positions = Vec::with_capacity(nb * ne);
         let mut origin = Vec::with_capacity(nb);
         let g = self.gravity;

@@ -653,7 +653,7 @@ impl MlpModel {
         nodes: &[usize],
     ) -> Result<Tensor<T>> {
         let nb = obs.batch;
-        let mut x = Vec::with_capacity(nb * nodes.len() * NODE_FEATURES);
+        let mut x = tensor::pool::with_capacity(nb * nodes.len() * NODE_FEATURES);
         for b in 0..nb {
             let (origin, yaw) = if self.heading {
                 let yaw: f64 = heading[b * spec.n_agents + agent].into();

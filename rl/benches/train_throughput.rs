@@ -157,6 +157,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 flops / rate * 1e3,
                 mb_s * rate / flops
             );
+            let ps = tensor::pool::stats::<f32>();
+            let mb_line = format!(
+                "{mb_line} pool_hits={} pool_misses={} pool_evicted={} pool_peak_mb={}",
+                ps.hits,
+                ps.misses,
+                ps.evicted,
+                ps.peak_pooled_bytes >> 20
+            );
             if iterations == 0 {
                 println!("{label} {mb_line}");
                 continue;

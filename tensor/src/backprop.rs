@@ -162,14 +162,11 @@ pub(crate) fn propagate<T: Float>(nodes: &[Node<T>], id: NodeId, g: &mut Vec<T>,
         Op::Linear { x, w, b, act } => {
             let (xv, wv) = (val(*x), val(*w));
             // Without an activation the output gradient is used as it is (no copy).
-            let owned;
-            let gpre: &[T] = match act {
-                crate::op::Activation::Identity => g,
-                _ => {
-                    owned = nnops::activation_backward(y.data(), g, *act);
-                    &owned
-                }
+            let owned = match act {
+                crate::op::Activation::Identity => None,
+                _ => Some(nnops::activation_backward(y.data(), g, *act)),
             };
+            let gpre: &[T] = owned.as_deref().unwrap_or(g);
             let (k, n) = (wv.shape()[0], wv.shape()[1]);
             let rows = gpre.len() / n.max(1);
             if store.wants(*x) {
@@ -188,6 +185,9 @@ pub(crate) fn propagate<T: Float>(nodes: &[Node<T>], id: NodeId, g: &mut Vec<T>,
                 && store.wants(*b)
             {
                 store.add(*b, reduce::sum_axis(gpre, 1, rows, n));
+            }
+            if let Some(v) = owned {
+                pool::recycle(v);
             }
         }
         Op::Softmax(x) => {
@@ -360,7 +360,9 @@ fn binary_rule<T: Float>(
             let gb = wb.then(|| {
                 // d(a/b)/db = -y / b
                 let gy = pool::zip_map(g, y.data(), |gv, yv| gv * yv);
-                elementwise::binary_into_shape(&gy, shape, bv.data(), bv.shape(), shape, |t, bv| -t / bv)
+                let gb = elementwise::binary_into_shape(&gy, shape, bv.data(), bv.shape(), shape, |t, bv| -t / bv);
+                pool::recycle(gy);
+                gb
             });
             (ga, gb)
         }
@@ -372,6 +374,7 @@ fn binary_rule<T: Float>(
             let mask = elementwise::binary_into_shape(av.data(), av.shape(), bv.data(), bv.shape(), shape, pick_a);
             let ga = wa.then(|| pool::zip_map(g, &mask, |gv, m| gv * m));
             let gb = wb.then(|| pool::zip_map(g, &mask, |gv, m| gv * (T::ONE - m)));
+            pool::recycle(mask);
             (ga, gb)
         }
     };

@@ -7,24 +7,54 @@
 //! [`MIN_POOLED`] elements to a per-type pool when their storage is dropped, and kernels take
 //! their output buffers from it.
 
+use std::collections::VecDeque;
 use std::sync::Mutex;
 
 use crate::element::Float;
 
 /// Buffers smaller than this (in elements) are left to the allocator.
 pub const MIN_POOLED: usize = 1 << 16;
-/// At most this many bytes are kept per element type.
+/// At most this many bytes are kept per element type; beyond it the buffers given back
+/// longest ago are freed first (a buffer of a size nobody asks for again, such as a one-off
+/// input, ages out instead of filling the pool for good).
 const MAX_POOLED_BYTES: usize = 4 << 30;
+
+/// What a pool has done since the process started: a researcher's check that a training step
+/// reuses its buffers (`misses` should stop growing after the first steps).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct PoolStats {
+    /// Requests for a pooled size served from a free buffer.
+    pub hits: u64,
+    /// Requests for a pooled size that had to allocate.
+    pub misses: u64,
+    /// Buffers freed to make room (oldest first).
+    pub evicted: u64,
+    /// Bytes held in free buffers now.
+    pub pooled_bytes: usize,
+    /// The most bytes ever held in free buffers.
+    pub peak_pooled_bytes: usize,
+}
+
+/// The free buffers of one element type, oldest first, and the pool's counters.
+struct Free<T> {
+    buffers: VecDeque<Vec<T>>,
+    stats: PoolStats,
+}
 
 /// A set of free buffers of one element type.
 pub struct BufferPool<T> {
-    free: Mutex<Vec<Vec<T>>>,
+    free: Mutex<Free<T>>,
 }
 
 impl<T> BufferPool<T> {
     /// An empty pool (usable in a `static`).
     pub const fn new() -> Self {
-        Self { free: Mutex::new(Vec::new()) }
+        Self {
+            free: Mutex::new(Free {
+                buffers: VecDeque::new(),
+                stats: PoolStats { hits: 0, misses: 0, evicted: 0, pooled_bytes: 0, peak_pooled_bytes: 0 },
+            }),
+        }
     }
 }
 
@@ -32,6 +62,11 @@ impl<T> Default for BufferPool<T> {
     fn default() -> Self {
         Self::new()
     }
+}
+
+/// The counters of the pool of element type `T`.
+pub fn stats<T: Float>() -> PoolStats {
+    T::pool().free.lock().map(|f| f.stats).unwrap_or_default()
 }
 
 /// An empty vector with capacity for at least `n` elements, recycled when one fits (the
@@ -52,14 +87,44 @@ fn take<T: Float>(n: usize) -> Option<Vec<T>> {
     if n < MIN_POOLED {
         return None;
     }
-    let mut free = T::pool().free.lock().ok()?;
-    let best = free
-        .iter()
-        .enumerate()
-        .filter(|(_, v)| v.capacity() >= n && v.capacity() <= 2 * n)
-        .min_by_key(|(_, v)| v.capacity())
-        .map(|(i, _)| i)?;
-    Some(free.swap_remove(best))
+    T::pool().free.lock().ok()?.take(n)
+}
+
+impl<T> Free<T> {
+    /// The smallest free buffer of capacity between `n` and `2n`, counted as a hit or a miss.
+    fn take(&mut self, n: usize) -> Option<Vec<T>> {
+        let best = self
+            .buffers
+            .iter()
+            .enumerate()
+            .filter(|(_, v)| v.capacity() >= n && v.capacity() <= 2 * n)
+            .min_by_key(|(_, v)| v.capacity())
+            .map(|(i, _)| i);
+        let Some(v) = best.and_then(|i| self.buffers.remove(i)) else {
+            self.stats.misses += 1;
+            return None;
+        };
+        self.stats.hits += 1;
+        self.stats.pooled_bytes -= v.capacity() * std::mem::size_of::<T>();
+        Some(v)
+    }
+
+    /// Keeps `v` as the newest free buffer, first freeing the oldest ones while the pool would
+    /// hold more than `cap` bytes (a buffer over `cap` on its own is freed at once).
+    fn put(&mut self, v: Vec<T>, cap: usize) {
+        let bytes = v.capacity() * std::mem::size_of::<T>();
+        if bytes > cap {
+            return;
+        }
+        while self.stats.pooled_bytes + bytes > cap {
+            let Some(old) = self.buffers.pop_front() else { break };
+            self.stats.pooled_bytes -= old.capacity() * std::mem::size_of::<T>();
+            self.stats.evicted += 1;
+        }
+        self.buffers.push_back(v);
+        self.stats.pooled_bytes += bytes;
+        self.stats.peak_pooled_bytes = self.stats.peak_pooled_bytes.max(self.stats.pooled_bytes);
+    }
 }
 
 /// A vector of `n` elements with unspecified values, for a kernel that overwrites every one:
@@ -93,10 +158,7 @@ pub fn recycle<T: Float>(v: Vec<T>) {
         return;
     }
     if let Ok(mut free) = T::pool().free.lock() {
-        let bytes: usize = free.iter().map(|b| b.capacity()).sum::<usize>() * std::mem::size_of::<T>();
-        if bytes + v.capacity() * std::mem::size_of::<T>() <= MAX_POOLED_BYTES {
-            free.push(v);
-        }
+        free.put(v, MAX_POOLED_BYTES);
     }
 }
 
@@ -157,5 +219,29 @@ mod tests {
         // Shorter: truncated.
         let u: Vec<f32> = for_overwrite(n - 100);
         assert_eq!((u.as_ptr(), u.len()), (ptr, n - 100));
+    }
+
+    #[test]
+    fn a_full_pool_frees_its_oldest_buffers_and_counts_what_it_does() {
+        let mut free = Free::<f32> { buffers: VecDeque::new(), stats: PoolStats::default() };
+        let kb = |v: &Vec<f32>| v.capacity() * 4;
+        let (a, b, c) = (vec![1.0f32; 1000], vec![2.0f32; 2000], vec![3.0f32; 1500]);
+        let (pa, pb, pc) = (a.as_ptr(), b.as_ptr(), c.as_ptr());
+        let cap = kb(&b) + kb(&c) + 100;
+        free.put(a, cap);
+        free.put(b, cap);
+        assert_eq!((free.stats.pooled_bytes, free.stats.evicted), (12000, 0));
+        // `c` does not fit beside both: the oldest (`a`) goes, `b` stays.
+        free.put(c, cap);
+        assert_eq!((free.stats.evicted, free.stats.pooled_bytes, free.stats.peak_pooled_bytes), (1, 14000, 14000));
+        assert!(free.buffers.iter().all(|v| v.as_ptr() != pa));
+        // Requests are served by size (capacity between n and 2n), counted as hits and misses.
+        assert_eq!(free.take(1400).map(|v| v.as_ptr()), Some(pc));
+        assert!(free.take(5000).is_none());
+        assert_eq!(free.take(1000).map(|v| v.as_ptr()), Some(pb));
+        assert_eq!((free.stats.hits, free.stats.misses, free.stats.pooled_bytes), (2, 1, 0));
+        // A buffer over the cap on its own is not kept.
+        free.put(vec![0.0f32; 10_000], cap);
+        assert_eq!((free.buffers.len(), free.stats.evicted), (0, 1));
     }
 }

@@ -183,7 +183,7 @@ pub fn matmul_into<T: Float>(out: &mut [T], accumulate: bool, a: &[T], ta: bool,
         // that ([n, m]) and transpose it into place.
         let (oa, ob) = plan.offsets[0];
         let t_plan = MatMulPlan { m: n, k, n: m, batch: vec![], offsets: vec![(0, 0)] };
-        let mut tmp = crate::pool::zeros(m * n);
+        let mut tmp = crate::pool::for_overwrite(m * n);
         matmul_into(&mut tmp, false, &b[ob..ob + k * n], true, &a[oa..oa + k * m], false, &t_plan);
         for i in 0..m {
             for j in 0..n {
@@ -195,6 +195,7 @@ pub fn matmul_into<T: Float>(out: &mut [T], accumulate: bool, a: &[T], ta: bool,
                 }
             }
         }
+        crate::pool::recycle(tmp);
     } else if nb == 1 && work >= 1 << 22 && m.max(n) >= 2 * MIN_BLOCK {
         // One large product: split the longer output side into fixed blocks (a function of
         // the shape only) computed in parallel, each by one single-threaded faer call.

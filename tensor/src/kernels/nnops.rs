@@ -81,7 +81,7 @@ pub fn linear<T: Float>(x: &Tensor<T>, w: &Tensor<T>, b: Option<&Tensor<T>>, act
 /// `g * act'(pre)` expressed through the output `y` of the activation (in parallel for
 /// large inputs).
 pub fn activation_backward<T: Float>(y: &[T], g: &[T], act: Activation) -> Vec<T> {
-    let mut out = crate::pool::zeros(g.len());
+    let mut out = crate::pool::for_overwrite(g.len());
     super::fill_chunks(&mut out, |s, ch| {
         let n = ch.len();
         let (gs, ys) = (&g[s..s + n], &y[s..s + n]);
