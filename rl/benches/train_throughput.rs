@@ -20,7 +20,8 @@
 //! `<env> <model>`). `ITERATIONS=k` measures k iterations (default 2) after one warm-up
 //! iteration (`WARMUP=0` for none); `ITERATIONS=0` collects one iteration's data and times
 //! only the minibatch passes, a quick check of the update's efficiency. `TENSOR_PROFILE=1`
-//! prints the per-op profile of the counted minibatch update.
+//! prints the per-op profile of the counted minibatch update (`TENSOR_PROFILE=shapes`: with
+//! products split by operand shapes).
 
 use std::time::Instant;
 
@@ -100,7 +101,11 @@ fn minibatch_flops(t: &Trainer, c: &TrainConfig, reps: usize) -> Result<(u64, f6
         }
     }
     let tape = Tape::<f32>::new();
-    tape.enable_profiling();
+    if std::env::var("TENSOR_PROFILE").is_ok_and(|v| v == "shapes") {
+        tape.enable_profiling_by_shape();
+    } else {
+        tape.enable_profiling();
+    }
     pass(&tape)?;
     if std::env::var_os("TENSOR_PROFILE").is_some()
         && let Some(r) = tape.profile_report()

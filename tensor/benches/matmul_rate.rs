@@ -8,10 +8,12 @@
 //! faer's own parallelism on all rayon threads (`faer_gflops`) and once on one thread
 //! (`faer1_gflops`, the per-core rate), to show the library's overhead. One sample times
 //! enough calls for at least 10 ms; the figure is the median of 15 samples after warm-up,
-//! at `2 m n k` flops per product. Prints
+//! at `2 m n k` flops per product. The `backward` line times the library's two products of
+//! the same layer's backward pass, `dX = G W^T` and `dW = X^T G`. Prints
 //!
 //! ```text
 //! matmul m=5120 k=256 n=256 gflops=... faer_gflops=... faer1_gflops=... ms=...
+//!   backward dx_gflops=... dx_ms=... dw_gflops=... dw_ms=...
 //! ...
 //! matmul_rate_gflops=...
 //! ```
@@ -32,8 +34,15 @@ use tensor::Tensor;
 use tensor::kernels::matmul::matmul;
 
 /// `(m, k, n)`: the message-passing products of training and a large square one.
-const SHAPES: [(usize, usize, usize); 5] =
-    [(5120, 256, 256), (6144, 1153, 64), (5120, 64, 1088), (2048, 128, 256), (2048, 2048, 2048)];
+const SHAPES: [(usize, usize, usize); 7] = [
+    (5120, 256, 256),
+    (6144, 1153, 64),
+    (5120, 64, 1088),
+    (10240, 1024, 64),
+    (10240, 64, 1024),
+    (2048, 128, 256),
+    (2048, 2048, 2048),
+];
 
 /// Products with at least this many multiply-adds enter the final rate.
 const LARGE_WORK: usize = 1 << 28;
@@ -110,6 +119,21 @@ fn main() {
         if m * k * n >= LARGE_WORK {
             large.push(gflops);
         }
+        // The two products of the same layer's backward pass: dX = G W^T and dW = X^T G.
+        let g = Tensor::new(matrix(m, n, 0.3), &[m, n]).expect("shape matches data");
+        let dx = time_per_call(|| {
+            black_box(matmul(black_box(&g), black_box(&b), false, true).expect("shapes agree"));
+        });
+        let dw = time_per_call(|| {
+            black_box(matmul(black_box(&a), black_box(&g), true, false).expect("shapes agree"));
+        });
+        println!(
+            "  backward dx_gflops={:.1} dx_ms={:.3} dw_gflops={:.1} dw_ms={:.3}",
+            flops / dx * 1e-9,
+            dx * 1e3,
+            flops / dw * 1e-9,
+            dw * 1e3
+        );
     }
     println!("matmul_rate_gflops={:.1}", median(large));
 }

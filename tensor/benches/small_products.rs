@@ -77,8 +77,9 @@ fn main() {
                 tb,
                 a.shape(),
                 b.shape(),
-                (&mut da[..], false),
+                Some((&mut da[..], false)),
                 db,
+                same,
             );
             black_box(&da);
         });

@@ -131,20 +131,23 @@ pub(crate) fn propagate<T: Float>(nodes: &[Node<T>], id: NodeId, g: &mut Vec<T>,
         }
         Op::MatMul { a, b, ta, tb } => {
             let (av, bv) = (val(*a), val(*b));
-            if matmul::fused_small_backward_applies(av.shape(), bv.shape(), *ta, *tb)
-                && store.wants(*a)
-                && store.wants(*b)
-            {
-                // Many tiny products (e.g. Gram matrices Z^T Z of 3 x 32 blocks): both gradients
+            if matmul::fused_small_backward_applies(av.shape(), bv.shape(), *ta, *tb) {
+                // Many tiny products (e.g. Gram matrices Z^T Z of 3 x 32 blocks): the gradients
                 // in one pass over the batch, while each block is in cache.
-                let (da, db) = if a == b {
-                    (store.slot_to_write(*a, av.numel()), None)
-                } else {
-                    let (sa, sb) = store.slots2_to_write(*a, av.numel(), *b, bv.numel());
-                    (sa, Some(sb))
-                };
+                let (wa, wb) = (store.wants(*a), store.wants(*b));
                 let (ad, bd) = (av.data(), bv.data());
-                matmul::small_batched_backward(g, ad, *ta, bd, *tb, av.shape(), bv.shape(), da, db);
+                let (la, lb) = (av.numel(), bv.numel());
+                let (da, db) = match (wa, wb) {
+                    (true, true) if a == b => (Some(store.slot_to_write(*a, la)), None),
+                    (true, true) => {
+                        let (sa, sb) = store.slots2_to_write(*a, la, *b, lb);
+                        (Some(sa), Some(sb))
+                    }
+                    (true, false) => (Some(store.slot_to_write(*a, la)), None),
+                    (false, true) => (None, Some(store.slot_to_write(*b, lb))),
+                    (false, false) => (None, None),
+                };
+                matmul::small_batched_backward(g, ad, *ta, bd, *tb, av.shape(), bv.shape(), da, db, a == b);
                 return;
             }
             let gt = g_t();

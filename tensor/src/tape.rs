@@ -35,9 +35,11 @@ pub struct Tape<T: Float> {
 /// Time and flops per op, forward and backward (see [`Tape::enable_profiling`]).
 #[derive(Default)]
 struct Profile {
-    forward: HashMap<&'static str, OpStats>,
-    backward: HashMap<&'static str, OpStats>,
+    forward: HashMap<String, OpStats>,
+    backward: HashMap<String, OpStats>,
     last: Option<Instant>,
+    /// Whether products are told apart by their operand shapes.
+    by_shape: bool,
 }
 
 /// What the profile records about one op name in one direction.
@@ -56,10 +58,22 @@ impl OpStats {
     }
 }
 
+/// The profile's row for `op` (output shape `out`): its name, and with `by_shape` the operand
+/// shapes of a product (a transposed operand marked `^T`) or the output shape of other ops.
+fn profile_key<T: Float>(nodes: &[Node<T>], op: &Op, out: &[usize], by_shape: bool) -> String {
+    let shape = |id: NodeId, t: bool| format!("{:?}{}", nodes[id].value.shape(), if t { "^T" } else { "" });
+    match op {
+        _ if !by_shape => op.name().to_string(),
+        Op::Linear { x, w, .. } => format!("linear {}x{}", shape(*x, false), shape(*w, false)),
+        Op::MatMul { a, b, ta, tb } => format!("matmul {}x{}", shape(*a, *ta), shape(*b, *tb)),
+        _ => format!("{} {out:?}", op.name()),
+    }
+}
+
 impl Profile {
     /// Flops summed over op names.
     fn flops(&self) -> FlopCount {
-        let sum = |t: &HashMap<&'static str, OpStats>| {
+        let sum = |t: &HashMap<String, OpStats>| {
             t.values().fold(OpFlops::default(), |mut acc, s| {
                 acc += s.flops;
                 acc
@@ -108,6 +122,13 @@ impl<T: Float> Tape<T> {
     /// timed or counted.
     pub fn enable_profiling(&self) {
         *self.profile.borrow_mut() = Some(Profile { last: Some(Instant::now()), ..Profile::default() });
+    }
+
+    /// [`Tape::enable_profiling`], with ops reported per shape: products (`linear`, `matmul`)
+    /// by operand shapes (`linear [5120, 1153]x[1153, 64]`), other ops by output shape (`add
+    /// [10240, 64]`). It tells which calls are slow, not only which kind of op.
+    pub fn enable_profiling_by_shape(&self) {
+        *self.profile.borrow_mut() = Some(Profile { last: Some(Instant::now()), by_shape: true, ..Profile::default() });
     }
 
     /// Floating-point operations recorded since [`Tape::enable_profiling`] (forward ops
@@ -189,7 +210,8 @@ impl<T: Float> Tape<T> {
         if let Some(prof) = self.profile.borrow_mut().as_mut() {
             let now = Instant::now();
             let f = flops::forward(&self.nodes.borrow(), &op, value.shape());
-            prof.forward.entry(op.name()).or_default().add(now - prof.last.unwrap_or(now), f);
+            let key = profile_key(&self.nodes.borrow(), &op, value.shape(), prof.by_shape);
+            prof.forward.entry(key).or_default().add(now - prof.last.unwrap_or(now), f);
             prof.last = Some(now);
         }
         let op = if requires_grad { op } else { Op::Leaf };
@@ -239,7 +261,8 @@ impl<T: Float> Tape<T> {
                 if let Some(prof) = self.profile.borrow_mut().as_mut() {
                     let elapsed = start.elapsed();
                     let f = flops::backward(&nodes, id);
-                    prof.backward.entry(nodes[id].op.name()).or_default().add(elapsed, f);
+                    let key = profile_key(&nodes, &nodes[id].op, nodes[id].value.shape(), prof.by_shape);
+                    prof.backward.entry(key).or_default().add(elapsed, f);
                 }
             }
         }

@@ -159,6 +159,10 @@ fn matmul_plain_transposed_and_batched() {
     gc!(vec![zt.clone(), wt.clone()], |_, v| v[0].matmul_t(v[1], true, true));
     gc!(vec![za.clone()], |_, v| v[0].matmul_t(v[0], true, false));
     gc!(vec![za.clone()], |_, v| v[0].matmul_t(v[0], false, true));
+    // Only one operand wanting a gradient (the other a constant, as the observation vectors
+    // expressed in a learned frame): the one-sided fused pass.
+    gc!(vec![zt.clone()], |t, v| v[0].matmul_t(t.constant(wb.clone()), true, false));
+    gc!(vec![wt.clone()], |t, v| t.constant(za.clone()).matmul_t(v[0], false, true));
     // Large enough to take the faer path (m n k >= 16384) and the transposed faer path.
     let la = uniform(&mut r, &[20, 30]);
     let lb = uniform(&mut r, &[30, 40]);

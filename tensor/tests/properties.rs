@@ -7,7 +7,7 @@ use common::*;
 use rand::RngExt;
 use tensor::gradcheck::check_gradients;
 use tensor::shape::{broadcast_shapes, numel, strides};
-use tensor::{Tape, Tensor};
+use tensor::{Activation, Tape, Tensor};
 
 /// A random shape of rank 0..=max_rank with dims 1..=max_dim.
 fn random_shape(r: &mut rand_chacha::ChaCha8Rng, max_rank: usize, max_dim: usize) -> Vec<usize> {
@@ -201,6 +201,34 @@ fn reductions_and_permutes_match_naive() {
     }
 }
 
+#[test]
+fn large_layer_with_bias_and_activation_and_its_bias_gradient_match_naive() {
+    // Large enough for the product split into row blocks (bias and activation per block) and
+    // for the bias gradient's sum split into runs of rows.
+    let mut r = rng(106);
+    let (m, k, n) = (700, 90, 130);
+    let (x, w, b) = (uniform(&mut r, &[m, k]), uniform(&mut r, &[k, n]), uniform(&mut r, &[n]));
+    let up = uniform(&mut r, &[m, n]);
+    let tape = Tape::new();
+    let (xv, wv, bv) = (tape.constant(x.clone()), tape.constant(w.clone()), tape.var(b.clone()));
+    let y = xv.linear(wv, Some(bv), Activation::Relu).unwrap();
+    let loss = y.mul(tape.constant(up.clone())).unwrap().sum_all();
+    let g = tape.backward(loss).unwrap();
+    let prod = naive_matmul(&x, &w, false, false);
+    let mut db = vec![0.0; n];
+    for i in 0..m {
+        for j in 0..n {
+            let pre = prod[i * n + j] + b.data()[j];
+            assert!((y.value().data()[i * n + j] - pre.max(0.0)).abs() < 1e-12);
+            if pre > 0.0 {
+                db[j] += up.data()[i * n + j];
+            }
+        }
+    }
+    let got = g.get(bv).unwrap();
+    db.iter().zip(got.data()).for_each(|(want, got)| assert!((want - got).abs() < 1e-10, "{want} {got}"));
+}
+
 /// Runs a workload with large f32 products and reductions (parallel paths) and returns the
 /// bits of the result and of the gradient.
 fn workload() -> (Vec<u32>, Vec<u32>) {
@@ -222,8 +250,12 @@ fn workload() -> (Vec<u32>, Vec<u32>) {
     // p^T q: a 64 x 48 result with inner dim 4096 (the inner-dim split).
     let pv = tape.var(pp);
     let pq = pv.matmul_t(tape.constant(qq), true, false).unwrap();
+    // A layer with bias and activation applied per block of rows, and its bias gradient (a
+    // sum over 600 rows, split into runs).
+    let bias = tape.var(uniform(&mut r, &[300]).cast());
+    let lin = xv.linear(wv, Some(bias), Activation::Relu).unwrap();
     let loss = h.sum_all().add(z.square().mean_all().unwrap()).unwrap().add(xw.square().mean_all().unwrap()).unwrap();
-    let loss = loss.add(pq.square().mean_all().unwrap()).unwrap();
+    let loss = loss.add(pq.square().mean_all().unwrap()).unwrap().add(lin.square().mean_all().unwrap()).unwrap();
     let g = tape.backward(loss).unwrap();
     let bits = |t: &Tensor<f32>| t.data().iter().map(|v| v.to_bits()).collect::<Vec<_>>();
     let mut grads = bits(g.get(wv).unwrap());
@@ -231,6 +263,7 @@ fn workload() -> (Vec<u32>, Vec<u32>) {
     grads.extend(bits(g.get(pv).unwrap()));
     grads.extend(bits(&pq.value()));
     grads.extend(bits(g.get(bwv).unwrap()));
+    grads.extend(bits(g.get(bias).unwrap()));
     (bits(&loss.value()), grads)
 }
 

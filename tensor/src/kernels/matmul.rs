@@ -133,6 +133,27 @@ pub fn matmul<T: Float>(a: &Tensor<T>, b: &Tensor<T>, ta: bool, tb: bool) -> Res
 
 /// Writes (or, with `accumulate`, adds) `op(a) @ op(b)` into `out` following `plan`.
 pub fn matmul_into<T: Float>(out: &mut [T], accumulate: bool, a: &[T], ta: bool, b: &[T], tb: bool, plan: &MatMulPlan) {
+    matmul_into_then(out, accumulate, a, ta, b, tb, plan, None);
+}
+
+/// A pass over runs of whole output rows that [`matmul_into_then`] applies after the product.
+pub type RowsPost<'a, T> = &'a (dyn Fn(&mut [T]) + Sync);
+
+/// [`matmul_into`], then `post` applied to the finished output in runs of whole rows (each
+/// row exactly once): for a large product split by rows, to each block right after it is
+/// computed, while it is still in cache (a layer's bias and activation without another pass
+/// over memory).
+#[allow(clippy::too_many_arguments)]
+pub fn matmul_into_then<T: Float>(
+    out: &mut [T],
+    accumulate: bool,
+    a: &[T],
+    ta: bool,
+    b: &[T],
+    tb: bool,
+    plan: &MatMulPlan,
+    post: Option<RowsPost<'_, T>>,
+) {
     let (m, k, n) = (plan.m, plan.k, plan.n);
     let mn = m * n;
     if mn == 0 {
@@ -205,12 +226,24 @@ pub fn matmul_into<T: Float>(out: &mut [T], accumulate: bool, a: &[T], ta: bool,
             let rb = block_size(m);
             out.par_chunks_mut(rb * n).enumerate().for_each(|(blk, o)| {
                 faer_matmul(o, accumulate, Product { a: am, ta, b: bm, tb, m, k, n }, blk * rb, o.len() / n);
+                if let Some(post) = post {
+                    post(o);
+                }
             });
-        } else {
-            matmul_col_blocks(out, accumulate, Product { a: am, ta, b: bm, tb, m, k, n }, block_size(n));
+            return;
         }
+        matmul_col_blocks(out, accumulate, Product { a: am, ta, b: bm, tb, m, k, n }, block_size(n));
     } else {
         out.chunks_mut(mn).zip(plan.offsets.iter()).for_each(|(o, off)| one(o, off));
+    }
+    if let Some(post) = post {
+        // Runs of whole rows (of length n), in parallel when large.
+        let run = n * (super::PAR_CHUNK / n).max(1);
+        if out.len() >= super::PAR_MIN {
+            out.par_chunks_mut(run).for_each(post);
+        } else {
+            post(out);
+        }
     }
 }
 
@@ -354,10 +387,11 @@ pub fn fused_small_backward_applies(a: &[usize], b: &[usize], ta: bool, tb: bool
     m * n * k < SMALL_WORK
 }
 
-/// Gradients of a batch of tiny products `C_i = op(A_i) op(B_i)` given `G_i = dL/dC_i`, both
-/// in one pass over the batch: `dA` into `da.0`, `dB` into `db.0`, each added to the buffer
-/// when its flag is set and written over it otherwise; when `A` and `B` are the same tensor
-/// (`db` is `None`), both contributions go to `da`.
+/// Gradients of a batch of tiny products `C_i = op(A_i) op(B_i)` given `G_i = dL/dC_i`, in one
+/// pass over the batch: `dA` into `da.0` and `dB` into `db.0` (either may be absent when its
+/// operand wants no gradient), each added to the buffer when its flag is set and written over
+/// it otherwise. When `A` and `B` are the same tensor (`same`), both contributions go to `da`
+/// and `db` must be `None`.
 #[allow(clippy::too_many_arguments)]
 pub fn small_batched_backward<T: Float>(
     g: &[T],
@@ -367,8 +401,9 @@ pub fn small_batched_backward<T: Float>(
     tb: bool,
     a_shape: &[usize],
     b_shape: &[usize],
-    da: (&mut [T], bool),
+    da: Option<(&mut [T], bool)>,
     db: Option<(&mut [T], bool)>,
+    same: bool,
 ) {
     let (m, k) = if ta { (a_shape[2], a_shape[1]) } else { (a_shape[1], a_shape[2]) };
     let n = if tb { b_shape[1] } else { b_shape[2] };
@@ -388,16 +423,15 @@ pub fn small_batched_backward<T: Float>(
             small_matmul(out, acc, Product { a: gi, ta: true, b: ai, tb: ta, m: n, k: m, n: k });
         }
     };
-    let (da, acc_a) = da;
-    match db {
-        Some((db, acc_b)) => {
+    match (da, db) {
+        (Some((da, acc_a)), Some((db, acc_b))) => {
             da.par_chunks_mut(la).zip(db.par_chunks_mut(lb)).enumerate().for_each(|(i, (oa, ob))| {
                 let gi = &g[i * lg..(i + 1) * lg];
                 grad_a(oa, acc_a, gi, &b[i * lb..(i + 1) * lb]);
                 grad_b(ob, acc_b, gi, &a[i * la..(i + 1) * la]);
             });
         }
-        None => {
+        (Some((da, acc_a)), None) if same => {
             // A and B are the same tensor: both contributions to the same block.
             da.par_chunks_mut(la).enumerate().for_each(|(i, oa)| {
                 let gi = &g[i * lg..(i + 1) * lg];
@@ -406,5 +440,16 @@ pub fn small_batched_backward<T: Float>(
                 grad_b(oa, true, gi, xi);
             });
         }
+        (Some((da, acc_a)), None) => {
+            da.par_chunks_mut(la).enumerate().for_each(|(i, oa)| {
+                grad_a(oa, acc_a, &g[i * lg..(i + 1) * lg], &b[i * lb..(i + 1) * lb]);
+            });
+        }
+        (None, Some((db, acc_b))) => {
+            db.par_chunks_mut(lb).enumerate().for_each(|(i, ob)| {
+                grad_b(ob, acc_b, &g[i * lg..(i + 1) * lg], &a[i * la..(i + 1) * la]);
+            });
+        }
+        (None, None) => {}
     }
 }

@@ -1,7 +1,7 @@
 //! Fused kernels for network layers: softmax over the last axis and `act(x @ w + b)`.
 
 use super::for_rows;
-use super::matmul::{MatMulPlan, matmul_into};
+use super::matmul::{MatMulPlan, matmul_into_then};
 use crate::element::Float;
 use crate::error::{Result, mismatch};
 use crate::op::Activation;
@@ -60,21 +60,24 @@ pub fn linear<T: Float>(x: &Tensor<T>, w: &Tensor<T>, b: Option<&Tensor<T>>, act
     let (shape, rows) = linear_shapes(x.shape(), w.shape(), b.map(|b| b.shape()))?;
     let (k, n) = (w.shape()[0], w.shape()[1]);
     let plan = MatMulPlan::new(&[rows, k], &[k, n], false, false)?;
-    let mut out = crate::pool::zeros(rows * n);
-    matmul_into(&mut out, false, x.data(), false, w.data(), false, &plan);
+    // The product writes every element; bias and activation follow on each block of rows
+    // while it is in cache.
+    let mut out = crate::pool::for_overwrite(rows * n);
     let bias = b.map(|b| b.data());
-    for_rows(&mut out, n, |_, row| {
-        if let Some(bias) = bias {
-            for (o, &bv) in row.iter_mut().zip(bias) {
-                *o += bv;
+    let post = |block: &mut [T]| {
+        for row in block.chunks_exact_mut(n.max(1)) {
+            if let Some(bias) = bias {
+                row.iter_mut().zip(bias).for_each(|(o, &bv)| *o += bv);
+            }
+            match act {
+                Activation::Identity => {}
+                Activation::Relu => row.iter_mut().for_each(|v| *v = v.max(T::ZERO)),
+                Activation::Tanh => row.iter_mut().for_each(|v| *v = v.tanh()),
             }
         }
-        match act {
-            Activation::Identity => {}
-            Activation::Relu => row.iter_mut().for_each(|v| *v = v.max(T::ZERO)),
-            Activation::Tanh => row.iter_mut().for_each(|v| *v = v.tanh()),
-        }
-    });
+    };
+    let needs_post = bias.is_some() || act != Activation::Identity;
+    matmul_into_then(&mut out, false, x.data(), false, w.data(), false, &plan, needs_post.then_some(&post as _));
     Ok(Tensor::from_parts(out, shape))
 }
 

@@ -68,6 +68,9 @@ pub fn sum_all<T: Float>(x: &[T]) -> T {
     }
 }
 
+/// Rows per partial sum when a single sum over rows is split across threads.
+const SUM_ROWS: usize = 256;
+
 /// `out[o, i] = sum_k x[o, k, i]`.
 pub fn sum_axis<T: Float>(x: &[T], outer: usize, len: usize, inner: usize) -> Vec<T> {
     let mut out = crate::pool::zeros(outer * inner);
@@ -91,6 +94,25 @@ pub fn sum_axis<T: Float>(x: &[T], outer: usize, len: usize, inner: usize) -> Ve
         }
     };
     if inner == 0 {
+        return out;
+    }
+    if outer == 1 && x.len() >= PAR_MIN && len >= 2 * SUM_ROWS {
+        // One long sum over rows (a bias gradient): fixed runs of SUM_ROWS rows summed in
+        // parallel, then the partial sums added in run order; the runs depend only on the
+        // shape, so the bits do not depend on the thread count.
+        let partials: Vec<Vec<T>> = x
+            .par_chunks(SUM_ROWS * inner)
+            .map(|run| {
+                let mut acc = vec![T::ZERO; inner];
+                for row in run.chunks_exact(inner) {
+                    acc.iter_mut().zip(row).for_each(|(a, &v)| *a += v);
+                }
+                acc
+            })
+            .collect();
+        for p in &partials {
+            out.iter_mut().zip(p).for_each(|(o, &v)| *o += v);
+        }
         return out;
     }
     if x.len() >= PAR_MIN && outer > 1 {
