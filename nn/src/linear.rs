@@ -114,39 +114,30 @@ impl Mlp {
     }
 
     /// Like [`Mlp::forward_hidden`] for the input `cat(parts, last axis)`, without building the
-    /// concatenation: the first layer is computed as `sum_i part_i W[rows_i] + b`, which is
-    /// the same product split by input rows (and avoids copying large inputs such as Gram
-    /// matrices).
+    /// concatenation: the first layer is one op computing `act(sum_i part_i W[rows_i] + b)`,
+    /// the same product split by input rows (no copy of large inputs such as Gram matrices,
+    /// and no intermediate sums).
     pub fn forward_hidden_parts<'t, T: Float>(&self, p: &Bound<'t, T>, parts: &[Var<'t, T>]) -> Result<Var<'t, T>> {
         let first = &self.layers[0];
-        let w = p.get(first.weight);
-        let mut offset = 0;
-        let mut acc: Option<Var<'t, T>> = None;
+        let mut widths = Vec::with_capacity(parts.len());
         for part in parts {
-            let width = *part.shape().last().ok_or_else(|| NnError::Config("an MLP input part has no dims".into()))?;
-            let wp = w.narrow(0, offset, width)?;
-            offset += width;
-            let y = part.linear(wp, None, Activation::Identity)?;
-            acc = Some(match acc {
-                Some(a) => a.add(y)?,
-                None => y,
-            });
+            widths.push(*part.shape().last().ok_or_else(|| NnError::Config("an MLP input part has no dims".into()))?);
         }
-        if offset != first.fan_in {
+        let total: usize = widths.iter().sum();
+        if total != first.fan_in {
             return Err(NnError::Config(format!(
-                "MLP input parts have {offset} features in all, the first layer takes {}",
+                "MLP input parts have {total} features in all, the first layer takes {}",
                 first.fan_in
             )));
         }
-        let mut h = acc.ok_or_else(|| NnError::Config("an MLP needs at least one input part".into()))?;
-        if let Some(b) = first.bias {
-            h = h.add(p.get(b))?;
+        let w = p.get(first.weight);
+        let (mut offset, mut terms) = (0, Vec::with_capacity(parts.len()));
+        for (&part, width) in parts.iter().zip(widths) {
+            terms.push((part, w.narrow(0, offset, width)?));
+            offset += width;
         }
-        h = match self.activation {
-            Activation::Identity => h,
-            Activation::Relu => h.relu(),
-            Activation::Tanh => h.tanh(),
-        };
+        let b = first.bias.map(|b| p.get(b));
+        let mut h = w.tape().linear_sum(&terms, b, self.activation)?;
         for layer in &self.layers[1..self.layers.len() - 1] {
             h = layer.forward_act(p, h, self.activation)?;
         }

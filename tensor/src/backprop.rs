@@ -162,27 +162,31 @@ pub(crate) fn propagate<T: Float>(nodes: &[Node<T>], id: NodeId, g: &mut Vec<T>,
                 accumulate_product(store, *b, bv.shape(), l, tl, r, tr);
             }
         }
-        Op::Linear { x, w, b, act } => {
-            let (xv, wv) = (val(*x), val(*w));
+        Op::Linear { parts, b, act } => {
             // Without an activation the output gradient is used as it is (no copy).
             let owned = match act {
                 crate::op::Activation::Identity => None,
                 _ => Some(nnops::activation_backward(y.data(), g, *act)),
             };
             let gpre: &[T] = owned.as_deref().unwrap_or(g);
-            let (k, n) = (wv.shape()[0], wv.shape()[1]);
+            let n = *y.shape().last().expect("a layer's output has a last dim");
             let rows = gpre.len() / n.max(1);
-            if store.wants(*x) {
-                let plan =
-                    matmul::MatMulPlan::new(&[rows, n], &[k, n], false, true).expect("shapes checked in forward");
-                let (slot, accumulate) = store.slot_to_write(*x, rows * k);
-                matmul::matmul_into(slot, accumulate, gpre, false, wv.data(), true, &plan);
-            }
-            if store.wants(*w) {
-                let plan =
-                    matmul::MatMulPlan::new(&[rows, k], &[rows, n], true, false).expect("shapes checked in forward");
-                let (slot, accumulate) = store.slot_to_write(*w, k * n);
-                matmul::matmul_into(slot, accumulate, xv.data(), true, gpre, false, &plan);
+            // Each part as its own layer: dX_i = G' W_i^T, dW_i = X_i^T G'.
+            for &(x, w) in parts {
+                let (xv, wv) = (val(x), val(w));
+                let k = wv.shape()[0];
+                if store.wants(x) {
+                    let plan =
+                        matmul::MatMulPlan::new(&[rows, n], &[k, n], false, true).expect("shapes checked in forward");
+                    let (slot, accumulate) = store.slot_to_write(x, rows * k);
+                    matmul::matmul_into(slot, accumulate, gpre, false, wv.data(), true, &plan);
+                }
+                if store.wants(w) {
+                    let plan = matmul::MatMulPlan::new(&[rows, k], &[rows, n], true, false)
+                        .expect("shapes checked in forward");
+                    let (slot, accumulate) = store.slot_to_write(w, k * n);
+                    matmul::matmul_into(slot, accumulate, xv.data(), true, gpre, false, &plan);
+                }
             }
             if let Some(b) = b
                 && store.wants(*b)

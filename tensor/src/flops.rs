@@ -173,11 +173,16 @@ pub(crate) fn forward<T: Float>(nodes: &[Node<T>], op: &Op, out: &[usize]) -> Op
             let (batch, m, k, n) = product_dims(nodes[*a].value.shape(), nodes[*b].value.shape(), *ta, *tb);
             OpFlops { matmul: product_flops(batch, m, k, n), other: 0 }
         }
-        Op::Linear { w, b, act, .. } => {
-            let (k, cols) = (nodes[*w].value.shape()[0], nodes[*w].value.shape()[1]);
-            let rows = n.checked_div(cols).unwrap_or(0);
-            let passes = usize::from(b.is_some()) + usize::from(*act != Activation::Identity);
-            OpFlops { matmul: product_flops(1, rows, k, cols), other: (passes * n) as u64 }
+        Op::Linear { parts, b, act } => {
+            let mut matmul = 0;
+            for &(_, w) in parts {
+                let (k, cols) = (nodes[w].value.shape()[0], nodes[w].value.shape()[1]);
+                matmul += product_flops(1, n.checked_div(cols).unwrap_or(0), k, cols);
+            }
+            // One add per element for every part after the first, the bias and the activation.
+            let passes =
+                parts.len().saturating_sub(1) + usize::from(b.is_some()) + usize::from(*act != Activation::Identity);
+            OpFlops { matmul, other: (passes * n) as u64 }
         }
         Op::IndexAdd { src, .. } => OpFlops::other(x_len(*src)),
         Op::Segment { x, mean, .. } => OpFlops::other(x_len(*x) + if *mean { n } else { 0 }),
@@ -233,17 +238,19 @@ pub(crate) fn backward<T: Float>(nodes: &[Node<T>], id: NodeId) -> OpFlops {
             }
             f
         }
-        Op::Linear { x, w, b, act } => {
-            let (k, cols) = (nodes[*w].value.shape()[0], nodes[*w].value.shape()[1]);
-            let rows = n.checked_div(cols).unwrap_or(0);
-            let needed = wants(*x) || wants(*w) || b.is_some_and(wants);
+        Op::Linear { parts, b, act } => {
+            let needed = parts.iter().any(|&(x, w)| wants(x) || wants(w)) || b.is_some_and(wants);
             let mut f = OpFlops::default();
             if needed && *act != Activation::Identity {
                 f.other += 2 * n as u64;
             }
-            for input in [*x, *w] {
-                if wants(input) {
-                    f.matmul += product_flops(1, rows, k, cols);
+            for &(x, w) in parts {
+                let (k, cols) = (nodes[w].value.shape()[0], nodes[w].value.shape()[1]);
+                let rows = n.checked_div(cols).unwrap_or(0);
+                for input in [x, w] {
+                    if wants(input) {
+                        f.matmul += product_flops(1, rows, k, cols);
+                    }
                 }
             }
             if b.is_some_and(wants) {

@@ -218,8 +218,10 @@ pub enum Op {
     Reduce { x: NodeId, op: ReduceOp, axis: Option<usize>, keepdim: bool },
     /// Batched matrix product of the last two dims, with optional transposes read as strides.
     MatMul { a: NodeId, b: NodeId, ta: bool, tb: bool },
-    /// Fused `act(x @ w + b)` over the last dim of `x`.
-    Linear { x: NodeId, w: NodeId, b: Option<NodeId>, act: Activation },
+    /// Fused `act(sum_i x_i @ w_i + b)` over the last dims of the `x_i` (`parts` are the
+    /// `(x_i, w_i)`; one part is an ordinary layer, several are one layer applied to the
+    /// concatenation of the `x_i` without building it).
+    Linear { parts: Vec<(NodeId, NodeId)>, b: Option<NodeId>, act: Activation },
     /// Same data, new shape.
     Reshape(NodeId),
     /// Axis permutation.

@@ -64,7 +64,11 @@ fn profile_key<T: Float>(nodes: &[Node<T>], op: &Op, out: &[usize], by_shape: bo
     let shape = |id: NodeId, t: bool| format!("{:?}{}", nodes[id].value.shape(), if t { "^T" } else { "" });
     match op {
         _ if !by_shape => op.name().to_string(),
-        Op::Linear { x, w, .. } => format!("linear {}x{}", shape(*x, false), shape(*w, false)),
+        Op::Linear { parts, .. } => {
+            let terms: Vec<String> =
+                parts.iter().map(|&(x, w)| format!("{}x{}", shape(x, false), shape(w, false))).collect();
+            format!("linear {}", terms.join(" + "))
+        }
         Op::MatMul { a, b, ta, tb } => format!("matmul {}x{}", shape(*a, *ta), shape(*b, *tb)),
         _ => format!("{} {out:?}", op.name()),
     }

@@ -7,7 +7,7 @@ use std::sync::Arc;
 use crate::element::Float;
 use crate::error::{Result, check_axis, invalid, mismatch};
 use crate::kernels::{elementwise, index, layout, matmul, nnops, reduce};
-use crate::op::{Activation, BinaryOp, Op, ReduceOp, UnaryOp};
+use crate::op::{Activation, BinaryOp, NodeId, Op, ReduceOp, UnaryOp};
 use crate::shape::{broadcast_shapes, numel};
 use crate::tape::{Tape, Var};
 use crate::tensor::Tensor;
@@ -162,7 +162,7 @@ impl<'t, T: Float> Var<'t, T> {
         let y = nnops::linear(&self.value(), &w.value(), bv.as_ref(), act)?;
         let mut inputs = vec![self.id, w.id];
         inputs.extend(b.map(|b| b.id));
-        Ok(self.tape.record(y, Op::Linear { x: self.id, w: w.id, b: b.map(|b| b.id), act }, &inputs))
+        Ok(self.tape.record(y, Op::Linear { parts: vec![(self.id, w.id)], b: b.map(|b| b.id), act }, &inputs))
     }
 
     /// Softmax over the last axis.
@@ -294,6 +294,36 @@ impl<T: Float> Tape<T> {
         let y = layout::cat(&refs, axis)?;
         let ids: Vec<usize> = xs.iter().map(|x| x.id).collect();
         Ok(self.record(y, Op::Cat { xs: ids.clone(), axis }, &ids))
+    }
+
+    /// One layer over several inputs, `act(sum_i x_i @ w_i + b)` for `parts = [(x_i, w_i)]`:
+    /// the layer of weight `cat(w_i, axis 0)` applied to `cat(x_i, last axis)`, without
+    /// building either concatenation and in one op (no intermediate sums on the tape). The
+    /// `x_i` share their leading dims, the `w_i` their width.
+    pub fn linear_sum<'t>(
+        &'t self,
+        parts: &[(Var<'t, T>, Var<'t, T>)],
+        b: Option<Var<'t, T>>,
+        act: Activation,
+    ) -> Result<Var<'t, T>> {
+        let vals: Vec<(Tensor<T>, Tensor<T>)> = parts
+            .iter()
+            .map(|&(x, w)| {
+                self.check_same(x);
+                self.check_same(w);
+                (x.value(), w.value())
+            })
+            .collect();
+        let refs: Vec<(&Tensor<T>, &Tensor<T>)> = vals.iter().map(|(x, w)| (x, w)).collect();
+        let bv = b.map(|b| {
+            self.check_same(b);
+            b.value()
+        });
+        let y = nnops::linear_sum(&refs, bv.as_ref(), act)?;
+        let ids: Vec<(NodeId, NodeId)> = parts.iter().map(|&(x, w)| (x.id, w.id)).collect();
+        let mut inputs: Vec<NodeId> = ids.iter().flat_map(|&(x, w)| [x, w]).collect();
+        inputs.extend(b.map(|b| b.id));
+        Ok(self.record(y, Op::Linear { parts: ids, b: b.map(|b| b.id), act }, &inputs))
     }
 
     /// Stacks equally shaped tensors along a new `axis`.

@@ -95,6 +95,26 @@ fn fused_linear_counts_like_its_parts() {
 }
 
 #[test]
+fn a_layer_over_parts_counts_each_product_and_the_sums_between_them() {
+    let (b, i1, i2, h) = (10u64, 7u64, 3u64, 5u64);
+    let tape = Tape::<f32>::new();
+    tape.enable_profiling();
+    let x1 = tape.constant(ones(&[10, 7]));
+    let x2 = tape.var(ones(&[10, 3]));
+    let (w1, w2) = (tape.var(ones(&[7, 5])), tape.var(ones(&[3, 5])));
+    let loss = tape.linear_sum(&[(x1, w1), (x2, w2)], None, Activation::Relu).unwrap().sum_all();
+    tape.backward(loss).unwrap();
+    let f = tape.profile_flops().unwrap();
+    assert_eq!(f.matmul_forward, mm(b, i1, h) + mm(b, i2, h));
+    // The constant x1 wants no gradient: only dW1, dX2 and dW2.
+    assert_eq!(f.matmul_backward, mm(b, i1, h) + 2 * mm(b, i2, h));
+    // One add (the second part), the relu, then the sum.
+    assert_eq!(f.other_forward, 3 * b * h);
+    // Sum's gradient and relu's derivative (2 b h).
+    assert_eq!(f.other_backward, b * h + 2 * b * h);
+}
+
+#[test]
 fn batched_and_transposed_products() {
     // a [B, m, k] @ w [k, n]: w is broadcast over the batch, so its gradient is a batch of
     // products summed over the batch.

@@ -188,6 +188,37 @@ fn fused_linear_and_softmax() {
     let b2 = Tensor::from_f64(&[0.1, -0.2], &[2]).unwrap();
     gc!(vec![x2, w2, b2], |_, v| v[0].linear(v[1], Some(v[2]), Activation::Relu));
     gc!(vec![uniform(&mut r, &[3, 5])], |_, v| Ok(v[0].softmax()));
+    // One layer over several inputs of different widths: every input, weight and the bias.
+    let (xa, xb, xc) = (uniform(&mut r, &[2, 3, 4]), uniform(&mut r, &[2, 3, 2]), uniform(&mut r, &[2, 3, 1]));
+    let (wa, wb, wc) = (uniform(&mut r, &[4, 5]), uniform(&mut r, &[2, 5]), uniform(&mut r, &[1, 5]));
+    for act in [Activation::Identity, Activation::Tanh] {
+        gc!(vec![xa.clone(), wa.clone(), xb.clone(), wb.clone(), xc.clone(), wc.clone(), b.clone()], |t, v| t
+            .linear_sum(&[(v[0], v[1]), (v[2], v[3]), (v[4], v[5])], Some(v[6]), act));
+        // A constant part (no gradient wanted for it) and no bias.
+        gc!(vec![wa.clone(), xb.clone(), wb.clone()], |t, v| t.linear_sum(
+            &[(t.constant(xa.clone()), v[0]), (v[1], v[2])],
+            None,
+            act
+        ));
+    }
+}
+
+#[test]
+fn a_layer_over_parts_equals_the_layer_over_their_concatenation() {
+    let mut r = rng(7);
+    let (xa, xb) = (uniform(&mut r, &[6, 3]), uniform(&mut r, &[6, 4]));
+    let (wa, wb, b) = (uniform(&mut r, &[3, 2]), uniform(&mut r, &[4, 2]), uniform(&mut r, &[2]));
+    let tape = tensor::Tape::new();
+    let (xa, xb, wa, wb, b) = (tape.var(xa), tape.var(xb), tape.var(wa), tape.var(wb), tape.var(b));
+    let parts = tape.linear_sum(&[(xa, wa), (xb, wb)], Some(b), Activation::Tanh).unwrap();
+    let whole =
+        tape.cat(&[xa, xb], 1).unwrap().linear(tape.cat(&[wa, wb], 0).unwrap(), Some(b), Activation::Tanh).unwrap();
+    let (p, w) = (parts.value(), whole.value());
+    p.data().iter().zip(w.data()).for_each(|(a, b)| assert!((a - b).abs() < 1e-12));
+    // Parts must agree in their leading dims and output width.
+    let bad = tape.var(uniform(&mut r, &[5, 4]));
+    assert!(tape.linear_sum(&[(xa, wa), (bad, wb)], None, Activation::Identity).is_err());
+    assert!(tape.linear_sum(&[], None, Activation::Identity).is_err());
 }
 
 #[test]

@@ -57,11 +57,33 @@ pub fn linear_shapes(x: &[usize], w: &[usize], b: Option<&[usize]>) -> Result<(V
 
 /// `act(x @ w + b)` with the bias and activation applied in one pass over the output.
 pub fn linear<T: Float>(x: &Tensor<T>, w: &Tensor<T>, b: Option<&Tensor<T>>, act: Activation) -> Result<Tensor<T>> {
-    let (shape, rows) = linear_shapes(x.shape(), w.shape(), b.map(|b| b.shape()))?;
-    let (k, n) = (w.shape()[0], w.shape()[1]);
-    let plan = MatMulPlan::new(&[rows, k], &[k, n], false, false)?;
-    // The product writes every element; bias and activation follow on each block of rows
-    // while it is in cache.
+    linear_sum(&[(x, w)], b, act)
+}
+
+/// `act(sum_i x_i @ w_i + b)`: every product after the first adds into the output, and the
+/// bias and activation are applied to each block of rows right after the last one, while the
+/// block is in cache. All `x_i` must have the same leading dims and all `w_i` the same width.
+pub fn linear_sum<T: Float>(
+    parts: &[(&Tensor<T>, &Tensor<T>)],
+    b: Option<&Tensor<T>>,
+    act: Activation,
+) -> Result<Tensor<T>> {
+    let Some(((x0, w0), rest)) = parts.split_first() else {
+        return Err(mismatch("linear", &[], "needs at least one (x, w) part"));
+    };
+    let (shape, rows) = linear_shapes(x0.shape(), w0.shape(), b.map(|b| b.shape()))?;
+    for (x, w) in rest {
+        let (s, r) = linear_shapes(x.shape(), w.shape(), None)?;
+        if s != shape || r != rows {
+            return Err(mismatch(
+                "linear",
+                &[x0.shape(), w0.shape(), x.shape(), w.shape()],
+                "every part must have the same leading dims and output width",
+            ));
+        }
+    }
+    let n = w0.shape()[1];
+    // The first product writes every element; bias and activation follow the last.
     let mut out = crate::pool::for_overwrite(rows * n);
     let bias = b.map(|b| b.data());
     let post = |block: &mut [T]| {
@@ -77,7 +99,11 @@ pub fn linear<T: Float>(x: &Tensor<T>, w: &Tensor<T>, b: Option<&Tensor<T>>, act
         }
     };
     let needs_post = bias.is_some() || act != Activation::Identity;
-    matmul_into_then(&mut out, false, x.data(), false, w.data(), false, &plan, needs_post.then_some(&post as _));
+    for (i, (x, w)) in parts.iter().enumerate() {
+        let plan = MatMulPlan::new(&[rows, w.shape()[0]], w.shape(), false, false)?;
+        let post = (needs_post && i + 1 == parts.len()).then_some(&post as _);
+        matmul_into_then(&mut out, i > 0, x.data(), false, w.data(), false, &plan, post);
+    }
     Ok(Tensor::from_parts(out, shape))
 }
 
