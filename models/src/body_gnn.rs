@@ -186,7 +186,7 @@ impl BodyGnn {
         }
         let z0 = tape.constant(body.z.reshape(&[n, 3, NODE_VECTORS])?);
         let x = z0.narrow(2, 0, 1)?;
-        let mut z = self.embed_z.forward(p, nn::equivariant::append_gravity(z0, g)?)?;
+        let mut z = self.embed_z.forward_channels(p, &[z0], Some(g))?;
         let rows: Vec<usize> = (0..nb).flat_map(|b| std::iter::repeat_n(b, k)).collect();
         let h0 = tape.cat(
             &[

@@ -144,11 +144,7 @@ impl EntityMp {
             )));
         }
         let x = z0.narrow(2, 0, 1)?; // p_{i,1}: [n, 3, 1]
-        let zin = match self.config.gravity {
-            Some(g) => nn::equivariant::append_gravity(z0, g)?,
-            None => z0,
-        };
-        let mut z = self.embed_z.forward(p, zin)?;
+        let mut z = self.embed_z.forward_channels(p, &[z0], self.config.gravity)?;
         let mut h = self.embed_h.forward(p, h0)?;
         for _ in 0..self.config.steps {
             (z, h) = self.mp.forward(p, z, h, x, edges)?;

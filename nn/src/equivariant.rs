@@ -32,6 +32,49 @@ impl VectorLinear {
     pub fn forward<'t, T: Float>(&self, p: &Bound<'t, T>, z: Var<'t, T>) -> Result<Var<'t, T>> {
         self.linear.forward(p, z)
     }
+
+    /// `[Z_1 | Z_2 | .. (| g)] W` for vector features `z_i: [N.., 3, m_i]` joined along the
+    /// channels and, with `gravity`, the gravity direction as the last channel: the same as
+    /// [`VectorLinear::forward`] of the concatenation (after [`append_gravity`]), without
+    /// building it. Each part is multiplied by its block of rows of `W` and the products are
+    /// added in one op (`tensor::Tape::linear_sum`).
+    pub fn forward_channels<'t, T: Float>(
+        &self,
+        p: &Bound<'t, T>,
+        parts: &[Var<'t, T>],
+        gravity: Option<[f64; 3]>,
+    ) -> Result<Var<'t, T>> {
+        let first = *parts.first().ok_or_else(|| NnError::Config("vector mixing of no inputs".into()))?;
+        let mut inputs = parts.to_vec();
+        if let Some(g) = gravity {
+            inputs.push(gravity_channel(first, g)?);
+        }
+        let widths: Vec<usize> = inputs.iter().map(|z| z.shape().last().copied().unwrap_or(0)).collect();
+        if widths.iter().sum::<usize>() != self.linear.fan_in {
+            return Err(NnError::Config(format!(
+                "vector mixing of {widths:?} channels (gravity included), the layer takes {}",
+                self.linear.fan_in
+            )));
+        }
+        let w = p.get(self.linear.weight);
+        let mut terms = Vec::with_capacity(inputs.len());
+        let mut offset = 0;
+        for (z, width) in inputs.into_iter().zip(widths) {
+            terms.push((z, w.narrow(0, offset, width)?));
+            offset += width;
+        }
+        Ok(w.tape().linear_sum(&terms, None, Activation::Identity)?)
+    }
+}
+
+/// The gravity direction `g` as one vector channel beside `z: [N.., 3, m]`: a constant
+/// `[N.., 3, 1]` holding `g` in every row.
+fn gravity_channel<'t, T: Float>(z: Var<'t, T>, g: [f64; 3]) -> Result<Var<'t, T>> {
+    let mut s = z.shape();
+    *s.last_mut().ok_or_else(|| NnError::Config("vector features without dims".into()))? = 1;
+    let rows = s.iter().product::<usize>() / 3;
+    let data: Vec<T> = (0..rows).flat_map(|_| g.map(T::from_f64)).collect();
+    Ok(z.tape().constant(Tensor::new(data, &s)?))
 }
 
 /// Gram matrices `Z^T Z` of vector features `[.., 3, m]`, flattened to `[.., m*m]`
@@ -135,11 +178,7 @@ impl SubequivariantFn {
         z: Var<'t, T>,
         h: Var<'t, T>,
     ) -> Result<(Var<'t, T>, Var<'t, T>)> {
-        let z = match self.gravity {
-            Some(g) => append_gravity(z, g)?,
-            None => z,
-        };
-        let m = self.mix.forward(p, z)?;
+        let m = self.mix.forward_channels(p, &[z], self.gravity)?;
         mix_by_invariants(p, &self.mlp, m, &[h], self.m_out, self.s_out)
     }
 }

@@ -12,7 +12,7 @@
 
 use tensor::{Activation, Float, Var};
 
-use crate::equivariant::{VectorLinear, append_gravity, mix_by_invariants};
+use crate::equivariant::{VectorLinear, mix_by_invariants};
 use crate::error::{NnError, Result};
 use crate::linear::Mlp;
 use crate::params::{Bound, Scope};
@@ -169,7 +169,6 @@ impl SubeqMessagePassing {
         x: Var<'t, T>,
         edges: &EdgeList,
     ) -> Result<(Var<'t, T>, Var<'t, T>)> {
-        let tape = z.tape();
         let cfg = &self.config;
         let (m, s) = (cfg.vectors, cfg.scalars);
         let n = edges.num_nodes;
@@ -186,11 +185,8 @@ impl SubeqMessagePassing {
         let e = x.index_select(0, &edges.dst)?.sub(x.index_select(0, &edges.src)?)?; // [E, 3, 1]
         let zi = z.index_select(0, &edges.src)?;
         let zj = z.index_select(0, &edges.dst)?;
-        let mut zij = tape.cat(&[zi, zj, e], 2)?;
-        if let Some(g) = cfg.gravity {
-            zij = append_gravity(zij, g)?;
-        }
-        let zij = self.w1.forward(p, zij)?; // [E, 3, m]
+        // W1 [Z_i | Z_j | e (| g)], without building the concatenation.
+        let zij = self.w1.forward_channels(p, &[zi, zj, e], cfg.gravity)?; // [E, 3, m]
         let mut scalars = vec![h.index_select(0, &edges.src)?, h.index_select(0, &edges.dst)?];
         let dist = || -> Result<Var<'t, T>> { Ok(e.reshape(&[e_cnt, 3])?.norm_last(1e-12)) }; // [E, 1]
         match &cfg.distance {
@@ -211,11 +207,7 @@ impl SubeqMessagePassing {
         let mz = agg(mz, 3 * m)?.reshape(&[n, 3, m])?;
         let mh = agg(mh, s)?;
         // Node update (eq. update-mlp).
-        let mut y = tape.cat(&[z, mz], 2)?;
-        if let Some(g) = cfg.gravity {
-            y = append_gravity(y, g)?;
-        }
-        let y = self.w2.forward(p, y)?;
+        let y = self.w2.forward_channels(p, &[z, mz], cfg.gravity)?;
         let (dz, dh) = mix_by_invariants(p, &self.mlp_n, y, &[h, mh], m, s)?;
         Ok((z.add(dz)?, h.add(dh)?))
     }

@@ -154,6 +154,27 @@ fn bad_configurations_are_errors() {
 }
 
 #[test]
+fn vector_mixing_of_channel_parts_equals_mixing_their_concatenation() {
+    let mut r = rng(8);
+    let mut store = ParamStore::<f64>::new();
+    let mut init = nn::init_rng(6);
+    let g = [0.0, 0.0, -1.0];
+    let mix = nn::equivariant::VectorLinear::new(&mut store.scope("w", &mut init), 2 + 3 + 1, 4).unwrap();
+    let (a, b) = (uniform(&mut r, &[5, 3, 2]), uniform(&mut r, &[5, 3, 3]));
+    let tape = tensor::Tape::new();
+    let p = store.bind(&tape);
+    let (va, vb) = (tape.constant(a.clone()), tape.constant(b.clone()));
+    let joined = nn::equivariant::append_gravity(tape.cat(&[va, vb], 2).unwrap(), g).unwrap();
+    let whole = mix.forward(&p, joined).unwrap().value();
+    let parts = mix.forward_channels(&p, &[va, vb], Some(g)).unwrap().value();
+    assert!(whole.all_close(&parts, 0.0, 1e-12));
+    // Channels that do not add up to the layer's input (here: gravity left out) are an error.
+    assert!(mix.forward_channels(&p, &[va, vb], None).is_err());
+    assert!(mix.forward_channels(&p, &[], Some(g)).is_err());
+    check_layer(&store, vec![a, b], |p, v| mix.forward_channels(p, &[v[0], v[1]], Some(g)));
+}
+
+#[test]
 fn mlp_on_input_parts_equals_mlp_on_their_concatenation() {
     let mut r = rng(6);
     let mut store = ParamStore::<f64>::new();
