@@ -104,13 +104,16 @@ fn matmul_matches_naive_for_random_sizes_and_transposes() {
         } else if trial % 16 == 7 {
             // Tall, thin A^T B with a long inner dim (the transposed-problem path).
             (r.random_range(400..=600), r.random_range(2400..=3000), r.random_range(8..=100))
+        } else if trial % 16 == 11 {
+            // Short, wide A^T B with a long inner dim (the inner-dim split, forced ta, !tb).
+            (r.random_range(30..=40), r.random_range(1000..=1200), r.random_range(200..=250))
         } else if trial % 16 == 15 {
             (r.random_range(1..=100), r.random_range(2000..=3000), r.random_range(256..=400))
         } else {
             (r.random_range(1..=hi), r.random_range(1..=hi), r.random_range(1..=hi))
         };
         let (ta, tb) =
-            if trial % 16 == 7 || trial % 16 == 3 { (true, false) } else { (r.random_bool(0.5), r.random_bool(0.5)) };
+            if [3, 7, 11].contains(&(trial % 16)) { (true, false) } else { (r.random_bool(0.5), r.random_bool(0.5)) };
         let a = uniform(&mut r, &if ta { [k, m] } else { [m, k] });
         let b = uniform(&mut r, &if tb { [n, k] } else { [k, n] });
         let tape = Tape::new();
@@ -150,6 +153,97 @@ fn batched_matmul_matches_per_batch_products() {
             let got_b = &got.data()[bi * m * n..(bi + 1) * m * n];
             for (x, y) in got_b.iter().zip(&want) {
                 assert!((x - y).abs() < 1e-12);
+            }
+        }
+    }
+}
+
+/// Tiny batched products whose output rows are 16, 32 or 64 wide (the fixed-width loops with
+/// register accumulators) or whose rows are dotted (the A B^T loops), in every transpose,
+/// against naive loops, and their fused backward by finite differences.
+#[test]
+fn tiny_products_of_fixed_row_widths_match_naive_and_gradcheck() {
+    let mut r = rng(108);
+    for &n in &[16, 32, 64, 8, 24] {
+        for (ta, tb) in [(false, false), (true, false), (false, true), (true, true)] {
+            let (m, k, batch) = (r.random_range(1..=4), r.random_range(1..=5), 3);
+            let a = uniform(&mut r, &if ta { [batch, k, m] } else { [batch, m, k] });
+            let b = uniform(&mut r, &if tb { [batch, n, k] } else { [batch, k, n] });
+            let tape = Tape::new();
+            let got = tape.constant(a.clone()).matmul_t(tape.constant(b.clone()), ta, tb).unwrap().value();
+            let (sa, sb) = (a.shape()[1..].to_vec(), b.shape()[1..].to_vec());
+            for i in 0..batch {
+                let pick = |x: &Tensor<f64>, s: &[usize]| {
+                    let len = s[0] * s[1];
+                    Tensor::new(x.data()[i * len..(i + 1) * len].to_vec(), s).unwrap()
+                };
+                let want = naive_matmul(&pick(&a, &sa), &pick(&b, &sb), ta, tb);
+                for (x, y) in got.data()[i * m * n..(i + 1) * m * n].iter().zip(&want) {
+                    assert!((x - y).abs() < 1e-12, "m{m} k{k} n{n} ta{ta} tb{tb}");
+                }
+            }
+            // Both operands want gradients, and each also feeds a later op, so that the
+            // product's backward adds into gradient slots that already hold values.
+            check_gradients(
+                |_, v| {
+                    let y = v[0].matmul_t(v[1], ta, tb)?.square().sum_all();
+                    y.add(v[0].square().sum_all())?.add(v[1].square().sum_all())
+                },
+                &[a, b],
+            )
+            .unwrap();
+        }
+        // A Gram matrix Z^T Z of n x n (one operand twice: both contributions go to one slot).
+        let z = uniform(&mut r, &[3, 3, n]);
+        check_gradients(|_, v| Ok(v[0].matmul_t(v[0], true, false)?.square().sum_all()), &[z]).unwrap();
+    }
+}
+
+/// Values and input gradients of `loss = sum(w_out * (A C)) + sum(w_gram * (A^T A)) +
+/// sum(w_outer * (A A^T))` computed in `T`, returned in f64: the three products, `dA`, `dC`.
+fn tiny_products_in<T: tensor::Float>(inputs: &[Tensor<f64>; 5]) -> Vec<Vec<f64>> {
+    let [a, c, w_out, w_gram, w_outer] = inputs;
+    let tape = Tape::new();
+    let (av, cv) = (tape.var(a.cast::<T>()), tape.var(c.cast::<T>()));
+    let prod = av.matmul(cv).unwrap();
+    let gram = av.matmul_t(av, true, false).unwrap();
+    let outer = av.matmul_t(av, false, true).unwrap();
+    let (wo, wg, wr) = (tape.constant(w_out.cast()), tape.constant(w_gram.cast()), tape.constant(w_outer.cast()));
+    let terms = [prod.mul(wo).unwrap().sum_all(), gram.mul(wg).unwrap().sum_all(), outer.mul(wr).unwrap().sum_all()];
+    let loss = terms[0].add(terms[1]).unwrap().add(terms[2]).unwrap();
+    let g = tape.backward(loss).unwrap();
+    let v = |t: &Tensor<T>| t.cast::<f64>().data().to_vec();
+    vec![v(&prod.value()), v(&gram.value()), v(&outer.value()), v(g.get(av).unwrap()), v(g.get(cv).unwrap())]
+}
+
+/// The f32 tiny batched products (direct loops with eight partial sums) and their fused
+/// gradients, against the same products in f64 on the same values: `M C`, `Z^T Z` (one
+/// operand twice) and `Z Z^T`, with inner and outer sizes that are and are not multiples of
+/// 8.
+#[test]
+fn f32_tiny_batched_products_and_gradients_match_f64() {
+    let mut r = rng(107);
+    for &(m, k, n) in &[(3, 32, 32), (3, 8, 9), (5, 16, 3), (1, 40, 17), (3, 7, 12), (2, 24, 8)] {
+        let batch = 37;
+        // Inputs rounded to f32 first, so the f64 reference differs only in its arithmetic.
+        let round = |t: Tensor<f64>| -> Tensor<f64> { t.cast::<f32>().cast() };
+        let inputs = [
+            round(uniform(&mut r, &[batch, m, k])),
+            round(uniform(&mut r, &[batch, k, n])),
+            round(uniform(&mut r, &[batch, m, n])),
+            round(uniform(&mut r, &[batch, k, k])),
+            round(uniform(&mut r, &[batch, m, m])),
+        ];
+        let got = tiny_products_in::<f32>(&inputs);
+        let want = tiny_products_in::<f64>(&inputs);
+        // Each entry is a sum of at most 2k + 2m products of values below 1 in magnitude (the
+        // gradient of A^T A and A A^T takes both operands' terms); f32 rounds each addition
+        // by at most 6e-8 relative.
+        let tol = 2e-7 * (2 * k + 2 * m) as f64;
+        for (name, (g, w)) in ["A C", "A^T A", "A A^T", "dA", "dC"].iter().zip(got.iter().zip(&want)) {
+            assert_eq!(g.len(), w.len());
+            for (x, y) in g.iter().zip(w) {
+                assert!((x - y).abs() <= tol, "{name} m{m} k{k} n{n}: {x} vs {y}");
             }
         }
     }
@@ -240,6 +334,7 @@ fn workload() -> (Vec<u32>, Vec<u32>) {
     let wide: Tensor<f32> = uniform(&mut r, &[600, 300]).cast();
     let (pp, qq): (Tensor<f32>, Tensor<f32>) =
         (uniform(&mut r, &[4096, 64]).cast(), uniform(&mut r, &[4096, 48]).cast());
+    let ss: Tensor<f32> = uniform(&mut r, &[4096, 600]).cast();
     let tape = Tape::new();
     let (xv, wv) = (tape.var(x), tape.var(w));
     let (bwv, bzv) = (tape.var(bw), tape.var(bz));
@@ -250,19 +345,24 @@ fn workload() -> (Vec<u32>, Vec<u32>) {
     // p^T q: a 64 x 48 result with inner dim 4096 (the inner-dim split).
     let pv = tape.var(pp);
     let pq = pv.matmul_t(tape.constant(qq), true, false).unwrap();
+    // p^T s: a short, wide 64 x 600 result with inner dim 4096 (the inner-dim split too).
+    let ps = pv.matmul_t(tape.constant(ss), true, false).unwrap();
     // A layer with bias and activation applied per block of rows, and its bias gradient (a
     // sum over 600 rows, split into runs).
     let bias = tape.var(uniform(&mut r, &[300]).cast());
     let lin = xv.linear(wv, Some(bias), Activation::Relu).unwrap();
     let loss = h.sum_all().add(z.square().mean_all().unwrap()).unwrap().add(xw.square().mean_all().unwrap()).unwrap();
     let loss = loss.add(pq.square().mean_all().unwrap()).unwrap().add(lin.square().mean_all().unwrap()).unwrap();
+    let loss = loss.add(ps.square().mean_all().unwrap()).unwrap();
     let g = tape.backward(loss).unwrap();
     let bits = |t: &Tensor<f32>| t.data().iter().map(|v| v.to_bits()).collect::<Vec<_>>();
     let mut grads = bits(g.get(wv).unwrap());
     grads.extend(bits(g.get(xv).unwrap()));
     grads.extend(bits(g.get(pv).unwrap()));
     grads.extend(bits(&pq.value()));
+    grads.extend(bits(&ps.value()));
     grads.extend(bits(g.get(bwv).unwrap()));
+    grads.extend(bits(g.get(bzv).unwrap()));
     grads.extend(bits(g.get(bias).unwrap()));
     (bits(&loss.value()), grads)
 }

@@ -11,6 +11,7 @@ pub mod layout;
 pub mod matmul;
 pub mod nnops;
 pub mod reduce;
+pub mod simd;
 
 use rayon::prelude::*;
 
