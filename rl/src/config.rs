@@ -5,8 +5,9 @@
 //! A configuration is resolved in layers, each overriding the one before:
 //! 1. a preset: `quick` (the built-in default of `meben train`: `shnn` on `team_reach/1_ant`
 //!    in about ten minutes on 2 cores: 256 environments, batch 128 unrolls x 8 minibatches,
-//!    1.5M steps, learning rate decayed linearly to 0) or `paper` (the reference schedule: 2048
-//!    environments, 50M steps for Team Reach, 20M and batch 128 for Team Sumo);
+//!    1.5M steps, learning rate decayed linearly to 0, entropy bonus 1e-3) or `paper` (the
+//!    reference schedule: 2048 environments, 50M steps for Team Reach, 20M and batch 128 for
+//!    Team Sumo);
 //! 2. a TOML file (`--config file.toml`), whose keys are the fields of [`TrainConfig`] (and
 //!    `preset`);
 //! 3. command-line options (`--env`, `--model`, `--set field=value`, ...).
@@ -166,6 +167,11 @@ impl TrainConfig {
                 num_envs: 256,
                 batch_size: 128,
                 lr_decay: true,
+                // A tenth of the reference's entropy bonus: over 1.5M steps the mean action
+                // (what evaluation takes) lags the sampled policy less. Quick preset, final
+                // evaluation success over seeds 0-3 (128 episodes each, commit 794ad79):
+                // 57.0, 67.2, 92.2, 54.7% with 1e-3 against 10.2, 78.1, 81.2, 29.7% with 1e-2.
+                entropy_coef: 1e-3,
                 num_minibatches: 8,
                 num_evals: 10,
                 eval_episodes: 128,
