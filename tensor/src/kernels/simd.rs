@@ -3,7 +3,7 @@
 //!
 //! Only one kernel lives here: the rows-against-rows dot products `out = A B^T` of the tiny
 //! batched products (the backward of the subequivariant layers' `M C` and `Z^T Z`, eq.
-//! (subeq2)). Written portably, each of those dots ends in a horizontal sum of one vector,
+//! (subeq2), and the forward of the normaliser's `Z Z^T`). Written portably, each of those dots ends in a horizontal sum of one vector,
 //! which costs more than its four multiply-adds; here eight dots are reduced together (one
 //! transpose-and-add of eight vectors), so the reduction is shared.
 //!
