@@ -108,12 +108,8 @@ pub fn gram_norm_plus_one<'t, T: Float>(z: Var<'t, T>) -> Result<Var<'t, T>> {
 
 /// Appends the gravity direction as one more vector channel: `[N.., 3, m] -> [N.., 3, m+1]`.
 pub fn append_gravity<'t, T: Float>(z: Var<'t, T>, g: [f64; 3]) -> Result<Var<'t, T>> {
-    let mut s = z.shape();
-    let gv = z.tape().constant(Tensor::from_f64(&g, &[3, 1])?);
-    *s.last_mut().expect("rank >= 2") = 1;
-    let gz = gv.expand(&s)?;
-    let last = s.len() - 1;
-    Ok(z.tape().cat(&[z, gz], last)?)
+    let last = z.shape().len().checked_sub(1).ok_or_else(|| NnError::Config("vector features without dims".into()))?;
+    Ok(z.tape().cat(&[z, gravity_channel(z, g)?], last)?)
 }
 
 /// The subequivariant function of eq. (subeq2):
