@@ -5,15 +5,18 @@
 //! For agent `a` the graph `G_a = (V_a, E_a)` has the agent's root and DoF nodes as
 //! vertices and an edge in both directions between every node and its parent
 //! ([`ObsSpec::node_parent`]). Node `k` starts from `Z_k = Z_{a,k}` (position relative to
-//! the root of the assigned entity, velocity, angular velocity) and
-//! `h_k = [h_{a,k}, h'_a, p^z_{a,k}]` (its scalars, the agent's entity feature, its height
-//! `-<p, g>`), as the paper writes; then:
+//! the agent's body origin, eq. (lrf): its own root by default; velocity, angular velocity)
+//! and `h_k = [h_{a,k}, h'_a, p^z_{a,k}]` (its scalars, the agent's entity feature, its
+//! height `-<p, g>`), as the paper writes; then `φ_b` "similar to `φ_o`":
 //! 1. `Z = [Z_k, g] W_e` (4 -> `m` channels), `h = h_k W_h + b`;
-//! 2. `steps` rounds of one shared [`nn::SubeqMessagePassing`] (gravity in each layer,
-//!    raw edge distance, mean aggregation) with the node positions as `x`;
-//! 3. per node `O_a^T (Z' W_o)` (the agent's local frame from the entity stage, eq. (lrf);
-//!    `W_o`: `m -> 4` channels, so 12 invariant numbers) with `h'_k` into a small MLP that
-//!    gives `(loc, scale)` of the DoF that node actuates (the root's output is not used).
+//! 2. `steps` rounds of one shared [`nn::SubeqMessagePassing`] (raw edge distance, mean
+//!    aggregation; `g` inside each layer only with `gravity_in_layers`, as the entity stage)
+//!    with the node positions as `x`;
+//! 3. per DoF node the paper's `σ_π(O_a^T Z'_k, h'_k)`, "a linear layer with bias" (appendix
+//!    "Analyses of Morphology-shared Policy"): `O_a^T Z'_k` (`3 m` invariant numbers in the
+//!    agent's local frame from the entity stage) and `h'_k` give `(loc, scale)` of the DoF
+//!    that node actuates (the root's output is not used). Hidden layers can be added
+//!    (`decoder_hidden`; none by default).
 //!
 //! Every step is subequivariant (or invariant) under rotations about `g` and translations,
 //! so the head's outputs are invariant.
@@ -28,9 +31,6 @@ use tensor::{Activation, Float, Tensor, Var};
 use crate::error::{ModelError, Result};
 use crate::frame::to_frame;
 use crate::input::{AgentBody, NODE_VECTORS};
-
-/// Vector channels `W_o` keeps for the decoder (read in the agent's frame).
-pub const OUT_VECTORS: usize = 4;
 
 /// Sizes of a [`BodyGnn`].
 #[derive(Clone, Debug)]
@@ -47,10 +47,12 @@ pub struct BodyGnnConfig {
     pub steps: usize,
     /// Width of the agent's entity feature `h'_a`.
     pub entity_scalars: usize,
-    /// Hidden widths of the per-node decoder MLP.
+    /// Hidden widths of the per-node decoder (none: the paper's linear `σ_π`).
     pub decoder_hidden: Vec<usize>,
-    /// Gravity direction `g`.
+    /// Gravity direction `g` (a 4th input channel).
     pub gravity: [f64; 3],
+    /// Whether `g` is also appended inside every layer.
+    pub gravity_in_layers: bool,
 }
 
 /// The morphology graph of one agent, in node indices local to the agent (root = 0).
@@ -79,8 +81,7 @@ impl AgentGraph {
 }
 
 /// Body-level subequivariant message passing and per-node decoder (module docs).
-/// Parameters under its scope: `embed_z.weight`, `embed_h.*`, `mp.*`, `w_o.weight`,
-/// `decoder.*`.
+/// Parameters under its scope: `embed_z.weight`, `embed_h.*`, `mp.*`, `decoder.*`.
 #[derive(Clone, Debug)]
 pub struct BodyGnn {
     /// `W_e`: `[Z_k, g]` -> `m` channels.
@@ -89,9 +90,7 @@ pub struct BodyGnn {
     pub embed_h: Linear,
     /// The message-passing layer shared by all steps.
     pub mp: SubeqMessagePassing,
-    /// `W_o`: `m` -> [`OUT_VECTORS`] channels read in the agent's frame.
-    pub w_o: VectorLinear,
-    /// Per-node decoder `[O^T Z' W_o, h'_k]` -> `(loc, scale)`.
+    /// Per-node decoder `σ_π`: `[O_a^T Z'_k, h'_k]` -> `(loc, scale)`.
     pub decoder: Mlp,
     config: BodyGnnConfig,
     /// Per scene agent its morphology graph (`None` for agents of other teams).
@@ -136,15 +135,15 @@ impl BodyGnn {
                 layers: config.layers,
                 distance: EdgeDistance::Raw,
                 aggregation: Aggregation::Mean,
-                gravity: Some(config.gravity),
+                gravity: if config.gravity_in_layers { Some(config.gravity) } else { None },
+                edge_scalars: 0,
             },
         )?;
-        let w_o = VectorLinear::new(&mut s.sub("w_o"), m, OUT_VECTORS)?;
-        let mut sizes = vec![3 * OUT_VECTORS + sc];
+        let mut sizes = vec![3 * m + sc];
         sizes.extend_from_slice(&config.decoder_hidden);
         sizes.push(2);
         let decoder = Mlp::new(&mut s.sub("decoder"), &sizes, Activation::Relu)?;
-        Ok(Self { embed_z, embed_h, mp, w_o, decoder, config, graphs })
+        Ok(Self { embed_z, embed_h, mp, decoder, config, graphs })
     }
 
     /// `loc`, `scale` `[B, dof_a]` of one agent: its `body`, its entity feature `h'_a`
@@ -203,10 +202,10 @@ impl BodyGnn {
                 (z, h) = self.mp.forward(p, z, h, x, &edges)?;
             }
         }
-        // Invariant node features: the output vectors in the agent's frame, and h'_k.
-        let local = to_frame(frame.index_select(0, &rows)?, self.w_o.forward(p, z)?)?;
-        let feats = tape.cat(&[local.reshape(&[n, 3 * OUT_VECTORS])?, h], 1)?;
-        let out = self.decoder.forward(p, feats)?.reshape(&[nb, k, 2])?;
+        // σ_π(O_a^T Z'_k, h'_k): the output vectors in the agent's frame, and h'_k.
+        let m = self.config.vectors;
+        let local = to_frame(frame.index_select(0, &rows)?, z)?;
+        let out = self.decoder.forward_parts(p, &[local.reshape(&[n, 3 * m])?, h])?.reshape(&[nb, k, 2])?;
         let dof = k - 1;
         let loc = out.narrow(1, 1, dof)?.narrow(2, 0, 1)?.reshape(&[nb, dof])?;
         let scale = out.narrow(1, 1, dof)?.narrow(2, 1, 1)?.reshape(&[nb, dof])?;

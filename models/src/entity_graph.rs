@@ -16,6 +16,16 @@
 //! Edges are directed both ways and sorted by source ([`nn::EdgeList`] aggregates at the
 //! source). The builder owns its scratch, so a batch is built without per-scene allocation
 //! (only the output lists grow).
+//!
+//! Besides the edges, the graph lists each agent's neighbours `N(i)` in fixed slots (the
+//! rows eq. (lrf) appends to the agent's own nodes): Reach, one slot, the assigned ball;
+//! Sumo, two, the assigned opponent and the centre ball; fully connected, `E - 1`, every
+//! other entity in entity order. An empty slot (an agent left without an object) is
+//! [`UNASSIGNED`].
+//!
+//! The assignment drawn for a batch is kept ([`EntityGraph::assignment`]) and can be given
+//! back ([`GraphBuilder::build_with`]), so that the update of a stochastic assignment sees
+//! the graph the behaviour policy acted on.
 
 use envs::tasks::ObsSpec;
 use envs::tasks::observation::{ENTITY_CENTRE, ENTITY_GOAL};
@@ -56,7 +66,27 @@ pub struct EntityGraph {
     /// Entity each agent is assigned to `[B*A]` (index within the scene; Reach: its ball,
     /// Sumo: its opponent, for both teams' agents), [`UNASSIGNED`] for none.
     pub agent_entity: Vec<usize>,
+    /// Neighbour slots per agent (module docs).
+    pub slots: usize,
+    /// Each agent's neighbours `[B*A*slots]` (entity indices within the scene, module docs),
+    /// [`UNASSIGNED`] for an empty slot.
+    pub neighbours: Vec<usize>,
+    /// The assignment of every scene `[B*m]`: for each object of the builder's view (balls,
+    /// or the opponents), the index of its agent among the viewing team's agents, or
+    /// [`NO_AGENT`] (empty when the method is `none`).
+    pub assignment: Vec<u32>,
 }
+
+impl EntityGraph {
+    /// Neighbour `slot` of agent `a` in scene `b` (an entity index, or [`UNASSIGNED`]).
+    pub fn neighbour(&self, b: usize, a: usize, slot: usize) -> usize {
+        let na = self.agent_entity.len() / self.batch.max(1);
+        self.neighbours[(b * na + a) * self.slots + slot]
+    }
+}
+
+/// An object without an agent in [`EntityGraph::assignment`].
+pub const NO_AGENT: u32 = u32::MAX;
 
 /// Builds [`EntityGraph`]s for one scene layout, one assignment method and one team's view.
 #[derive(Clone, Debug)]
@@ -153,6 +183,21 @@ impl GraphBuilder {
         self.team
     }
 
+    /// Objects per scene in the builder's view (the width of one scene's
+    /// [`EntityGraph::assignment`]; 0 with the method `none`).
+    pub fn assignment_width(&self) -> usize {
+        if self.method == AssignmentMethod::None { 0 } else { self.objects.len() }
+    }
+
+    /// Neighbour slots per agent (module docs).
+    pub fn slots(&self) -> usize {
+        match (self.method, self.task) {
+            (AssignmentMethod::None, _) => self.n_entities - 1,
+            (_, GraphTask::Reach) => 1,
+            (_, GraphTask::Sumo { .. }) => 2,
+        }
+    }
+
     /// The most directed edges one scene's graph can have (the output lists are reserved
     /// for this many per scene, so that they never grow while a batch is built).
     pub fn max_edges_per_scene(&self) -> usize {
@@ -170,7 +215,34 @@ impl GraphBuilder {
     /// The graph of every scene of `entities` (positions from
     /// [`crate::input::InputProcessor::entities`]).
     pub fn build<T: Float>(&mut self, entities: &EntityInputs<T>) -> Result<EntityGraph> {
+        self.build_with(entities, None)
+    }
+
+    /// [`GraphBuilder::build`], with the assignment of every scene given (`[B*m]`, as
+    /// [`EntityGraph::assignment`] returns it) instead of solved or drawn; `None` solves it.
+    /// A given assignment must match the batch and be one-to-one.
+    pub fn build_with<T: Float>(&mut self, entities: &EntityInputs<T>, fixed: Option<&[u32]>) -> Result<EntityGraph> {
         let (nb, ne, na) = (entities.batch, self.n_entities, self.n_agents);
+        let (n, m) = (self.own.len(), self.objects.len());
+        if let Some(f) = fixed {
+            let width = self.assignment_width();
+            if f.len() != nb * width {
+                return Err(ModelError::Input(format!(
+                    "a given assignment of {} entries for {nb} scenes x {width} objects",
+                    f.len()
+                )));
+            }
+            for (b, scene) in f.chunks(width.max(1)).enumerate() {
+                for (j, &i) in scene.iter().enumerate() {
+                    let repeated = scene[..j].contains(&i);
+                    if i != NO_AGENT && (i as usize >= n || repeated) {
+                        return Err(ModelError::Input(format!(
+                            "given assignment of scene {b}: object {j} to agent {i} (agents 0..{n}, one object each)"
+                        )));
+                    }
+                }
+            }
+        }
         if entities.entities != ne || entities.positions.len() != nb * ne {
             return Err(ModelError::Input(format!(
                 "entity inputs of {} entities per scene ({} positions) for a graph of {ne} entities \
@@ -180,14 +252,17 @@ impl GraphBuilder {
             )));
         }
         let cap = nb * self.max_edges_per_scene();
+        let slots = self.slots();
         let mut graph = EntityGraph {
             batch: nb,
             entities: ne,
             edges: EdgeList { src: Vec::with_capacity(cap), dst: Vec::with_capacity(cap), num_nodes: nb * ne },
             group: Vec::with_capacity(nb * ne),
             agent_entity: Vec::with_capacity(nb * na),
+            slots,
+            neighbours: Vec::with_capacity(nb * na * slots),
+            assignment: Vec::with_capacity(nb * self.assignment_width()),
         };
-        let (n, m) = (self.own.len(), self.objects.len());
         for b in 0..nb {
             let pos = &entities.positions[b * ne..(b + 1) * ne];
             self.adj.fill(false);
@@ -206,7 +281,15 @@ impl GraphBuilder {
                         self.dist[i * m + j] = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
                     }
                 }
-                self.assigner.assign(self.method, &self.dist, n, m, &mut self.out, &mut self.rng);
+                match fixed {
+                    Some(f) => {
+                        for (o, &i) in self.out.iter_mut().zip(&f[b * m..(b + 1) * m]) {
+                            *o = if i == NO_AGENT { UNASSIGNED } else { i as usize };
+                        }
+                    }
+                    None => self.assigner.assign(self.method, &self.dist, n, m, &mut self.out, &mut self.rng),
+                }
+                graph.assignment.extend(self.out.iter().map(|&i| if i == UNASSIGNED { NO_AGENT } else { i as u32 }));
                 for (j, &i) in self.out.iter().enumerate() {
                     if i == UNASSIGNED {
                         continue;
@@ -232,6 +315,15 @@ impl GraphBuilder {
                     if i != j && self.adj[i * ne + j] {
                         graph.edges.src.push(b * ne + i);
                         graph.edges.dst.push(b * ne + j);
+                    }
+                }
+            }
+            for a in 0..na {
+                match (self.method, self.task) {
+                    (AssignmentMethod::None, _) => graph.neighbours.extend((0..ne).filter(|&e| e != a)),
+                    (_, GraphTask::Reach) => graph.neighbours.push(graph.agent_entity[a0 + a]),
+                    (_, GraphTask::Sumo { centre }) => {
+                        graph.neighbours.extend([graph.agent_entity[a0 + a], centre]);
                     }
                 }
             }

@@ -20,6 +20,8 @@ use nn::{Bound, EdgeList, Linear, Mlp, Scope};
 use tensor::{Activation, Float, Tensor, Var};
 
 use crate::assignment::UNASSIGNED;
+use crate::config::NeighbourOffset;
+use crate::critic::critic_order;
 use crate::entity_graph::GraphBuilder;
 use crate::error::{ModelError, Result};
 use crate::input::{ENTITY_SCALARS, InputProcessor, NODE_VECTORS, ObsBatch, ObsElement};
@@ -134,6 +136,7 @@ pub struct Hnn {
     proc: InputProcessor,
     graph: GraphBuilder,
     frame: HnnFrame,
+    neighbour: NeighbourOffset,
     mp: ScalarMp,
     heads: Vec<Mlp>,
     critic: Mlp,
@@ -147,6 +150,11 @@ impl Hnn {
         self.graph.reseed(seed);
     }
 
+    /// The task-assignment graph builder.
+    pub(crate) fn graph(&self) -> &GraphBuilder {
+        &self.graph
+    }
+
     /// Builds the entity stage under `entity`, one head per agent under `actor.<a>` and the
     /// critic under `critic` of scope `s`.
     #[allow(clippy::too_many_arguments)]
@@ -155,6 +163,7 @@ impl Hnn {
         proc: InputProcessor,
         graph: GraphBuilder,
         frame: HnnFrame,
+        neighbour: NeighbourOffset,
         sizes: ScalarMpSizes,
         head_hidden: &[usize],
         critic_hidden: &[usize],
@@ -169,20 +178,19 @@ impl Hnn {
             v
         };
         let mut actor = s.sub("actor");
+        let slots = if neighbour == NeighbourOffset::None { 0 } else { graph.slots() };
         let heads = agents
             .iter()
             .map(|&a| {
-                let k = 1 + spec.agent_dof[a];
+                let k = 1 + spec.agent_dof[a] + slots;
                 let sz = widths(k * (3 * NODE_VECTORS + N_SCALARS) + sizes.scalars, head_hidden, 2 * spec.agent_dof[a]);
                 Mlp::new(&mut actor.sub(a), &sz, Activation::Relu)
             })
             .collect::<nn::Result<Vec<_>>>()?;
         let ne = spec.entity_root_node.len();
         let critic = Mlp::new(&mut s.sub("critic"), &widths(ne * sizes.scalars, critic_hidden, 1), Activation::Relu)?;
-        let mut critic_entities = agents.to_vec();
-        critic_entities.extend((0..spec.n_agents).filter(|a| !agents.contains(a)));
-        critic_entities.extend(spec.n_agents..ne);
-        Ok(Self { proc, graph, frame, mp, heads, critic, critic_entities })
+        let critic_entities = critic_order(spec, agents);
+        Ok(Self { proc, graph, frame, neighbour, mp, heads, critic, critic_entities })
     }
 
     /// Policy and value (module docs).
@@ -193,11 +201,12 @@ impl Hnn {
         heading: &[S],
         agents: &[usize],
         spec: &ObsSpec,
+        fixed: Option<&[u32]>,
     ) -> Result<PolicyOutput<'t, T>> {
         let tape = p.tape();
         let (nb, na) = (obs.batch, spec.n_agents);
         let inputs = self.proc.entities::<T, S>(obs)?;
-        let graph = self.graph.build(&inputs)?;
+        let graph = self.graph.build_with(&inputs, fixed)?;
         // Per agent and scene the horizontal frame (sin, cos).
         let frame_of = |a: usize, b: usize| -> (f64, f64) {
             let yaw: f64 = heading[b * na + a].into();
@@ -217,7 +226,7 @@ impl Hnn {
         // Entity stage in the frame of the team's first agent.
         let ne = inputs.entities;
         let first: Vec<(f64, f64)> = (0..nb).map(|b| frame_of(agents[0], b)).collect();
-        let z = rotate_blocks(&inputs.z, ne, &first)?;
+        let z = rotate_blocks(&self.proc.actor_entities(&inputs, &graph, agents, self.neighbour)?, ne, &first)?;
         let n = nb * ne;
         let zv = tape.constant(z.reshape(&[n, 3, NODE_VECTORS])?);
         let pos = zv.narrow(2, 0, 1)?.reshape(&[n, 3])?;
@@ -225,15 +234,25 @@ impl Hnn {
         let h = self.mp.forward(p, x0, pos, &graph.edges)?;
         // Body heads: own nodes in the agent's frame, with h'_a.
         let bodies = self.proc.bodies(obs, &inputs, &graph.agent_entity, agents)?;
+        let neighbours = match self.neighbour {
+            NeighbourOffset::None => Vec::new(),
+            offset => self.proc.neighbours(obs, &graph, &bodies, offset)?,
+        };
         let mut out = Vec::with_capacity(agents.len());
-        for (body, head) in bodies.iter().zip(&self.heads) {
-            let (a, k) = (body.agent, body.z.shape()[1]);
+        for (i, (body, head)) in bodies.iter().zip(&self.heads).enumerate() {
+            let a = body.agent;
             let dof = spec.agent_dof[a];
+            let (mut z, mut hb) = (tape.constant(body.z.clone()), tape.constant(body.h.clone()));
+            if let Some(nr) = neighbours.get(i) {
+                z = tape.cat(&[z, tape.constant(nr.z.clone())], 1)?;
+                hb = tape.cat(&[hb, tape.constant(nr.h.clone())], 1)?;
+            }
+            let k = z.shape()[1];
             let frames: Vec<(f64, f64)> = (0..nb).map(|b| frame_of(a, b)).collect();
-            let zb = rotate_blocks(&body.z, k, &frames)?.reshape(&[nb, k * 3 * NODE_VECTORS])?;
-            let hb = body.h.reshape(&[nb, k * N_SCALARS])?;
+            let zb = rotate_blocks(&z.value(), k, &frames)?.reshape(&[nb, k * 3 * NODE_VECTORS])?;
+            let hb = hb.reshape(&[nb, k * N_SCALARS])?;
             let ha = h.index_select(0, &inputs.rows_of(a))?;
-            let hidden = head.forward_hidden_parts(p, &[tape.constant(zb), tape.constant(hb), ha])?;
+            let hidden = head.forward_hidden_parts(p, &[tape.constant(zb), hb, ha])?;
             out.push(AgentPolicy {
                 agent: a,
                 loc: head.forward_output_columns(p, hidden, 0, dof)?,
@@ -243,6 +262,6 @@ impl Hnn {
         let rows: Vec<usize> = (0..nb).flat_map(|b| self.critic_entities.iter().map(move |&e| b * ne + e)).collect();
         let s = h.shape()[1];
         let value = self.critic.forward(p, h.index_select(0, &rows)?.reshape(&[nb, ne * s])?)?.reshape(&[nb])?;
-        Ok(PolicyOutput { agents: out, value })
+        Ok(PolicyOutput { agents: out, value, assignment: graph.assignment })
     }
 }

@@ -16,12 +16,30 @@
 //! With [`EntityAbstraction::Mean`] an agent's vectors (and the position used for `c`, the
 //! assignment and the body origin) are the means over all its nodes instead of its root's.
 //!
+//! # The actor's entities
+//! [`InputProcessor::actor_entities`]: with [`Translation::Assigned`] the origin of every
+//! entity follows Algorithm 1's labels (`C(i) = i` for an agent, `C(j) = i` for the object
+//! `j` assigned to agent `i`): the viewing team's agents sit at their own origin (position
+//! 0), an assigned object at `p_{j,1} - p_{i,1}` (scaled to a unit direction with
+//! [`NeighbourOffset::Unit`], as the reference release's actor does), and any other entity
+//! (an object left without an agent, Sumo's centre ball) at `p - c`. Other translation
+//! modes keep `p - c` (or world positions).
+//!
 //! # Bodies
 //! Per agent `a` (for the body-level heads and the frame transform of eq. (lrf)): its own
 //! nodes (root, then one per actuated DoF in action order), `Z_{a,k}` `[B, K_a, 3, 3]` and
 //! `h_{a,k}` `[B, K_a, N_SCALARS]`, `K_a = 1 + dof_a`. With [`Translation::Assigned`] the
-//! positions are relative to the root of the entity the agent is assigned to,
-//! `p_{a,k} - p_{C(a),1}` (eq. (lrf)), or to `c` when it has none.
+//! positions are relative to the agent's own root, `p_{a,k} - p_{C(a),1} = p_{a,k} -
+//! p_{a,1}` (eq. (lrf) with Algorithm 1's labels); with [`Translation::AssignedEntity`]
+//! (this project's earlier reading) relative to the root of the entity the agent is
+//! assigned to, or to `c` when it has none.
+//!
+//! # Neighbours
+//! [`InputProcessor::neighbours`]: per agent the rows `Z_{j,1}`, `h_{j,1}` of its neighbours
+//! `j ∈ N(i)` in the graph's slots ([`crate::entity_graph`]), positions relative to the
+//! agent's body origin (`p_{j,1} - p_{C(j),1} = p_{j,1} - p_{i,1}` under
+//! [`Translation::Assigned`], unit-scaled with [`NeighbourOffset::Unit`]); an empty slot is
+//! a row of zeros.
 //!
 //! Observations are read through [`ObsBatch`], generic over `f32` (what the environments
 //! produce) and `f64` (exact equivariance tests); all arithmetic is in `f64` and the outputs
@@ -31,7 +49,12 @@ use envs::tasks::{N_SCALARS, ObsSpec, Observation};
 use tensor::{Float, Tensor};
 
 use crate::assignment::UNASSIGNED;
+use crate::config::NeighbourOffset;
+use crate::entity_graph::EntityGraph;
 use crate::error::{ModelError, Result};
+
+/// `eps` of the unit direction `d / (|d| + eps)` (the reference release's `normalize_vector`).
+pub const UNIT_EPS: f64 = 1e-6;
 
 /// Scalars per entity: the root's [`N_SCALARS`] plus its height.
 pub const ENTITY_SCALARS: usize = N_SCALARS + 1;
@@ -117,10 +140,14 @@ pub enum Translation {
     RootMean,
     /// Entities and bodies relative to the mean position of all nodes ("dense body mean").
     BodyMean,
-    /// Entities relative to `c`, each agent's bodies relative to the root of its assigned
-    /// entity (eq. (lrf); SHNN's choice).
+    /// Origins by Algorithm 1's labels (eq. (lrf), the paper's "relative positions in
+    /// assignment", `c = p_{C(i),1}`): an agent's bodies relative to its own root, an
+    /// assigned object relative to its agent's root (module docs). SHNN's choice.
     #[default]
     Assigned,
+    /// Entities relative to `c`, each agent's bodies relative to the root of the entity it is
+    /// assigned to (this project's earlier reading of eq. (lrf)).
+    AssignedEntity,
 }
 
 impl Translation {
@@ -131,8 +158,9 @@ impl Translation {
             "root_mean" => Ok(Self::RootMean),
             "body_mean" => Ok(Self::BodyMean),
             "assigned" => Ok(Self::Assigned),
+            "assigned_entity" => Ok(Self::AssignedEntity),
             _ => Err(ModelError::Option(format!(
-                "unknown translation `{s}` (expected none, root_mean, body_mean or assigned)"
+                "unknown translation `{s}` (expected none, root_mean, body_mean, assigned or assigned_entity)"
             ))),
         }
     }
@@ -144,6 +172,7 @@ impl Translation {
             Self::RootMean => "root_mean",
             Self::BodyMean => "body_mean",
             Self::Assigned => "assigned",
+            Self::AssignedEntity => "assigned_entity",
         }
     }
 }
@@ -209,6 +238,16 @@ impl<T: Float> EntityInputs<T> {
         let (p, o) = (self.positions[b * self.entities + e], self.origin[b]);
         [p[0] + o[0], p[1] + o[1], p[2] + o[2]]
     }
+}
+
+/// One agent's neighbour rows (eq. (lrf), module docs).
+#[derive(Clone, Debug)]
+pub struct NeighbourRows<T: Float> {
+    /// `Z_{j,1}` `[B, S, 3, 3]` (spatial rows; position relative to the agent's body origin,
+    /// velocity, angular velocity), zeros for an empty slot.
+    pub z: Tensor<T>,
+    /// `h_{j,1}` `[B, S, N_SCALARS]`, zeros for an empty slot.
+    pub h: Tensor<T>,
 }
 
 /// One agent's body-level inputs.
@@ -324,7 +363,7 @@ impl InputProcessor {
         let mut add = |p: [f64; 3]| (0..3).for_each(|k| c[k] += p[k]);
         let count = match self.translation {
             Translation::None => return c,
-            Translation::RootMean | Translation::Assigned => {
+            Translation::RootMean | Translation::Assigned | Translation::AssignedEntity => {
                 let ne = self.n_entities();
                 (0..ne).for_each(|e| add(self.entity_vec(obs, b, e, 0)));
                 ne
@@ -374,9 +413,10 @@ impl InputProcessor {
     /// Body-level inputs of `agents` (indices into the scene's agents). `agent_entity`
     /// `[B*A]` is the entity each agent is assigned to in each scene
     /// ([`crate::entity_graph::EntityGraph::agent_entity`]; [`UNASSIGNED`] for none); it is
-    /// only read with [`Translation::Assigned`], where an agent's positions are relative to
-    /// that entity's root (or to `c` when unassigned). `entities` must come from the same
-    /// observations.
+    /// only read with [`Translation::AssignedEntity`], where an agent's positions are
+    /// relative to that entity's root (or to `c` when unassigned). With
+    /// [`Translation::Assigned`] they are relative to the agent's own root. `entities` must
+    /// come from the same observations.
     pub fn bodies<T: Float, S: ObsElement>(
         &self,
         obs: &ObsBatch<'_, S>,
@@ -392,7 +432,7 @@ impl InputProcessor {
                 entities.batch, entities.entities
             )));
         }
-        if self.translation == Translation::Assigned && agent_entity.len() != nb * na {
+        if self.translation == Translation::AssignedEntity && agent_entity.len() != nb * na {
             return Err(ModelError::Input(format!(
                 "{} assigned entities for {nb} scenes x {na} agents",
                 agent_entity.len()
@@ -414,7 +454,8 @@ impl InputProcessor {
             let mut origin = Vec::with_capacity(nb);
             for b in 0..nb {
                 let o = match self.translation {
-                    Translation::Assigned => match agent_entity[b * na + a] {
+                    Translation::Assigned => entities.world_position(b, a),
+                    Translation::AssignedEntity => match agent_entity[b * na + a] {
                         UNASSIGNED => entities.origin[b],
                         e => entities.world_position(b, e),
                     },
@@ -442,5 +483,112 @@ impl InputProcessor {
             });
         }
         Ok(out)
+    }
+
+    /// The actor's entity features (module docs, "The actor's entities"): `entities.z` with
+    /// the position channel re-based by Algorithm 1's labels under [`Translation::Assigned`]
+    /// (`own` are the viewing team's agents, `graph` the batch's assignment graph); a copy
+    /// of `entities.z` otherwise.
+    pub fn actor_entities<T: Float>(
+        &self,
+        entities: &EntityInputs<T>,
+        graph: &EntityGraph,
+        own: &[usize],
+        offset: NeighbourOffset,
+    ) -> Result<Tensor<T>> {
+        if self.translation != Translation::Assigned {
+            return Ok(entities.z.clone());
+        }
+        let (nb, ne, na) = (entities.batch, entities.entities, self.spec.n_agents);
+        if graph.batch != nb || graph.entities != ne || graph.agent_entity.len() != nb * na {
+            return Err(ModelError::Input(format!(
+                "entity graph of {} x {} entities for inputs of {nb} x {ne}",
+                graph.batch, graph.entities
+            )));
+        }
+        let mut z = entities.z.to_vec();
+        for b in 0..nb {
+            for e in 0..ne {
+                let rel = if own.contains(&e) {
+                    [0.0; 3]
+                } else if let Some(&a) = own.iter().find(|&&a| graph.agent_entity[b * na + a] == e) {
+                    let (pe, pa) = (entities.positions[b * ne + e], entities.positions[b * ne + a]);
+                    scale_offset([pe[0] - pa[0], pe[1] - pa[1], pe[2] - pa[2]], offset)
+                } else {
+                    entities.positions[b * ne + e]
+                };
+                for (r, x) in rel.iter().enumerate() {
+                    z[((b * ne + e) * 3 + r) * NODE_VECTORS] = T::from_f64(*x);
+                }
+            }
+        }
+        Ok(Tensor::new(z, &[nb * ne, 3, NODE_VECTORS])?)
+    }
+
+    /// The neighbour rows of every agent of `bodies` (module docs, "Neighbours"), in the
+    /// slots of `graph`, positions relative to each body's origin.
+    pub fn neighbours<T: Float, S: ObsElement>(
+        &self,
+        obs: &ObsBatch<'_, S>,
+        graph: &EntityGraph,
+        bodies: &[AgentBody<T>],
+        offset: NeighbourOffset,
+    ) -> Result<Vec<NeighbourRows<T>>> {
+        obs.check(&self.spec)?;
+        let (nb, ns) = (obs.batch, graph.slots);
+        let unit = self.translation == Translation::Assigned;
+        let mut out = Vec::with_capacity(bodies.len());
+        for body in bodies {
+            if body.origin.len() != nb || graph.batch != nb {
+                return Err(ModelError::Input(format!(
+                    "neighbours of agent {} for {nb} scenes from a body of {} and a graph of {}",
+                    body.agent,
+                    body.origin.len(),
+                    graph.batch
+                )));
+            }
+            let mut z = tensor::pool::with_capacity(nb * ns * 9);
+            let mut h = tensor::pool::with_capacity(nb * ns * N_SCALARS);
+            for b in 0..nb {
+                for slot in 0..ns {
+                    let j = graph.neighbour(b, body.agent, slot);
+                    if j == UNASSIGNED {
+                        z.extend(std::iter::repeat_n(T::ZERO, 9));
+                        h.extend(std::iter::repeat_n(T::ZERO, N_SCALARS));
+                        continue;
+                    }
+                    let node = *self
+                        .spec
+                        .entity_root_node
+                        .get(j)
+                        .ok_or_else(|| ModelError::Input(format!("neighbour entity {j} out of range")))?;
+                    let (p, v, w) = (obs.vec3(b, node, 0), obs.vec3(b, node, 1), obs.vec3(b, node, 2));
+                    let o = body.origin[b];
+                    let d = [p[0] - o[0], p[1] - o[1], p[2] - o[2]];
+                    let d = if unit { scale_offset(d, offset) } else { d };
+                    for r in 0..3 {
+                        z.extend([d[r], v[r], w[r]].map(T::from_f64));
+                    }
+                    h.extend((0..N_SCALARS).map(|s| T::from_f64(obs.scalar(b, node, s))));
+                }
+            }
+            out.push(NeighbourRows {
+                z: Tensor::new(z, &[nb, ns, 3, NODE_VECTORS])?,
+                h: Tensor::new(h, &[nb, ns, N_SCALARS])?,
+            });
+        }
+        Ok(out)
+    }
+}
+
+/// An assigned object's offset from its agent as the actor reads it: a unit direction
+/// `d / (|d| + UNIT_EPS)` ([`NeighbourOffset::Unit`]) or raw.
+pub fn scale_offset(d: [f64; 3], offset: NeighbourOffset) -> [f64; 3] {
+    match offset {
+        NeighbourOffset::Unit => {
+            let n = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt() + UNIT_EPS;
+            d.map(|x| x / n)
+        }
+        NeighbourOffset::Raw | NeighbourOffset::None => d,
     }
 }

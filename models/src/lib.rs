@@ -11,6 +11,8 @@
 
 pub mod assignment;
 pub mod body_gnn;
+pub mod config;
+pub mod critic;
 pub mod distribution;
 pub mod entity_graph;
 pub mod entity_mp;
@@ -18,14 +20,18 @@ pub mod error;
 pub mod frame;
 pub mod hnn;
 pub mod input;
+pub mod mlp;
 pub mod policy;
+pub mod shnn;
 pub mod transformer_head;
 
 pub use assignment::{Assigner, AssignmentMethod, UNASSIGNED, distance_matrix};
 pub use body_gnn::{BodyGnn, BodyGnnConfig};
-pub use entity_graph::{EntityGraph, GraphBuilder, GraphTask};
+pub use config::{CriticKind, GravityMode, MlpVariant, NeighbourOffset, OPTION_KEYS};
+pub use critic::{SubeqCritic, ValueHead};
+pub use entity_graph::{EntityGraph, GraphBuilder, GraphTask, NO_AGENT};
 pub use entity_mp::{EntityFeatures, EntityMp, EntityMpConfig};
 pub use error::{ModelError, Result};
-pub use input::{AgentBody, EntityAbstraction, EntityInputs, InputProcessor, ObsBatch, Translation};
-pub use policy::{AgentPolicy, MODEL_NAMES, Model, ModelConfig, MpSizes, PolicyOutput};
+pub use input::{AgentBody, EntityAbstraction, EntityInputs, InputProcessor, NeighbourRows, ObsBatch, Translation};
+pub use policy::{AgentPolicy, MODEL_NAMES, Model, ModelConfig, MpSizes, ParamCounts, PolicyOutput};
 pub use transformer_head::TransformerHead;

@@ -6,10 +6,11 @@
 //! One token per node: a shared `Linear` embeds each node's features to the model width,
 //! a [`TransformerEncoder`] mixes the tokens, and a shared `Linear` decoder maps every
 //! output token, concatenated with the token's own input features (`condition_decoder`),
-//! to two numbers: `loc` and `scale` of the DoF that node actuates. The same parameters
-//! serve every node and every morphology (the paper: "Transformer and GNN can share
-//! parameters across different morphologies, they have fewer parameters"), so one head
-//! serves all of a team's agents.
+//! to a few numbers: as an actor (`σ_π`) two, `loc` and `scale` of the DoF that node
+//! actuates; as a critic (`σ_V`, [`crate::critic::ValueHead`]) one per token, averaged into
+//! the value. The same parameters serve every node and every morphology (the paper:
+//! "Transformer and GNN can share parameters across different morphologies, they have fewer
+//! parameters"), so one head serves all of a team's agents.
 
 use nn::{Bound, Linear, Scope, TransformerConfig, TransformerEncoder};
 use tensor::{Float, Var};
@@ -17,32 +18,54 @@ use tensor::{Float, Var};
 use crate::error::{ModelError, Result};
 
 /// Embedding, Transformer encoder and per-node decoder (module docs). Parameters under
-/// its scope: `embed.*` (`F -> D`), `encoder.layers.<i>.*`, `decoder.*` (`D + F -> 2`).
+/// its scope: `embed.*` (`F -> D`), `encoder.layers.<i>.*`, `decoder.*` (`D + F -> outputs`).
 #[derive(Clone, Debug)]
 pub struct TransformerHead {
     /// Token embedding `F -> D`.
     pub embed: Linear,
     /// The encoder (no positional encoding: permuting tokens permutes the outputs).
     pub encoder: TransformerEncoder,
-    /// Per-node decoder on `[encoder output, token features]` -> `(loc, scale)`.
+    /// Per-node decoder on `[encoder output, token features]` -> `outputs` numbers.
     pub decoder: Linear,
     /// Token width `F`.
     pub features: usize,
 }
 
 impl TransformerHead {
-    /// A head for tokens of `features` values with the encoder sizes `cfg`.
-    pub fn new<T: Float>(s: &mut Scope<'_, T>, features: usize, cfg: TransformerConfig) -> Result<Self> {
-        if features == 0 {
-            return Err(ModelError::Option("a Transformer head needs at least one feature per token".into()));
+    /// A head for tokens of `features` values, `outputs` numbers per token (2 for an actor,
+    /// 1 for a critic), with the encoder sizes `cfg`.
+    pub fn new<T: Float>(
+        s: &mut Scope<'_, T>,
+        features: usize,
+        outputs: usize,
+        cfg: TransformerConfig,
+    ) -> Result<Self> {
+        if features == 0 || outputs == 0 {
+            return Err(ModelError::Option(format!(
+                "a Transformer head needs features and outputs per token (got {features} and {outputs})"
+            )));
         }
         cfg.validate()?;
         Ok(Self {
             embed: Linear::new(&mut s.sub("embed"), features, cfg.model_dim)?,
             encoder: TransformerEncoder::new(&mut s.sub("encoder"), cfg)?,
-            decoder: Linear::new(&mut s.sub("decoder"), cfg.model_dim + features, 2)?,
+            decoder: Linear::new(&mut s.sub("decoder"), cfg.model_dim + features, outputs)?,
             features,
         })
+    }
+
+    /// Every token's outputs `[B, N, outputs]` for `tokens: [B, N, F]`.
+    pub fn forward_all<'t, T: Float>(&self, p: &Bound<'t, T>, tokens: Var<'t, T>) -> Result<Var<'t, T>> {
+        let shape = tokens.shape();
+        if shape.len() != 3 || shape[2] != self.features || shape[1] == 0 {
+            return Err(ModelError::Input(format!(
+                "Transformer head of {} features got tokens {shape:?}",
+                self.features
+            )));
+        }
+        let x = self.embed.forward(p, tokens)?;
+        let y = self.encoder.forward(p, x, None)?;
+        Ok(self.decoder.forward(p, p.tape().cat(&[y, tokens], 2)?)?)
     }
 
     /// `tokens: [B, N, F]`; returns `loc`, `scale` `[B, len]` of the tokens
@@ -61,6 +84,9 @@ impl TransformerHead {
                 self.features,
                 start + len
             )));
+        }
+        if self.decoder.fan_out != 2 {
+            return Err(ModelError::Input("this Transformer head is a critic (one output per token)".into()));
         }
         let nb = shape[0];
         let x = self.embed.forward(p, tokens)?;

@@ -78,21 +78,27 @@ fn run_stage(
     let bodies = proc.bodies(&obs, &inputs, &graph.agent_entity, &own).unwrap();
     let tape = Tape::new();
     let p = store.bind(&tape);
-    let f = mp.forward_inputs(&p, &inputs, &graph).unwrap();
+    let z = proc.actor_entities(&inputs, &graph, &own, models::NeighbourOffset::Unit).unwrap();
+    let f = mp.forward_inputs(&p, z, &inputs, &graph).unwrap();
+    let (frame, u) = (f.frame.unwrap(), f.u.unwrap());
+    let neighbours = proc.neighbours(&obs, &graph, &bodies, models::NeighbourOffset::Unit).unwrap();
     let mut local_bodies = Vec::new();
-    for body in &bodies {
-        // The frame of agent a in every scene, repeated over its K nodes.
-        let k = body.z.shape()[1];
-        let rows: Vec<usize> = inputs.rows_of(body.agent).into_iter().flat_map(|r| std::iter::repeat_n(r, k)).collect();
-        let o = f.frame.index_select(0, &rows).unwrap();
-        let z = tape.constant(body.z.reshape(&[B * k, 3, 3]).unwrap());
-        local_bodies.push(to_frame(o, z).unwrap().value().to_vec());
+    for (body, nr) in bodies.iter().zip(&neighbours) {
+        // The frame of agent a in every scene, repeated over its K nodes and its neighbours.
+        for z in [&body.z, &nr.z] {
+            let k = z.shape()[1];
+            let rows: Vec<usize> =
+                inputs.rows_of(body.agent).into_iter().flat_map(|r| std::iter::repeat_n(r, k)).collect();
+            let o = frame.index_select(0, &rows).unwrap();
+            let z = tape.constant(z.reshape(&[B * k, 3, 3]).unwrap());
+            local_bodies.push(to_frame(o, z).unwrap().value().to_vec());
+        }
     }
     Stage {
         z: f.z.value().to_vec(),
         h: f.h.value().to_vec(),
-        u: f.u.value().to_vec(),
-        frame: f.frame.value().to_vec(),
+        u: u.value().to_vec(),
+        frame: frame.value().to_vec(),
         bodies_h: bodies.iter().map(|b| b.h.to_vec()).collect(),
         local_bodies,
         inputs,
@@ -184,22 +190,53 @@ fn translation_modes() {
         let d = max_diff(&run(&vectors), &run(&moved));
         assert_eq!(d < 1e-12, invariant, "{}: {d}", mode.name());
     }
-    // Assigned: an agent's root position is measured from its ball's centre.
-    let proc = InputProcessor::new(&spec, Translation::Assigned).unwrap();
-    let obs = ObsBatch::new(B, spec.n_nodes, &vectors, &scalars).unwrap();
-    let e = proc.entities::<f64, f64>(&obs).unwrap();
-    let g = GraphBuilder::new(&spec, AssignmentMethod::Greedy, 0, 0).unwrap().build(&e).unwrap();
-    let bodies = proc.bodies(&obs, &e, &g.agent_entity, &[0, 1]).unwrap();
-    for (a, body) in bodies.iter().enumerate() {
-        for b in 0..B {
-            let ball = g.agent_entity[b * 2 + a];
-            assert!(ball >= 2, "every agent of 2_ants has a ball");
-            let root = obs.vec3(b, spec.agent_root_node[a], 0);
-            let centre = obs.vec3(b, spec.entity_root_node[ball], 0);
-            let z = body.z.to_vec();
-            let k = body.z.shape()[1];
-            for r in 0..3 {
-                assert!((z[(b * k) * 9 + r * 3] - (root[r] - centre[r])).abs() < 1e-12);
+    // AssignedEntity (the earlier reading): an agent's root position is measured from its
+    // ball's centre. Assigned (Algorithm 1's labels): from its own root, and the actor's
+    // entity rows put the agent at 0 and its ball at the unit direction from it; the
+    // neighbour row is that ball, at the same unit direction (raw: the offset itself).
+    for mode in [Translation::AssignedEntity, Translation::Assigned] {
+        let proc = InputProcessor::new(&spec, mode).unwrap();
+        let obs = ObsBatch::new(B, spec.n_nodes, &vectors, &scalars).unwrap();
+        let e = proc.entities::<f64, f64>(&obs).unwrap();
+        let g = GraphBuilder::new(&spec, AssignmentMethod::Greedy, 0, 0).unwrap().build(&e).unwrap();
+        let bodies = proc.bodies(&obs, &e, &g.agent_entity, &[0, 1]).unwrap();
+        let actor = proc.actor_entities(&e, &g, &[0, 1], models::NeighbourOffset::Unit).unwrap().to_vec();
+        let unit = proc.neighbours(&obs, &g, &bodies, models::NeighbourOffset::Unit).unwrap();
+        let raw = proc.neighbours(&obs, &g, &bodies, models::NeighbourOffset::Raw).unwrap();
+        let ne = spec.entity_root_node.len();
+        for (a, body) in bodies.iter().enumerate() {
+            for b in 0..B {
+                let ball = g.agent_entity[b * 2 + a];
+                assert!(ball >= 2, "every agent of 2_ants has a ball");
+                assert_eq!(g.neighbour(b, a, 0), ball);
+                let root = obs.vec3(b, spec.agent_root_node[a], 0);
+                let centre = obs.vec3(b, spec.entity_root_node[ball], 0);
+                let d: Vec<f64> = (0..3).map(|r| centre[r] - root[r]).collect();
+                let len = d.iter().map(|x| x * x).sum::<f64>().sqrt();
+                let z = body.z.to_vec();
+                let k = body.z.shape()[1];
+                for r in 0..3 {
+                    let expected = if mode == Translation::Assigned { 0.0 } else { root[r] - centre[r] };
+                    assert!((z[(b * k) * 9 + r * 3] - expected).abs() < 1e-12, "{mode:?}");
+                    if mode == Translation::Assigned {
+                        assert_eq!(actor[((b * ne + a) * 3 + r) * 3], 0.0);
+                        let dir = d[r] / (len + models::input::UNIT_EPS);
+                        assert!((actor[((b * ne + ball) * 3 + r) * 3] - dir).abs() < 1e-12);
+                        assert!((unit[a].z.to_vec()[b * 9 + r * 3] - dir).abs() < 1e-12);
+                        assert!((raw[a].z.to_vec()[b * 9 + r * 3] - d[r]).abs() < 1e-12);
+                        // Velocities unchanged.
+                        assert_eq!(
+                            unit[a].z.to_vec()[b * 9 + r * 3 + 1],
+                            obs.vec3(b, spec.entity_root_node[ball], 1)[r]
+                        );
+                    }
+                }
+                if mode == Translation::Assigned {
+                    let h = unit[a].h.to_vec();
+                    for sc in 0..10 {
+                        assert_eq!(h[b * 10 + sc], obs.scalar(b, spec.entity_root_node[ball], sc));
+                    }
+                }
             }
         }
     }
@@ -460,6 +497,9 @@ fn entity_stage_gradients() {
         distance: EdgeDistance::Raw,
         aggregation: Aggregation::Mean,
         gravity: Some([0.0, 0.0, -1.0]),
+        edge_scalars: 0,
+        gravity_in_layers: true,
+        frame: true,
     };
     let mut store = ParamStore::<f64>::new();
     let mp = EntityMp::new(&mut store.scope("entity", &mut nn::init_rng(2)), config).unwrap();
@@ -498,9 +538,9 @@ fn stage_output<'t>(
     v: &[tensor::Var<'t, f64>],
 ) -> tensor::Result<tensor::Var<'t, f64>> {
     let p = Bound::from_vars(v[..np].to_vec());
-    let f = mp.forward(&p, v[np], v[np + 1], edges).expect("entity stage");
+    let f = mp.forward(&p, v[np], v[np + 1], edges, None).expect("entity stage");
     let flat = |x: tensor::Var<'t, f64>| x.reshape(&[x.value().numel()]);
-    tape.cat(&[flat(f.z)?, flat(f.h)?, flat(f.frame)?], 0)
+    tape.cat(&[flat(f.z)?, flat(f.h)?, flat(f.frame.expect("a frame"))?], 0)
 }
 
 #[test]
@@ -508,17 +548,20 @@ fn entity_mp_parameters_are_named_and_counted() {
     let (spec, _, _) = observations("team_reach/2_ants", 1);
     let (store, mp) = paper_model(&spec, 0);
     let (m, s, hd) = (32, 64, 64);
-    // embed_z [3 + g, m]; embed_h 11 -> s; W1 [2m + 1 + g, m]; MLP_e [m^2 + 2s + 1, hd, hd,
-    // m^2 + s]; W2 [2m + g, m]; MLP_n [m^2 + 2s, hd, hd, m^2 + s]; W_u [m, 1].
+    // The release's actor stage: embed_z [3 + g, m]; embed_h `hs` -> s; W1 [2m + 1, m] (the
+    // edge vector, no g); MLP_e [m^2 + 2s, hd, hd, m^2 + s] (no edge scalar); W2 [2m, m];
+    // MLP_n [m^2 + 2s, hd, hd, m^2 + s]; W_u [m, 1].
     let mlp = |i: usize| i * hd + hd + hd * hd + hd + hd * (m * m + s) + m * m + s;
-    let expected =
-        4 * m + 11 * s + s + (2 * m + 2) * m + mlp(m * m + 2 * s + 1) + (2 * m + 1) * m + mlp(m * m + 2 * s) + m;
-    assert_eq!(store.num_elements(), expected);
-    assert_eq!(expected, 302_528);
+    let count =
+        |hs: usize| 4 * m + hs * s + s + (2 * m + 1) * m + mlp(m * m + 2 * s) + 2 * m * m + mlp(m * m + 2 * s) + m;
+    assert_eq!(store.num_elements(), count(11));
+    // With the release's 9 scalars per node (10 with the height) this is the stage of its
+    // 771,916-parameter SHNN policy on 3_ant_claw_centipede (the heads are the rest).
+    assert_eq!(count(10), 302_336);
     assert_eq!(store.names()[0], "entity.embed_z.weight");
     assert!(store.names().iter().all(|n| n.starts_with("entity.")));
-    assert_eq!(store.num_elements_under("entity.mp"), expected - 4 * m - 11 * s - s - m);
-    assert_eq!(mp.config.steps, 2);
+    assert_eq!(store.num_elements_under("entity.mp"), count(11) - 4 * m - 11 * s - s - m);
+    assert_eq!(mp.config.steps, 1);
     // Bad sizes are errors.
     let mut cfg = EntityMpConfig::paper(&spec);
     cfg.steps = 0;

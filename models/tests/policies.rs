@@ -11,7 +11,7 @@ use std::cell::RefCell;
 
 use envs::tasks::{BUILTIN_NAMES, ObsSpec, StartMode, VecEnv};
 use models::input::{InputProcessor, ObsBatch};
-use models::policy::{MODEL_NAMES, PLANNED_MODELS};
+use models::policy::MODEL_NAMES;
 use models::{
     AssignmentMethod, EntityAbstraction, GraphBuilder, Model, ModelConfig, MpSizes, PolicyOutput, Translation,
 };
@@ -298,31 +298,48 @@ fn unknown_names_and_options_are_errors_listing_the_known_ones() {
         Model::new(&mut store.scope("m", &mut init), c, &spec, team).unwrap_err().to_string()
     };
     let e = err(&ModelConfig::new("resnet"), 0);
-    for name in MODEL_NAMES.iter().chain(&PLANNED_MODELS) {
+    for name in MODEL_NAMES.iter() {
         assert!(e.contains(name), "{e}");
     }
-    let e = err(&ModelConfig { assignment: Some(AssignmentMethod::Hungarian), ..ModelConfig::new("mlp") }, 0);
-    assert!(e.contains("assignment") && e.contains("shnn"), "{e}");
+    let e =
+        err(&ModelConfig { assignment: Some(AssignmentMethod::Hungarian), ..ModelConfig::new("transformer_hn") }, 0);
+    assert!(e.contains("assignment") && e.contains("transformer_hn"), "{e}");
+    let flat = ModelConfig { variant: Some(models::MlpVariant::Flat), ..ModelConfig::new("mlp") };
+    let e = err(&ModelConfig { assignment: Some(AssignmentMethod::Hungarian), ..flat }, 0);
+    assert!(e.contains("assignment") && e.contains("variant"), "{e}");
+    let e = err(&ModelConfig { critic: Some(models::CriticKind::Shared), ..ModelConfig::new("hnn") }, 0);
+    assert!(e.contains("critic"), "{e}");
+    let e = err(&ModelConfig { gravity: Some(models::GravityMode::EveryLayer), ..ModelConfig::new("shnn_so3") }, 0);
+    assert!(e.contains("gravity"), "{e}");
     assert!(err(&ModelConfig::new("shnn"), 1).contains("team 1"));
     assert!(err(&ModelConfig { head_hidden: Some(vec![]), ..ModelConfig::new("mlp_hn") }, 0).contains("hidden"));
     let e = err(&ModelConfig { head_hidden: Some(vec![8]), ..ModelConfig::new("shtransformer") }, 0);
-    assert!(e.contains("head") && e.contains("Transformer"), "{e}");
+    assert!(e.contains("head") && e.contains("shtransformer"), "{e}");
     let e = err(&ModelConfig { translation: Some(Translation::None), ..ModelConfig::new("transformer_hn") }, 0);
-    assert!(e.contains("translation") && e.contains("shtransformer"), "{e}");
+    assert!(e.contains("translation") && e.contains("none"), "{e}");
     // Parsing.
-    let c = ModelConfig::parse("shnn:assignment=hungarian;translation=root_mean;abstraction=mean;seed=4;head=32x16")
-        .unwrap();
+    let c = ModelConfig::parse(
+        "shnn:assignment=hungarian;translation=root_mean;abstraction=mean;seed=4;head=32x16;neighbour=raw;\
+         critic=shared;gravity=every_layer;actor_steps=2;critic_hidden=8",
+    )
+    .unwrap();
     assert_eq!(c.assignment, Some(AssignmentMethod::Hungarian));
     assert_eq!(c.translation, Some(Translation::RootMean));
     assert_eq!(c.abstraction, Some(EntityAbstraction::Mean));
     assert_eq!((c.seed, c.head_hidden.clone()), (4, Some(vec![32, 16])));
+    assert_eq!(c.neighbour, Some(models::NeighbourOffset::Raw));
+    assert_eq!(c.critic, Some(models::CriticKind::Shared));
+    assert_eq!(c.gravity, Some(models::GravityMode::EveryLayer));
+    assert_eq!((c.actor_steps, c.critic_hidden.clone()), (Some(2), Some(vec![8])));
     assert!(Model::new(&mut store.scope("ok", &mut init), &c, &spec, 0).is_ok());
     let msg = |s: &str| ModelConfig::parse(s).unwrap_err().to_string();
     let e = msg("shnn:depth=3");
-    assert!(
-        ["assignment", "translation", "abstraction", "seed", "head", "critic"].iter().all(|k| e.contains(k)),
-        "{e}"
-    );
+    assert!(models::OPTION_KEYS.iter().all(|k| e.contains(k)), "{e}");
+    assert!(msg("shnn:critic=big").contains("separate"));
+    assert!(msg("shnn:neighbour=far").contains("unit"));
+    assert!(msg("shnn:gravity=up").contains("every_layer"));
+    assert!(msg("shnn:actor_steps=0").contains("positive"));
+    assert!(msg("mlp:variant=deep").contains("release"));
     let e = msg("shnn:assignment=best");
     assert!(["greedy", "hungarian", "stochastic", "none"].iter().all(|k| e.contains(k)), "{e}");
     assert!(msg("shnn:translation=x").contains("body_mean"));
@@ -372,7 +389,7 @@ fn shnn_so3_message_passing_is_equivariant_under_any_rotation_with_fixed_scalars
             let tape = Tape::new();
             let p = store.bind(&tape);
             let z0 = tape.constant(Tensor::new(z, inputs.z.shape()).unwrap());
-            let f = mp.forward(&p, z0, tape.constant(inputs.h.clone()), &graph.edges).unwrap();
+            let f = mp.forward(&p, z0, tape.constant(inputs.h.clone()), &graph.edges, None).unwrap();
             (f.z.value().to_vec(), f.h.value().to_vec())
         };
         let (z, h) = stage(inputs.z.to_vec());
@@ -395,34 +412,123 @@ fn shnn_so3_message_passing_is_equivariant_under_any_rotation_with_fixed_scalars
     );
 }
 
+/// Parameters of an MLP with layer sizes `sizes` (weights and biases).
+fn mlp_params(sizes: &[usize]) -> usize {
+    sizes.windows(2).map(|w| w[0] * w[1] + w[1]).sum()
+}
+
+/// The counts that follow from the structures and widths (m = 32 vectors, s = 64 scalars,
+/// hidden 64 x 2, heads 256, 256; `ns` scalars per node, `ns + 1` per entity), written out
+/// here independently of the code, for team 0 of a Reach scene whose agents have `ks` nodes
+/// (`K_a`) and `ne` entities.
+struct Counts {
+    ns: usize,
+    ks: Vec<usize>,
+    ne: usize,
+}
+
+impl Counts {
+    const M: usize = 32;
+    const S: usize = 64;
+    const HD: usize = 64;
+
+    /// One subequivariant message-passing layer: W1 `[2m + 1 + g, m]`, MLP_e, W2
+    /// `[2m + g, m]`, MLP_n.
+    fn mp_layer(edge_scalars: usize, g: usize) -> usize {
+        let (m, s, hd) = (Self::M, Self::S, Self::HD);
+        (2 * m + 1 + g) * m
+            + mlp_params(&[m * m + 2 * s + edge_scalars, hd, hd, m * m + s])
+            + (2 * m + g) * m
+            + mlp_params(&[m * m + 2 * s, hd, hd, m * m + s])
+    }
+
+    /// The actor's entity stage (embeddings, one layer, W_u).
+    fn entity(&self, edge_scalars: usize, g: usize) -> usize {
+        let (m, s) = (Self::M, Self::S);
+        4 * m + (self.ns + 1) * s + s + Self::mp_layer(edge_scalars, g) + m
+    }
+
+    /// SHNN's heads on `[(K_a + slots) rows of 3c + ns, h'_a]`.
+    fn shnn_heads(&self, c: usize, slots: usize) -> usize {
+        self.ks.iter().map(|&k| mlp_params(&[(k + slots) * (3 * c + self.ns) + Self::S, 256, 256, 2 * (k - 1)])).sum()
+    }
+
+    /// The separate critic: its stage (no W_u; 64 RBF + 2 edge types) and MLP on `ne` h'.
+    fn critic(&self) -> usize {
+        let (m, s) = (Self::M, Self::S);
+        4 * m + (self.ns + 1) * s + s + Self::mp_layer(66, 0) + mlp_params(&[self.ne * s, 256, 256, 1])
+    }
+
+    /// The release's MLP: node embeddings and per-agent heads on `K_a + 2` rows of 128.
+    fn mlp_policy(&self) -> usize {
+        let embed = (9 * 64 + 64) + (self.ns * 64 + 64);
+        embed + self.ks.iter().map(|&k| mlp_params(&[(k + 2) * 128, 256, 256, 2 * (k - 1)])).sum::<usize>()
+    }
+
+    /// The release MLP's critic.
+    fn mlp_critic(&self) -> usize {
+        (9 * 64 + 64) + (self.ns * 64 + 64) + mlp_params(&[self.ne * 128, 256, 256, 1])
+    }
+
+    /// A Transformer head for `f` token features and `out` outputs per token.
+    fn transformer(f: usize, out: usize) -> usize {
+        (f + 1) * 128 + 3 * 132_480 + (128 + f + 1) * out
+    }
+}
+
 /// The parameter counts of the table in `docs/ARCHITECTURE.md` ("Policies and critics"),
-/// team 0 of `team_reach/3_ant_claw_centipede` (all three agents), with every part.
+/// team 0 of `team_reach/3_ant_claw_centipede` (all three agents), part by part, against
+/// the counts the structures imply; and those counts with the release's widths give the
+/// release's own figures.
 #[test]
 fn parameter_counts_of_the_docs_table() {
     let (spec, ..) = observations("team_reach/3_ant_claw_centipede", 1, 0);
-    // (model, total, entity stage, actor, critic)
+    let ks: Vec<usize> = (0..3).map(|a| 1 + spec.agent_dof[a]).collect();
+    assert_eq!(ks, [9, 17, 15]);
+    // The release's node rows carry 9 scalars (18 features with the 9 vector components)
+    // for SHNN and 10 for its MLP; its policies are 771,916 and 1,759,116 parameters (the
+    // paper's Table: SHNN 0.772M, MLP+HN 1.759M).
+    let release_shnn = Counts { ns: 9, ks: ks.clone(), ne: 6 };
+    assert_eq!(release_shnn.entity(0, 0) + release_shnn.shnn_heads(3, 1), 771_916);
+    let c = Counts { ns: 10, ks, ne: 6 };
+    assert_eq!(c.mlp_policy(), 1_759_116);
+    let (m, s) = (Counts::M, Counts::S);
+    let gnn = 4 * m + (10 + s + 1) * s + s + Counts::mp_layer(1, 0) + mlp_params(&[3 * m + s, 2]);
+    let hnn_entity = mlp_params(&[9 + 11, s]) + mlp_params(&[2 * s + 3, 64, 64, s]) + mlp_params(&[2 * s, 64, 64, s]);
+    let hnn_heads: usize = c.ks.iter().map(|&k| mlp_params(&[(k + 1) * 19 + s, 256, 256, 2 * (k - 1)])).sum();
+    let flat_heads: usize =
+        (0..3).map(|a| mlp_params(&[spec.agent_view(a).len() * 19, 256, 256, 256, 2 * (c.ks[a] - 1)])).sum();
+    // (model, entity stage, actor, critic)
     let expected = [
-        ("shnn", 933_389, 302_528, 466_252, 164_609),
-        ("shnn_og3", 1_846_541, 302_528, 1_379_404, 164_609),
-        ("shnn_so3", 933_293, 302_432, 466_252, 164_609),
-        ("mlp", 1_033_549, 0, 687_436, 346_113),
-        ("mlp_hn", 1_033_549, 0, 687_436, 346_113),
-        ("transformer_hn", 746_409, 0, 400_296, 346_113),
-        ("shtransformer", 875_753, 302_528, 408_616, 164_609),
-        ("shgnn", 778_915, 302_528, 311_778, 164_609),
-        ("hnn", 665_549, 34_688, 466_252, 164_609),
-        ("hnn_hn", 665_549, 34_688, 466_252, 164_609),
-        ("hnn_dn", 665_549, 34_688, 466_252, 164_609),
+        ("shnn", c.entity(0, 0), c.shnn_heads(3, 1), c.critic()),
+        ("shnn_og3", c.entity(0, 0), c.shnn_heads(m, 1), c.critic()),
+        ("shnn_so3", c.entity(0, 0) - m, c.shnn_heads(3, 1), c.critic() - m),
+        ("mlp", 0, c.mlp_policy(), c.mlp_critic()),
+        ("mlp_hn", 0, c.mlp_policy(), c.mlp_critic()),
+        ("mlp_hn:variant=flat", 0, flat_heads, mlp_params(&[spec.n_nodes * 19, 256, 256, 256, 1])),
+        ("transformer_hn", 0, Counts::transformer(19, 2), Counts::transformer(19, 1)),
+        (
+            "shtransformer",
+            c.entity(0, 0),
+            Counts::transformer(3 * 3 + 10 + s, 2),
+            c.critic() - mlp_params(&[6 * s, 256, 256, 1]) + Counts::transformer(s, 1),
+        ),
+        ("shgnn", c.entity(0, 0), gnn, c.critic()),
+        ("shnn:critic=shared", c.entity(0, 0), c.shnn_heads(3, 1), mlp_params(&[6 * s, 256, 256, 1])),
+        ("shnn:neighbour=none;translation=assigned_entity", c.entity(1, 0), c.shnn_heads(3, 0), c.critic()),
+        ("shnn:gravity=every_layer", c.entity(0, 1), c.shnn_heads(3, 1), c.critic() + 2 * m),
+        ("shnn:neighbour=raw", c.entity(1, 0), c.shnn_heads(3, 1), c.critic()),
+        ("hnn", hnn_entity, hnn_heads, mlp_params(&[6 * s, 256, 256, 1])),
+        ("hnn_dn", hnn_entity, hnn_heads, mlp_params(&[6 * s, 256, 256, 1])),
     ];
-    // One Transformer encoder (128/256/3/2) is 3 x 132,480 parameters.
-    let encoder = 3 * 132_480;
-    for (name, total, entity, actor, critic) in expected {
-        let (store, model) = build(&ModelConfig::new(name), &spec, 0, 0);
+    for (name, entity, actor, critic) in expected {
+        let (store, model) = build(&ModelConfig::parse(name).unwrap(), &spec, 0, 0);
         let part = |p: &str| store.num_elements_under(&format!("team.{p}"));
-        let got = (model.num_params(&store), part("entity."), part("actor."), part("critic."));
-        assert_eq!(got, (total, entity, actor, critic), "{name}: update the table in docs/ARCHITECTURE.md");
-        if name.contains("transformer") {
-            assert_eq!(part("actor.encoder."), encoder, "{name}");
-        }
+        let got = (part("entity."), part("actor."), part("critic."));
+        assert_eq!(got, (entity, actor, critic), "{name}: update the table in docs/ARCHITECTURE.md");
+        let counts = model.param_counts(&store);
+        assert_eq!((counts.policy, counts.critic), (entity + actor, critic), "{name}");
+        assert_eq!(model.num_params(&store), entity + actor + critic, "{name}");
+        eprintln!("{name}: policy {} critic {} (entity {entity}, actor {actor})", counts.policy, counts.critic);
     }
 }

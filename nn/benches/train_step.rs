@@ -109,6 +109,7 @@ fn shnn_step(rng: &mut ChaCha8Rng) {
             distance: EdgeDistance::Raw,
             aggregation: Aggregation::Mean,
             gravity: None, // g is the 4th input channel, mixed in by We
+            edge_scalars: 0,
         };
         let mp = SubeqMessagePassing::new(&mut s.sub("mp"), cfg).unwrap();
         let wu = Linear::with_options(&mut s.sub("Wu"), 32, 1, false, Init::LecunUniform).unwrap();

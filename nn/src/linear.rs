@@ -144,6 +144,35 @@ impl Mlp {
         Ok(h)
     }
 
+    /// [`Mlp::forward`] of `cat(parts, last axis)` without building the concatenation (also
+    /// for a single layer, which then has no activation).
+    pub fn forward_parts<'t, T: Float>(&self, p: &Bound<'t, T>, parts: &[Var<'t, T>]) -> Result<Var<'t, T>> {
+        if self.layers.len() > 1 {
+            let h = self.forward_hidden_parts(p, parts)?;
+            return self.layers[self.layers.len() - 1].forward(p, h);
+        }
+        let only = &self.layers[0];
+        let w = p.get(only.weight);
+        let (mut offset, mut terms) = (0, Vec::with_capacity(parts.len()));
+        for &part in parts {
+            let width = *part.shape().last().ok_or_else(|| NnError::Config("an MLP input part has no dims".into()))?;
+            if offset + width > only.fan_in {
+                break;
+            }
+            terms.push((part, w.narrow(0, offset, width)?));
+            offset += width;
+        }
+        if offset != only.fan_in || terms.len() != parts.len() {
+            return Err(NnError::Config(format!(
+                "MLP input parts of widths {:?} for a layer of {} inputs",
+                parts.iter().map(|x| x.shape().last().copied().unwrap_or(0)).collect::<Vec<_>>(),
+                only.fan_in
+            )));
+        }
+        let b = only.bias.map(|b| p.get(b));
+        Ok(w.tape().linear_sum(&terms, b, Activation::Identity)?)
+    }
+
     /// Applies every layer but the last (each followed by the activation): the features the
     /// output layer reads.
     pub fn forward_hidden<'t, T: Float>(&self, p: &Bound<'t, T>, x: Var<'t, T>) -> Result<Var<'t, T>> {

@@ -3,7 +3,9 @@
 //!
 //! For an edge `i -> j` with relative position `e = x_j - x_i`:
 //! - `Z_ij = [Z_i | Z_j | e (| g)] W1` (eq. vector-interaction, mixed to `m` channels),
-//! - `h_ij = [h_i, h_j, |e| or RBF(|e|)]` (eq. scalar-interaction),
+//! - `h_ij = [h_i, h_j, |e| or RBF(|e|), s_ij]` (eq. scalar-interaction; `s_ij` are optional
+//!   invariant edge scalars the caller supplies, e.g. the reference release's critic's RBF
+//!   expansion of the distance and an edge-type one-hot),
 //! - `(M_ij, m_ij) = φ_g(Z_ij, h_ij)` (eq. message-mlp): `c = MLP_e([Z_ij^T Z_ij, h_ij]) / (||Z_ij^T Z_ij|| + 1)`,
 //!   `M_ij = Z_ij c_vec`, `m_ij = c_scalar`,
 //! - `M_i, m_i` = mean (or sum) over the edges leaving `i` (eq. message-aggregation),
@@ -117,8 +119,11 @@ pub struct MessagePassingConfig {
     pub distance: EdgeDistance,
     /// Message aggregation.
     pub aggregation: Aggregation,
-    /// Gravity channel appended before each mixing (`None`: full O(3) equivariance).
+    /// Gravity channel appended before each mixing (`None`: no gravity inside the layer;
+    /// full O(3) equivariance unless the inputs carry it).
     pub gravity: Option<[f64; 3]>,
+    /// Invariant scalars per edge supplied by the caller ([`SubeqMessagePassing::forward_with`]).
+    pub edge_scalars: usize,
 }
 
 /// One round of subequivariant message passing (see the module documentation).
@@ -154,13 +159,15 @@ impl SubeqMessagePassing {
             v
         };
         let w1 = VectorLinear::new(&mut s.sub("w1"), 2 * m + 1 + g, m)?;
-        let mlp_e = Mlp::new(&mut s.sub("mlp_e"), &hidden(m * m + 2 * sc + config.distance.size()), Activation::Relu)?;
+        let edge_in = m * m + 2 * sc + config.distance.size() + config.edge_scalars;
+        let mlp_e = Mlp::new(&mut s.sub("mlp_e"), &hidden(edge_in), Activation::Relu)?;
         let w2 = VectorLinear::new(&mut s.sub("w2"), 2 * m + g, m)?;
         let mlp_n = Mlp::new(&mut s.sub("mlp_n"), &hidden(m * m + 2 * sc), Activation::Relu)?;
         Ok(Self { w1, mlp_e, w2, mlp_n, config })
     }
 
-    /// One round: `z: [N, 3, m]`, `h: [N, s]`, positions `x: [N, 3, 1]` -> updated `(z, h)`.
+    /// One round: `z: [N, 3, m]`, `h: [N, s]`, positions `x: [N, 3, 1]` -> updated `(z, h)`
+    /// (a layer built with `edge_scalars: 0`).
     pub fn forward<'t, T: Float>(
         &self,
         p: &Bound<'t, T>,
@@ -168,6 +175,21 @@ impl SubeqMessagePassing {
         h: Var<'t, T>,
         x: Var<'t, T>,
         edges: &EdgeList,
+    ) -> Result<(Var<'t, T>, Var<'t, T>)> {
+        self.forward_with(p, z, h, x, edges, None)
+    }
+
+    /// [`SubeqMessagePassing::forward`] with the caller's invariant edge scalars
+    /// `edge_scalars: [E, config.edge_scalars]` appended to `h_ij` (`None` when the layer
+    /// takes none).
+    pub fn forward_with<'t, T: Float>(
+        &self,
+        p: &Bound<'t, T>,
+        z: Var<'t, T>,
+        h: Var<'t, T>,
+        x: Var<'t, T>,
+        edges: &EdgeList,
+        edge_scalars: Option<Var<'t, T>>,
     ) -> Result<(Var<'t, T>, Var<'t, T>)> {
         let cfg = &self.config;
         let (m, s) = (cfg.vectors, cfg.scalars);
@@ -193,6 +215,17 @@ impl SubeqMessagePassing {
             EdgeDistance::Raw => scalars.push(dist()?),
             EdgeDistance::Rbf(r) => scalars.push(r.forward(dist()?)?),
             EdgeDistance::None => {}
+        }
+        match edge_scalars {
+            Some(s) if cfg.edge_scalars > 0 && s.shape() == [e_cnt, cfg.edge_scalars] => scalars.push(s),
+            None if cfg.edge_scalars == 0 => {}
+            other => {
+                return Err(NnError::Config(format!(
+                    "message passing takes {} edge scalars for {e_cnt} edges; got {:?}",
+                    cfg.edge_scalars,
+                    other.map(|s| s.shape())
+                )));
+            }
         }
         // Messages (eq. message-mlp).
         let (mz, mh) = mix_by_invariants(p, &self.mlp_e, zij, &scalars, m, s)?;

@@ -97,6 +97,7 @@ fn mp(gravity: Option<[f64; 3]>) -> (ParamStore<f64>, SubeqMessagePassing) {
         distance: EdgeDistance::Rbf(nn::RadialBasis::new(8, 4.0).unwrap()),
         aggregation: Aggregation::Mean,
         gravity,
+        edge_scalars: 0,
     };
     let layer = SubeqMessagePassing::new(&mut store.scope("mp", &mut init), cfg).unwrap();
     (store, layer)

@@ -37,6 +37,33 @@ fn linear_and_mlp() {
 }
 
 #[test]
+fn mlp_forward_parts_equals_forward_of_the_concatenation() {
+    let mut r = rng(11);
+    for sizes in [vec![5, 2], vec![5, 4, 3, 2]] {
+        let mut store = ParamStore::<f64>::new();
+        let mlp = Mlp::new(&mut store.scope("mlp", &mut nn::init_rng(1)), &sizes, Activation::Relu).unwrap();
+        randomise_biases(&mut store, &mut r);
+        let (a, b) = (uniform(&mut r, &[4, 2]), uniform(&mut r, &[4, 3]));
+        let tape = tensor::Tape::new();
+        let p = store.bind(&tape);
+        let (va, vb) = (tape.constant(a), tape.constant(b));
+        let parts = mlp.forward_parts(&p, &[va, vb]).unwrap().value();
+        let whole = mlp.forward(&p, tape.cat(&[va, vb], 1).unwrap()).unwrap().value();
+        let diff = parts.data().iter().zip(whole.data()).map(|(x, y)| (x - y).abs()).fold(0.0, f64::max);
+        assert!(diff < 1e-12, "{sizes:?}: {diff}");
+        // Parts that do not add up to the input width are an error.
+        assert!(mlp.forward_parts(&p, &[va]).is_err(), "{sizes:?}");
+    }
+    // Gradients through the single-layer path (no activation), parameters and inputs.
+    let mut store = ParamStore::<f64>::new();
+    let lin = Mlp::new(&mut store.scope("m", &mut nn::init_rng(2)), &[5, 2], Activation::Relu).unwrap();
+    randomise_biases(&mut store, &mut r);
+    check_layer(&store, vec![uniform(&mut r, &[3, 2]), uniform(&mut r, &[3, 3])], |p, v| {
+        lin.forward_parts(p, &[v[0], v[1]])
+    });
+}
+
+#[test]
 fn radial_basis() {
     let mut r = rng(2);
     let rbf = RadialBasis::new(8, 3.0).unwrap();
@@ -92,10 +119,12 @@ fn subequivariant_function() {
 #[test]
 fn message_passing_sum_mean_raw_rbf() {
     let mut r = rng(5);
-    for (agg, dist) in [
-        (Aggregation::Mean, EdgeDistance::Raw),
-        (Aggregation::Sum, EdgeDistance::Rbf(RadialBasis::new(4, 2.0).unwrap())),
-        (Aggregation::Mean, EdgeDistance::None),
+    // The last case adds caller-supplied edge scalars (checked as an input too).
+    for (agg, dist, extra) in [
+        (Aggregation::Mean, EdgeDistance::Raw, 0),
+        (Aggregation::Sum, EdgeDistance::Rbf(RadialBasis::new(4, 2.0).unwrap()), 0),
+        (Aggregation::Mean, EdgeDistance::None, 0),
+        (Aggregation::Mean, EdgeDistance::Raw, 3),
     ] {
         let mut store = ParamStore::<f64>::new();
         let mut init = nn::init_rng(3);
@@ -107,18 +136,36 @@ fn message_passing_sum_mean_raw_rbf() {
             distance: dist,
             aggregation: agg,
             gravity: Some([0.0, 0.0, -1.0]),
+            edge_scalars: extra,
         };
         let mp = SubeqMessagePassing::new(&mut store.scope("mp", &mut init), cfg).unwrap();
         randomise_biases(&mut store, &mut r);
         // Two graphs of 3 nodes plus one isolated node (no edges: aggregation gives 0).
         let mut edges = EdgeList::fully_connected(2, 3);
         edges.num_nodes = 7;
-        let inputs = vec![uniform(&mut r, &[7, 3, 2]), uniform(&mut r, &[7, 2]), uniform(&mut r, &[7, 3, 1])];
+        let mut inputs = vec![uniform(&mut r, &[7, 3, 2]), uniform(&mut r, &[7, 2]), uniform(&mut r, &[7, 3, 1])];
+        if extra > 0 {
+            inputs.push(uniform(&mut r, &[edges.len(), extra]));
+        }
         check_layer(&store, inputs, |p, v| {
-            let (z, h) = mp.forward(p, v[0], v[1], v[2], &edges)?;
-            let (z, h) = mp.forward(p, z, h, v[2], &edges)?; // two rounds with shared weights
+            let s = v.get(3).copied();
+            let (z, h) = mp.forward_with(p, v[0], v[1], v[2], &edges, s)?;
+            let (z, h) = mp.forward_with(p, z, h, v[2], &edges, s)?; // two rounds with shared weights
             tensor_cat_sum(z, h)
         });
+        if extra > 0 {
+            // A missing or mis-shaped edge-scalar input is an error, not a panic.
+            let tape = tensor::Tape::new();
+            let p = store.bind(&tape);
+            let (z, h, x) = (
+                tape.constant(uniform(&mut r, &[7, 3, 2])),
+                tape.constant(uniform(&mut r, &[7, 2])),
+                tape.constant(uniform(&mut r, &[7, 3, 1])),
+            );
+            assert!(mp.forward(&p, z, h, x, &edges).is_err());
+            let wrong = tape.constant(uniform(&mut r, &[edges.len(), extra + 1]));
+            assert!(mp.forward_with(&p, z, h, x, &edges, Some(wrong)).is_err());
+        }
     }
 }
 

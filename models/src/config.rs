@@ -1,0 +1,321 @@
+//! Which model to build and its options ([`ModelConfig`]): the model names of the paper and
+//! the named options that keep every ablation runnable (`name:key=value;key=value`).
+//!
+//! Every option's default is the paper's model as its reference release builds it (the
+//! paper's equations and Algorithm 1 decide the structure; where the paper is silent the
+//! release decides); the other values are the ablations and this project's earlier variants.
+
+use crate::assignment::AssignmentMethod;
+use crate::error::{ModelError, Result};
+use crate::input::{EntityAbstraction, Translation};
+
+/// The models [`crate::Model::new`] builds.
+pub const MODEL_NAMES: [&str; 11] = [
+    "shnn",
+    "shnn_og3",
+    "shnn_so3",
+    "mlp",
+    "mlp_hn",
+    "transformer_hn",
+    "shtransformer",
+    "shgnn",
+    "hnn",
+    "hnn_hn",
+    "hnn_dn",
+];
+
+/// The option keys [`ModelConfig::parse`] accepts.
+pub const OPTION_KEYS: [&str; 11] = [
+    "assignment",
+    "translation",
+    "abstraction",
+    "neighbour",
+    "critic",
+    "gravity",
+    "actor_steps",
+    "variant",
+    "seed",
+    "head",
+    "critic_hidden",
+];
+
+/// Sizes of the entity-level message passing (paper Table "Hyperparameters of Network").
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct MpSizes {
+    /// Vector channels `m` (32).
+    pub vectors: usize,
+    /// Scalar features (64).
+    pub scalars: usize,
+    /// Hidden width of the message and update MLPs (64).
+    pub hidden: usize,
+    /// Hidden layers of those MLPs (2).
+    pub layers: usize,
+    /// Propagation steps of the critic's message passing and of the body GNN (2; the
+    /// actor's entity stage takes [`ModelConfig::actor_steps`]).
+    pub steps: usize,
+}
+
+impl Default for MpSizes {
+    /// The paper's sizes.
+    fn default() -> Self {
+        Self { vectors: 32, scalars: 64, hidden: 64, layers: 2, steps: 2 }
+    }
+}
+
+/// How the position of a neighbour's root enters the actor (eq. (lrf): the row
+/// `O_i^T Z_{j,1}, h_{j,1}` of the entity `j` assigned to agent `i`, position
+/// `p_{j,1} - p_{C(j),1} = p_{j,1} - p_{i,1}`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum NeighbourOffset {
+    /// The offset scaled to a unit direction, `d / (|d| + 1e-6)` (the reference release's
+    /// actor, `models/SHNN.py`); the entity stage then has no edge scalar (the distance of a
+    /// unit offset carries nothing).
+    #[default]
+    Unit,
+    /// The raw offset `p_{j,1} - p_{i,1}`, with its length as the edge scalar of eq.
+    /// (scalar-interaction).
+    Raw,
+    /// No neighbour row in the head (this project's earlier SHNN; with
+    /// `translation=assigned_entity` the agent's bodies are measured from the assigned
+    /// entity instead).
+    None,
+}
+
+impl NeighbourOffset {
+    /// Parses `unit`, `raw` or `none`.
+    pub fn parse(s: &str) -> Result<Self> {
+        match s {
+            "unit" => Ok(Self::Unit),
+            "raw" => Ok(Self::Raw),
+            "none" => Ok(Self::None),
+            _ => Err(ModelError::Option(format!("unknown neighbour `{s}` (expected unit, raw or none)"))),
+        }
+    }
+}
+
+/// Which value network the SHNN family uses.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum CriticKind {
+    /// Its own subequivariant network over all entities, then `σ_V` (the reference release:
+    /// `models/SHNN.py` with `out_dim == 1`; [`crate::critic::SubeqCritic`]).
+    #[default]
+    Separate,
+    /// `σ_V` on the actor's entity features `h'` (eq. (value) read literally; this
+    /// project's earlier critic).
+    Shared,
+}
+
+impl CriticKind {
+    /// Parses `separate` or `shared`.
+    pub fn parse(s: &str) -> Result<Self> {
+        match s {
+            "separate" => Ok(Self::Separate),
+            "shared" => Ok(Self::Shared),
+            _ => Err(ModelError::Option(format!("unknown critic `{s}` (expected separate or shared)"))),
+        }
+    }
+}
+
+/// Where the gravity direction enters the entity-level message passing.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum GravityMode {
+    /// Once, as a 4th input vector channel (the reference release; its counts, e.g. SHNN's
+    /// 0.772M, include no more).
+    #[default]
+    Input,
+    /// Also appended before every mixing inside each layer (eq. (subeq) read literally:
+    /// `[Z, g] M_g`; this project's earlier choice).
+    EveryLayer,
+}
+
+impl GravityMode {
+    /// Parses `input` or `every_layer`.
+    pub fn parse(s: &str) -> Result<Self> {
+        match s {
+            "input" => Ok(Self::Input),
+            "every_layer" => Ok(Self::EveryLayer),
+            _ => Err(ModelError::Option(format!("unknown gravity `{s}` (expected input or every_layer)"))),
+        }
+    }
+}
+
+/// Which network `mlp` and `mlp_hn` are.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum MlpVariant {
+    /// The release's MLP (`models/MLP.py`, the network of the paper's MLP+HN 1.759M):
+    /// per-node embeddings, then 256, 256 (module [`crate::mlp`]).
+    #[default]
+    Release,
+    /// This project's earlier baseline: 256 x 3 on the flat agent view.
+    Flat,
+}
+
+impl MlpVariant {
+    /// Parses `release` or `flat`.
+    pub fn parse(s: &str) -> Result<Self> {
+        match s {
+            "release" => Ok(Self::Release),
+            "flat" => Ok(Self::Flat),
+            _ => Err(ModelError::Option(format!("unknown variant `{s}` (expected release or flat)"))),
+        }
+    }
+}
+
+/// Which model to build and its options; `None` fields take the model's defaults.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct ModelConfig {
+    /// One of [`MODEL_NAMES`].
+    pub name: String,
+    /// Task assignment (SHNN, HNN and MLP models; default greedy, Algorithm 1).
+    pub assignment: Option<AssignmentMethod>,
+    /// Translation mode (SHNN and HNN models; default [`Translation::Assigned`], or
+    /// [`Translation::RootMean`] with `assignment=none`, the paper's "w/o assignment").
+    pub translation: Option<Translation>,
+    /// Entity abstraction (SHNN and HNN models; default [`EntityAbstraction::Root`]).
+    pub abstraction: Option<EntityAbstraction>,
+    /// The neighbour rows of eq. (lrf) (SHNN and HNN models; default [`NeighbourOffset::Unit`]).
+    pub neighbour: Option<NeighbourOffset>,
+    /// The value network (SHNN family; default [`CriticKind::Separate`]).
+    pub critic: Option<CriticKind>,
+    /// Gravity in the message passing (SHNN family but `shnn_so3`; default
+    /// [`GravityMode::Input`]).
+    pub gravity: Option<GravityMode>,
+    /// Rounds of the actor's entity-level message passing (SHNN family; default 1, the
+    /// release's actor).
+    pub actor_steps: Option<usize>,
+    /// The MLP baselines' network (default [`MlpVariant::Release`]).
+    pub variant: Option<MlpVariant>,
+    /// Entity message-passing sizes (SHNN family; default [`MpSizes::default`]).
+    pub mp: Option<MpSizes>,
+    /// Hidden widths of each agent's MLP head (default 256, 256; 256 x 3 for
+    /// `variant=flat`; the per-node decoder of `shgnn`, default none: a linear layer; not
+    /// an option of the Transformer models).
+    pub head_hidden: Option<Vec<usize>>,
+    /// Hidden widths of the critic MLP (default 256, 256; 256 x 3 for `variant=flat`; not an
+    /// option of the Transformer critics).
+    pub critic_hidden: Option<Vec<usize>>,
+    /// Seed of the stochastic assignment.
+    pub seed: u64,
+}
+
+impl ModelConfig {
+    /// The model `name` with its defaults (checked when the model is built).
+    pub fn new(name: &str) -> Self {
+        Self {
+            name: name.to_string(),
+            assignment: None,
+            translation: None,
+            abstraction: None,
+            neighbour: None,
+            critic: None,
+            gravity: None,
+            actor_steps: None,
+            variant: None,
+            mp: None,
+            head_hidden: None,
+            critic_hidden: None,
+            seed: 0,
+        }
+    }
+
+    /// Parses `name` or `name:key=value;key=value`, keys [`OPTION_KEYS`]: `assignment`
+    /// (`greedy`, `hungarian`, `stochastic`, `none`), `translation` (`none`, `root_mean`,
+    /// `body_mean`, `assigned`, `assigned_entity`), `abstraction` (`root`, `mean`),
+    /// `neighbour` (`unit`, `raw`, `none`), `critic` (`separate`, `shared`), `gravity`
+    /// (`input`, `every_layer`), `actor_steps` (a positive integer), `variant` (`release`,
+    /// `flat`), `seed` (integer), `head` and `critic_hidden` (hidden widths joined by `x`,
+    /// e.g. `256x256`). E.g. `shnn:assignment=hungarian;critic=shared`. Whether an option
+    /// applies to the model is checked when it is built.
+    pub fn parse(s: &str) -> Result<Self> {
+        let (name, opts) = s.split_once(':').unwrap_or((s, ""));
+        check_name(name)?;
+        let mut c = Self::new(name);
+        for item in opts.split(';').filter(|x| !x.is_empty()) {
+            let (k, v) = item.split_once('=').ok_or_else(|| {
+                ModelError::Option(format!("model option `{item}` is not key=value (keys: {})", OPTION_KEYS.join(", ")))
+            })?;
+            match k {
+                "assignment" => c.assignment = Some(AssignmentMethod::parse(v).map_err(ModelError::Option)?),
+                "translation" => c.translation = Some(Translation::parse(v)?),
+                "abstraction" => c.abstraction = Some(EntityAbstraction::parse(v)?),
+                "neighbour" => c.neighbour = Some(NeighbourOffset::parse(v)?),
+                "critic" => c.critic = Some(CriticKind::parse(v)?),
+                "gravity" => c.gravity = Some(GravityMode::parse(v)?),
+                "actor_steps" => {
+                    let n = v.parse::<usize>().ok().filter(|&n| n > 0);
+                    c.actor_steps =
+                        Some(n.ok_or_else(|| {
+                            ModelError::Option(format!("actor_steps `{v}` is not a positive integer"))
+                        })?);
+                }
+                "variant" => c.variant = Some(MlpVariant::parse(v)?),
+                "seed" => {
+                    c.seed = v.parse().map_err(|_| ModelError::Option(format!("seed `{v}` is not an integer")))?;
+                }
+                "head" => c.head_hidden = Some(parse_widths(v)?),
+                "critic_hidden" => c.critic_hidden = Some(parse_widths(v)?),
+                _ => {
+                    return Err(ModelError::Option(format!(
+                        "unknown model option `{k}` (known: {})",
+                        OPTION_KEYS.join(", ")
+                    )));
+                }
+            }
+        }
+        Ok(c)
+    }
+
+    /// The options that are set, as `(key, set)` pairs in [`OPTION_KEYS`] order (for the
+    /// "does not apply" checks).
+    pub(crate) fn set_options(&self) -> [(&'static str, bool); 10] {
+        [
+            ("assignment", self.assignment.is_some()),
+            ("translation", self.translation.is_some()),
+            ("abstraction", self.abstraction.is_some()),
+            ("neighbour", self.neighbour.is_some()),
+            ("critic", self.critic.is_some()),
+            ("gravity", self.gravity.is_some()),
+            ("actor_steps", self.actor_steps.is_some()),
+            ("variant", self.variant.is_some()),
+            ("head", self.head_hidden.is_some()),
+            ("critic_hidden", self.critic_hidden.is_some()),
+        ]
+    }
+
+    /// Errors naming the first option set here that is not in `allowed`.
+    pub(crate) fn check_options(&self, allowed: &[&str]) -> Result<()> {
+        if let Some((key, _)) = self.set_options().iter().find(|(k, set)| *set && !allowed.contains(k)) {
+            return Err(ModelError::Option(format!(
+                "model `{}` takes no option `{key}` (its options: {})",
+                self.name,
+                if allowed.is_empty() { "none".to_string() } else { allowed.join(", ") }
+            )));
+        }
+        Ok(())
+    }
+}
+
+fn parse_widths(v: &str) -> Result<Vec<usize>> {
+    let w: Vec<usize> = v
+        .split('x')
+        .map(|x| x.parse::<usize>().ok().filter(|&n| n > 0))
+        .collect::<Option<_>>()
+        .ok_or_else(|| ModelError::Option(format!("hidden widths `{v}` are not positive integers joined by x")))?;
+    Ok(w)
+}
+
+/// Checks a model name against [`MODEL_NAMES`].
+pub(crate) fn check_name(name: &str) -> Result<()> {
+    if MODEL_NAMES.contains(&name) {
+        return Ok(());
+    }
+    Err(ModelError::Option(format!("model `{name}` is unknown (known models: {})", MODEL_NAMES.join(", "))))
+}
+
+/// `[input, hidden.., output]`.
+pub(crate) fn layer_sizes(input: usize, hidden: &[usize], output: usize) -> Vec<usize> {
+    let mut v = vec![input];
+    v.extend_from_slice(hidden);
+    v.push(output);
+    v
+}

@@ -1,0 +1,204 @@
+//! The SHNN family's value network as the reference release builds it (`models/SHNN.py`
+//! with `out_dim == 1`; the paper's eq. (value), `V = σ_V({h'_i})`, with `h'` from a
+//! subequivariant network of its own):
+//!
+//! 1. every entity's root, positions relative to `c`, the mean of the roots (paper section 3,
+//!    "Input Processing"), `Z_i = [p_{i,1} - c, v_{i,1}, ω_{i,1}]`, `h_i = [h_{i,1}, p^z_{i,1}]`;
+//! 2. a fully connected entity graph (every ordered pair `i != j`), edge scalars: the
+//!    release's 64 radial-basis features of the distance (`DistanceRBF`: 62 Gaussians on
+//!    `10 d` with centres evenly spaced on `[0, 20]`, plus the flags `10 d < 0` and
+//!    `10 d >= 20`) and a 2-way edge-type one-hot (`[different kind, same kind]`; kinds:
+//!    Reach agent / ball, Sumo own agent / opponent / centre ball);
+//! 3. two rounds of the entity stage's message passing ([`EntityMp`], its own parameters,
+//!    no frame);
+//! 4. `σ_V`: an MLP (256, 256) on the concatenated `h'` of all entities, own agents first,
+//!    then the other agents, then the balls ([`ValueHead`]); or, for the Transformer models,
+//!    a Transformer over the `h'_i` as tokens (the paper: "the same backbone as Amorpheus and
+//!    MxT-Bench for σ_π in eq. (pi) and σ_V in eq. (value)").
+//!
+//! The edge scalars are computed once per batch from the observations (they are constants of
+//! the loss). Every input is invariant under rotations about `g` and translations, and the
+//! message passing is subequivariant, so the value is invariant.
+
+use envs::tasks::ObsSpec;
+use envs::tasks::observation::{ENTITY_CENTRE, N_SCALARS};
+use nn::{Aggregation, Bound, EdgeDistance, EdgeList, Mlp, Scope, TransformerConfig};
+use tensor::{Activation, Float, Tensor, Var};
+
+use crate::config::{GravityMode, MpSizes, layer_sizes};
+use crate::entity_mp::{EntityMp, EntityMpConfig};
+use crate::error::{ModelError, Result};
+use crate::input::{EntityAbstraction, EntityInputs, InputProcessor, ObsBatch, ObsElement, Translation};
+use crate::transformer_head::TransformerHead;
+
+/// Radial-basis features of the release's `DistanceRBF(num_channels=64)`.
+pub const RBF_FEATURES: usize = 64;
+/// Edge-type features (`[different kind, same kind]`).
+pub const EDGE_TYPES: usize = 2;
+
+/// The release's `DistanceRBF` of a distance `d` (module docs): `[10 d < 0, exp(coeff (10 d -
+/// o_k)^2) for the 62 offsets o_k = 20 k / 61, 10 d >= 20]`, `coeff = -0.5 / (20/61)^2`.
+pub fn release_rbf(d: f64) -> [f64; RBF_FEATURES] {
+    let n = RBF_FEATURES - 2;
+    let (start, stop) = (0.0, 20.0);
+    let spacing = (stop - start) / (n - 1) as f64;
+    let coeff = -0.5 / (spacing * spacing);
+    let x = 10.0 * d;
+    let mut out = [0.0; RBF_FEATURES];
+    out[0] = f64::from(u8::from(x < start));
+    for (k, o) in out[1..=n].iter_mut().enumerate() {
+        let y = x - (start + spacing * k as f64);
+        *o = (coeff * y * y).exp();
+    }
+    out[n + 1] = f64::from(u8::from(x >= stop));
+    out
+}
+
+/// `σ_V` of a critic: an MLP on the concatenated token features, or a Transformer over the
+/// tokens whose per-token outputs are averaged.
+#[derive(Clone, Debug)]
+pub enum ValueHead {
+    /// MLP on `[B, N * F]`.
+    Mlp(Mlp),
+    /// Transformer over `[B, N, F]`, one output per token, the value their mean.
+    Transformer(Box<TransformerHead>),
+}
+
+impl ValueHead {
+    /// An MLP for `tokens` tokens of `features` features (`hidden` widths), or a Transformer
+    /// (the paper's sizes) if `transformer`.
+    pub fn new<T: Float>(
+        s: &mut Scope<'_, T>,
+        tokens: usize,
+        features: usize,
+        hidden: &[usize],
+        transformer: bool,
+    ) -> Result<Self> {
+        Ok(if transformer {
+            Self::Transformer(Box::new(TransformerHead::new(s, features, 1, TransformerConfig::default())?))
+        } else {
+            Self::Mlp(Mlp::new(s, &layer_sizes(tokens * features, hidden, 1), Activation::Relu)?)
+        })
+    }
+
+    /// The value `[B]` of token features `x: [B, N, F]`.
+    pub fn forward<'t, T: Float>(&self, p: &Bound<'t, T>, x: Var<'t, T>) -> Result<Var<'t, T>> {
+        let s = x.shape();
+        let nb = s[0];
+        match self {
+            Self::Mlp(mlp) => Ok(mlp.forward(p, x.reshape(&[nb, s[1] * s[2]])?)?.reshape(&[nb])?),
+            Self::Transformer(head) => Ok(head.forward_all(p, x)?.reshape(&[nb, s[1]])?.mean(1, false)?),
+        }
+    }
+}
+
+/// The order of the entities in a critic's input from `agents`' team's view: own agents,
+/// the other agents, the balls.
+pub fn critic_order(spec: &ObsSpec, agents: &[usize]) -> Vec<usize> {
+    let ne = spec.entity_root_node.len();
+    let mut order = agents.to_vec();
+    order.extend((0..spec.n_agents).filter(|a| !agents.contains(a)));
+    order.extend(spec.n_agents..ne);
+    order
+}
+
+/// Each entity's kind for the edge types, from `team`'s view: Reach agent 0, ball 1; Sumo
+/// own agent 0, opponent 1, centre ball 2.
+pub fn entity_kinds(spec: &ObsSpec, team: usize) -> Vec<u8> {
+    let ne = spec.entity_root_node.len();
+    (0..ne)
+        .map(|e| {
+            if e < spec.n_agents {
+                u8::from(spec.agent_team[e] != team)
+            } else {
+                let node = spec.entity_root_node[e];
+                if spec.static_scalars[node * N_SCALARS + ENTITY_CENTRE] == 1.0 { 2 } else { 1 }
+            }
+        })
+        .collect()
+}
+
+/// The release's separate critic (module docs). Parameters under its scope:
+/// `entity.*` (the message passing) and `value.*` (`σ_V`).
+#[derive(Clone, Debug)]
+pub struct SubeqCritic {
+    proc: InputProcessor,
+    mp: EntityMp,
+    head: ValueHead,
+    order: Vec<usize>,
+    kinds: Vec<u8>,
+}
+
+impl SubeqCritic {
+    /// The critic of `agents` (the team `team`) for scenes laid out by `spec`: message-passing
+    /// sizes `sizes` (its `steps` rounds), gravity as `gravity` (`None`: the `SO(3)`
+    /// ablation), `σ_V` an MLP with `hidden` widths or a Transformer.
+    #[allow(clippy::too_many_arguments)]
+    pub fn new<T: Float>(
+        s: &mut Scope<'_, T>,
+        spec: &ObsSpec,
+        team: usize,
+        agents: &[usize],
+        sizes: MpSizes,
+        gravity: Option<GravityMode>,
+        hidden: &[usize],
+        transformer: bool,
+    ) -> Result<Self> {
+        let proc = InputProcessor::new(spec, Translation::RootMean)?.with_abstraction(EntityAbstraction::Root);
+        let g = spec.gravity_dir.map(f64::from);
+        let config = EntityMpConfig {
+            vectors: sizes.vectors,
+            scalars: sizes.scalars,
+            hidden: sizes.hidden,
+            layers: sizes.layers,
+            steps: sizes.steps,
+            distance: EdgeDistance::None,
+            edge_scalars: RBF_FEATURES + EDGE_TYPES,
+            aggregation: Aggregation::Mean,
+            gravity: gravity.map(|_| g),
+            gravity_in_layers: gravity == Some(GravityMode::EveryLayer),
+            frame: false,
+        };
+        let mp = EntityMp::new(&mut s.sub("entity"), config)?;
+        let ne = spec.entity_root_node.len();
+        let head = ValueHead::new(&mut s.sub("value"), ne, sizes.scalars, hidden, transformer)?;
+        Ok(Self { proc, mp, head, order: critic_order(spec, agents), kinds: entity_kinds(spec, team) })
+    }
+
+    /// The value `[B]` of a batch of observations.
+    pub fn forward<'t, T: Float, S: ObsElement>(&self, p: &Bound<'t, T>, obs: &ObsBatch<'_, S>) -> Result<Var<'t, T>> {
+        let inputs: EntityInputs<T> = self.proc.entities(obs)?;
+        let (nb, ne) = (inputs.batch, inputs.entities);
+        let edges = EdgeList::fully_connected(nb, ne);
+        let scalars = self.edge_scalars(&inputs, &edges)?;
+        let tape = p.tape();
+        let f = self.mp.forward(
+            p,
+            tape.constant(inputs.z.clone()),
+            tape.constant(inputs.h.clone()),
+            &edges,
+            Some(tape.constant(scalars)),
+        )?;
+        let rows: Vec<usize> = (0..nb).flat_map(|b| self.order.iter().map(move |&e| b * ne + e)).collect();
+        let s = f.h.shape()[1];
+        self.head.forward(p, f.h.index_select(0, &rows)?.reshape(&[nb, ne, s])?)
+    }
+
+    /// Radial-basis features and edge types of every edge `[E, RBF_FEATURES + EDGE_TYPES]`.
+    fn edge_scalars<T: Float>(&self, inputs: &EntityInputs<T>, edges: &EdgeList) -> Result<Tensor<T>> {
+        let ne = inputs.entities;
+        if ne == 0 || self.kinds.len() != ne {
+            return Err(ModelError::Input(format!("critic of {} entities got {ne}", self.kinds.len())));
+        }
+        let width = RBF_FEATURES + EDGE_TYPES;
+        let mut out = tensor::pool::with_capacity(edges.len() * width);
+        for (&i, &j) in edges.src.iter().zip(&edges.dst) {
+            let (pi, pj) = (inputs.positions[i], inputs.positions[j]);
+            let d = ((pj[0] - pi[0]).powi(2) + (pj[1] - pi[1]).powi(2) + (pj[2] - pi[2]).powi(2)).sqrt();
+            out.extend(release_rbf(d).map(T::from_f64));
+            let same = self.kinds[i % ne] == self.kinds[j % ne];
+            out.extend([T::from_f64(f64::from(u8::from(!same))), T::from_f64(f64::from(u8::from(same)))]);
+        }
+        Ok(Tensor::new(out, &[edges.len(), width])?)
+    }
+}

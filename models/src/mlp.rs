@@ -1,0 +1,384 @@
+//! The MLP baselines `mlp` and `mlp_hn` (paper appendix "Baselines": MLP, MLP+HN).
+//!
+//! # The release's MLP ([`ReleaseMlp`], the default)
+//! The network of the reference release's `models/MLP.py` (the file that produced the
+//! paper's MLP+HN 1.759M parameters):
+//! - per node, the 9 vector components (position, velocity, angular velocity) are embedded
+//!   to 64 and the scalars to 64, both affine (`embed_z`, `embed_h`, shared by the team's
+//!   agents);
+//! - agent `i`'s input rows are its own nodes (root first, then its DoF nodes), its own root
+//!   once more, and its neighbours' roots (the entity assigned to it by the task assignment:
+//!   Reach its ball; Sumo its opponent and the centre ball), positions relative to its own
+//!   root (`mlp_hn`: every vector in its heading frame); with `assignment=none` the rows are
+//!   its own nodes and every other entity's root (the paper's MLP-without-assignment
+//!   ablation);
+//! - per agent an MLP 256, 256 (ReLU) on the concatenated embeddings gives `loc`, `scale`
+//!   of its `K_i - 1` DoF ("3 linear layers" of the paper's Table "Hyperparameters of
+//!   Network");
+//! - the value network embeds every entity's root the same way (its own embeddings),
+//!   positions relative to the mean of the roots, concatenates them (own agents first) and
+//!   applies 256, 256, 1. For `mlp_hn` its vectors are in the heading frame of the team's
+//!   first agent (the release's MLP file has heading normalisation commented out; without
+//!   it the value would not be invariant, which MLP+HN promises).
+//!
+//! # The flat MLP ([`FlatMlp`], `variant=flat`)
+//! This project's earlier baseline: per agent an MLP 256 x 3 on the flat agent view
+//! ([`ObsSpec::agent_view`]: its own nodes, then every other entity's root; 9 vector
+//! components and the scalars per node; world frame for `mlp`, heading frame and positions
+//! relative to its root for `mlp_hn`), the critic 256 x 3 on every node of the scene.
+
+use envs::tasks::{N_SCALARS, ObsSpec};
+use nn::{Bound, Linear, Mlp, Scope};
+use tensor::{Activation, Float, Tensor, Var};
+
+use crate::assignment::{AssignmentMethod, UNASSIGNED};
+use crate::config::layer_sizes;
+use crate::critic::critic_order;
+use crate::entity_graph::GraphBuilder;
+use crate::error::{ModelError, Result};
+use crate::input::{InputProcessor, ObsBatch, ObsElement, Translation};
+use crate::policy::{AgentPolicy, PolicyOutput, split_head};
+use crate::transformer_head::TransformerHead;
+
+/// Per-node features: 9 vector components and the scalars.
+pub const NODE_FEATURES: usize = 9 + N_SCALARS;
+/// Width of each of the release MLP's two node embeddings.
+pub const EMBED: usize = 64;
+
+/// Appends a node's features: its 3 vectors (positions relative to `origin`), rotated into
+/// the frame of heading `yaw` when given (`O^T v`), then its scalars.
+pub(crate) fn push_node<T: Float, S: ObsElement>(
+    out: &mut Vec<T>,
+    obs: &ObsBatch<'_, S>,
+    b: usize,
+    node: usize,
+    origin: [f64; 3],
+    yaw: Option<(f64, f64)>,
+) {
+    for k in 0..3 {
+        let mut v = obs.vec3(b, node, k);
+        if k == 0 {
+            (0..3).for_each(|r| v[r] -= origin[r]);
+        }
+        if let Some((s, c)) = yaw {
+            v = [c * v[0] + s * v[1], -s * v[0] + c * v[1], v[2]];
+        }
+        out.extend(v.map(T::from_f64));
+    }
+    out.extend((0..N_SCALARS).map(|i| T::from_f64(obs.scalar(b, node, i))));
+}
+
+/// The heading frame `(sin, cos)` of agent `a` in scene `b`, or `None` without heading
+/// normalisation.
+fn yaw_of<S: ObsElement>(heading: &[S], spec: &ObsSpec, hn: bool, a: usize, b: usize) -> Option<(f64, f64)> {
+    hn.then(|| {
+        let yaw: f64 = heading[b * spec.n_agents + a].into();
+        yaw.sin_cos()
+    })
+}
+
+/// Two affine node embeddings (9 vector components -> 64, scalars -> 64).
+#[derive(Clone, Debug)]
+struct NodeEmbedding {
+    z: Linear,
+    h: Linear,
+}
+
+impl NodeEmbedding {
+    fn new<T: Float>(s: &mut Scope<'_, T>) -> Result<Self> {
+        Ok(Self {
+            z: Linear::new(&mut s.sub("embed_z"), 9, EMBED)?,
+            h: Linear::new(&mut s.sub("embed_h"), N_SCALARS, EMBED)?,
+        })
+    }
+
+    /// Rows `x: [B, R, NODE_FEATURES]` -> `[B, R * EMBED]` twice (vectors, scalars).
+    fn forward<'t, T: Float>(&self, p: &Bound<'t, T>, x: Tensor<T>) -> Result<[Var<'t, T>; 2]> {
+        let (nb, r) = (x.shape()[0], x.shape()[1]);
+        let x = p.tape().constant(x);
+        let ez = self.z.forward(p, x.narrow(2, 0, 9)?)?.reshape(&[nb, r * EMBED])?;
+        let eh = self.h.forward(p, x.narrow(2, 9, N_SCALARS)?)?.reshape(&[nb, r * EMBED])?;
+        Ok([ez, eh])
+    }
+}
+
+/// The release's MLP (module docs). Parameters: `actor.embed_{z,h}.*`, `actor.<a>.*`,
+/// `critic.embed_{z,h}.*`, `critic.mlp.*`.
+#[derive(Clone, Debug)]
+pub struct ReleaseMlp {
+    heading: bool,
+    proc: InputProcessor,
+    graph: GraphBuilder,
+    /// Whether the own root is repeated after the own nodes (not with `assignment=none`).
+    own_root_row: bool,
+    actor_embed: NodeEmbedding,
+    heads: Vec<Mlp>,
+    critic_embed: NodeEmbedding,
+    critic: Mlp,
+    order: Vec<usize>,
+}
+
+impl ReleaseMlp {
+    /// The model for `agents` (scope `s` holds `actor` and `critic`).
+    pub(crate) fn new<T: Float>(
+        s: &mut Scope<'_, T>,
+        spec: &ObsSpec,
+        agents: &[usize],
+        graph: GraphBuilder,
+        heading: bool,
+        head_hidden: &[usize],
+        critic_hidden: &[usize],
+    ) -> Result<Self> {
+        let own_root_row = graph.method() != AssignmentMethod::None;
+        let slots = graph.slots();
+        let mut actor = s.sub("actor");
+        let actor_embed = NodeEmbedding::new(&mut actor)?;
+        let heads = agents
+            .iter()
+            .map(|&a| {
+                let rows = 1 + spec.agent_dof[a] + usize::from(own_root_row) + slots;
+                Mlp::new(
+                    &mut actor.sub(a),
+                    &layer_sizes(2 * EMBED * rows, head_hidden, 2 * spec.agent_dof[a]),
+                    Activation::Relu,
+                )
+            })
+            .collect::<nn::Result<Vec<_>>>()?;
+        let mut c = s.sub("critic");
+        let critic_embed = NodeEmbedding::new(&mut c)?;
+        let ne = spec.entity_root_node.len();
+        let critic = Mlp::new(&mut c.sub("mlp"), &layer_sizes(2 * EMBED * ne, critic_hidden, 1), Activation::Relu)?;
+        Ok(Self {
+            heading,
+            proc: InputProcessor::new(spec, Translation::RootMean)?,
+            graph,
+            own_root_row,
+            actor_embed,
+            heads,
+            critic_embed,
+            critic,
+            order: critic_order(spec, agents),
+        })
+    }
+
+    /// The task-assignment graph builder (for reseeding).
+    pub(crate) fn graph_mut(&mut self) -> &mut GraphBuilder {
+        &mut self.graph
+    }
+
+    /// The assignment width of one scene (0: the method needs none stored).
+    pub(crate) fn graph(&self) -> &GraphBuilder {
+        &self.graph
+    }
+
+    /// Policy and value (module docs).
+    pub(crate) fn forward<'t, T: Float, S: ObsElement>(
+        &mut self,
+        p: &Bound<'t, T>,
+        obs: &ObsBatch<'_, S>,
+        heading: &[S],
+        agents: &[usize],
+        spec: &ObsSpec,
+        fixed: Option<&[u32]>,
+    ) -> Result<PolicyOutput<'t, T>> {
+        let nb = obs.batch;
+        let inputs = self.proc.entities::<T, S>(obs)?;
+        let graph = self.graph.build_with(&inputs, fixed)?;
+        let mut out = Vec::with_capacity(agents.len());
+        for (head, &a) in self.heads.iter().zip(agents) {
+            let (root, k) = (spec.agent_root_node[a], 1 + spec.agent_dof[a]);
+            let rows = k + usize::from(self.own_root_row) + graph.slots;
+            let mut x = tensor::pool::with_capacity(nb * rows * NODE_FEATURES);
+            for b in 0..nb {
+                let origin = obs.vec3(b, root, 0);
+                let yaw = yaw_of(heading, spec, self.heading, a, b);
+                for node in root..root + k {
+                    push_node(&mut x, obs, b, node, origin, yaw);
+                }
+                if self.own_root_row {
+                    push_node(&mut x, obs, b, root, origin, yaw);
+                }
+                for slot in 0..graph.slots {
+                    match graph.neighbour(b, a, slot) {
+                        UNASSIGNED => x.extend(std::iter::repeat_n(T::ZERO, NODE_FEATURES)),
+                        j => push_node(&mut x, obs, b, spec.entity_root_node[j], origin, yaw),
+                    }
+                }
+            }
+            let [ez, eh] = self.actor_embed.forward(p, Tensor::new(x, &[nb, rows, NODE_FEATURES])?)?;
+            let hidden = head.forward_hidden_parts(p, &[ez, eh])?;
+            out.push(split_head(head, p, hidden, a, spec.agent_dof[a])?);
+        }
+        // The value: every entity's root, relative to the mean of the roots.
+        let ne = self.order.len();
+        let mut x = tensor::pool::with_capacity(nb * ne * NODE_FEATURES);
+        for b in 0..nb {
+            let yaw = yaw_of(heading, spec, self.heading, agents[0], b);
+            for &e in &self.order {
+                push_node(&mut x, obs, b, spec.entity_root_node[e], inputs.origin[b], yaw);
+            }
+        }
+        let [ez, eh] = self.critic_embed.forward(p, Tensor::new(x, &[nb, ne, NODE_FEATURES])?)?;
+        let value = self.critic.forward_parts(p, &[ez, eh])?.reshape(&[nb])?;
+        Ok(PolicyOutput { agents: out, value, assignment: graph.assignment })
+    }
+}
+
+/// The flat baselines and `transformer_hn` (module docs): per agent an MLP on its flat view,
+/// or one shared Transformer whose tokens are the view's nodes; the critic an MLP on every
+/// node, or a Transformer over every entity's root (`transformer_hn`).
+#[derive(Clone, Debug)]
+pub struct FlatMlp {
+    heading: bool,
+    /// Per agent its view (node list).
+    views: Vec<Vec<usize>>,
+    heads: FlatHeads,
+    critic: FlatCritic,
+}
+
+#[derive(Clone, Debug)]
+enum FlatHeads {
+    Mlp(Vec<Mlp>),
+    Transformer(Box<TransformerHead>),
+}
+
+#[derive(Clone, Debug)]
+enum FlatCritic {
+    /// MLP on every node of the scene.
+    Nodes(Mlp),
+    /// Transformer over every entity's root (positions relative to the mean of the roots),
+    /// in `order`.
+    Roots(Box<TransformerHead>, Vec<usize>),
+}
+
+impl FlatMlp {
+    /// The model for `agents`: MLP heads (`head_hidden`) or a shared Transformer head.
+    pub(crate) fn new<T: Float>(
+        s: &mut Scope<'_, T>,
+        spec: &ObsSpec,
+        agents: &[usize],
+        heading: bool,
+        transformer: bool,
+        head_hidden: &[usize],
+        critic_hidden: &[usize],
+    ) -> Result<Self> {
+        let views: Vec<Vec<usize>> = agents.iter().map(|&a| spec.agent_view(a)).collect();
+        let mut actor = s.sub("actor");
+        let cfg = nn::TransformerConfig::default();
+        let heads = if transformer {
+            FlatHeads::Transformer(Box::new(TransformerHead::new(&mut actor, NODE_FEATURES, 2, cfg)?))
+        } else {
+            FlatHeads::Mlp(
+                agents
+                    .iter()
+                    .zip(&views)
+                    .map(|(&a, v)| {
+                        let sz = layer_sizes(v.len() * NODE_FEATURES, head_hidden, 2 * spec.agent_dof[a]);
+                        Mlp::new(&mut actor.sub(a), &sz, Activation::Relu)
+                    })
+                    .collect::<nn::Result<Vec<_>>>()?,
+            )
+        };
+        let critic = if transformer {
+            let head = TransformerHead::new(&mut s.sub("critic"), NODE_FEATURES, 1, cfg)?;
+            FlatCritic::Roots(Box::new(head), critic_order(spec, agents))
+        } else {
+            let sz = layer_sizes(spec.n_nodes * NODE_FEATURES, critic_hidden, 1);
+            FlatCritic::Nodes(Mlp::new(&mut s.sub("critic"), &sz, Activation::Relu)?)
+        };
+        Ok(Self { heading, views, heads, critic })
+    }
+
+    /// The rows `[B, nodes * NODE_FEATURES]` of `nodes`, seen from `agent` (its heading frame
+    /// and root as origin with heading normalisation, else the world frame; positions
+    /// relative to `origin` instead when given).
+    fn features<T: Float, S: ObsElement>(
+        &self,
+        obs: &ObsBatch<'_, S>,
+        heading: &[S],
+        spec: &ObsSpec,
+        agent: usize,
+        nodes: &[usize],
+        origin: Option<&[[f64; 3]]>,
+    ) -> Result<Tensor<T>> {
+        let nb = obs.batch;
+        let mut x = tensor::pool::with_capacity(nb * nodes.len() * NODE_FEATURES);
+        for b in 0..nb {
+            let yaw = yaw_of(heading, spec, self.heading, agent, b);
+            let o = match origin {
+                Some(o) => o[b],
+                None if self.heading => obs.vec3(b, spec.agent_root_node[agent], 0),
+                None => [0.0; 3],
+            };
+            for &n in nodes {
+                push_node(&mut x, obs, b, n, o, yaw);
+            }
+        }
+        Ok(Tensor::new(x, &[nb, nodes.len() * NODE_FEATURES])?)
+    }
+
+    /// Policy and value (module docs).
+    pub(crate) fn forward<'t, T: Float, S: ObsElement>(
+        &self,
+        p: &Bound<'t, T>,
+        obs: &ObsBatch<'_, S>,
+        heading: &[S],
+        agents: &[usize],
+        spec: &ObsSpec,
+    ) -> Result<PolicyOutput<'t, T>> {
+        let tape = p.tape();
+        let nb = obs.batch;
+        let mut out = Vec::with_capacity(agents.len());
+        for (i, (&a, view)) in agents.iter().zip(&self.views).enumerate() {
+            let x = self.features(obs, heading, spec, a, view, None)?;
+            let dof = spec.agent_dof[a];
+            match &self.heads {
+                FlatHeads::Mlp(heads) => {
+                    let hidden = heads[i].forward_hidden(p, tape.constant(x))?;
+                    out.push(split_head(&heads[i], p, hidden, a, dof)?);
+                }
+                FlatHeads::Transformer(head) => {
+                    // One token per node of the view; its DoF nodes follow its root.
+                    let tokens = tape.constant(x.reshape(&[nb, view.len(), NODE_FEATURES])?);
+                    let (loc, scale) = head.forward(p, tokens, 1, dof)?;
+                    out.push(AgentPolicy { agent: a, loc, scale });
+                }
+            }
+        }
+        // The critic, in the frame of the team's first agent.
+        let value = match &self.critic {
+            FlatCritic::Nodes(mlp) => {
+                let all: Vec<usize> = (0..spec.n_nodes).collect();
+                let x = tape.constant(self.features(obs, heading, spec, agents[0], &all, None)?);
+                mlp.forward(p, x)?.reshape(&[nb])?
+            }
+            FlatCritic::Roots(head, order) => {
+                let roots: Vec<usize> = order.iter().map(|&e| spec.entity_root_node[e]).collect();
+                let c: Vec<[f64; 3]> = (0..nb)
+                    .map(|b| {
+                        let mut m = [0.0; 3];
+                        for &n in &roots {
+                            let p = obs.vec3(b, n, 0);
+                            (0..3).for_each(|r| m[r] += p[r] / roots.len() as f64);
+                        }
+                        m
+                    })
+                    .collect();
+                let x = self.features(obs, heading, spec, agents[0], &roots, Some(&c))?;
+                let tokens = tape.constant(x.reshape(&[nb, roots.len(), NODE_FEATURES])?);
+                head.forward_all(p, tokens)?.reshape(&[nb, roots.len()])?.mean(1, false)?
+            }
+        };
+        Ok(PolicyOutput { agents: out, value, assignment: Vec::new() })
+    }
+}
+
+/// Checks `[B, n]` shapes of an assignment given to a model without one.
+pub(crate) fn no_assignment(fixed: Option<&[u32]>) -> Result<()> {
+    match fixed {
+        Some(f) if !f.is_empty() => {
+            Err(ModelError::Input(format!("an assignment of {} entries given to a model without one", f.len())))
+        }
+        _ => Ok(()),
+    }
+}
