@@ -98,12 +98,22 @@ pub fn load_policies(run: &crate::RunDir) -> Result<(TrainConfig, Vec<crate::Tea
     let path = run.checkpoint();
     let c = Checkpoint::load(&path)?;
     let spec = envs::tasks::Scene::from_name(&config.env)?.obs_spec;
+    if c.teams.len() != spec.n_teams {
+        return Err(RlError::Checkpoint {
+            path,
+            message: format!("{} teams for a scene of {} teams", c.teams.len(), spec.n_teams),
+        });
+    }
     let mut teams = Vec::new();
     for (k, s) in c.teams.iter().enumerate() {
         let mut t = crate::Team::build(&config, &spec, k)?;
         s.params
             .load_into(&mut t.store)
             .map_err(|e| RlError::Checkpoint { path: path.clone(), message: e.to_string() })?;
+        s.normalizer.check_fits(&t.norm).map_err(|e| RlError::Checkpoint {
+            path: path.clone(),
+            message: format!("the observation normaliser of team {k} does not fit: {e}"),
+        })?;
         t.norm = s.normalizer.clone();
         teams.push(t);
     }

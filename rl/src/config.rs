@@ -21,21 +21,37 @@ use serde::{Deserialize, Serialize};
 
 use crate::error::{Result, RlError};
 
-/// Which observation normaliser to use.
+/// Which observation normaliser to use (module [`crate::normalizer`] has the maths). Every
+/// model of a comparison gets the same one unless a run says otherwise (the paper's "same
+/// input" rule).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "snake_case")]
 pub enum ObsNormKind {
-    /// `rotation` for the models that are equivariant by construction (`shnn`, `shnn_og3`,
-    /// `shnn_so3`, `shtransformer`, `shgnn`), `elementwise` for the others.
+    /// The default: `invariant` for every model.
     #[default]
     Auto,
-    /// Running mean and standard deviation of every observation element (the reference).
+    /// One position scale for every node (from positions relative to the entity roots' mean
+    /// position, not clipped), velocities and angular velocities by a running RMS norm per
+    /// node and kind (norm clipped), scalars element-wise: rotations about the vertical and
+    /// horizontal translations commute with it, so the invariant models stay invariant.
+    Invariant,
+    /// Running mean and standard deviation of every observation element, clipped (the
+    /// reference release; breaks the models' invariance).
     Elementwise,
-    /// Vectors divided by a running root-mean-square norm per node and vector kind (no mean
-    /// subtracted, so rotations commute with it); scalars element-wise.
-    Rotation,
     /// No normalisation.
     None,
+}
+
+impl ObsNormKind {
+    /// The normaliser this setting builds.
+    pub fn resolve(self) -> crate::normalizer::NormKind {
+        use crate::normalizer::NormKind;
+        match self {
+            ObsNormKind::Auto | ObsNormKind::Invariant => NormKind::Invariant,
+            ObsNormKind::Elementwise => NormKind::Elementwise,
+            ObsNormKind::None => NormKind::Identity,
+        }
+    }
 }
 
 /// The named starting points of a configuration (module docs).
@@ -107,7 +123,8 @@ pub struct TrainConfig {
     pub lr_decay: bool,
     /// Every gradient element is clipped to `[-grad_clip, grad_clip]` (0 turns it off).
     pub grad_clip: f64,
-    /// Observation normaliser.
+    /// Observation normaliser: `auto` (default; the invariant normaliser for every model),
+    /// `invariant`, `elementwise` (the reference release's) or `none`.
     pub obs_norm: ObsNormKind,
     /// Rewards are multiplied by this before GAE.
     pub reward_scaling: f64,

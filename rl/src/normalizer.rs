@@ -6,27 +6,65 @@
 //!   `n = n_a + n_b`, `delta = mu_b - mu_a`, `mu = mu_a + delta n_b / n`,
 //!   `M = M_a + M_b + delta^2 n_a n_b / n`. Sums are in f64, in a fixed order: the result
 //!   does not depend on the thread count.
-//! - [`ObsNormalizer`]: the reference's element-wise normaliser (every vector component and
-//!   scalar of every node: `(x - mu) / sigma`), or the rotation-preserving one for the
-//!   equivariant models: every 3-vector divided by the running root-mean-square norm of its
-//!   node and kind, `v / sqrt(E|v|^2)`, with no mean subtracted, so `R v` maps to `R` times the
-//!   image of `v` for every rotation or reflection `R`; the (invariant) scalars element-wise.
-//!   Normalised values are clipped to `[-CLIP, CLIP]` (the rotation-preserving normaliser
-//!   clips the norm, which is again equivariant). The agents' headings are not normalised.
+//! - [`ObsNormalizer`]: one of three maps ([`NormKind`]), applied to `f32` or `f64` arrays
+//!   (the arithmetic is in f64 either way). The agents' headings are never normalised.
+//!
+//! **Invariant** ([`NormKind::Invariant`], the default for every model). An observation has,
+//! per node `n`, a position `p_n`, a velocity `v_n`, an angular velocity `w_n` and scalars
+//! `h_n`; let `c = (1/|E|) sum_{r in E} p_r` be the mean position of the entity roots `E`
+//! (agents' roots and balls, [`envs::tasks::ObsSpec::entity_root_node`]). The statistics are
+//!
+//! - one position scale for the whole observation, `sigma_p = sqrt(E[(1/N) sum_n |p_n - c|^2])`
+//!   (the expectation over every observation seen);
+//! - per node `n` and kind `k` (velocity, angular velocity) `sigma_nk = sqrt(E[|x_nk|^2])`;
+//! - per scalar `j` its mean `mu_j` and standard deviation `s_j`;
+//!
+//! (each raised to at least [`MIN_SCALE`]), and the map is
+//!
+//! ```text
+//! p_n  -> p_n / sigma_p                                   (no clipping)
+//! x_nk -> (x_nk / sigma_nk) min(1, CLIP / |x_nk / sigma_nk|)   (the norm clipped to CLIP)
+//! h_nj -> clamp((h_nj - mu_j) / s_j, -CLIP, CLIP)
+//! ```
+//!
+//! Let `g = (Q, t)` be a rotation `Q` about the vertical followed by a horizontal translation
+//! `t` (a rotation about the vertical through any point is one of these), acting on a raw
+//! observation by `p -> Q p + t`, `v -> Q v`, `w -> Q w`, `h -> h`, headings `+ angle`. Then
+//! `(Q p_n + t) / sigma_p = Q (p_n / sigma_p) + t / sigma_p`, `|Q x| = |x|` (so the clipping
+//! factor is unchanged) and the scalars are unchanged: `N(g x) = g' N(x)` with
+//! `g' = (Q, t / sigma_p)`, the same rotation and a scaled translation. A model `f` invariant
+//! under every rotation about the vertical and horizontal translation (its origin
+//! subtraction removes `t / sigma_p`) therefore gives `f(N(g x)) = f(g' N(x)) = f(N(x))`: the
+//! normaliser and the model together are invariant (`rl/tests/invariance.rs`). The statistics
+//! themselves do not depend on where the scene is: `|(Q p_n + t) - (Q c + t)| = |p_n - c|` and
+//! `|Q x| = |x|`, so a rotated or translated copy of the training data gives the same
+//! normaliser. Positions are not clipped because clipping does not commute with translations,
+//! and one scale serves every node because per-node scales `sigma_n` turn a translation `t`
+//! into different shifts `t / sigma_n` per node, which no origin subtraction removes (the
+//! per-node normaliser used before did that, and clipped absolute positions). Distances
+//! between nodes all scale by the same `1 / sigma_p`, so nearest-entity decisions (the greedy
+//! task assignment) are unchanged.
+//!
+//! **Element-wise** ([`NormKind::Elementwise`], the reference release's): every vector
+//! component and scalar of every node `(x - mu) / sigma`, clipped to `[-CLIP, CLIP]`. It
+//! commutes with neither rotations nor translations.
+//!
+//! **Identity** ([`NormKind::Identity`]): the raw observations.
 
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
+use tensor::Float;
 
-use envs::tasks::N_SCALARS;
+use envs::tasks::{N_SCALARS, ObsSpec};
 
-/// Normalised values (element-wise) or norms (vectors) are clipped to this bound.
+/// Normalised values (element-wise) or norms (velocities) are clipped to this bound.
 pub const CLIP: f32 = 10.0;
 
 /// Standard deviations and RMS norms below this are raised to it (constant features).
 pub const MIN_SCALE: f64 = 1e-3;
 
 /// Running count, mean and sum of squared deviations of each of `dim` features.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct RunningStats {
     /// Samples seen.
     pub count: f64,
@@ -47,9 +85,9 @@ impl RunningStats {
         self.mean.len()
     }
 
-    /// Statistics of `rows` (row-major, `dim` columns), computed in one pass per feature in
-    /// row order.
-    pub fn from_rows(data: &[f32], dim: usize) -> Self {
+    /// Statistics of `rows` (row-major, `dim` columns, `f32` or `f64`), computed in one pass
+    /// per feature in row order.
+    pub fn from_rows<S: Float>(data: &[S], dim: usize) -> Self {
         assert!(dim > 0 && data.len().is_multiple_of(dim), "{} values are not rows of {dim}", data.len());
         let n = data.len() / dim;
         let mut s = RunningStats::new(dim);
@@ -60,8 +98,8 @@ impl RunningStats {
         let cols: Vec<(f64, f64)> = (0..dim)
             .into_par_iter()
             .map(|j| {
-                let mean = data.iter().skip(j).step_by(dim).map(|&x| x as f64).sum::<f64>() / n as f64;
-                let m2 = data.iter().skip(j).step_by(dim).map(|&x| (x as f64 - mean).powi(2)).sum::<f64>();
+                let mean = data.iter().skip(j).step_by(dim).map(|&x| x.to_f64()).sum::<f64>() / n as f64;
+                let m2 = data.iter().skip(j).step_by(dim).map(|&x| (x.to_f64() - mean).powi(2)).sum::<f64>();
                 (mean, m2)
             })
             .collect();
@@ -88,7 +126,7 @@ impl RunningStats {
     }
 
     /// Adds the rows of `data` (`dim` columns).
-    pub fn update(&mut self, data: &[f32]) {
+    pub fn update<S: Float>(&mut self, data: &[S]) {
         let batch = RunningStats::from_rows(data, self.dim());
         self.merge(&batch);
     }
@@ -102,17 +140,45 @@ impl RunningStats {
     pub fn std(&self, j: usize) -> f64 {
         self.variance(j).sqrt().max(MIN_SCALE)
     }
+
+    /// Root of the mean of feature `j` (the features are squared norms), at least
+    /// [`MIN_SCALE`]; 1 before any sample.
+    pub fn rms(&self, j: usize) -> f64 {
+        if self.count == 0.0 { 1.0 } else { self.mean[j].max(0.0).sqrt().max(MIN_SCALE) }
+    }
+
+    /// Whether the statistics have `dim` features and finite values (a checkpoint's may not).
+    fn is_valid(&self, dim: usize) -> bool {
+        self.mean.len() == dim
+            && self.m2.len() == dim
+            && self.count.is_finite()
+            && self.count >= 0.0
+            && self.mean.iter().chain(&self.m2).all(|x| x.is_finite())
+    }
 }
 
-/// Which transformation an [`ObsNormalizer`] applies.
+/// Which transformation an [`ObsNormalizer`] applies (module docs).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub enum NormKind {
-    /// Everything element-wise.
+    /// Everything element-wise (the reference release).
     Elementwise,
-    /// Vectors by a norm statistic, scalars element-wise.
-    Rotation,
+    /// One position scale from positions relative to the entity roots' mean, velocities by
+    /// a norm statistic per node and kind, scalars element-wise: commutes with rotations
+    /// about the vertical and horizontal translations.
+    Invariant,
     /// Identity.
     Identity,
+}
+
+impl NormKind {
+    /// The name used in messages and configurations.
+    pub fn name(self) -> &'static str {
+        match self {
+            NormKind::Elementwise => "elementwise",
+            NormKind::Invariant => "invariant",
+            NormKind::Identity => "none",
+        }
+    }
 }
 
 /// The running statistics of one team's observations and the map they define (module docs).
@@ -122,42 +188,135 @@ pub struct ObsNormalizer {
     pub kind: NormKind,
     /// Nodes per observation.
     pub nodes: usize,
-    /// Element-wise: the `N * 9` vector components; rotation: the `N * 3` squared norms (of
-    /// which the mean is used).
+    /// Invariant: the entity root nodes whose mean position centres the position statistic
+    /// (empty for the other kinds).
+    #[serde(default)]
+    pub roots: Vec<usize>,
+    /// Invariant: one feature, per observation `(1/N) sum_n |p_n - c|^2` (no features for
+    /// the other kinds).
+    #[serde(default)]
+    pub positions: RunningStats,
+    /// Element-wise: the `N * 9` vector components; invariant: the `N * 2` squared norms of
+    /// every node's velocity and angular velocity; identity: no features.
     pub vectors: RunningStats,
-    /// The `N * N_SCALARS` scalars.
+    /// The `N * N_SCALARS` scalars (no features for the identity).
     pub scalars: RunningStats,
 }
 
 impl ObsNormalizer {
-    /// A normaliser of observations of `nodes` nodes that has seen nothing (identity on
+    /// A normaliser of observations laid out by `spec` that has seen nothing (identity on
     /// vectors, mean 0 and variance 1 on scalars).
-    pub fn new(kind: NormKind, nodes: usize) -> Self {
-        let vdim = match kind {
-            NormKind::Rotation => nodes * 3,
-            _ => nodes * 9,
+    pub fn new(kind: NormKind, spec: &ObsSpec) -> Self {
+        let nodes = spec.n_nodes;
+        let (roots, pdim, vdim, sdim) = match kind {
+            NormKind::Invariant => (spec.entity_root_node.clone(), 1, nodes * 2, nodes * N_SCALARS),
+            NormKind::Elementwise => (Vec::new(), 0, nodes * 9, nodes * N_SCALARS),
+            NormKind::Identity => (Vec::new(), 0, 0, 0),
         };
-        Self { kind, nodes, vectors: RunningStats::new(vdim), scalars: RunningStats::new(nodes * N_SCALARS) }
+        Self {
+            kind,
+            nodes,
+            roots,
+            positions: RunningStats::new(pdim),
+            vectors: RunningStats::new(vdim),
+            scalars: RunningStats::new(sdim),
+        }
+    }
+
+    /// One line: the kind, nodes and samples seen.
+    pub fn describe(&self) -> String {
+        format!(
+            "{} normaliser of {} nodes ({} vector and {} scalar features, {} samples)",
+            self.kind.name(),
+            self.nodes,
+            self.positions.dim() + self.vectors.dim(),
+            self.scalars.dim(),
+            self.vectors.count
+        )
+    }
+
+    /// Checks that this normaliser (e.g. read from a checkpoint) has the layout of `expected`
+    /// (the one a configuration builds): the same kind, nodes, root nodes and widths, and
+    /// finite statistics. The error says what differs.
+    pub fn check_fits(&self, expected: &ObsNormalizer) -> std::result::Result<(), String> {
+        if self.kind != expected.kind || self.nodes != expected.nodes || self.roots != expected.roots {
+            return Err(format!(
+                "it is the {}, this configuration builds the {}",
+                self.describe(),
+                expected.describe()
+            ));
+        }
+        for (name, s, e) in [
+            ("positions", &self.positions, &expected.positions),
+            ("vectors", &self.vectors, &expected.vectors),
+            ("scalars", &self.scalars, &expected.scalars),
+        ] {
+            if !s.is_valid(e.dim()) {
+                return Err(format!(
+                    "its {name} statistics have {} means and {} sums of squares for {} features (or are not finite)",
+                    s.mean.len(),
+                    s.m2.len(),
+                    e.dim()
+                ));
+            }
+        }
+        Ok(())
     }
 
     /// Adds a batch of raw observations (`[B, N, 3, 3]` vectors, `[B, N, N_SCALARS]` scalars).
-    pub fn update(&mut self, vectors: &[f32], scalars: &[f32]) {
+    pub fn update<S: Float>(&mut self, vectors: &[S], scalars: &[S]) {
         match self.kind {
             NormKind::Identity => {}
             NormKind::Elementwise => {
                 self.vectors.update(vectors);
                 self.scalars.update(scalars);
             }
-            NormKind::Rotation => {
-                let sq: Vec<f32> = vectors.chunks_exact(3).map(|v| v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).collect();
+            NormKind::Invariant => {
+                let nv = self.nodes * 9;
+                let roots = &self.roots;
+                // Per observation: (1/N) sum_n |p_n - c|^2, then the squared norms of the
+                // velocity and angular velocity of every node.
+                let per_row: Vec<(f64, Vec<f64>)> = vectors
+                    .par_chunks(nv.max(1))
+                    .map(|row| {
+                        let p = |n: usize, i: usize| row[n * 9 + i].to_f64();
+                        let mut c = [0.0f64; 3];
+                        for &r in roots {
+                            for (i, ci) in c.iter_mut().enumerate() {
+                                *ci += p(r, i);
+                            }
+                        }
+                        c.iter_mut().for_each(|ci| *ci /= roots.len().max(1) as f64);
+                        let nodes = row.len() / 9;
+                        let spread =
+                            (0..nodes).map(|n| (0..3).map(|i| (p(n, i) - c[i]).powi(2)).sum::<f64>()).sum::<f64>();
+                        let sq = row
+                            .chunks_exact(9)
+                            .flat_map(|node| {
+                                [1, 2].map(|k| node[3 * k..3 * k + 3].iter().map(|x| x.to_f64().powi(2)).sum::<f64>())
+                            })
+                            .collect();
+                        (spread / nodes.max(1) as f64, sq)
+                    })
+                    .collect();
+                let spread: Vec<f64> = per_row.iter().map(|r| r.0).collect();
+                let sq: Vec<f64> = per_row.into_iter().flat_map(|r| r.1).collect();
+                self.positions.update(&spread);
                 self.vectors.update(&sq);
                 self.scalars.update(scalars);
             }
         }
     }
 
-    /// Normalises a batch into `out_vectors`, `out_scalars` (resized to fit).
-    pub fn apply(&self, vectors: &[f32], scalars: &[f32], out_vectors: &mut Vec<f32>, out_scalars: &mut Vec<f32>) {
+    /// The position scale `sigma_p` of the invariant normaliser (1 before any sample and for
+    /// the other kinds).
+    pub fn position_scale(&self) -> f64 {
+        if self.kind == NormKind::Invariant { self.positions.rms(0) } else { 1.0 }
+    }
+
+    /// Normalises a batch (`f32` or `f64`) into `out_vectors`, `out_scalars` (resized to
+    /// fit).
+    pub fn apply<S: Float>(&self, vectors: &[S], scalars: &[S], out_vectors: &mut Vec<S>, out_scalars: &mut Vec<S>) {
         out_vectors.clear();
         out_vectors.extend_from_slice(vectors);
         out_scalars.clear();
@@ -165,11 +324,12 @@ impl ObsNormalizer {
         if self.kind == NormKind::Identity {
             return;
         }
+        let clip = CLIP as f64;
         let ns = self.nodes * N_SCALARS;
         let (smean, sinv) = affine(&self.scalars);
         out_scalars.par_chunks_mut(ns.max(1)).for_each(|row| {
             for (j, x) in row.iter_mut().enumerate() {
-                *x = (((*x as f64 - smean[j]) * sinv[j]) as f32).clamp(-CLIP, CLIP);
+                *x = S::from_f64(((x.to_f64() - smean[j]) * sinv[j]).clamp(-clip, clip));
             }
         });
         let nv = self.nodes * 9;
@@ -178,24 +338,27 @@ impl ObsNormalizer {
                 let (vmean, vinv) = affine(&self.vectors);
                 out_vectors.par_chunks_mut(nv.max(1)).for_each(|row| {
                     for (j, x) in row.iter_mut().enumerate() {
-                        *x = (((*x as f64 - vmean[j]) * vinv[j]) as f32).clamp(-CLIP, CLIP);
+                        *x = S::from_f64(((x.to_f64() - vmean[j]) * vinv[j]).clamp(-clip, clip));
                     }
                 });
             }
-            NormKind::Rotation => {
-                // 1 / RMS norm of each node's vector kind.
-                let inv: Vec<f32> = (0..self.nodes * 3)
-                    .map(|j| {
-                        let ms = if self.vectors.count == 0.0 { 1.0 } else { self.vectors.mean[j] };
-                        (1.0 / ms.sqrt().max(MIN_SCALE)) as f32
-                    })
-                    .collect();
+            NormKind::Invariant => {
+                let pinv = 1.0 / self.position_scale();
+                let inv: Vec<f64> = (0..self.nodes * 2).map(|j| 1.0 / self.vectors.rms(j)).collect();
                 out_vectors.par_chunks_mut(nv.max(1)).for_each(|row| {
-                    for (j, v) in row.chunks_exact_mut(3).enumerate() {
-                        let s = inv[j];
-                        let norm = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt() * s;
-                        let s = if norm > CLIP { s * CLIP / norm } else { s };
-                        v.iter_mut().for_each(|x| *x *= s);
+                    for (n, node) in row.chunks_exact_mut(9).enumerate() {
+                        for x in &mut node[..3] {
+                            *x = S::from_f64(x.to_f64() * pinv);
+                        }
+                        for k in 1..3 {
+                            let v = &mut node[3 * k..3 * k + 3];
+                            let mut s = inv[n * 2 + k - 1];
+                            let norm = v.iter().map(|x| x.to_f64().powi(2)).sum::<f64>().sqrt() * s;
+                            if norm > clip {
+                                s *= clip / norm;
+                            }
+                            v.iter_mut().for_each(|x| *x = S::from_f64(x.to_f64() * s));
+                        }
                     }
                 });
             }
@@ -216,6 +379,49 @@ mod tests {
     use super::*;
     use rand::{RngExt, SeedableRng};
     use rand_chacha::ChaCha8Rng;
+
+    fn spec(name: &str) -> ObsSpec {
+        envs::tasks::Scene::from_name(name).unwrap().obs_spec
+    }
+
+    /// `b` random observations of `nodes` nodes: positions spread over a few metres around
+    /// an offset, velocities of varied size per node, scalars.
+    fn random_obs(rng: &mut ChaCha8Rng, b: usize, nodes: usize) -> (Vec<f64>, Vec<f64>) {
+        let mut v = Vec::with_capacity(b * nodes * 9);
+        for _ in 0..b {
+            for n in 0..nodes {
+                for k in 0..3 {
+                    let size = [3.0, 0.5 + n as f64 * 0.3, 2.0][k];
+                    for i in 0..3 {
+                        let offset = if k == 0 && i < 2 { 4.0 } else { 0.0 };
+                        v.push(offset + size * rng.random_range(-1.0..1.0f64));
+                    }
+                }
+            }
+        }
+        let s = (0..b * nodes * N_SCALARS).map(|_| rng.random_range(-1.0..1.0f64)).collect();
+        (v, s)
+    }
+
+    /// Rotation by `angle` about the vertical, then a horizontal translation of the positions.
+    fn motion(v: &[f64], angle: f64, t: [f64; 2]) -> Vec<f64> {
+        let (s, c) = angle.sin_cos();
+        let mut out = v.to_vec();
+        for (i, q) in out.chunks_exact_mut(3).enumerate() {
+            let (x, y) = (q[0], q[1]);
+            q[0] = c * x - s * y;
+            q[1] = s * x + c * y;
+            if i % 3 == 0 {
+                q[0] += t[0];
+                q[1] += t[1];
+            }
+        }
+        out
+    }
+
+    fn max_abs_diff(a: &[f64], b: &[f64]) -> f64 {
+        a.iter().zip(b).map(|(x, y)| (x - y).abs()).fold(0.0, f64::max)
+    }
 
     #[test]
     fn welford_merge_equals_full_batch_statistics() {
@@ -240,40 +446,138 @@ mod tests {
     }
 
     #[test]
-    fn rotation_normaliser_commutes_with_rotations_and_elementwise_does_not() {
+    fn invariant_statistics_are_the_hand_computed_ones() {
+        let sp = spec("team_reach/1_ant");
+        let (b, nodes) = (50, sp.n_nodes);
+        let mut rng = ChaCha8Rng::seed_from_u64(4);
+        let (v, s) = random_obs(&mut rng, b, nodes);
+        let mut n = ObsNormalizer::new(NormKind::Invariant, &sp);
+        n.update(&v[..20 * nodes * 9], &s[..20 * nodes * N_SCALARS]);
+        n.update(&v[20 * nodes * 9..], &s[20 * nodes * N_SCALARS..]);
+        // sigma_p^2 = mean over observations and nodes of |p_n - c|^2.
+        let (mut spread, mut vel) = (0.0, vec![0.0; nodes * 2]);
+        for row in v.chunks_exact(nodes * 9) {
+            let c: Vec<f64> = (0..3)
+                .map(|i| {
+                    sp.entity_root_node.iter().map(|&r| row[r * 9 + i]).sum::<f64>() / sp.entity_root_node.len() as f64
+                })
+                .collect();
+            for node in 0..nodes {
+                spread += (0..3).map(|i| (row[node * 9 + i] - c[i]).powi(2)).sum::<f64>();
+                for k in 1..3 {
+                    vel[node * 2 + k - 1] += (0..3).map(|i| row[node * 9 + 3 * k + i].powi(2)).sum::<f64>();
+                }
+            }
+        }
+        let sigma_p = (spread / (b * nodes) as f64).sqrt();
+        assert!((n.position_scale() - sigma_p).abs() < 1e-12 * sigma_p, "{} vs {sigma_p}", n.position_scale());
+        for (j, x) in vel.iter().enumerate() {
+            let rms = (x / b as f64).sqrt();
+            assert!((n.vectors.rms(j) - rms).abs() < 1e-12 * rms, "{j}");
+        }
+        // The positions are divided by sigma_p, nothing else happens to them (no clipping,
+        // no mean): one far-away node stays far away.
+        let mut far = v[..nodes * 9].to_vec();
+        far[9] += 1e4;
+        let (mut ov, mut os) = (vec![], vec![]);
+        n.apply(&far, &s[..nodes * N_SCALARS], &mut ov, &mut os);
+        for node in 0..nodes {
+            for i in 0..3 {
+                let want = far[node * 9 + i] / sigma_p;
+                assert!((ov[node * 9 + i] - want).abs() < 1e-12 * want.abs().max(1.0));
+            }
+        }
+    }
+
+    #[test]
+    fn invariant_normaliser_commutes_with_rigid_motions_about_gravity_and_elementwise_does_not() {
+        let sp = spec("team_reach/2_ants");
         let mut rng = ChaCha8Rng::seed_from_u64(5);
-        let (b, nodes) = (64, 3);
-        let vectors: Vec<f32> = (0..b * nodes * 9).map(|_| rng.random_range(-2.0..2.0f32) + 0.7).collect();
-        let scalars: Vec<f32> = (0..b * nodes * N_SCALARS).map(|_| rng.random_range(-1.0..1.0f32)).collect();
-        let (c, s) = (0.6f32, 0.8f32); // rotation about z
-        let rot = |v: &[f32]| -> Vec<f32> {
-            v.chunks_exact(3).flat_map(|p| [c * p[0] - s * p[1], s * p[0] + c * p[1], p[2]]).collect()
-        };
-        for (kind, equivariant) in [(NormKind::Rotation, true), (NormKind::Elementwise, false)] {
-            let mut n = ObsNormalizer::new(kind, nodes);
-            n.update(&vectors, &scalars);
+        let (v, s) = random_obs(&mut rng, 64, sp.n_nodes);
+        let (angle, t) = (2.3, [7.5, -3.25]);
+        let moved = motion(&v, angle, t);
+        for kind in [NormKind::Invariant, NormKind::Elementwise] {
+            let mut n = ObsNormalizer::new(kind, &sp);
+            n.update(&v, &s);
+            // The statistics of the moved observations are the same (invariant kind).
+            let mut m = ObsNormalizer::new(kind, &sp);
+            m.update(&moved, &s);
             let (mut v1, mut s1, mut v2, mut s2) = (vec![], vec![], vec![], vec![]);
-            n.apply(&vectors, &scalars, &mut v1, &mut s1);
-            n.apply(&rot(&vectors), &scalars, &mut v2, &mut s2);
-            let diff = rot(&v1).iter().zip(&v2).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
-            assert_eq!(diff < 1e-5, equivariant, "{kind:?}: max difference {diff}");
+            n.apply(&v, &s, &mut v1, &mut s1);
+            n.apply(&moved, &s, &mut v2, &mut s2);
+            // N(g x) = g' N(x), g' the same rotation and the translation t / sigma_p.
+            let st = 1.0 / n.position_scale();
+            let d = max_abs_diff(&motion(&v1, angle, [t[0] * st, t[1] * st]), &v2);
             assert_eq!(s1, s2);
+            if kind == NormKind::Invariant {
+                assert!(d < 1e-12, "{kind:?}: {d}");
+                assert!((m.position_scale() - n.position_scale()).abs() < 1e-12 * n.position_scale());
+                assert!(max_abs_diff(&m.vectors.mean, &n.vectors.mean) < 1e-9);
+            } else {
+                assert!(d > 1e-3, "{kind:?}: {d}");
+            }
+        }
+    }
+
+    #[test]
+    fn velocity_norms_are_clipped_and_f32_agrees_with_f64() {
+        let sp = spec("team_reach/1_ant");
+        let mut rng = ChaCha8Rng::seed_from_u64(6);
+        let (v, s) = random_obs(&mut rng, 32, sp.n_nodes);
+        let mut n = ObsNormalizer::new(NormKind::Invariant, &sp);
+        n.update(&v, &s);
+        let mut big = v[..sp.n_nodes * 9].to_vec();
+        big[3..6].copy_from_slice(&[300.0, -400.0, 0.0]); // node 0's velocity, norm 500
+        let (mut ov, mut os) = (vec![], vec![]);
+        n.apply(&big, &s[..sp.n_nodes * N_SCALARS], &mut ov, &mut os);
+        let norm = ov[3..6].iter().map(|x| x * x).sum::<f64>().sqrt();
+        assert!((norm - CLIP as f64).abs() < 1e-12, "{norm}");
+        assert!((ov[3] / ov[4] - 300.0 / -400.0).abs() < 1e-12, "direction kept");
+        // The same map on f32 arrays, to f32 precision.
+        let v32: Vec<f32> = v.iter().map(|&x| x as f32).collect();
+        let s32: Vec<f32> = s.iter().map(|&x| x as f32).collect();
+        let (mut a64, mut b64, mut a32, mut b32) = (vec![], vec![], vec![], vec![]);
+        let v64: Vec<f64> = v32.iter().map(|&x| x as f64).collect();
+        let s64: Vec<f64> = s32.iter().map(|&x| x as f64).collect();
+        n.apply(&v64, &s64, &mut a64, &mut b64);
+        n.apply(&v32, &s32, &mut a32, &mut b32);
+        for (x, y) in a32.iter().chain(&b32).zip(a64.iter().chain(&b64)) {
+            assert!((*x as f64 - y).abs() <= 1e-6 * y.abs().max(1.0), "{x} vs {y}");
         }
     }
 
     #[test]
     fn elementwise_output_is_standardised() {
+        let sp = spec("team_reach/1_ant");
+        let nodes = sp.n_nodes;
         let mut rng = ChaCha8Rng::seed_from_u64(9);
-        let (b, nodes) = (4000, 1);
-        let vectors: Vec<f32> = (0..b * 9).map(|i| rng.random_range(0.0..1.0f32) * 3.0 + (i % 9) as f32).collect();
-        let scalars: Vec<f32> = (0..b * N_SCALARS).map(|_| rng.random_range(-5.0..5.0f32)).collect();
-        let mut n = ObsNormalizer::new(NormKind::Elementwise, nodes);
+        let b = 4000;
+        let vectors: Vec<f32> =
+            (0..b * nodes * 9).map(|i| rng.random_range(0.0..1.0f32) * 3.0 + (i % 9) as f32).collect();
+        let scalars: Vec<f32> = (0..b * nodes * N_SCALARS).map(|_| rng.random_range(-5.0..5.0f32)).collect();
+        let mut n = ObsNormalizer::new(NormKind::Elementwise, &sp);
         n.update(&vectors, &scalars);
         let (mut v, mut s) = (vec![], vec![]);
         n.apply(&vectors, &scalars, &mut v, &mut s);
-        let st = RunningStats::from_rows(&v, 9);
-        for j in 0..9 {
+        let st = RunningStats::from_rows(&v, nodes * 9);
+        for j in 0..nodes * 9 {
             assert!(st.mean[j].abs() < 1e-5 && (st.variance(j) - 1.0).abs() < 1e-4, "{j}: {st:?}");
         }
+    }
+
+    #[test]
+    fn normalisers_of_another_layout_do_not_fit() {
+        let (a, b) = (spec("team_reach/1_ant"), spec("team_reach/2_ants"));
+        let inv = ObsNormalizer::new(NormKind::Invariant, &a);
+        assert!(inv.check_fits(&inv).is_ok());
+        let e = ObsNormalizer::new(NormKind::Elementwise, &a).check_fits(&inv).unwrap_err();
+        assert!(e.contains("elementwise") && e.contains("invariant"), "{e}");
+        assert!(ObsNormalizer::new(NormKind::Invariant, &b).check_fits(&inv).is_err());
+        let mut damaged = inv.clone();
+        damaged.vectors.m2.pop();
+        assert!(damaged.check_fits(&inv).unwrap_err().contains("vectors"));
+        let mut nan = inv.clone();
+        nan.positions.mean[0] = f64::NAN;
+        assert!(nan.check_fits(&inv).unwrap_err().contains("positions"));
     }
 }

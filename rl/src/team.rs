@@ -9,14 +9,10 @@ use nn::{Adam, AdamConfig, LrSchedule, ParamStore};
 use rand_chacha::ChaCha8Rng;
 use tensor::{Tape, Tensor};
 
-use crate::config::{ObsNormKind, TrainConfig};
+use crate::config::TrainConfig;
 use crate::error::{Result, RlError};
-use crate::normalizer::{NormKind, ObsNormalizer};
+use crate::normalizer::ObsNormalizer;
 use crate::seeding::{derive_seed, standard_normal, stream};
-
-/// The models that are equivariant by construction and get the rotation-preserving
-/// normaliser under [`ObsNormKind::Auto`].
-pub const EQUIVARIANT_MODELS: [&str; 5] = ["shnn", "shnn_og3", "shnn_so3", "shtransformer", "shgnn"];
 
 /// One team's learner (module docs).
 #[derive(Clone, Debug)]
@@ -46,16 +42,6 @@ pub enum ActMode {
     Mean,
 }
 
-/// The normaliser a model gets under `kind`.
-pub fn norm_kind(kind: ObsNormKind, model_name: &str) -> NormKind {
-    match kind {
-        ObsNormKind::Auto if EQUIVARIANT_MODELS.contains(&model_name) => NormKind::Rotation,
-        ObsNormKind::Auto | ObsNormKind::Elementwise => NormKind::Elementwise,
-        ObsNormKind::Rotation => NormKind::Rotation,
-        ObsNormKind::None => NormKind::Identity,
-    }
-}
-
 impl Team {
     /// Builds team `team`'s learner for scenes laid out by `spec`, initialised from the run
     /// seed.
@@ -73,7 +59,7 @@ impl Team {
             .map_err(|e| RlError::config("config", field, spec_str, e.to_string()))?;
         let adam_config = AdamConfig { lr: lr_schedule(config), ..AdamConfig::default() };
         let adam = Adam::new(adam_config, &store);
-        let norm = ObsNormalizer::new(norm_kind(config.obs_norm, &mc.name), spec.n_nodes);
+        let norm = ObsNormalizer::new(config.obs_norm.resolve(), spec);
         let noise = model.agents().iter().map(|&a| stream(config.seed, "noise", team as u64, a as u64)).collect();
         let shuffle = stream(config.seed, "shuffle", team as u64, 0);
         Ok(Team { index: team, model, store, adam, norm, noise, shuffle })

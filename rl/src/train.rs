@@ -215,9 +215,13 @@ impl Trainer {
             let schedule = team.adam.config.lr;
             team.adam = s.adam.clone();
             team.adam.config.lr = schedule;
-            if s.normalizer.nodes != team.norm.nodes || s.normalizer.kind != team.norm.kind {
-                return Err(bad(format!("normaliser of team {} does not fit", team.index)));
-            }
+            s.normalizer.check_fits(&team.norm).map_err(|e| {
+                bad(format!(
+                    "the observation normaliser of team {} does not fit: {e} (obs_norm = {:?}; checkpoints written \
+                     before `auto` became the invariant normaliser cannot be resumed)",
+                    team.index, config.obs_norm
+                ))
+            })?;
             team.norm = s.normalizer.clone();
             if s.noise.len() != team.noise.len() {
                 return Err(bad(format!("{} noise streams for {} agents", s.noise.len(), team.noise.len())));

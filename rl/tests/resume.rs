@@ -7,6 +7,7 @@ mod common;
 
 use rl::checkpoint::Checkpoint;
 use rl::metrics::parse_csv;
+use rl::normalizer::{NormKind, ObsNormalizer};
 use rl::{RunDir, TrainOptions, train};
 
 /// Metrics without the wall-clock columns.
@@ -80,6 +81,23 @@ fn bad_checkpoints_and_changed_configurations_are_refused() {
         let e = train(&config, &run, &TrainOptions::default()).unwrap_err().to_string();
         assert!(e.contains("checkpoint.json") && e.contains("not a valid checkpoint"), "{e}");
     }
+    // A normaliser of another kind (an element-wise one, as `auto` built for `mlp_hn` before
+    // it meant the invariant normaliser), and the per-node kind that was removed: refused by
+    // training and by evaluation, naming the normaliser.
+    std::fs::write(run.checkpoint(), &good).unwrap();
+    let mut c = Checkpoint::load(&run.checkpoint()).unwrap();
+    let spec = envs::tasks::Scene::from_name(&config.env).unwrap().obs_spec;
+    c.teams[0].normalizer = ObsNormalizer::new(NormKind::Elementwise, &spec);
+    c.save(&run.checkpoint()).unwrap();
+    let e = train(&config, &run, &TrainOptions::default()).unwrap_err().to_string();
+    assert!(e.contains("checkpoint.json") && e.contains("normaliser") && e.contains("elementwise"), "{e}");
+    let e = rl::checkpoint::load_policies(&run).unwrap_err().to_string();
+    assert!(e.contains("checkpoint.json") && e.contains("normaliser"), "{e}");
+    let text = String::from_utf8(good.clone()).unwrap();
+    assert!(text.contains("\"kind\":\"Invariant\""));
+    std::fs::write(run.checkpoint(), text.replace("\"kind\":\"Invariant\"", "\"kind\":\"Rotation\"")).unwrap();
+    let e = train(&config, &run, &TrainOptions::default()).unwrap_err().to_string();
+    assert!(e.contains("checkpoint.json") && e.contains("Rotation"), "{e}");
     // The checkpoint of another model.
     std::fs::write(run.checkpoint(), &good).unwrap();
     let mut shnn = config.clone();

@@ -14,14 +14,44 @@
 //! - `vectors`: `[B, N, 3, 3]`, per node three world-frame 3-vectors: `[.., 0, :]` position
 //!   (m), `[.., 1, :]` linear velocity of the body origin clipped to +-10 m/s per component,
 //!   `[.., 2, :]` angular velocity (rad/s). Balls: position of the centre, velocities 0.
-//! - `scalars`: `[B, N, S]` with `S = N_SCALARS = 10`: `0..3` entity type one-hot
-//!   ([`ENTITY_AGENT`], [`ENTITY_GOAL`], [`ENTITY_CENTRE`]), `3..7` limb type one-hot
-//!   (torso, thigh, leg, foot; zero for balls), `7` joint angle scaled to `[0, 1]` within its
-//!   limits (`(q - lo) / (hi - lo)`, 0.5 for a DoF locked by equal limits; soft limits may let
-//!   it stray slightly outside), `8, 9` the lower and upper limits scaled as
-//!   `(180 + degrees) / 360`. Roots and balls have 0 in `7..10`.
+//! - `scalars`: `[B, N, S]` with `S = N_SCALARS = 10`: `0..3` entity type one-hot (below),
+//!   `3..7` limb type one-hot (torso, thigh, leg, foot; below), `7` joint angle scaled to
+//!   `[0, 1]` within its limits (`(q - lo) / (hi - lo)`, 0.5 for a DoF locked by equal
+//!   limits; soft limits may let it stray slightly outside), `8, 9` the lower and upper limits
+//!   scaled as `(180 + degrees) / 360`. Roots and balls have 0 in `7..10`.
 //! - `heading`: `[B, A]`, each agent's root yaw in `(-pi, pi]` (the angle of the root's x
 //!   axis projected on the ground, from world x towards world y).
+//!
+//! # Entity types (scalars `0..3`; every node of an agent, root and DoF nodes, alike)
+//! | column | Team Reach | Team Sumo, seen from team `t` |
+//! |---|---|---|
+//! | 0 [`ENTITY_AGENT`] | agent | agent of team `t` (own) |
+//! | 1 [`ENTITY_GOAL`] / [`ENTITY_OPPONENT`] | goal ball | agent of the other team |
+//! | 2 [`ENTITY_CENTRE`] | unused | centre ball |
+//!
+//! One [`Observation`] serves both teams, so its arrays hold team 0's view;
+//! [`ObsSpec::to_team_view`] turns them into team 1's (swaps columns 0 and 1 of the agent
+//! nodes). This follows the release's Sumo observer (alpc91/SMERL,
+//! `mix_colla_compe_team_tasks/procedural_envs/misc/observers.py`, `GraphObserver`:
+//! `get_obs_fn(node_names, 0)` for the viewing group's bodies, `(node_names2, 1)` for the
+//! other team's roots, `(node_center, 2)` for the centre), which builds one observer per team.
+//! Differences: the release's Sumo observation holds only the opponents' roots, ours every
+//! node of every agent (an agent's view, [`ObsSpec::agent_view`], takes only their roots);
+//! its Reach observer has two columns (`jnp.eye(2)`: agent, ball), ours three with column 2
+//! unused, so that one layout serves both games.
+//!
+//! # Limb types (scalars `3..7`)
+//! Per body, from the release's AMORPHEUS table (alpc91/SMERL,
+//! `mix_colla_compe_team_tasks/procedural_envs/tasks/observation_config/one_hot_limb_id.py`,
+//! looked up by body name in both observers): `torso`, `torso_0` torso; `Aux 1_i`, `Aux 2_i`,
+//! `torso_1` ..= `torso_10` (the centipede's later segments), `d1_limb_i` thigh;
+//! `$ Body 4_i`, `$ Body 5_i`, `d2_limb_i` leg; `d3_limb_i` foot; `limb_end_i` (the unimals'
+//! limb ends) and `d4_limb_i` no limb type (all four 0); plus the table's other names (the
+//! MuJoCo benchmarks'). A 2-DoF joint's two nodes show the same body, hence the same type. A
+//! body not in the table (only in morphologies loaded from files; the release would fail
+//! there) keeps the former rule: torso for the root and any body whose name contains
+//! "torso", else the number of joints down from the nearest such body, 1 thigh, 2 leg, 3 or
+//! more foot.
 //!
 //! Under a rotation about the vertical the vectors rotate (positions about the rotation's
 //! axis), the scalars do not change and the headings shift by the angle. Non-finite values
@@ -36,13 +66,19 @@ use crate::model::Model;
 
 /// Scalars per node.
 pub const N_SCALARS: usize = 10;
-/// Entity type index of an agent's node.
+/// Entity type column of an agent's nodes: in Team Reach every agent; in Team Sumo an agent
+/// of the viewing team ("own"; the raw observation is team 0's view, see
+/// [`ObsSpec::to_team_view`]).
 pub const ENTITY_AGENT: usize = 0;
-/// Entity type index of a Reach goal ball.
+/// Entity type column of a Team Sumo opponent's nodes (an agent of the other team than the
+/// viewing one). The same column as [`ENTITY_GOAL`]: Reach has no opponents, Sumo no goals.
+pub const ENTITY_OPPONENT: usize = 1;
+/// Entity type column of a Team Reach goal ball.
 pub const ENTITY_GOAL: usize = 1;
-/// Entity type index of the Sumo centre ball.
+/// Entity type column of the Team Sumo centre ball.
 pub const ENTITY_CENTRE: usize = 2;
-/// Limb types: torso, thigh, leg, foot (scalars `3..7`).
+/// Limb types: torso, thigh, leg, foot (scalars `3..7`; per body as the release's table,
+/// module docs).
 pub const LIMB_TYPES: [&str; 4] = ["torso", "thigh", "leg", "foot"];
 /// Clip of the linear velocities (m/s, per component).
 pub const VELOCITY_CLIP: f64 = 10.0;
@@ -84,7 +120,8 @@ pub struct ObsSpec {
     pub entity_root_node: Vec<usize>,
     /// Unit gravity direction (world frame): `[0, 0, -1]`.
     pub gravity_dir: [f32; 3],
-    /// Scalars that never change (everything but the joint angle), `[N, N_SCALARS]`.
+    /// Scalars that never change (everything but the joint angle), `[N, N_SCALARS]`, in the
+    /// raw view (team 0's; [`ObsSpec::to_team_view`] gives team 1's).
     pub static_scalars: Vec<f32>,
 }
 
@@ -99,7 +136,7 @@ pub struct Observation {
     pub agents: usize,
     /// `[B, N, 3, 3]`: position, clipped linear velocity, angular velocity (world frame).
     pub vectors: Vec<f32>,
-    /// `[B, N, N_SCALARS]`.
+    /// `[B, N, N_SCALARS]`, team 0's view ([`ObsSpec::to_team_view`]).
     pub scalars: Vec<f32>,
     /// `[B, A]`: root yaw of each agent (rad).
     pub heading: Vec<f32>,
@@ -140,9 +177,74 @@ impl Observation {
     }
 }
 
-/// Limb type of a body: `torso` by name (or the root), otherwise by the number of steps down
-/// from the nearest torso ancestor: 1 thigh, 2 leg, 3 or more foot.
-fn limb_type(model: &Model, agent: &AgentLayout, body: usize) -> usize {
+/// One limb type of the release's AMORPHEUS table (`None`: listed with an all-zero limb
+/// type), its plain names and its indexed names (`stem{i}` for `i` in `lo..hi`, written
+/// in decimal as Python's f-strings do).
+type LimbRow = (Option<usize>, &'static [&'static str], &'static [(&'static str, usize, usize)]);
+
+/// The reference release's AMORPHEUS limb-type table (alpc91/SMERL,
+/// `mix_colla_compe_team_tasks/procedural_envs/tasks/observation_config/one_hot_limb_id.py`;
+/// the observers of both task folders look a body up by its name without the `agentN___`
+/// prefix). No name is in two rows.
+const AMORPHEUS: [LimbRow; 5] = [
+    (Some(0), &["$ Torso", "torso", "torso_0", "palm"], &[]),
+    (
+        Some(1),
+        &["bthigh", "fthigh", "right_thigh", "left_thigh", "thigh", "thigh_left"],
+        &[("Aux 1_", 0, 10), ("Aux 2_", 0, 10), ("thumb_proximal_", 0, 10), ("torso_", 1, 11), ("d1_limb_", 0, 22)],
+    ),
+    (
+        Some(2),
+        &["bshin", "fshin", "leg", "lower_leg", "right_shin", "left_shin", "leg_left"],
+        &[("$ Body 4_", 0, 10), ("$ Body 5_", 0, 10), ("thumb_middle_", 0, 10), ("d2_limb_", 0, 22)],
+    ),
+    (Some(3), &["bfoot", "ffoot", "foot", "foot_left"], &[("thumb_distal_", 0, 10), ("d3_limb_", 0, 22)]),
+    // The goal bodies and the "others" (all zero in the release).
+    (
+        None,
+        &[
+            "Ball",
+            "Target",
+            "Box",
+            "Z_Target",
+            "lwaist",
+            "pelvis",
+            "right_upper_arm",
+            "right_lower_arm",
+            "left_upper_arm",
+            "left_lower_arm",
+        ],
+        &[("Ball_", 0, 3), ("Z_Target_", 0, 3), ("d4_limb_", 0, 22), ("limb_end_", 0, 22)],
+    ),
+];
+
+/// Whether `name` is `stem` followed by a decimal `i` in `lo..hi` (no sign, no leading zero).
+fn is_indexed(name: &str, (stem, lo, hi): (&str, usize, usize)) -> bool {
+    let Some(digits) = name.strip_prefix(stem) else { return false };
+    let canonical =
+        !digits.is_empty() && digits.bytes().all(|c| c.is_ascii_digit()) && (digits == "0" || !digits.starts_with('0'));
+    canonical && digits.parse::<usize>().is_ok_and(|i| (lo..hi).contains(&i))
+}
+
+/// The release's limb type for a body name: `Some(Some(l))` limb type `l`, `Some(None)` listed
+/// with no limb type, `None` not in the table.
+fn amorpheus_limb_type(name: &str) -> Option<Option<usize>> {
+    AMORPHEUS
+        .iter()
+        .find(|(_, names, indexed)| names.contains(&name) || indexed.iter().any(|&stem| is_indexed(name, stem)))
+        .map(|&(limb, _, _)| limb)
+}
+
+/// Limb type of a body (`None`: no limb type, all four scalars 0). A body whose name (without
+/// the agent's prefix) is in the release's table gets the table's type; any other body (only
+/// in morphologies loaded from files) the rule: `torso` for the root and any body whose name
+/// contains "torso", otherwise the number of joints down from the nearest such body, 1 thigh,
+/// 2 leg, 3 or more foot.
+fn limb_type(model: &Model, agent: &AgentLayout, body: usize) -> Option<usize> {
+    let name = &model.bodies[body].name;
+    if let Some(limb) = amorpheus_limb_type(name.strip_prefix(agent.prefix.as_str()).unwrap_or(name)) {
+        return limb;
+    }
     let is_torso = |b: usize| b == agent.root_body || model.bodies[b].name.to_lowercase().contains("torso");
     let mut depth = 0;
     let mut b = body;
@@ -150,7 +252,7 @@ fn limb_type(model: &Model, agent: &AgentLayout, body: usize) -> usize {
         depth += 1;
         b = model.bodies[b].parent;
     }
-    depth.min(3)
+    Some(depth.min(3))
 }
 
 fn scaled_limit(radians: f64) -> f32 {
@@ -202,7 +304,9 @@ impl ObsSpec {
             o.node_is_root.push(true);
             o.node_body.push(Some(a.root_body));
             o.node_joint.push(None);
-            static_scalars.push(scal(ENTITY_AGENT, Some(limb_type(model, a, a.root_body)), None));
+            // Raw observation = team 0's view: Sumo's team 1 are the opponents.
+            let entity = if spec.kind == TaskKind::Sumo && a.team != 0 { ENTITY_OPPONENT } else { ENTITY_AGENT };
+            static_scalars.push(scal(entity, limb_type(model, a, a.root_body), None));
             // (body, joint, node) of this agent's DoF nodes so far.
             let mut dof_nodes: Vec<(usize, usize, usize)> = Vec::new();
             for &act in &a.actuators {
@@ -230,7 +334,7 @@ impl ObsSpec {
                 o.node_joint.push(Some(joint));
                 let j = &model.joints[joint];
                 let range = if j.limited { j.range } else { [0.0, 0.0] };
-                static_scalars.push(scal(ENTITY_AGENT, Some(limb_type(model, a, body)), Some(range)));
+                static_scalars.push(scal(entity, limb_type(model, a, body), Some(range)));
             }
         }
         let ball_type = if spec.kind == TaskKind::Reach { ENTITY_GOAL } else { ENTITY_CENTRE };
@@ -259,6 +363,47 @@ impl ObsSpec {
         let own = root..root + 1 + self.agent_dof[agent];
         let others = self.entity_root_node.iter().copied().filter(|&n| n != root);
         own.chain(others).collect()
+    }
+
+    /// Turns observation scalars (`[B, N, N_SCALARS]`, any element type; a single row such as
+    /// [`ObsSpec::static_scalars`] is a batch of one) from the raw view into team `team`'s
+    /// view, in place. The raw observation is team 0's view. For team 1 of a Team Sumo scene
+    /// it swaps the entity-type columns [`ENTITY_AGENT`] and [`ENTITY_OPPONENT`] of every
+    /// agent node (roots and DoF nodes), so that team 1's agents read "own" and team 0's
+    /// "opponent"; the centre ball and every other column stay. For team 0, and for Team
+    /// Reach (one team), it changes nothing. Applying team 1's view twice gives the raw view
+    /// back. No allocation; one swap per agent node and row.
+    ///
+    /// Errors ([`TaskError::BadArgument`], nothing changed): `team` not below
+    /// [`ObsSpec::n_teams`], or a length that is not a whole number of `N * N_SCALARS` rows.
+    pub fn to_team_view<S>(&self, team: usize, scalars: &mut [S]) -> Result<(), TaskError> {
+        if team >= self.n_teams {
+            return Err(TaskError::BadArgument {
+                what: "team".into(),
+                value: team.to_string(),
+                message: format!("this scene has {} team(s), numbered from 0", self.n_teams),
+            });
+        }
+        let row = self.n_nodes * N_SCALARS;
+        if row == 0 || !scalars.len().is_multiple_of(row) {
+            return Err(TaskError::BadArgument {
+                what: "scalars length".into(),
+                value: scalars.len().to_string(),
+                message: format!("expected a multiple of N * N_SCALARS = {} * {N_SCALARS}", self.n_nodes),
+            });
+        }
+        // Team Sumo is the only two-team game; team 0's view is the raw one.
+        if team == 0 || self.n_teams != 2 {
+            return Ok(());
+        }
+        // Agent nodes are the first N - M nodes of a row (the balls come last).
+        let agent_scalars = (self.n_nodes - self.n_balls) * N_SCALARS;
+        for r in scalars.chunks_exact_mut(row) {
+            for node in r[..agent_scalars].chunks_exact_mut(N_SCALARS) {
+                node.swap(ENTITY_AGENT, ENTITY_OPPONENT);
+            }
+        }
+        Ok(())
     }
 
     /// Writes one environment's observation row. `data` must have its kinematics and
@@ -309,6 +454,37 @@ impl ObsSpec {
             let Some(b) = self.node_body[root] else { continue };
             let m = &data.xmat[b];
             heading[a] = fin(m[1][0].atan2(m[0][0]));
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::amorpheus_limb_type;
+
+    #[test]
+    fn the_release_table_matches_whole_names_and_its_index_ranges_only() {
+        for (name, want) in [
+            ("torso", Some(Some(0))),
+            ("torso_0", Some(Some(0))),
+            ("torso_1", Some(Some(1))),
+            ("torso_10", Some(Some(1))),
+            ("torso_11", None),
+            ("torso_01", None),
+            ("Aux 2_9", Some(Some(1))),
+            ("Aux 2_10", None),
+            ("Aux 2_", None),
+            ("Aux 2_+1", None),
+            ("$ Body 5_0", Some(Some(2))),
+            ("d2_limb_21", Some(Some(2))),
+            ("d3_limb_0", Some(Some(3))),
+            ("limb_end_21", Some(None)),
+            ("limb_end_22", None),
+            ("Ball_2", Some(None)),
+            ("a0/torso", None),
+            ("Torso", None),
+        ] {
+            assert_eq!(amorpheus_limb_type(name), want, "{name:?}");
         }
     }
 }
