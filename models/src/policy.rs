@@ -31,6 +31,10 @@
 //! - `hnn`, `hnn_hn`, `hnn_dn` (ablations HNN, HNN+HN, HNN+DN; [`crate::hnn`]): SHNN's
 //!   hierarchy with the vectors flattened into scalars and plain MLP message passing, in the
 //!   world frame, the agent's heading frame, or the frame of the goal direction.
+//!
+//! Every model reads the observation from its team's view: in Team Sumo the entity-type
+//! columns of team 1's model are swapped to `[own, opponent, centre]`
+//! ([`ObsSpec::to_team_view`]; the raw observation is team 0's view).
 
 use envs::tasks::{ObsSpec, Observation};
 use nn::{Bound, Mlp, ParamStore, Scope, TransformerConfig};
@@ -408,6 +412,17 @@ impl Model {
                 self.spec.n_agents
             )));
         }
+        // Team Sumo's team 1 reads the entity types from its own view (own team, opponent,
+        // centre; the release's Sumo observer): the raw observation is team 0's.
+        let viewed: Vec<S>;
+        let obs = &if self.team > 0 {
+            let mut s = obs.scalars.to_vec();
+            self.spec.to_team_view(self.team, &mut s).map_err(|e| ModelError::Input(e.to_string()))?;
+            viewed = s;
+            ObsBatch::new(nb, obs.nodes, obs.vectors, &viewed)?
+        } else {
+            *obs
+        };
         match &mut self.arch {
             Arch::Shnn(m) => m.forward(p, obs, &self.agents, &self.spec, assignment),
             Arch::Hnn(m) => m.forward(p, obs, heading, &self.agents, &self.spec, assignment),

@@ -532,3 +532,48 @@ fn parameter_counts_of_the_docs_table() {
         eprintln!("{name}: policy {} critic {} (entity {entity}, actor {actor})", counts.policy, counts.critic);
     }
 }
+
+/// Team Sumo is symmetric: team 1's model on a scene whose teams swapped places sees what
+/// team 0's model (same parameter values) sees on the original scene, because each reads the
+/// entity types from its own team's view (own, opponent, centre).
+#[test]
+fn sumo_team_1_sees_the_scene_from_its_own_side() {
+    let (spec, vectors, scalars, heading) = observations("team_sumo/2_ants", B, 31);
+    // Node blocks of the two teams (both are two ants) and the centre ball.
+    let half = spec.agent_root_node[2];
+    assert_eq!(half * 2 + 1, spec.n_nodes);
+    let swap_nodes = |x: &[f64], width: usize, keep: usize| {
+        let mut out = x.to_vec();
+        for b in 0..B {
+            for n in 0..half {
+                for k in keep..width {
+                    let (i, j) = ((b * spec.n_nodes + n) * width + k, (b * spec.n_nodes + n + half) * width + k);
+                    out[i] = x[j];
+                    out[j] = x[i];
+                }
+            }
+        }
+        out
+    };
+    // Vectors and the physical scalars move with the agents; the entity-type columns are the
+    // raw observation's (team 0's view) of the swapped scene.
+    let sv = swap_nodes(&vectors, 9, 0);
+    let ss = swap_nodes(&scalars, 10, 3);
+    let sh: Vec<f64> = heading.chunks(4).flat_map(|h| [h[2], h[3], h[0], h[1]]).collect();
+    for name in ["shnn", "mlp_hn", "shgnn"] {
+        let (s0, mut m0) = build(&ModelConfig::new(name), &spec, 0, 6);
+        let (s1, mut m1) = build(&ModelConfig::new(name), &spec, 1, 6);
+        assert_eq!(
+            s0.values().iter().map(|t| t.to_vec()).collect::<Vec<_>>(),
+            s1.values().iter().map(|t| t.to_vec()).collect::<Vec<_>>()
+        );
+        let own = run(&mut m0, &s0, &spec, &vectors, &scalars, &heading);
+        let mirrored = run(&mut m1, &s1, &spec, &sv, &ss, &sh);
+        assert!(max_diff(&own, &mirrored) < 1e-9, "{name}: {}", max_diff(&own, &mirrored));
+        // Without the view (team 1 fed team 0's column order for its own agents) it differs.
+        let mut wrong = ss.clone();
+        spec.to_team_view(1, &mut wrong).unwrap();
+        let other = run(&mut m1, &s1, &spec, &sv, &wrong, &sh);
+        assert!(max_diff(&own, &other) > 1e-6, "{name}");
+    }
+}

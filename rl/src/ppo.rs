@@ -14,7 +14,9 @@
 //! row per truncated transition holding its final observation. Only the first `T M` rows
 //! (the transitions) go through the model on the tape; the rest only bootstrap the returns
 //! and go through it in a no-grad pass (same values, no backward work: 1/6 less backward at
-//! the reference's `T = 5`).
+//! the reference's `T = 5`). The transitions go through the model with the task assignment
+//! they were acted on when the minibatch carries it (a stochastic assignment); the bootstrap
+//! rows draw their own (they only give values, and the default critic reads no assignment).
 
 use envs::tasks::ObsSpec;
 use models::distribution::{normal_entropy, normal_log_prob, std_from_scale};
@@ -78,6 +80,9 @@ pub struct Minibatch<'a> {
     pub truncated: &'a [bool],
     /// `[T M]`: for truncated transitions, the row of their final observation.
     pub final_row: &'a [u32],
+    /// `[T M, width]` the task assignment each transition was acted on (empty: the model
+    /// solves it again, the same for the deterministic methods).
+    pub assignment: &'a [u32],
 }
 
 /// Diagnostics of one loss evaluation.
@@ -132,7 +137,8 @@ pub fn ppo_loss<'t>(
     // are constants of the loss, so their share of the backward pass would be products with
     // zero gradients.
     let (obs, heading) = slice(0, n)?;
-    let out = model.forward_batch(p, &obs, heading)?;
+    let assigned = if mb.assignment.is_empty() { None } else { Some(mb.assignment) };
+    let out = model.forward_batch_with(p, &obs, heading, assigned)?;
     let bootstrap = {
         let _no_grad = tape.no_grad();
         let (obs, heading) = slice(n, rows)?;

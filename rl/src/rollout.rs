@@ -4,7 +4,9 @@
 //! Observation rows (raw, not normalised) are stored block by block, `T + 1` per block:
 //! row `(b, t, e)` at `(b (T + 1) + t) E + e`, row `t = T` being the state after the block.
 //! Transitions `(b, t, e)` are at `(b T + t) E + e`. A transition truncated by the time limit
-//! keeps its final observation in the `final_*` arrays.
+//! keeps its final observation in the `final_*` arrays. A team whose model draws its task
+//! assignment at random keeps the assignment each transition was acted on
+//! ([`Rollout::assignment`]), so that the update sees the same entity graph.
 
 use envs::tasks::{N_SCALARS, Observation, StepOutput};
 
@@ -54,6 +56,10 @@ pub struct Rollout {
     pub final_scalars: Vec<f32>,
     /// Their headings.
     pub final_heading: Vec<f32>,
+    /// Per team, the assignment width (entries per transition; 0: not stored).
+    pub assignment_width: Vec<usize>,
+    /// Per team, `[U T E, width]` the task assignment each transition was acted on.
+    pub assignment: Vec<Vec<u32>>,
 }
 
 /// A gathered minibatch of one team (owned arrays behind a [`Minibatch`]).
@@ -77,6 +83,8 @@ pub struct MinibatchBuf {
     pub truncated: Vec<bool>,
     /// `[T M]` rows of final observations.
     pub final_row: Vec<u32>,
+    /// `[T M, width]` the transitions' task assignments (empty: not stored).
+    pub assignment: Vec<u32>,
     /// Unrolls `M`.
     pub unrolls: usize,
     /// Steps `T`.
@@ -98,13 +106,23 @@ impl MinibatchBuf {
             terminated: &self.terminated,
             truncated: &self.truncated,
             final_row: &self.final_row,
+            assignment: &self.assignment,
         }
     }
 }
 
 impl Rollout {
-    /// Storage for `blocks` unrolls of `steps` steps of `envs` environments.
-    pub fn new(blocks: usize, steps: usize, envs: usize, obs: &Observation, n_actions: usize, teams: usize) -> Self {
+    /// Storage for `blocks` unrolls of `steps` steps of `envs` environments; team `k` stores
+    /// `assignment_width[k]` assignment entries per transition.
+    pub fn new(
+        blocks: usize,
+        steps: usize,
+        envs: usize,
+        obs: &Observation,
+        n_actions: usize,
+        assignment_width: &[usize],
+    ) -> Self {
+        let teams = assignment_width.len();
         let (nodes, agents) = (obs.nodes, obs.agents);
         let rows = blocks * (steps + 1) * envs;
         let tr = blocks * steps * envs;
@@ -128,7 +146,20 @@ impl Rollout {
             final_vectors: Vec::new(),
             final_scalars: Vec::new(),
             final_heading: Vec::new(),
+            assignment: assignment_width.iter().map(|&w| vec![0; tr * w]).collect(),
+            assignment_width: assignment_width.to_vec(),
         }
+    }
+
+    /// Stores team `team`'s assignment of the transitions `(b, t, *)` (`[E, width]`; nothing
+    /// for a team that stores none).
+    pub fn store_assignment(&mut self, b: usize, t: usize, team: usize, assignment: &[u32]) {
+        let w = self.assignment_width[team];
+        if w == 0 {
+            return;
+        }
+        let tr = self.transition(b, t);
+        self.assignment[team][tr * w..(tr + self.envs) * w].copy_from_slice(assignment);
     }
 
     /// Forgets the final observations of the previous iteration.
@@ -216,6 +247,8 @@ impl Rollout {
         mb.terminated.clear();
         mb.truncated.clear();
         mb.final_row.clear();
+        mb.assignment.clear();
+        let w = self.assignment_width[team];
         for t in 0..=t_len {
             for &q in ids {
                 let r = self.obs_row(q / e_n, t) + q % e_n;
@@ -233,6 +266,7 @@ impl Rollout {
                 mb.rewards.push(self.rewards[i * nt + team]);
                 mb.terminated.push(self.terminated[i]);
                 mb.truncated.push(self.truncated[i]);
+                mb.assignment.extend_from_slice(&self.assignment[team][i * w..(i + 1) * w]);
                 let f = self.final_index[i];
                 if f == NO_FINAL {
                     mb.final_row.push(NO_FINAL);

@@ -88,7 +88,8 @@ pub struct ActScratch {
 /// `a` of the team the action `tanh(u)` at `actions[e * n_actions + offset_a ..]` and the
 /// pre-squash `u` at the same place of `pre_squash`; `logp[e]` gets the team's log-probability
 /// of `u` under the Normal (summed over its agents). `noise` (one stream per agent) is used
-/// in [`ActMode::Sample`].
+/// in [`ActMode::Sample`]. Returns the task assignment the policy acted on
+/// ([`models::PolicyOutput::assignment`], `[B * Model::assignment_width]`).
 #[allow(clippy::too_many_arguments)]
 pub fn act(
     model: &mut Model,
@@ -102,7 +103,7 @@ pub fn act(
     pre_squash: &mut [f32],
     logp: &mut [f32],
     scratch: &mut ActScratch,
-) -> Result<()> {
+) -> Result<Vec<u32>> {
     let (vectors, scalars, heading) = raw;
     let b = heading.len() / spec.n_agents.max(1);
     let na = actions.len() / b.max(1);
@@ -148,7 +149,7 @@ pub fn act(
             }
         }
     }
-    Ok(())
+    Ok(out.assignment)
 }
 
 /// Records one episode of `env` from the fixed start of `seed` played by `teams` (mean

@@ -151,13 +151,17 @@ impl Trainer {
             t.norm.update(&env.obs().vectors, &env.obs().scalars);
         }
         let nt = obs_spec.n_teams;
+        // A stochastic task assignment is stored with each transition (the update must see the
+        // graph the behaviour policy acted on); the deterministic ones are solved again.
+        let widths: Vec<usize> =
+            teams.iter().map(|t| if t.model.assignment_is_random() { t.model.assignment_width() } else { 0 }).collect();
         let rollout = Rollout::new(
             config.unrolls_per_iteration(),
             config.unroll_length,
             config.num_envs,
             env.obs(),
             env.n_actions(),
-            nt,
+            &widths,
         );
         let na = env.n_actions();
         Ok(Trainer {
@@ -314,7 +318,7 @@ impl Trainer {
             for t in 0..t_len {
                 for team in &mut self.teams {
                     let raw = self.rollout.obs(b, t);
-                    act(
+                    let assignment = act(
                         &mut team.model,
                         &team.store,
                         &team.norm,
@@ -327,6 +331,7 @@ impl Trainer {
                         &mut self.logp,
                         &mut self.scratch,
                     )?;
+                    self.rollout.store_assignment(b, t, team.index, &assignment);
                     let tr = self.rollout.transition(b, t);
                     for e in 0..e_n {
                         self.rollout.logp[(tr + e) * nt + team.index] = self.logp[e];

@@ -53,6 +53,28 @@ fn frozen_normaliser_gives_ratio_one_and_minus_mean_advantage() {
     }
 }
 
+/// A stochastic task assignment is drawn while collecting, stored with each transition and
+/// reused by the update: with the normaliser frozen the first minibatch's ratios are 1. Drawn
+/// afresh instead (the assignment left out of the minibatch), the graphs differ and so do the
+/// ratios.
+#[test]
+fn stochastic_assignment_is_stored_with_the_transition_and_reused() {
+    for model in ["shnn:assignment=stochastic", "mlp_hn:assignment=stochastic"] {
+        let config = common::tiny("team_reach/2_ants", model, 1, &[]);
+        let (mut t, mut mb) = first_minibatch(&config);
+        assert_eq!(mb.assignment.len(), config.unroll_length * config.batch_size * 2, "{model}");
+        let st = loss_stats(&mut t, &mb, &config);
+        assert!((st.mean_ratio - 1.0).abs() < 1e-4, "{model}: mean ratio {}", st.mean_ratio);
+        assert!(st.clip_fraction == 0.0 && st.approx_kl < 1e-8, "{model}: {st:?}");
+        mb.assignment.clear();
+        let redrawn = loss_stats(&mut t, &mb, &config);
+        assert!(redrawn.approx_kl > 1e-4, "{model}: a redrawn assignment should change the policy: {redrawn:?}");
+    }
+    // The deterministic methods store nothing (they are solved again).
+    let config = common::tiny("team_reach/2_ants", "shnn", 1, &[]);
+    assert!(first_minibatch(&config).1.assignment.is_empty());
+}
+
 #[test]
 fn loss_matches_a_hand_computation_from_the_model_outputs() {
     let mut config = common::tiny("team_reach/1_ant", "mlp_hn", 1, &[]);
