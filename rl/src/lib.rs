@@ -13,7 +13,7 @@
 //! act step), [`rollout`] (an iteration's data and minibatches), [`gae`], [`ppo`] (the loss),
 //! [`train`](mod@train) (the loop and the run directory), [`evaluate`](mod@evaluate), [`checkpoint`], [`metrics`],
 //! [`run_dir`], [`progress`], [`curve`], [`plot`] (SVG line plots), [`sweep`] (`meben ablate`),
-//! [`report`](mod@report) (`meben report`).
+//! [`report`](mod@report) (`meben report`), [`info`] (`meben info`: parameter counts).
 
 pub mod checkpoint;
 pub mod config;
@@ -21,6 +21,7 @@ pub mod curve;
 pub mod error;
 pub mod evaluate;
 pub mod gae;
+pub mod info;
 pub mod metrics;
 pub mod normalizer;
 pub mod plot;
