@@ -55,8 +55,11 @@ pub struct Checkpoint {
     pub env: VecEnvState,
     /// `[E, teams]` returns of the running episodes.
     pub episode_returns: Vec<f64>,
-    /// The last evaluation.
+    /// The last evaluation (the first rotation of `eval_rotations`).
     pub last_eval: Option<EvalSummary>,
+    /// The last evaluation at each further rotation (absent from older checkpoints: none).
+    #[serde(default)]
+    pub last_eval_rotated: Vec<EvalSummary>,
 }
 
 impl Checkpoint {

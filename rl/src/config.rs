@@ -5,9 +5,10 @@
 //! A configuration is resolved in layers, each overriding the one before:
 //! 1. a preset: `quick` (the built-in default of `meben train`: `shnn` on `team_reach/1_ant`
 //!    in about ten minutes on 2 cores: 256 environments, batch 128 unrolls x 8 minibatches,
-//!    1.5M steps, learning rate decayed linearly to 0, entropy bonus 1e-3) or `paper` (the
-//!    reference schedule: 2048 environments, 50M steps for Team Reach, 20M and batch 128 for
-//!    Team Sumo);
+//!    1.5M steps, learning rate decayed linearly to 0, entropy bonus 1e-3, evaluation with
+//!    mean actions) or `paper` (the reference schedule: 2048 environments, 50M steps for Team
+//!    Reach, 20M and batch 128 for Team Sumo, evaluation with sampled actions as the release's
+//!    `run_eval`);
 //! 2. a TOML file (`--config file.toml`), whose keys are the fields of [`TrainConfig`] (and
 //!    `preset`);
 //! 3. command-line options (`--env`, `--model`, `--set field=value`, ...).
@@ -135,8 +136,20 @@ pub struct TrainConfig {
     pub num_evals: usize,
     /// Episodes per evaluation.
     pub eval_episodes: usize,
-    /// Evaluate with the mean action `tanh(loc)` instead of sampling.
+    /// Evaluate with the mean action `tanh(loc)` instead of sampling. `false` in the `paper`
+    /// preset (the release samples in its `run_eval`), `true` in `quick` (its entropy bonus,
+    /// 1e-3, was tuned with mean-action evaluation). The metrics column `eval_sampled` and
+    /// `EvalSummary::sampled` record which was used.
     pub eval_deterministic: bool,
+    /// Every periodic evaluation runs once per rotation (degrees, about the vertical through
+    /// the origin: the centre of Team Reach's placement disc and Team Sumo's centre ball), on
+    /// the same starts and noise streams: the first must be 0 (the plain `eval_*` metrics
+    /// columns), each further one has its own columns (`eval_success_rate_rot180`, ...,
+    /// [`crate::metrics::eval_column`]). With random starts every drawn start is rotated.
+    /// `[0.0, 180.0]` is the paper's equivariance test (with `fixed_start = true`). Default
+    /// `[0.0]` (also for files written before the field existed).
+    #[serde(default = "default_eval_rotations")]
+    pub eval_rotations: Vec<f64>,
     /// Write a checkpoint every this many iterations (and after every evaluation and at the
     /// end; 0: only then).
     pub checkpoint_every: usize,
@@ -173,7 +186,8 @@ impl TrainConfig {
             curriculum_fraction: 0.25,
             num_evals: 50,
             eval_episodes: 1024,
-            eval_deterministic: true,
+            eval_deterministic: false,
+            eval_rotations: default_eval_rotations(),
             checkpoint_every: 10,
             threads: 0,
         };
@@ -192,6 +206,8 @@ impl TrainConfig {
                 num_minibatches: 8,
                 num_evals: 10,
                 eval_episodes: 128,
+                // Mean actions: the entropy bonus above was tuned with them.
+                eval_deterministic: true,
                 checkpoint_every: 20,
                 ..paper
             },
@@ -364,11 +380,31 @@ impl TrainConfig {
         if !self.learning_rate.is_finite() || self.learning_rate <= 0.0 {
             return err("learning_rate", &self.learning_rate, "must be finite and positive");
         }
+        if self.eval_rotations.first() != Some(&0.0) {
+            return err(
+                "eval_rotations",
+                &format!("{:?}", self.eval_rotations),
+                "the first rotation must be 0 (its results are the plain eval_* metrics columns), e.g. [0.0, 180.0]",
+            );
+        }
+        for (i, r) in self.eval_rotations.iter().enumerate() {
+            if !r.is_finite() {
+                return err("eval_rotations", &format!("{:?}", self.eval_rotations), "every rotation must be finite");
+            }
+            if self.eval_rotations[..i].contains(r) {
+                return err("eval_rotations", &format!("{:?}", self.eval_rotations), &format!("{r} appears twice"));
+            }
+        }
         if self.num_evals > 0 && self.eval_episodes == 0 {
             return err("eval_episodes", &self.eval_episodes, "must be at least 1 when num_evals > 0");
         }
         Ok(())
     }
+}
+
+/// `[0.0]`: evaluation without rotation.
+fn default_eval_rotations() -> Vec<f64> {
+    vec![0.0]
 }
 
 /// A command-line value as TOML: numbers, booleans, arrays as written, anything else as a
@@ -418,11 +454,32 @@ mod tests {
             ("num_envs", "\"many\"", "num_envs"),
             ("colour", "3", "colour"),
             ("num_envs", "100", "num_envs"),
+            ("eval_rotations", "[180.0]", "eval_rotations"),
+            ("eval_rotations", "[]", "eval_rotations"),
+            ("eval_rotations", "[0.0, 90.0, 90.0]", "90 appears twice"),
+            ("eval_rotations", "[0.0, nan]", "finite"),
         ];
         for (field, value, named) in cases {
             let e = TrainConfig::resolve(None, None, &[(field.to_string(), value.to_string())]).unwrap_err();
             let msg = e.to_string();
             assert!(msg.contains(named), "{field}={value}: {msg}");
         }
+    }
+
+    #[test]
+    fn files_written_before_the_later_fields_load_with_their_defaults() {
+        let c = TrainConfig::preset(Preset::Paper, "team_reach/1_ant");
+        assert!(!c.eval_deterministic, "the paper preset samples in evaluation, as the release");
+        assert!(TrainConfig::preset(Preset::Quick, "team_reach/1_ant").eval_deterministic);
+        let text: String =
+            c.to_toml().lines().filter(|l| !l.starts_with("eval_rotations")).map(|l| format!("{l}\n")).collect();
+        let dir = std::env::temp_dir().join(format!("meben-config-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("config.toml");
+        std::fs::write(&path, text).unwrap();
+        let back = TrainConfig::load(&path).unwrap();
+        let _ = std::fs::remove_dir_all(&dir);
+        assert_eq!(back.eval_rotations, [0.0]);
+        assert_eq!(back, c);
     }
 }

@@ -2,10 +2,11 @@
 //! the evaluation success rate (Team Reach) or the win and draw rates (Team Sumo) against
 //! environment steps, with the training episodes' rate beside it, pooled over windows of
 //! iterations (before every environment has had the time to finish one episode, only early
-//! endings, i.e. successes, are seen: those windows are left out).
+//! endings, i.e. successes, are seen: those windows are left out), and one more evaluation
+//! series per further rotation of `eval_rotations` (`eval_success_rate_rot180`, ...).
 
 use crate::error::{Result, RlError};
-use crate::metrics::parse_csv;
+use crate::metrics::{eval_column, parse_csv, rotations_of};
 use crate::plot::LinePlot;
 use crate::run_dir::RunDir;
 
@@ -41,6 +42,12 @@ pub fn write_run_curve(run: &RunDir) -> Result<()> {
             .collect()
     };
     let sumo = rows.iter().any(|r| r.contains_key("train_win_rate_t0") || r.contains_key("eval_win_rate_t0"));
+    // Evaluations at further rotations (`eval_rotations`): one series each.
+    let base = if sumo { "eval_win_rate_t0" } else { "eval_success_rate" };
+    let rotated: Vec<f64> = rotations_of(base, rows.iter().flat_map(|r| r.keys().map(|k| k.as_str())))
+        .into_iter()
+        .filter(|&d| d != 0.0)
+        .collect();
     let title = run.root().file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
     let mut plot = LinePlot::new(title).x_label("environment steps").y_label("rate (%)").y_range(0.0, 100.0);
     if sumo {
@@ -53,6 +60,10 @@ pub fn write_run_curve(run: &RunDir) -> Result<()> {
         plot = plot
             .series("eval success", series("eval_success_rate"))
             .series("training episodes' success", pooled("train_success_rate"));
+    }
+    for deg in rotated {
+        let name = if sumo { "eval win team 0" } else { "eval success" };
+        plot = plot.series(format!("{name}, rotated {deg}°"), series(&eval_column(base, deg)));
     }
     nn::write_atomic(&run.curve(), plot.to_svg().as_bytes())?;
     Ok(())

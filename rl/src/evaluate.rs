@@ -1,8 +1,19 @@
 //! Evaluation: `N` episodes of the trained teams, one per environment of a batch, each
 //! played to its end (success, win, draw or the time limit), with sampled or mean actions,
-//! from random starts or the fixed and rotated starts of `envs::tasks::StartMode`.
+//! from random starts or the fixed start of `envs::tasks::StartMode`, every start moved by
+//! an optional rotation about the vertical through the origin and a horizontal translation
+//! (the paper's equivariance test).
+//!
+//! Environment `e`'s start is drawn as the `VecEnv` would draw it (a random start from the
+//! stream `env_rng(seed, e)`, or the fixed start), then moved
+//! ([`envs::tasks::eval_modes::SceneMotion`]) and set with `VecEnv::set_start`: evaluations
+//! with the same seed and different motions play the same scenes moved, with the same action
+//! noise streams, so their results are paired.
 
-use envs::tasks::{Outcome, StartMode, TaskSpec, VecEnv};
+use envs::tasks::eval_modes::{SceneMotion, fixed_start};
+use envs::tasks::placement::sample_start;
+use envs::tasks::vec_env::env_rng;
+use envs::tasks::{Outcome, Scene, Start, StartMode, TaskSpec, VecEnv};
 use rand_chacha::ChaCha8Rng;
 
 use crate::error::Result;
@@ -21,14 +32,55 @@ pub struct EvalOptions {
     pub seed: u64,
     /// How episodes start.
     pub mode: StartMode,
+    /// Every start rotated by this many degrees about the vertical through the origin
+    /// (then translated).
+    pub rotation_deg: f64,
+    /// Every start translated horizontally by this (x, y) in m, after the rotation; the
+    /// balls (goal balls, Sumo's centre ball) move with the agents.
+    pub translation: [f64; 2],
+}
+
+impl EvalOptions {
+    /// `episodes` episodes from `mode` with seed `seed`, unmoved.
+    pub fn new(episodes: usize, deterministic: bool, seed: u64, mode: StartMode) -> Self {
+        EvalOptions { episodes, deterministic, seed, mode, rotation_deg: 0.0, translation: [0.0, 0.0] }
+    }
+
+    /// The motion applied to every start.
+    pub fn motion(&self) -> SceneMotion {
+        SceneMotion::about_origin(self.rotation_deg, self.translation)
+    }
+}
+
+/// The start of evaluation episode `e` (module docs).
+pub fn episode_start(scene: &Scene, options: &EvalOptions, e: usize) -> Start {
+    let base = match &options.mode {
+        StartMode::Random => sample_start(scene, &mut env_rng(options.seed, e)),
+        StartMode::Fixed(f) => fixed_start(scene, f),
+    };
+    options.motion().apply(&base)
+}
+
+/// The environments of an evaluation, auto-reset off, every episode begun from its
+/// [`episode_start`].
+pub fn eval_envs(env: &str, options: &EvalOptions) -> Result<VecEnv> {
+    options.mode.validate()?;
+    options.motion().validate()?;
+    let spec = TaskSpec::from_name(env)?;
+    let mut venv = VecEnv::new(&spec, options.episodes, options.seed, options.mode)?;
+    venv.set_auto_reset(false);
+    let starts: Vec<Start> = (0..options.episodes).map(|e| episode_start(venv.scene(), options, e)).collect();
+    for (e, s) in starts.iter().enumerate() {
+        venv.set_start(e, s)?;
+    }
+    Ok(venv)
 }
 
 /// Plays `options.episodes` episodes of `env` with `teams` (not changed: their models are
 /// cloned so that the training's random streams are untouched) and summarises them.
 pub fn evaluate(env: &str, teams: &[Team], options: &EvalOptions) -> Result<EvalSummary> {
     let spec = TaskSpec::from_name(env)?;
-    let mut venv = VecEnv::new(&spec, options.episodes, options.seed, options.mode)?;
-    venv.set_auto_reset(false);
+    let mut venv = eval_envs(env, options)?;
     let obs_spec = venv.scene().obs_spec.clone();
     let (b, na, nt) = (options.episodes, venv.n_actions(), venv.scene().n_teams());
     let mut models: Vec<_> = teams.iter().map(|t| t.model.clone()).collect();
@@ -84,7 +136,12 @@ pub fn evaluate(env: &str, teams: &[Team], options: &EvalOptions) -> Result<Eval
             }
         }
     }
-    Ok(summarise(&outcome, &returns, &length, nt))
+    Ok(EvalSummary {
+        sampled: !options.deterministic,
+        rotation_deg: options.rotation_deg,
+        translation: options.translation,
+        ..summarise(&outcome, &returns, &length, nt)
+    })
 }
 
 /// Rates, mean returns and lengths of ended episodes.
@@ -106,5 +163,6 @@ pub fn summarise(outcome: &[Outcome], returns: &[f64], length: &[u32], teams: us
         draw_rate: if teams > 1 { frac(&|o| matches!(o, Outcome::Draw | Outcome::TimeLimit)) } else { 0.0 },
         mean_return: (0..teams).map(|k| (0..n).map(|e| returns[e * teams + k]).sum::<f64>() / n as f64).collect(),
         mean_length: length.iter().map(|&l| l as f64).sum::<f64>() / n as f64,
+        ..Default::default()
     }
 }

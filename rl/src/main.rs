@@ -104,19 +104,44 @@ struct EvalArgs {
     /// Episodes.
     #[arg(long, default_value_t = 1024)]
     episodes: usize,
-    /// Sample actions instead of taking the mean action.
-    #[arg(long)]
+    /// Sample actions (default: as the run's eval_deterministic says; the paper preset
+    /// samples, the quick preset takes the mean action).
+    #[arg(long, conflicts_with = "mean")]
     stochastic: bool,
+    /// Take the mean action tanh(loc) instead of sampling.
+    #[arg(long)]
+    mean: bool,
     /// Start every episode from the fixed start of the run's seed.
     #[arg(long)]
     fixed: bool,
     /// Start every episode from the fixed start rotated by this many degrees about the
     /// vertical through the origin (implies --fixed): the paper's equivariance test.
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     rotate: Option<f64>,
+    /// Translate the whole scene (agents, goal balls, Sumo's centre ball) horizontally by
+    /// X,Y metres after the rotation (implies --fixed), e.g. --translate 2.5,-1.
+    #[arg(long, value_name = "X,Y", value_parser = parse_translation, allow_hyphen_values = true)]
+    translate: Option<[f64; 2]>,
     /// Seed of the evaluation's starts and noise.
     #[arg(long, default_value_t = 12345)]
     seed: u64,
+}
+
+/// `X,Y` as two finite numbers.
+fn parse_translation(s: &str) -> Result<[f64; 2], String> {
+    let parts: Vec<&str> = s.split(',').map(str::trim).collect();
+    let xy: Vec<f64> = match parts.as_slice() {
+        [x, y] => [x, y]
+            .iter()
+            .map(|v| v.parse::<f64>())
+            .collect::<Result<_, _>>()
+            .map_err(|e| format!("expected two numbers X,Y in metres, e.g. 2.5,-1 ({e})"))?,
+        _ => return Err("expected two numbers X,Y in metres, e.g. 2.5,-1".into()),
+    };
+    if !xy.iter().all(|v| v.is_finite()) {
+        return Err("the translation must be finite".into());
+    }
+    Ok([xy[0], xy[1]])
 }
 
 #[derive(Args)]
@@ -256,18 +281,31 @@ fn print_summary(config: &TrainConfig, s: &rl::RunSummary) {
     if let Some(e) = &s.final_eval {
         print_eval(config.is_sumo(), e);
     }
+    for e in &s.final_eval_rotated {
+        print!("rotated {} degrees: ", e.rotation_deg);
+        print_eval(config.is_sumo(), e);
+    }
 }
 
 fn print_eval(sumo: bool, e: &rl::EvalSummary) {
     if sumo {
         println!(
-            "episodes {} win_rate_t0 {:.4} win_rate_t1 {:.4} draw_rate {:.4} mean_length {:.1}",
-            e.episodes, e.win_rate[0], e.win_rate[1], e.draw_rate, e.mean_length
+            "episodes {} win_rate_t0 {:.4} win_rate_t1 {:.4} draw_rate {:.4} mean_length {:.1} actions {}",
+            e.episodes,
+            e.win_rate[0],
+            e.win_rate[1],
+            e.draw_rate,
+            e.mean_length,
+            if e.sampled { "sampled" } else { "mean" }
         );
     } else {
         println!(
-            "episodes {} success_rate {:.4} mean_return {:.1} mean_length {:.1}",
-            e.episodes, e.success_rate, e.mean_return[0], e.mean_length
+            "episodes {} success_rate {:.4} mean_return {:.1} mean_length {:.1} actions {}",
+            e.episodes,
+            e.success_rate,
+            e.mean_return[0],
+            e.mean_length,
+            if e.sampled { "sampled" } else { "mean" }
         );
     }
 }
@@ -278,20 +316,37 @@ fn cmd_eval(a: EvalArgs) -> Result<(), String> {
     if a.episodes == 0 {
         return Err("--episodes must be at least 1".into());
     }
-    let mode = match (a.rotate, a.fixed) {
-        (Some(deg), _) => envs::tasks::StartMode::fixed_rotated(config.seed, deg.to_radians(), [0.0, 0.0]),
-        (None, true) => envs::tasks::StartMode::fixed(config.seed),
-        (None, false) => envs::tasks::StartMode::Random,
+    if let Some(deg) = a.rotate
+        && !deg.is_finite()
+    {
+        return Err(format!("--rotate {deg}: the angle must be finite"));
+    }
+    let moved = a.rotate.is_some() || a.translate.is_some();
+    let mode =
+        if a.fixed || moved { envs::tasks::StartMode::fixed(config.seed) } else { envs::tasks::StartMode::Random };
+    let deterministic = if a.stochastic {
+        false
+    } else if a.mean {
+        true
+    } else {
+        config.eval_deterministic
     };
-    mode.validate().map_err(|e| e.to_string())?;
-    let options = EvalOptions { episodes: a.episodes, deterministic: !a.stochastic, seed: a.seed, mode };
+    let options = EvalOptions {
+        rotation_deg: a.rotate.unwrap_or(0.0),
+        translation: a.translate.unwrap_or([0.0, 0.0]),
+        ..EvalOptions::new(a.episodes, deterministic, a.seed, mode)
+    };
     let e = rl::evaluate(&config.env, &teams, &options).map_err(|e| e.to_string())?;
     print_eval(config.is_sumo(), &e);
-    let name = match a.rotate {
-        Some(d) => format!("eval_rotate{d}.json"),
-        None if a.fixed => "eval_fixed.json".into(),
-        None => "eval.json".into(),
+    let mut name = match a.rotate {
+        Some(d) => format!("eval_rotate{d}"),
+        None if a.fixed || moved => "eval_fixed".into(),
+        None => "eval".into(),
     };
+    if let Some([x, y]) = a.translate {
+        name = if a.rotate.is_some() { format!("{name}_translate{x}_{y}") } else { format!("eval_translate{x}_{y}") };
+    }
+    let name = format!("{name}.json");
     let path = a.run.join(name);
     let text = serde_json::to_string_pretty(&e).map_err(|e| e.to_string())?;
     nn::write_atomic(&path, text.as_bytes()).map_err(|e| e.to_string())?;

@@ -1,12 +1,20 @@
-//! The metrics CSV of a run: one row per iteration, a fixed set of columns (empty cells where
-//! a value does not apply, e.g. team 1 of Team Reach, or was not measured, e.g. evaluation
-//! columns between evaluations).
+//! The metrics CSV of a run: one row per iteration, the columns of a [`MetricsLayout`]
+//! (empty cells where a value does not apply, e.g. team 1 of Team Reach, or was not
+//! measured, e.g. evaluation columns between evaluations).
+//!
+//! The layout is [`COLUMNS`], then, for every rotation of the configuration's
+//! `eval_rotations` after the first (which is 0 and uses the plain `eval_*` columns), the
+//! [`EVAL_COLUMNS`] with the suffix `_rot<degrees>` ([`eval_column`]): e.g.
+//! `eval_success_rate_rot180`. The header line names the columns, so readers
+//! ([`parse_csv`], the learning curves, `meben report`) take whatever columns a file has.
 
 use std::collections::BTreeMap;
 
-/// Column names, in file order. `_t0`/`_t1` are teams 0 and 1; `train_*` are episodes that
-/// ended during collection in this iteration, `eval_*` an evaluation run at the end of this
-/// iteration, the losses the means over the iteration's minibatches.
+/// The columns of every run, in file order. `_t0`/`_t1` are teams 0 and 1; `train_*` are
+/// episodes that ended during collection in this iteration, `eval_*` an evaluation run at
+/// the end of this iteration (the first of `eval_rotations`, i.e. unrotated;
+/// `eval_sampled` is 1 when it sampled actions, 0 when it took the mean action), the losses
+/// the means over the iteration's minibatches.
 pub const COLUMNS: &[&str] = &[
     "iteration",
     "env_steps",
@@ -22,6 +30,7 @@ pub const COLUMNS: &[&str] = &[
     "train_draw_rate",
     "train_length",
     "eval_episodes",
+    "eval_sampled",
     "eval_success_rate",
     "eval_win_rate_t0",
     "eval_win_rate_t1",
@@ -43,41 +52,114 @@ pub const COLUMNS: &[&str] = &[
     "explained_variance_t1",
 ];
 
-/// One row: values by column name (absent: empty cell).
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct MetricsRow {
-    values: BTreeMap<&'static str, f64>,
+/// The evaluation columns repeated, with a suffix, for every further rotation.
+pub const EVAL_COLUMNS: &[&str] = &[
+    "eval_episodes",
+    "eval_success_rate",
+    "eval_win_rate_t0",
+    "eval_win_rate_t1",
+    "eval_draw_rate",
+    "eval_return_t0",
+    "eval_return_t1",
+    "eval_length",
+];
+
+/// The column suffix of an evaluation rotated by `degrees`: empty for 0, else
+/// `_rot<degrees>` (shortest decimal form: `_rot180`, `_rot90.5`, `_rot-45`).
+pub fn rotation_suffix(degrees: f64) -> String {
+    if degrees == 0.0 { String::new() } else { format!("_rot{degrees}") }
 }
 
-impl MetricsRow {
-    /// Sets a column (names not in [`COLUMNS`] are an internal error).
-    pub fn set(&mut self, column: &'static str, value: f64) {
-        assert!(COLUMNS.contains(&column), "unknown metrics column {column}");
-        self.values.insert(column, value);
+/// The name of evaluation column `base` (one of [`EVAL_COLUMNS`]) for the rotation `degrees`.
+pub fn eval_column(base: &str, degrees: f64) -> String {
+    format!("{base}{}", rotation_suffix(degrees))
+}
+
+/// The rotations (degrees, 0 first) whose `base` evaluation column a file has, from its
+/// column names: `eval_success_rate` is 0, `eval_success_rate_rot180` is 180.
+pub fn rotations_of<'a>(base: &str, columns: impl IntoIterator<Item = &'a str>) -> Vec<f64> {
+    let mut out: Vec<f64> = Vec::new();
+    for c in columns {
+        let deg = if c == base {
+            Some(0.0)
+        } else {
+            c.strip_prefix(base).and_then(|r| r.strip_prefix("_rot")).and_then(|d| d.parse::<f64>().ok())
+        };
+        if let Some(d) = deg.filter(|d| d.is_finite() && !out.contains(d)) {
+            out.push(d);
+        }
+    }
+    out.sort_by(|a, b| (*a != 0.0).cmp(&(*b != 0.0)).then(a.total_cmp(b)));
+    out
+}
+
+/// The columns of a run's metrics file (module docs).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct MetricsLayout {
+    columns: Vec<String>,
+}
+
+impl Default for MetricsLayout {
+    /// The layout of a run evaluated without rotations: [`COLUMNS`].
+    fn default() -> Self {
+        MetricsLayout::new(&[0.0])
+    }
+}
+
+impl MetricsLayout {
+    /// [`COLUMNS`], then the [`EVAL_COLUMNS`] of every rotation after the first.
+    pub fn new(eval_rotations: &[f64]) -> Self {
+        let mut columns: Vec<String> = COLUMNS.iter().map(|c| c.to_string()).collect();
+        for &deg in eval_rotations.iter().skip(1) {
+            columns.extend(EVAL_COLUMNS.iter().map(|c| eval_column(c, deg)));
+        }
+        MetricsLayout { columns }
     }
 
-    /// A column's value.
-    pub fn get(&self, column: &str) -> Option<f64> {
-        self.values.get(column).copied()
+    /// The column names, in file order.
+    pub fn columns(&self) -> &[String] {
+        &self.columns
     }
 
     /// The header line (no newline).
-    pub fn header() -> String {
-        COLUMNS.join(",")
+    pub fn header(&self) -> String {
+        self.columns.join(",")
     }
 
-    /// The row as a CSV line (no newline); integers without a fraction, others with full
-    /// precision (the shortest representation that reads back to the same `f64`).
-    pub fn to_csv(&self) -> String {
-        COLUMNS
+    /// A row as a CSV line (no newline); integers without a fraction, others with full
+    /// precision (the shortest representation that reads back to the same `f64`). Every
+    /// column the row sets must be in the layout (an internal error otherwise).
+    pub fn to_csv(&self, row: &MetricsRow) -> String {
+        if let Some(c) = row.values.keys().find(|c| !self.columns.contains(c)) {
+            panic!("metrics column {c} is not in the layout");
+        }
+        self.columns
             .iter()
-            .map(|c| match self.values.get(c) {
+            .map(|c| match row.values.get(c) {
                 Some(v) if v.fract() == 0.0 && v.abs() < 1e15 => format!("{}", *v as i64),
                 Some(v) => format!("{v}"),
                 None => String::new(),
             })
             .collect::<Vec<_>>()
             .join(",")
+    }
+}
+
+/// One row: values by column name (absent: empty cell).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct MetricsRow {
+    values: BTreeMap<String, f64>,
+}
+
+impl MetricsRow {
+    /// Sets a column.
+    pub fn set(&mut self, column: impl Into<String>, value: f64) {
+        self.values.insert(column.into(), value);
+    }
+
+    /// A column's value.
+    pub fn get(&self, column: &str) -> Option<f64> {
+        self.values.get(column).copied()
     }
 }
 
@@ -107,4 +189,38 @@ pub fn parse_csv(text: &str) -> Result<Vec<BTreeMap<String, f64>>, String> {
         rows.push(row);
     }
     Ok(rows)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rotated_evaluations_get_their_own_columns_and_read_back() {
+        let layout = MetricsLayout::new(&[0.0, 180.0, -45.5]);
+        assert_eq!(layout.columns().len(), COLUMNS.len() + 2 * EVAL_COLUMNS.len());
+        assert!(layout.columns().iter().any(|c| c == "eval_success_rate_rot180"));
+        assert!(layout.columns().iter().any(|c| c == "eval_win_rate_t0_rot-45.5"));
+        assert_eq!(MetricsLayout::default().header(), COLUMNS.join(","));
+        let mut row = MetricsRow::default();
+        row.set("iteration", 3.0);
+        row.set("eval_success_rate", 0.25);
+        row.set(eval_column("eval_success_rate", 180.0), 0.5);
+        let text = format!("{}\n{}\n", layout.header(), layout.to_csv(&row));
+        let rows = parse_csv(&text).unwrap();
+        assert_eq!(rows[0]["eval_success_rate_rot180"], 0.5);
+        assert_eq!(rows[0]["iteration"], 3.0);
+        let rot = rotations_of("eval_success_rate", layout.columns().iter().map(|c| c.as_str()));
+        assert_eq!(rot, [0.0, -45.5, 180.0]);
+        // Columns of other bases are not rotations of this one.
+        assert_eq!(rotations_of("eval_win_rate_t0", ["eval_win_rate_t0_rot90", "eval_win_rate_t1_rot90"]), [90.0]);
+    }
+
+    #[test]
+    #[should_panic(expected = "not in the layout")]
+    fn a_column_outside_the_layout_is_an_internal_error() {
+        let mut row = MetricsRow::default();
+        row.set("eval_success_rate_rot90", 1.0);
+        MetricsLayout::default().to_csv(&row);
+    }
 }

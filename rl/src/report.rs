@@ -12,6 +12,11 @@
 //!   without evaluation rows falls back to the training rate (`train_success_rate`,
 //!   `train_win_rate_t0`, `train_draw_rate`: episodes that ended during collection); the
 //!   table marks such groups. A run with neither is listed as having no result yet.
+//! - A run evaluated at further rotations (`eval_rotations`, e.g. `[0.0, 180.0]` for the
+//!   paper's equivariance test) adds one group per rotation with values
+//!   (`eval_success_rate_rot180`, `eval_win_rate_t0_rot180` and `eval_draw_rate_rot180`),
+//!   labelled `<label>, rotated 180°`: its own table row, CSV line and curve, next to the
+//!   unrotated group in the environment's plot.
 //! - Per group: the number of seeds, the mean and the standard error (sample standard
 //!   deviation / sqrt(n); 0 for one seed) of the final values, and the env steps reached
 //!   (the last row's `env_steps`, min–max over the seeds).
@@ -60,9 +65,11 @@ pub struct GroupReport {
     /// The name shown in the table and legend: `variant` without a leading environment
     /// directory, or the model if that leaves nothing.
     pub label: String,
-    /// The metrics column of the final value (`eval_success_rate`, `eval_win_rate_t0`, or
-    /// a `train_*` fallback).
+    /// The metrics column of the final value (`eval_success_rate`, `eval_win_rate_t0`, a
+    /// `train_*` fallback, or a rotated evaluation's `eval_*_rot<degrees>`).
     pub metric: String,
+    /// The rotation of the evaluations (degrees; 0 unrotated).
+    pub rotation_deg: f64,
     /// Whether at least one run had no evaluation rows and used the training rate.
     pub from_train: bool,
     /// The run directories, relative to the root.
@@ -153,21 +160,26 @@ pub fn report(root: &Path) -> Result<Report> {
         ));
     }
     let mut pending = Vec::new();
-    let mut groups: BTreeMap<(usize, String, String, String, String), Vec<RunResult>> = BTreeMap::new();
+    type Key = (usize, String, String, String, String, (bool, i64));
+    let mut groups: BTreeMap<Key, Vec<RunResult>> = BTreeMap::new();
     for dir in &dirs {
         let rel = dir.strip_prefix(root).unwrap_or(dir).to_path_buf();
         match read_run(dir)? {
-            Ok(run) => {
-                let variant = variant_of(&rel);
-                let c = &run.config;
-                let key = (env_rank(&c.env), c.env.clone(), variant, c.model.clone(), c.opponent.clone());
-                groups.entry(key).or_default().push(RunResult { rel, ..run });
+            Ok(results) => {
+                for run in results {
+                    let variant = variant_of(&rel);
+                    let c = &run.config;
+                    // Unrotated first, then by angle (micro-degrees: exact for any angle written).
+                    let rot = (run.rotation_deg != 0.0, (run.rotation_deg * 1e6).round() as i64);
+                    let key = (env_rank(&c.env), c.env.clone(), variant, c.model.clone(), c.opponent.clone(), rot);
+                    groups.entry(key).or_default().push(RunResult { rel: rel.clone(), ..run });
+                }
             }
             Err(reason) => pending.push((rel, reason)),
         }
     }
     let groups: Vec<GroupReport> =
-        groups.into_iter().map(|((_, _, variant, _, _), runs)| summarise(variant, runs)).collect();
+        groups.into_iter().map(|((_, _, variant, _, _, _), runs)| summarise(variant, runs)).collect();
 
     let markdown = root.join("report.md");
     let csv = root.join("report.csv");
@@ -192,7 +204,8 @@ pub fn report(root: &Path) -> Result<Report> {
 struct RunResult {
     rel: PathBuf,
     config: TrainConfig,
-    metric: &'static str,
+    metric: String,
+    rotation_deg: f64,
     from_train: bool,
     final_value: f64,
     final_draw: Option<f64>,
@@ -201,8 +214,9 @@ struct RunResult {
     curve: Vec<(f64, f64)>,
 }
 
-/// Reads a run: `Ok(Err(reason))` if it has no value yet.
-fn read_run(dir: &Path) -> Result<std::result::Result<RunResult, String>> {
+/// Reads a run: its result (then one per further rotation with values), or
+/// `Ok(Err(reason))` if it has no value yet.
+fn read_run(dir: &Path) -> Result<std::result::Result<Vec<RunResult>, String>> {
     let run = RunDir::new(dir);
     let config = TrainConfig::load(&run.config())?;
     let path = run.metrics();
@@ -223,23 +237,41 @@ fn read_run(dir: &Path) -> Result<std::result::Result<RunResult, String>> {
     } else {
         return Ok(Err(format!("no {eval} or {train} values yet")));
     };
-    let last = |col: &str| rows.iter().rev().find_map(|r| r.get(col).copied().filter(|v| v.is_finite()));
-    let final_value = last(metric).unwrap_or(f64::NAN);
-    let final_draw = draw.and_then(last);
     let env_steps = rows.iter().rev().find_map(|r| r.get("env_steps").copied()).unwrap_or(0.0).max(0.0) as u64;
-    let mut curve: Vec<(f64, f64)> = Vec::new();
-    for r in &rows {
-        let (Some(&x), Some(&y)) = (r.get("env_steps"), r.get(metric)) else { continue };
-        if !(x.is_finite() && y.is_finite()) {
-            continue;
+    let result = |metric: String, draw: Option<String>, rotation_deg: f64, from_train: bool| {
+        let last = |col: &str| rows.iter().rev().find_map(|r| r.get(col).copied().filter(|v| v.is_finite()));
+        let mut curve: Vec<(f64, f64)> = Vec::new();
+        for r in &rows {
+            let (Some(&x), Some(&y)) = (r.get("env_steps"), r.get(&metric)) else { continue };
+            if !(x.is_finite() && y.is_finite()) {
+                continue;
+            }
+            // A resumed run may repeat env steps: the later rows replace the earlier ones.
+            while curve.last().is_some_and(|&(px, _)| px >= x) {
+                curve.pop();
+            }
+            curve.push((x, y));
         }
-        // A resumed run may repeat env steps: the later rows replace the earlier ones.
-        while curve.last().is_some_and(|&(px, _)| px >= x) {
-            curve.pop();
+        RunResult {
+            rel: PathBuf::new(),
+            config: config.clone(),
+            final_value: last(&metric).unwrap_or(f64::NAN),
+            final_draw: draw.as_deref().and_then(last),
+            metric,
+            rotation_deg,
+            from_train,
+            env_steps,
+            curve,
         }
-        curve.push((x, y));
+    };
+    let mut out = vec![result(metric.to_string(), draw.map(str::to_string), 0.0, from_train)];
+    for &deg in config.eval_rotations.iter().skip(1) {
+        let rotated = metrics::eval_column(eval, deg);
+        if has(&rotated) {
+            out.push(result(rotated, eval_draw.map(|d| metrics::eval_column(d, deg)), deg, false));
+        }
     }
-    Ok(Ok(RunResult { rel: PathBuf::new(), config, metric, from_train, final_value, final_draw, env_steps, curve }))
+    Ok(Ok(out))
 }
 
 /// The run path without `seed<N>` components, `/`-separated.
@@ -270,13 +302,15 @@ fn summarise(variant: String, mut runs: Vec<RunResult>) -> GroupReport {
         _ => variant.clone(),
     };
     let label = if label.is_empty() { c.model.clone() } else { label };
+    let rotation_deg = runs[0].rotation_deg;
+    let label = if rotation_deg == 0.0 { label } else { format!("{label}, rotated {rotation_deg}°") };
     let finals: Vec<f64> = runs.iter().map(|r| 100.0 * r.final_value).collect();
     let (mean, se) = mean_and_se(&finals);
     let draws: Vec<f64> = runs.iter().filter_map(|r| r.final_draw.map(|d| 100.0 * d)).collect();
     let draw = (!draws.is_empty()).then(|| mean_and_se(&draws));
     let from_train = runs.iter().any(|r| r.from_train);
     let shown = if from_train { runs.iter().find(|r| r.from_train) } else { runs.first() };
-    let metric = shown.map(|r| r.metric).unwrap_or_default().to_string();
+    let metric = shown.map(|r| r.metric.clone()).unwrap_or_default();
     let steps = runs.iter().map(|r| r.env_steps);
     let env_steps = (steps.clone().min().unwrap_or(0), steps.max().unwrap_or(0));
     let curves: Vec<&[(f64, f64)]> = runs.iter().map(|r| r.curve.as_slice()).collect();
@@ -287,6 +321,7 @@ fn summarise(variant: String, mut runs: Vec<RunResult>) -> GroupReport {
         variant,
         label,
         metric,
+        rotation_deg,
         from_train,
         runs: runs.iter().map(|r| r.rel.clone()).collect(),
         seed_list: runs.iter().map(|r| r.config.seed).collect(),
@@ -390,7 +425,8 @@ fn render_markdown(root: &Path, groups: &[GroupReport], pending: &[(PathBuf, Str
         "{runs} runs in {} groups. Final value of a run: its metric in the last row of `metrics.csv` that has it \
          (Team Reach `eval_success_rate`, Team Sumo `eval_win_rate_t0` and `eval_draw_rate`), in percent; \
          mean ± standard error over seeds (sample standard deviation / √n; 0 for one seed). Env steps: the last \
-         row's, over the seeds. Curves: mean over seeds with a ± s.e. band.\n",
+         row's, over the seeds. Curves: mean over seeds with a ± s.e. band. Rows \"rotated N°\" are \
+         evaluations of the same runs with every start rotated by N degrees about the vertical (`eval_rotations`).\n",
         groups.len()
     );
     for env in envs_in_order(groups) {
@@ -461,14 +497,14 @@ fn csv_field(s: &str) -> String {
 fn render_csv(groups: &[GroupReport]) -> String {
     let mut out = String::from(
         "env,model,opponent,variant,metric,seeds,seed_list,mean_pct,se_pct,draw_mean_pct,draw_se_pct,\
-         env_steps_min,env_steps_max\n",
+         env_steps_min,env_steps_max,rotation_deg\n",
     );
     for g in groups {
         let seeds: Vec<String> = g.seed_list.iter().map(|s| s.to_string()).collect();
         let (dm, ds) = g.draw.map(|(m, s)| (m.to_string(), s.to_string())).unwrap_or_default();
         let _ = writeln!(
             out,
-            "{},{},{},{},{},{},{},{},{},{dm},{ds},{},{}",
+            "{},{},{},{},{},{},{},{},{},{dm},{ds},{},{},{}",
             csv_field(&g.env),
             csv_field(&g.model),
             csv_field(&g.opponent),
@@ -479,7 +515,8 @@ fn render_csv(groups: &[GroupReport]) -> String {
             g.mean,
             g.se,
             g.env_steps.0,
-            g.env_steps.1
+            g.env_steps.1,
+            g.rotation_deg
         );
     }
     out

@@ -4,7 +4,7 @@
 //! | file | written | holds |
 //! |---|---|---|
 //! | `config.toml` | at the start | the resolved [`crate::TrainConfig`] |
-//! | `metrics.csv` | every iteration | one row per iteration ([`crate::metrics::COLUMNS`]) |
+//! | `metrics.csv` | every iteration | one row per iteration (the columns of [`crate::metrics::MetricsLayout`]) |
 //! | `checkpoint.json` | every `checkpoint_every` iterations, after evaluations, at the end | everything needed to resume exactly ([`crate::checkpoint`]) |
 //! | `curve.svg` | after every evaluation | the learning curve |
 //! | `done.json` | at the end | the [`crate::RunSummary`]; a run with it is finished |

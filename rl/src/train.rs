@@ -30,7 +30,7 @@ use crate::checkpoint::{Checkpoint, TeamState, VERSION};
 use crate::config::TrainConfig;
 use crate::error::{Result, RlError};
 use crate::evaluate::{EvalOptions, evaluate};
-use crate::metrics::MetricsRow;
+use crate::metrics::{MetricsLayout, MetricsRow, eval_column};
 use crate::ppo::{LossStats, PpoParams, ppo_loss};
 use crate::rollout::{MinibatchBuf, Rollout};
 use crate::run_dir::RunDir;
@@ -61,6 +61,15 @@ pub struct EvalSummary {
     pub mean_return: Vec<f64>,
     /// Mean episode length in control steps.
     pub mean_length: f64,
+    /// Whether actions were sampled (else the mean action was taken).
+    #[serde(default)]
+    pub sampled: bool,
+    /// Rotation of every start about the vertical through the origin, in degrees.
+    #[serde(default)]
+    pub rotation_deg: f64,
+    /// Horizontal translation of every start (x, y) in m.
+    #[serde(default)]
+    pub translation: [f64; 2],
 }
 
 /// What a finished (or stopped) run reports, also written as `done.json`.
@@ -72,8 +81,11 @@ pub struct RunSummary {
     pub env_steps: u64,
     /// Wall-clock seconds of training (summed over resumed sessions).
     pub wall_s: f64,
-    /// The last evaluation.
+    /// The last evaluation (unrotated: the first of `eval_rotations`).
     pub final_eval: Option<EvalSummary>,
+    /// The last evaluation at each further rotation of `eval_rotations`, in order.
+    #[serde(default)]
+    pub final_eval_rotated: Vec<EvalSummary>,
 }
 
 /// Episodes that ended during one iteration's collection.
@@ -241,8 +253,9 @@ impl Trainer {
         Ok(t)
     }
 
-    /// The state to save.
-    pub fn checkpoint(&self, wall_s: f64, last_eval: Option<EvalSummary>) -> Checkpoint {
+    /// The state to save; `last_evals` is the last scheduled evaluation, one summary per
+    /// rotation of `eval_rotations` (empty before the first).
+    pub fn checkpoint(&self, wall_s: f64, last_evals: &[EvalSummary]) -> Checkpoint {
         Checkpoint {
             version: VERSION,
             config: self.config.clone(),
@@ -263,7 +276,8 @@ impl Trainer {
                 .collect(),
             env: self.env.snapshot(),
             episode_returns: self.episode_returns.clone(),
-            last_eval,
+            last_eval: last_evals.first().cloned(),
+            last_eval_rotated: last_evals.iter().skip(1).cloned().collect(),
         }
     }
 
@@ -418,14 +432,13 @@ impl Trainer {
         evaluate(&self.config.env, &self.teams, options)
     }
 
-    /// The evaluation options of the run's `k`-th scheduled evaluation.
-    pub fn scheduled_eval(&self, k: u64) -> EvalOptions {
-        EvalOptions {
-            episodes: self.config.eval_episodes,
-            deterministic: self.config.eval_deterministic,
-            seed: derive_seed(self.config.seed, "eval", k, 0),
-            mode: self.config.start_mode(),
-        }
+    /// The evaluation options of the run's `k`-th scheduled evaluation, one per rotation of
+    /// `eval_rotations` (the same seed, so the same starts, rotated, and the same noise).
+    pub fn scheduled_evals(&self, k: u64) -> Vec<EvalOptions> {
+        let c = &self.config;
+        let base =
+            EvalOptions::new(c.eval_episodes, c.eval_deterministic, derive_seed(c.seed, "eval", k, 0), c.start_mode());
+        c.eval_rotations.iter().map(|&rotation_deg| EvalOptions { rotation_deg, ..base }).collect()
     }
 }
 
@@ -472,8 +485,9 @@ fn eval_due(i: u64, n: u64, num_evals: u64) -> bool {
     num_evals > 0 && (i * num_evals / n) > ((i - 1) * num_evals / n)
 }
 
-/// Fills a metrics row from an iteration's figures.
-fn metrics_row(t: &Trainer, s: &IterationStats, wall: f64, sps: f64, eval: Option<&EvalSummary>) -> MetricsRow {
+/// Fills a metrics row from an iteration's figures and evaluations (one per rotation of
+/// `eval_rotations`, or none).
+fn metrics_row(t: &Trainer, s: &IterationStats, wall: f64, sps: f64, evals: &[EvalSummary]) -> MetricsRow {
     const LOSS: [[&str; 6]; 2] = [
         ["policy_loss_t0", "value_loss_t0", "entropy_t0", "approx_kl_t0", "clip_fraction_t0", "explained_variance_t0"],
         ["policy_loss_t1", "value_loss_t1", "entropy_t1", "approx_kl_t1", "clip_fraction_t1", "explained_variance_t1"],
@@ -500,36 +514,40 @@ fn metrics_row(t: &Trainer, s: &IterationStats, wall: f64, sps: f64, eval: Optio
             r.set("train_success_rate", ep.successes as f64 / n);
         }
     }
-    if let Some(e) = eval {
-        r.set("eval_episodes", e.episodes as f64);
-        r.set("eval_return_t0", e.mean_return[0]);
-        r.set("eval_length", e.mean_length);
+    if let Some(e) = evals.first() {
+        r.set("eval_sampled", if e.sampled { 1.0 } else { 0.0 });
+    }
+    for (e, &deg) in evals.iter().zip(&t.config.eval_rotations) {
+        let col = |base: &str| eval_column(base, deg);
+        r.set(col("eval_episodes"), e.episodes as f64);
+        r.set(col("eval_return_t0"), e.mean_return[0]);
+        r.set(col("eval_length"), e.mean_length);
         if sumo {
-            r.set("eval_return_t1", e.mean_return[1]);
-            r.set("eval_win_rate_t0", e.win_rate[0]);
-            r.set("eval_win_rate_t1", e.win_rate[1]);
-            r.set("eval_draw_rate", e.draw_rate);
+            r.set(col("eval_return_t1"), e.mean_return[1]);
+            r.set(col("eval_win_rate_t0"), e.win_rate[0]);
+            r.set(col("eval_win_rate_t1"), e.win_rate[1]);
+            r.set(col("eval_draw_rate"), e.draw_rate);
         } else {
-            r.set("eval_success_rate", e.success_rate);
+            r.set(col("eval_success_rate"), e.success_rate);
         }
     }
     for (k, l) in s.losses.iter().enumerate().take(2) {
         let v = [l.policy_loss, l.value_loss, l.entropy, l.approx_kl, l.clip_fraction, l.explained_variance];
         for (name, x) in LOSS[k].iter().zip(v) {
-            r.set(name, x);
+            r.set(*name, x);
         }
     }
     r
 }
 
 /// Keeps the metrics rows of iterations up to `iteration` (a resumed run drops rows written
-/// after its checkpoint) and returns the file's text.
-fn metrics_upto(path: &std::path::Path, iteration: u64) -> String {
-    let mut out = MetricsRow::header();
+/// after its checkpoint) and returns the file's text, with the header of `layout`.
+fn metrics_upto(path: &std::path::Path, iteration: u64, layout: &MetricsLayout) -> String {
+    let mut out = layout.header();
     out.push('\n');
     if let Ok(text) = std::fs::read_to_string(path) {
         for line in text.lines().skip(1) {
-            let complete = line.split(',').count() == crate::metrics::COLUMNS.len();
+            let complete = line.split(',').count() == layout.columns().len();
             match line.split(',').next().and_then(|c| c.parse::<u64>().ok()) {
                 Some(i) if complete && i <= iteration => {
                     out.push_str(line);
@@ -558,12 +576,13 @@ pub fn train(config: &TrainConfig, run: &RunDir, options: &TrainOptions) -> Resu
 fn train_in_pool(config: &TrainConfig, run: &RunDir, options: &TrainOptions) -> Result<RunSummary> {
     std::fs::create_dir_all(run.root()).map_err(|e| RlError::file(run.root(), format!("cannot create: {e}")))?;
     let ckpt_path = run.checkpoint();
-    let (mut trainer, wall_before, mut last_eval) = if ckpt_path.is_file() {
+    let (mut trainer, wall_before, mut last_evals) = if ckpt_path.is_file() {
         let c = Checkpoint::load(&ckpt_path)?;
         let t = Trainer::from_checkpoint(&c, config, &ckpt_path)?;
-        (t, c.wall_s, c.last_eval)
+        let evals: Vec<EvalSummary> = c.last_eval.iter().chain(&c.last_eval_rotated).cloned().collect();
+        (t, c.wall_s, evals)
     } else {
-        (Trainer::new(config)?, 0.0, None)
+        (Trainer::new(config)?, 0.0, Vec::new())
     };
     let total = config.iterations();
     if trainer.iteration >= total
@@ -575,7 +594,8 @@ fn train_in_pool(config: &TrainConfig, run: &RunDir, options: &TrainOptions) -> 
     let _ = std::fs::remove_file(run.done());
     config.save(&run.config())?;
     let metrics_path = run.metrics();
-    nn::write_atomic(&metrics_path, metrics_upto(&metrics_path, trainer.iteration).as_bytes())?;
+    let layout = MetricsLayout::new(&config.eval_rotations);
+    nn::write_atomic(&metrics_path, metrics_upto(&metrics_path, trainer.iteration, &layout).as_bytes())?;
     let mut metrics = std::fs::OpenOptions::new()
         .append(true)
         .open(&metrics_path)
@@ -591,25 +611,27 @@ fn train_in_pool(config: &TrainConfig, run: &RunDir, options: &TrainOptions) -> 
         let stats = trainer.iterate()?;
         let dt = t0.elapsed().as_secs_f64();
         let sps = config.steps_per_iteration() as f64 / dt;
-        let mut eval = None;
+        let mut evals = Vec::new();
         if eval_due(trainer.iteration, total, config.num_evals as u64) {
-            let e = trainer.evaluate(&trainer.scheduled_eval(trainer.evals_done))?;
+            for options in trainer.scheduled_evals(trainer.evals_done) {
+                evals.push(trainer.evaluate(&options)?);
+            }
             trainer.evals_done += 1;
-            eval = Some(e.clone());
-            last_eval = Some(e);
+            last_evals.clone_from(&evals);
         }
+        let evaluated = !evals.is_empty();
         let wall = wall_before + start.elapsed().as_secs_f64();
-        let row = metrics_row(&trainer, &stats, wall, sps, eval.as_ref());
-        writeln!(metrics, "{}", row.to_csv())
+        let row = metrics_row(&trainer, &stats, wall, sps, &evals);
+        writeln!(metrics, "{}", layout.to_csv(&row))
             .map_err(|e| RlError::file(&metrics_path, format!("cannot write: {e}")))?;
         bar.update(&row, trainer.env_steps);
         since_ckpt += 1;
         let last = trainer.iteration >= total || options.stop_after.is_some_and(|s| trainer.iteration >= s);
-        if eval.is_some() || last || (config.checkpoint_every > 0 && since_ckpt >= config.checkpoint_every as u64) {
-            trainer.checkpoint(wall, last_eval.clone()).save(&ckpt_path)?;
+        if evaluated || last || (config.checkpoint_every > 0 && since_ckpt >= config.checkpoint_every as u64) {
+            trainer.checkpoint(wall, &last_evals).save(&ckpt_path)?;
             since_ckpt = 0;
         }
-        if eval.is_some() {
+        if evaluated {
             crate::curve::write_run_curve(run)?;
         }
     }
@@ -618,7 +640,8 @@ fn train_in_pool(config: &TrainConfig, run: &RunDir, options: &TrainOptions) -> 
         iterations: trainer.iteration,
         env_steps: trainer.env_steps,
         wall_s: wall_before + start.elapsed().as_secs_f64(),
-        final_eval: last_eval,
+        final_eval: last_evals.first().cloned(),
+        final_eval_rotated: last_evals.iter().skip(1).cloned().collect(),
     };
     if trainer.iteration >= total {
         let text = serde_json::to_string_pretty(&summary).unwrap_or_default();

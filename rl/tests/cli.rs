@@ -50,6 +50,18 @@ fn train_eval_report_render_produce_their_files() {
     assert!(ok, "eval failed: {stderr}");
     assert!(stdout.contains("episodes 3"), "{stdout}");
     assert!(run.join("eval_rotate180.json").is_file());
+    // A rotated and translated scene, with sampled actions; the summary says so.
+    let (ok, stdout, stderr) =
+        meben(&["eval", "--run", run_s, "--episodes", "2", "--rotate", "-90", "--translate", "2.5,-1", "--stochastic"]);
+    assert!(ok, "eval failed: {stderr}");
+    assert!(stdout.contains("actions sampled"), "{stdout}");
+    let json = std::fs::read_to_string(run.join("eval_rotate-90_translate2.5_-1.json")).unwrap();
+    let e: rl::EvalSummary = serde_json::from_str(&json).unwrap();
+    assert_eq!((e.rotation_deg, e.translation, e.sampled), (-90.0, [2.5, -1.0], true));
+    // The quick preset evaluates with the mean action unless told otherwise.
+    let (ok, stdout, _) = meben(&["eval", "--run", run_s, "--episodes", "1", "--translate", "0,3"]);
+    assert!(ok && stdout.contains("actions mean"), "{stdout}");
+    assert!(run.join("eval_translate0_3.json").is_file());
 
     let (ok, stdout, stderr) = meben(&["report", root.to_str().unwrap()]);
     assert!(ok, "report failed: {stderr}");
@@ -108,6 +120,13 @@ fn bad_input_gives_clear_errors() {
     fails_with(&["train", "--config", "/no/such/file.toml"], &["/no/such/file.toml", "cannot read"]);
     fails_with(&["eval", "--run", dir.join("nothing").to_str().unwrap()], &["config.toml", "not a run directory"]);
     fails_with(&["report", dir.join("nothing").to_str().unwrap()], &["nothing"]);
+    let nowhere = dir.join("nothing");
+    let nowhere = nowhere.to_str().unwrap();
+    for bad in ["1,x", "1", "1,2,3", "inf,0", "NaN,1"] {
+        fails_with(&["eval", "--run", nowhere, "--translate", bad], &["--translate", bad]);
+    }
+    fails_with(&["eval", "--run", nowhere, "--stochastic", "--mean"], &["--stochastic", "--mean"]);
+    fails_with(&["train", "--set", "eval_rotations=[90.0]", "--out", out_s], &["eval_rotations", "first rotation"]);
     assert!(!Path::new(out_s).join("checkpoint.json").exists());
     let _ = std::fs::remove_dir_all(&dir);
 }

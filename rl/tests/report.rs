@@ -3,7 +3,7 @@
 
 use std::path::Path;
 
-use rl::metrics::MetricsRow;
+use rl::metrics::{MetricsLayout, MetricsRow};
 use rl::{Preset, RunDir, RunSummary, Sweep, TrainConfig, report, run_sweep};
 
 mod common;
@@ -15,7 +15,8 @@ fn write_run(dir: &Path, config: &TrainConfig, rows: &[&[(&'static str, f64)]]) 
     std::fs::create_dir_all(dir).unwrap();
     let run = RunDir::new(dir);
     config.save(&run.config()).unwrap();
-    let mut text = MetricsRow::header();
+    let layout = MetricsLayout::new(&config.eval_rotations);
+    let mut text = layout.header();
     text.push('\n');
     for (i, cells) in rows.iter().enumerate() {
         let mut row = MetricsRow::default();
@@ -23,7 +24,7 @@ fn write_run(dir: &Path, config: &TrainConfig, rows: &[&[(&'static str, f64)]]) 
         for &(column, value) in cells.iter() {
             row.set(column, value);
         }
-        text.push_str(&row.to_csv());
+        text.push_str(&layout.to_csv(&row));
         text.push('\n');
     }
     std::fs::write(run.metrics(), text).unwrap();
@@ -155,6 +156,49 @@ fn report_of_synthetic_runs() {
         assert!(svg.starts_with("<svg") && svg.trim_end().ends_with("</svg>"));
         assert!(svg.contains("<path") && svg.contains("fill-opacity"), "no band in {}", path.display());
     }
+}
+
+#[test]
+fn report_has_a_group_and_a_curve_per_evaluation_rotation() {
+    let tmp = TempDir::new("rotations");
+    let root = &tmp.0;
+    // The paper's equivariance test: fixed start, evaluated unrotated and at 180 degrees.
+    for (model, finals) in [("shnn", [(0.4, 0.42), (0.5, 0.48)]), ("mlp", [(0.4, 0.0), (0.6, 0.02)])] {
+        for (seed, (plain, rotated)) in finals.into_iter().enumerate() {
+            let c = TrainConfig {
+                fixed_start: true,
+                eval_rotations: vec![0.0, 180.0],
+                ..config("team_reach/1_centipede", model, seed as u64)
+            };
+            write_run(
+                &root.join(format!("{model}/seed{seed}")),
+                &c,
+                &[
+                    &[("env_steps", 100.0), ("eval_success_rate", 0.1), ("eval_success_rate_rot180", 0.1)],
+                    &[("env_steps", 200.0), ("eval_success_rate", plain), ("eval_success_rate_rot180", rotated)],
+                ],
+            );
+        }
+    }
+    let r = report(root).unwrap();
+    let groups: Vec<(&str, &str, f64)> =
+        r.groups.iter().map(|g| (g.label.as_str(), g.metric.as_str(), g.rotation_deg)).collect();
+    assert_eq!(
+        groups,
+        [
+            ("mlp", "eval_success_rate", 0.0),
+            ("mlp, rotated 180°", "eval_success_rate_rot180", 180.0),
+            ("shnn", "eval_success_rate", 0.0),
+            ("shnn, rotated 180°", "eval_success_rate_rot180", 180.0),
+        ]
+    );
+    assert!(close(r.groups[1].mean, 1.0) && close(r.groups[3].mean, 45.0), "{:?}", r.groups);
+    assert_eq!(r.groups[3].curve.len(), 2);
+    let csv = std::fs::read_to_string(&r.csv).unwrap();
+    assert!(csv.lines().next().unwrap().ends_with(",rotation_deg"));
+    assert!(csv.lines().any(|l| l.contains("eval_success_rate_rot180") && l.ends_with(",180")), "{csv}");
+    let svg = std::fs::read_to_string(&r.curves[0]).unwrap();
+    assert!(svg.contains("shnn, rotated 180°") && svg.contains("mlp, rotated 180°"));
 }
 
 #[test]

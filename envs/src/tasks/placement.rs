@@ -1,4 +1,5 @@
-//! Random starts (MEBEN.md sections 2, 3) and their rotation about a vertical axis.
+//! Random starts (MEBEN.md sections 2, 3), their rotation about a vertical axis and their
+//! horizontal translation.
 //!
 //! - Team Reach: every ball at radius `sqrt(U(0, R^2))`, angle `U[0, 2 pi)` (uniform over the
 //!   disc of radius `R`); every agent the same, with a uniform yaw, except that an agent whose
@@ -116,6 +117,19 @@ impl Start {
                 .map(|a| RootPlacement { xy: rotate_xy(a.xy, angle, point), yaw: a.yaw + angle })
                 .collect(),
             balls: self.balls.iter().map(|&b| rotate_xy(b, angle, point)).collect(),
+        }
+    }
+
+    /// The same scene translated horizontally by `shift` (x, y) in m: positions move, yaws do
+    /// not (`shift = [0, 0]`: an exact copy).
+    pub fn translated(&self, shift: [f64; 2]) -> Start {
+        if shift == [0.0, 0.0] {
+            return self.clone(); // exactly, without round-off
+        }
+        let add = |p: [f64; 2]| [p[0] + shift[0], p[1] + shift[1]];
+        Start {
+            agents: self.agents.iter().map(|a| RootPlacement { xy: add(a.xy), yaw: a.yaw }).collect(),
+            balls: self.balls.iter().map(|&b| add(b)).collect(),
         }
     }
 
