@@ -41,6 +41,22 @@ enum Command {
     Render(RenderArgs),
     /// The simulator's rollout tool (random actions, timing, trajectories).
     Sim(envs::rollout_tool::RolloutArgs),
+    /// Parameter counts by part, one line per model and team:
+    /// `<model> policy_params=N critic_params=M`.
+    Info(InfoArgs),
+}
+
+#[derive(Args)]
+struct InfoArgs {
+    /// Environment (e.g. team_reach/3_ant_claw_centipede).
+    #[arg(long, default_value = "team_reach/1_ant")]
+    env: String,
+    /// Model specification, with options ("shnn:critic=shared"); repeatable.
+    #[arg(long, required = true)]
+    model: Vec<String>,
+    /// Team Sumo: model of team 1 (default: the same as --model).
+    #[arg(long)]
+    opponent: Option<String>,
 }
 
 #[derive(Args, Default)]
@@ -55,7 +71,8 @@ struct TrainArgs {
     /// Team Sumo: model of team 1 (default: the same as --model).
     #[arg(long)]
     opponent: Option<String>,
-    /// Task assignment (ablation): greedy, hungarian or random (appended to the model options).
+    /// Task assignment (ablation): greedy, hungarian, stochastic or none (appended to the
+    /// model options).
     #[arg(long)]
     assignment: Option<String>,
     /// Translation of positions (ablation; see models::Translation).
@@ -195,6 +212,7 @@ fn main() -> ExitCode {
         Some(Command::Report(a)) => cmd_report(a),
         Some(Command::Render(a)) => cmd_render(a),
         Some(Command::Sim(a)) => envs::rollout_tool::run(&a).map_err(|e| e.to_string()),
+        Some(Command::Info(a)) => cmd_info(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -376,6 +394,13 @@ fn cmd_report(a: ReportArgs) -> Result<(), String> {
     let text = std::fs::read_to_string(&r.markdown).map_err(|e| format!("{}: {e}", r.markdown.display()))?;
     println!("{text}");
     eprintln!("meben: wrote {}", r.markdown.display());
+    Ok(())
+}
+
+fn cmd_info(a: InfoArgs) -> Result<(), String> {
+    for line in rl::info::info_lines(&a.env, &a.model, a.opponent.as_deref()).map_err(|e| e.to_string())? {
+        println!("{line}");
+    }
     Ok(())
 }
 

@@ -130,3 +130,15 @@ fn bad_input_gives_clear_errors() {
     assert!(!Path::new(out_s).join("checkpoint.json").exists());
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn info_prints_each_teams_parameter_counts_and_rejects_bad_names() {
+    let (ok, stdout, stderr) = meben(&["info", "--env", "team_sumo/2_ants", "--model", "shnn", "--opponent", "mlp_hn"]);
+    assert!(ok, "{stderr}");
+    let lines: Vec<&str> = stdout.lines().collect();
+    assert_eq!(lines.len(), 2, "{stdout}");
+    assert!(lines[0].starts_with("shnn policy_params=") && lines[0].contains(" critic_params="), "{stdout}");
+    assert!(lines[1].starts_with("mlp_hn policy_params=") && lines[1].ends_with(" team=1"), "{stdout}");
+    let (ok, _, stderr) = meben(&["info", "--env", "team_reach/1_ant", "--model", "shnn:critic=huge"]);
+    assert!(!ok && stderr.contains("model") && stderr.contains("critic"), "{stderr}");
+}
