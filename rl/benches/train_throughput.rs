@@ -88,7 +88,8 @@ fn minibatch_flops(t: &Trainer, c: &TrainConfig, reps: usize) -> Result<(u64, f6
     let pass = |tape: &Tape<f32>| -> Result<(), Box<dyn std::error::Error>> {
         let p = team.store.bind(tape);
         let mut model = team.model.clone();
-        let (loss, _) = ppo_loss(&mut model, spec, &p, &mb.view(&v, &s), &hp)?;
+        let mut noise = rl::seeding::minibatch_stream(c.seed, "entropy", 0, 0, 0, 0);
+        let (loss, _) = ppo_loss(&mut model, spec, &p, &mb.view(&v, &s), &hp, &mut noise)?;
         std::hint::black_box(tape.backward(loss)?);
         Ok(())
     };

@@ -5,7 +5,8 @@
 //! A configuration is resolved in layers, each overriding the one before:
 //! 1. a preset: `quick` (the built-in default of `meben train`: `shnn` on `team_reach/1_ant`
 //!    in about ten minutes on 2 cores: 256 environments, batch 128 unrolls x 8 minibatches,
-//!    1.5M steps, learning rate decayed linearly to 0, entropy bonus 1e-3, evaluation with
+//!    1.5M steps, learning rate decayed linearly to 0, entropy bonus 1e-3 (both presets take
+//!    the bonus's entropy as the reference's Tanh-Normal estimate), evaluation with
 //!    mean actions) or `paper` (the reference schedule: 2048 environments, 50M steps for Team
 //!    Reach, 20M and batch 128 for Team Sumo, evaluation with sampled actions as the release's
 //!    `run_eval`);
@@ -53,6 +54,19 @@ impl ObsNormKind {
             ObsNormKind::None => NormKind::Identity,
         }
     }
+}
+
+/// Which entropy the loss's bonus uses (module [`crate::ppo`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum EntropyKind {
+    /// The presets' choice: the reference release's, Brax's `NormalTanhDistribution.entropy`,
+    /// the Normal's entropy plus the tanh log-Jacobian at one reparameterised sample per
+    /// action dimension ([`models::distribution::tanh_normal_entropy`]), its noise drawn
+    /// from a stream per minibatch ([`crate::seeding::minibatch_stream`]).
+    TanhNormal,
+    /// The Normal part's entropy alone (no sample).
+    Normal,
 }
 
 /// The named starting points of a configuration (module docs).
@@ -116,6 +130,11 @@ pub struct TrainConfig {
     pub value_coef: f64,
     /// Weight of the entropy bonus.
     pub entropy_coef: f64,
+    /// The entropy of the bonus: `tanh_normal` (the presets; the reference release's
+    /// one-sample Tanh-Normal estimate) or `normal` (the Normal part alone). Absent from files
+    /// written before it existed: `normal`, what those runs used.
+    #[serde(default = "entropy_before_the_field")]
+    pub entropy: EntropyKind,
     /// Adam learning rate.
     pub learning_rate: f64,
     /// The learning rate falls linearly to 0 over the run's updates (CleanRL's `anneal_lr`;
@@ -178,6 +197,7 @@ impl TrainConfig {
             clip_epsilon: 0.3,
             value_coef: 0.25,
             entropy_coef: 1e-2,
+            entropy: EntropyKind::TanhNormal,
             learning_rate: 3e-4,
             lr_decay: false,
             grad_clip: 0.1,
@@ -402,6 +422,12 @@ impl TrainConfig {
     }
 }
 
+/// Configurations written before the `entropy` field existed trained with the Normal part's
+/// entropy.
+fn entropy_before_the_field() -> EntropyKind {
+    EntropyKind::Normal
+}
+
 /// `[0.0]`: evaluation without rotation.
 fn default_eval_rotations() -> Vec<f64> {
     vec![0.0]
@@ -458,6 +484,7 @@ mod tests {
             ("eval_rotations", "[]", "eval_rotations"),
             ("eval_rotations", "[0.0, 90.0, 90.0]", "90 appears twice"),
             ("eval_rotations", "[0.0, nan]", "finite"),
+            ("entropy", "gaussian", "entropy"),
         ];
         for (field, value, named) in cases {
             let e = TrainConfig::resolve(None, None, &[(field.to_string(), value.to_string())]).unwrap_err();
@@ -471,8 +498,13 @@ mod tests {
         let c = TrainConfig::preset(Preset::Paper, "team_reach/1_ant");
         assert!(!c.eval_deterministic, "the paper preset samples in evaluation, as the release");
         assert!(TrainConfig::preset(Preset::Quick, "team_reach/1_ant").eval_deterministic);
-        let text: String =
-            c.to_toml().lines().filter(|l| !l.starts_with("eval_rotations")).map(|l| format!("{l}\n")).collect();
+        assert_eq!(c.entropy, EntropyKind::TanhNormal);
+        let text: String = c
+            .to_toml()
+            .lines()
+            .filter(|l| !l.starts_with("eval_rotations") && !l.starts_with("entropy ="))
+            .map(|l| format!("{l}\n"))
+            .collect();
         let dir = std::env::temp_dir().join(format!("meben-config-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         let path = dir.join("config.toml");
@@ -480,6 +512,7 @@ mod tests {
         let back = TrainConfig::load(&path).unwrap();
         let _ = std::fs::remove_dir_all(&dir);
         assert_eq!(back.eval_rotations, [0.0]);
-        assert_eq!(back, c);
+        assert_eq!(back.entropy, EntropyKind::Normal, "old runs trained with the Normal entropy");
+        assert_eq!(back, TrainConfig { entropy: EntropyKind::Normal, ..c });
     }
 }

@@ -8,8 +8,13 @@
 //!
 //! with `rho = exp(log pi(u | s) - log pi_old(u | s))`. The log-probabilities are those of
 //! the pre-squash action `u` under the policy's Normal: the Tanh Jacobian at `u` is the same
-//! for both policies and cancels in `rho`. `H` is the entropy of the Normal part (the Tanh
-//! correction does not depend on the parameters at a fixed `u`). The observation rows are
+//! for both policies and cancels in `rho`. `H` is, per [`EntropyKind`], the reference
+//! release's Tanh-Normal estimate (Brax's `NormalTanhDistribution.entropy`: the Normal's
+//! entropy plus `ln |d tanh(x)/dx|` at one reparameterised sample `x = loc + std eps` per
+//! action dimension, the gradient flowing through `x`; `eps` is drawn from the minibatch's
+//! stream, for each agent of the team in turn a `[T M, dof]` block in row order) or the
+//! Normal part's entropy alone; either is summed over the team's action dimensions and
+//! averaged over the transitions. The observation rows are
 //! time-major: `T + 1` rows per unroll (the last is the state after the unroll), then one
 //! row per truncated transition holding its final observation. Only the first `T M` rows
 //! (the transitions) go through the model on the tape; the rest only bootstrap the returns
@@ -19,13 +24,16 @@
 //! rows draw their own (they only give values, and the default critic reads no assignment).
 
 use envs::tasks::ObsSpec;
-use models::distribution::{normal_entropy, normal_log_prob, std_from_scale};
+use models::distribution::{normal_entropy, normal_log_prob, std_from_scale, tanh_normal_entropy};
 use models::{Model, ObsBatch};
 use nn::Bound;
+use rand_chacha::ChaCha8Rng;
 use tensor::{Tensor, Var};
 
+use crate::config::EntropyKind;
 use crate::error::Result;
 use crate::gae::{Unrolls, gae};
+use crate::seeding::standard_normal;
 
 /// The loss weights and return parameters.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -36,6 +44,8 @@ pub struct PpoParams {
     pub value_coef: f64,
     /// Entropy weight `c_H`.
     pub entropy_coef: f64,
+    /// Which entropy the bonus uses.
+    pub entropy: EntropyKind,
     /// Discount.
     pub discount: f64,
     /// GAE lambda.
@@ -49,6 +59,7 @@ impl PpoParams {
             clip_epsilon: c.clip_epsilon,
             value_coef: c.value_coef,
             entropy_coef: c.entropy_coef,
+            entropy: c.entropy,
             discount: c.discount,
             gae_lambda: c.gae_lambda,
         }
@@ -94,7 +105,8 @@ pub struct LossStats {
     pub policy_loss: f64,
     /// `mean((V - v_target)^2)` (before the weight).
     pub value_loss: f64,
-    /// Mean entropy of the Normal part, summed over the team's action dimensions.
+    /// Mean entropy of the bonus ([`EntropyKind`]), summed over the team's action
+    /// dimensions.
     pub entropy: f64,
     /// `mean((rho - 1) - ln rho)` (an estimate of KL(old, new)).
     pub approx_kl: f64,
@@ -108,13 +120,15 @@ pub struct LossStats {
     pub mean_advantage: f64,
 }
 
-/// The loss on the tape of `p` and its diagnostics (module docs).
+/// The loss on the tape of `p` and its diagnostics (module docs). `entropy_noise` supplies
+/// the Tanh-Normal entropy estimate's samples (unused for [`EntropyKind::Normal`]).
 pub fn ppo_loss<'t>(
     model: &mut Model,
     spec: &ObsSpec,
     p: &Bound<'t, f32>,
     mb: &Minibatch<'_>,
     hp: &PpoParams,
+    entropy_noise: &mut ChaCha8Rng,
 ) -> Result<(Var<'t, f32>, LossStats)> {
     let tape = p.tape();
     let (t_len, m) = (mb.steps, mb.unrolls);
@@ -187,7 +201,13 @@ pub fn ppo_loss<'t>(
         let ua = tape.constant(Tensor::new(ua, &[n, dof])?);
         let (loc, std) = (a.loc, std_from_scale(a.scale));
         let lp = normal_log_prob(ua, loc, std)?;
-        let h = normal_entropy(std)?;
+        let h = match hp.entropy {
+            EntropyKind::Normal => normal_entropy(std)?,
+            EntropyKind::TanhNormal => {
+                let eps: Vec<f32> = (0..n * dof).map(|_| standard_normal(entropy_noise) as f32).collect();
+                tanh_normal_entropy(loc, std, tape.constant(Tensor::new(eps, &[n, dof])?))?
+            }
+        };
         logp = Some(match logp {
             None => lp,
             Some(x) => x.add(lp)?,

@@ -26,6 +26,15 @@ pub fn derive_seed(seed: u64, label: &str, a: u64, b: u64) -> u64 {
     stream(seed, label, a, b).next_u64()
 }
 
+/// The stream `label` of one minibatch update: team `team`, iteration `iteration`, epoch
+/// `epoch`, minibatch `minibatch` of a run seeded with `seed` (the key of
+/// `stream(derive_seed(seed, label, team, iteration), label, epoch, minibatch)`): a fresh
+/// stream per minibatch that depends on nothing else, so training stays bit-reproducible
+/// and a resumed run draws what the uninterrupted one would.
+pub fn minibatch_stream(seed: u64, label: &str, team: u64, iteration: u64, epoch: u64, minibatch: u64) -> ChaCha8Rng {
+    stream(derive_seed(seed, label, team, iteration), label, epoch, minibatch)
+}
+
 /// One standard-normal sample (Box-Muller on two uniforms; the second normal is dropped so
 /// that every sample uses exactly two words of the stream).
 pub fn standard_normal<R: Rng + ?Sized>(rng: &mut R) -> f64 {

@@ -12,7 +12,8 @@
 //!    observations (then stay frozen for the update, as in the reference).
 //! 3. **Update** every team: `epochs` passes, each over a fresh permutation of the
 //!    iteration's unrolls cut into `num_minibatches` minibatches of `batch_size` whole unrolls;
-//!    per minibatch the PPO loss ([`crate::ppo`]; GAE under the current critic), backward,
+//!    per minibatch the PPO loss ([`crate::ppo`]; GAE under the current critic; the entropy
+//!    estimate's noise from the minibatch's own stream), backward,
 //!    every gradient element clipped to `+-grad_clip`, one Adam step. A non-finite loss or
 //!    gradient stops the run ([`RlError::NonFinite`]); the last checkpoint is kept.
 //!
@@ -34,7 +35,7 @@ use crate::metrics::{MetricsLayout, MetricsRow, eval_column};
 use crate::ppo::{LossStats, PpoParams, ppo_loss};
 use crate::rollout::{MinibatchBuf, Rollout};
 use crate::run_dir::RunDir;
-use crate::seeding::{RngState, derive_seed};
+use crate::seeding::{RngState, derive_seed, minibatch_stream};
 use crate::team::{ActMode, ActScratch, Team, act};
 
 /// How [`train`] runs, beyond the configuration.
@@ -396,7 +397,9 @@ impl Trainer {
                     let tape = Tape::<f32>::new();
                     let p = team.store.bind(&tape);
                     let mb = self.mb.view(&self.norm_v, &self.norm_s);
-                    let (loss, stats) = ppo_loss(&mut team.model, &self.spec, &p, &mb, &hp)?;
+                    let mut noise =
+                        minibatch_stream(c.seed, "entropy", team.index as u64, self.iteration, epoch as u64, k as u64);
+                    let (loss, stats) = ppo_loss(&mut team.model, &self.spec, &p, &mb, &hp, &mut noise)?;
                     let where_ = || {
                         format!(
                             "team {} at iteration {}, epoch {epoch}, minibatch {k} (policy loss {}, value loss {}, \

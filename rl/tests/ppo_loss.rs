@@ -8,7 +8,8 @@ use models::distribution::std_from_scale;
 use rl::gae::{Unrolls, gae};
 use rl::ppo::{PpoParams, ppo_loss};
 use rl::rollout::{MinibatchBuf, NO_FINAL};
-use rl::{TrainConfig, Trainer};
+use rl::seeding::{minibatch_stream, standard_normal};
+use rl::{EntropyKind, TrainConfig, Trainer};
 use tensor::Tape;
 
 fn params(c: &TrainConfig) -> PpoParams {
@@ -33,7 +34,8 @@ fn loss_stats(t: &mut Trainer, mb: &MinibatchBuf, config: &TrainConfig) -> rl::p
     team.norm.apply(&mb.vectors, &mb.scalars, &mut v, &mut s);
     let tape = Tape::<f32>::new();
     let p = team.store.bind(&tape);
-    ppo_loss(&mut team.model, &t.spec, &p, &mb.view(&v, &s), &params(config)).unwrap().1
+    let mut noise = minibatch_stream(config.seed, "entropy", 0, 0, 0, 0);
+    ppo_loss(&mut team.model, &t.spec, &p, &mb.view(&v, &s), &params(config), &mut noise).unwrap().1
 }
 
 #[test]
@@ -77,8 +79,16 @@ fn stochastic_assignment_is_stored_with_the_transition_and_reused() {
 
 #[test]
 fn loss_matches_a_hand_computation_from_the_model_outputs() {
+    for kind in [EntropyKind::TanhNormal, EntropyKind::Normal] {
+        loss_matches_a_hand_computation(kind);
+    }
+}
+
+fn loss_matches_a_hand_computation(kind: EntropyKind) {
     let mut config = common::tiny("team_reach/1_ant", "mlp_hn", 1, &[]);
+    assert_eq!(config.entropy, EntropyKind::TanhNormal, "the default");
     config.clip_epsilon = 0.2;
+    config.entropy = kind;
     let (mut t, mut mb) = first_minibatch(&config);
     // Perturb the behaviour log-probabilities so that some ratios are clipped on each side.
     for (i, l) in mb.logp_old.iter_mut().enumerate() {
@@ -90,7 +100,10 @@ fn loss_matches_a_hand_computation_from_the_model_outputs() {
     let hp = params(&config);
     let tape = Tape::<f32>::new();
     let p = team.store.bind(&tape);
-    let (loss, st) = ppo_loss(&mut team.model.clone(), &t.spec, &p, &mb.view(&v, &s), &hp).unwrap();
+    let noise = minibatch_stream(config.seed, "entropy", 0, 3, 1, 2);
+    let (loss, st) = ppo_loss(&mut team.model.clone(), &t.spec, &p, &mb.view(&v, &s), &hp, &mut noise.clone()).unwrap();
+    // The noise the Tanh-Normal estimate draws: per agent a [T M, dof] block in row order.
+    let mut draws = noise;
 
     // The same model outputs, then every term by hand in f64.
     let tape2 = Tape::<f32>::new();
@@ -128,6 +141,11 @@ fn loss_matches_a_hand_computation_from_the_model_outputs() {
                 let z = (u - mu) / sd;
                 logp[i] += -0.5 * z * z - sd.ln() - 0.5 * (2.0 * std::f64::consts::PI).ln();
                 ent += sd.ln() + 0.5 + 0.5 * (2.0 * std::f64::consts::PI).ln();
+                if kind == EntropyKind::TanhNormal {
+                    // ln(1 - tanh(x)^2) = 2 (ln 2 - x - ln(1 + e^{-2x})) at x = mu + sd eps.
+                    let x = mu + sd * (standard_normal(&mut draws) as f32) as f64;
+                    ent += 2.0 * (std::f64::consts::LN_2 - x - (-2.0 * x).exp().ln_1p());
+                }
             }
         }
     }
@@ -167,4 +185,30 @@ fn approx_kl_is_finite_when_a_ratio_underflows() {
     let n = (mb.steps * mb.unrolls) as f64;
     // The one sample contributes expm1(d) - d ~ 200 (d ~ -200); the rest are near 0.
     assert!(st.approx_kl.is_finite() && st.approx_kl > 190.0 / n && st.approx_kl < 210.0 / n, "{st:?}");
+}
+
+/// The Tanh-Normal estimate draws its noise from the minibatch's stream: the same stream
+/// gives the same bits, another minibatch's stream another entropy (and loss), and the
+/// Normal entropy does not depend on the stream.
+#[test]
+fn the_entropy_estimate_is_reproducible_from_the_minibatch_stream() {
+    let config = common::tiny("team_reach/1_ant", "mlp_hn", 1, &[]);
+    let (mut t, mb) = first_minibatch(&config);
+    let team = &mut t.teams[0];
+    let (mut v, mut s) = (Vec::new(), Vec::new());
+    team.norm.apply(&mb.vectors, &mb.scalars, &mut v, &mut s);
+    let mut run = |kind: EntropyKind, minibatch: u64| {
+        let tape = Tape::<f32>::new();
+        let p = team.store.bind(&tape);
+        let hp = PpoParams { entropy: kind, ..params(&config) };
+        let mut noise = minibatch_stream(config.seed, "entropy", 0, 0, 0, minibatch);
+        let (loss, st) = ppo_loss(&mut team.model, &t.spec, &p, &mb.view(&v, &s), &hp, &mut noise).unwrap();
+        (loss.value().item().unwrap().to_bits(), st.entropy.to_bits())
+    };
+    let a = run(EntropyKind::TanhNormal, 0);
+    assert_eq!(run(EntropyKind::TanhNormal, 0), a);
+    let b = run(EntropyKind::TanhNormal, 1);
+    assert!(a.0 != b.0 && a.1 != b.1, "another minibatch's noise should change the estimate");
+    assert_eq!(run(EntropyKind::Normal, 0), run(EntropyKind::Normal, 1));
+    assert_ne!(run(EntropyKind::Normal, 0).1, a.1);
 }
