@@ -53,6 +53,8 @@ pub enum GraphTask {
 /// The entity graph of a batch.
 #[derive(Clone, Debug)]
 pub struct EntityGraph {
+    /// The task the scenes were recognised as.
+    pub task: GraphTask,
     /// Environments `B`.
     pub batch: usize,
     /// Entities per environment `E`.
@@ -254,6 +256,7 @@ impl GraphBuilder {
         let cap = nb * self.max_edges_per_scene();
         let slots = self.slots();
         let mut graph = EntityGraph {
+            task: self.task,
             batch: nb,
             entities: ne,
             edges: EdgeList { src: Vec::with_capacity(cap), dst: Vec::with_capacity(cap), num_nodes: nb * ne },

@@ -17,13 +17,14 @@
 //! assignment and the body origin) are the means over all its nodes instead of its root's.
 //!
 //! # The actor's entities
-//! [`InputProcessor::actor_entities`]: with [`Translation::Assigned`] the origin of every
-//! entity follows Algorithm 1's labels (`C(i) = i` for an agent, `C(j) = i` for the object
-//! `j` assigned to agent `i`): the viewing team's agents sit at their own origin (position
-//! 0), an assigned object at `p_{j,1} - p_{i,1}` (scaled to a unit direction with
-//! [`NeighbourOffset::Unit`], as the reference release's actor does), and any other entity
-//! (an object left without an agent, Sumo's centre ball) at `p - c`. Other translation
-//! modes keep `p - c` (or world positions).
+//! [`InputProcessor::actor_entities`]: with [`Translation::Assigned`] in Team Reach the
+//! origin of every entity follows Algorithm 1's labels (`C(i) = i` for an agent, `C(j) = i`
+//! for the object `j` assigned to agent `i`): the agents sit at their own origin (position
+//! 0), an assigned ball at `p_{j,1} - p_{i,1}` (scaled to a unit direction with
+//! [`NeighbourOffset::Unit`], as the reference release's actor does), and a ball left
+//! without an agent at `p - c`. In Team Sumo the centre ball belongs to every group, so no
+//! label gives it one origin: the entity rows stay relative to `c`, where every edge vector
+//! `p_j - p_i` is the true offset. Other translation modes keep `p - c` (or world positions).
 //!
 //! # Bodies
 //! Per agent `a` (for the body-level heads and the frame transform of eq. (lrf)): its own
@@ -38,8 +39,9 @@
 //! [`InputProcessor::neighbours`]: per agent the rows `Z_{j,1}`, `h_{j,1}` of its neighbours
 //! `j ∈ N(i)` in the graph's slots ([`crate::entity_graph`]), positions relative to the
 //! agent's body origin (`p_{j,1} - p_{C(j),1} = p_{j,1} - p_{i,1}` under
-//! [`Translation::Assigned`], unit-scaled with [`NeighbourOffset::Unit`]); an empty slot is
-//! a row of zeros.
+//! [`Translation::Assigned`]; the entity assigned to the agent unit-scaled with
+//! [`NeighbourOffset::Unit`], other neighbours such as Sumo's centre ball raw); an empty
+//! slot is a row of zeros.
 //!
 //! Observations are read through [`ObsBatch`], generic over `f32` (what the environments
 //! produce) and `f64` (exact equivariance tests); all arithmetic is in `f64` and the outputs
@@ -50,7 +52,7 @@ use tensor::{Float, Tensor};
 
 use crate::assignment::UNASSIGNED;
 use crate::config::NeighbourOffset;
-use crate::entity_graph::EntityGraph;
+use crate::entity_graph::{EntityGraph, GraphTask};
 use crate::error::{ModelError, Result};
 
 /// `eps` of the unit direction `d / (|d| + eps)` (the reference release's `normalize_vector`).
@@ -496,7 +498,7 @@ impl InputProcessor {
         own: &[usize],
         offset: NeighbourOffset,
     ) -> Result<Tensor<T>> {
-        if self.translation != Translation::Assigned {
+        if self.translation != Translation::Assigned || graph.task != GraphTask::Reach {
             return Ok(entities.z.clone());
         }
         let (nb, ne, na) = (entities.batch, entities.entities, self.spec.n_agents);
@@ -535,8 +537,8 @@ impl InputProcessor {
         offset: NeighbourOffset,
     ) -> Result<Vec<NeighbourRows<T>>> {
         obs.check(&self.spec)?;
-        let (nb, ns) = (obs.batch, graph.slots);
-        let unit = self.translation == Translation::Assigned;
+        let (nb, ns, na) = (obs.batch, graph.slots, self.spec.n_agents);
+        let assigned = self.translation == Translation::Assigned;
         let mut out = Vec::with_capacity(bodies.len());
         for body in bodies {
             if body.origin.len() != nb || graph.batch != nb {
@@ -565,7 +567,8 @@ impl InputProcessor {
                     let (p, v, w) = (obs.vec3(b, node, 0), obs.vec3(b, node, 1), obs.vec3(b, node, 2));
                     let o = body.origin[b];
                     let d = [p[0] - o[0], p[1] - o[1], p[2] - o[2]];
-                    let d = if unit { scale_offset(d, offset) } else { d };
+                    let own_object = graph.agent_entity.get(b * na + body.agent) == Some(&j);
+                    let d = if assigned && own_object { scale_offset(d, offset) } else { d };
                     for r in 0..3 {
                         z.extend([d[r], v[r], w[r]].map(T::from_f64));
                     }

@@ -92,13 +92,52 @@ impl NodeEmbedding {
         })
     }
 
-    /// Rows `x: [B, R, NODE_FEATURES]` -> `[B, R * EMBED]` twice (vectors, scalars).
-    fn forward<'t, T: Float>(&self, p: &Bound<'t, T>, x: Tensor<T>) -> Result<[Var<'t, T>; 2]> {
+    /// The hidden features of `mlp` on the embedded rows `x: [B, R, NODE_FEATURES]`, whose
+    /// input is `[e^z_1 .. e^z_R, e^h_1 .. e^h_R]` (the release's order) with
+    /// `e^z_r = x^z_r E_z + b_z`, `e^h_r = x^h_r E_h + b_h`.
+    ///
+    /// The embedding and the first layer are both affine with nothing between them, so the
+    /// first layer is computed as the one affine map they compose to:
+    /// `Σ_r x^z_r (E_z W_r^z) + Σ_r x^h_r (E_h W_r^h) + (b_1 + Σ_r b_z W_r^z + Σ_r b_h W_r^h)`,
+    /// with `W_r^z`, `W_r^h` the rows of the first layer's weight that read row `r`'s
+    /// embeddings. The same function and parameters (and gradients, through the products on
+    /// the tape), with 19 instead of 128 inputs per row in the large product: the first layer
+    /// of a 1_ant head takes 11 x 19 inputs instead of 11 x 128.
+    fn hidden<'t, T: Float>(&self, p: &Bound<'t, T>, mlp: &Mlp, x: Tensor<T>) -> Result<Var<'t, T>> {
         let (nb, r) = (x.shape()[0], x.shape()[1]);
-        let x = p.tape().constant(x);
-        let ez = self.z.forward(p, x.narrow(2, 0, 9)?)?.reshape(&[nb, r * EMBED])?;
-        let eh = self.h.forward(p, x.narrow(2, 9, N_SCALARS)?)?.reshape(&[nb, r * EMBED])?;
-        Ok([ez, eh])
+        let first = &mlp.layers[0];
+        if mlp.layers.len() < 2 || first.fan_in != 2 * EMBED * r {
+            return Err(ModelError::Input(format!(
+                "an MLP of {} layers taking {} inputs for {r} embedded rows",
+                mlp.layers.len(),
+                first.fan_in
+            )));
+        }
+        let tape = p.tape();
+        let w = p.get(first.weight);
+        let out = first.fan_out;
+        let mut terms = Vec::with_capacity(2);
+        let mut bias = match first.bias {
+            Some(b) => p.get(b),
+            None => tape.constant(Tensor::zeros(&[out])),
+        };
+        for (k, (emb, lo, width)) in [(&self.z, 0, 9), (&self.h, 9, N_SCALARS)].into_iter().enumerate() {
+            // W_r for every row: [R, 64, out]; E [1, width, 64]; E W_r: [R, width, out].
+            let wr = w.narrow(0, k * EMBED * r, EMBED * r)?.reshape(&[r, EMBED, out])?;
+            let e = p.get(emb.weight).reshape(&[1, width, EMBED])?;
+            let m = e.matmul(wr)?.reshape(&[r * width, out])?;
+            if let Some(b) = emb.bias {
+                let br = p.get(b).reshape(&[1, 1, EMBED])?.matmul(wr)?.reshape(&[r, out])?.sum(0, false)?;
+                bias = bias.add(br)?;
+            }
+            let xk = tape.constant(x.clone()).narrow(2, lo, width)?.reshape(&[nb, r * width])?;
+            terms.push((xk, m));
+        }
+        let mut h = tape.linear_sum(&terms, Some(bias), mlp.activation)?;
+        for layer in &mlp.layers[1..mlp.layers.len() - 1] {
+            h = layer.forward_act(p, h, mlp.activation)?;
+        }
+        Ok(h)
     }
 }
 
@@ -205,8 +244,7 @@ impl ReleaseMlp {
                     }
                 }
             }
-            let [ez, eh] = self.actor_embed.forward(p, Tensor::new(x, &[nb, rows, NODE_FEATURES])?)?;
-            let hidden = head.forward_hidden_parts(p, &[ez, eh])?;
+            let hidden = self.actor_embed.hidden(p, head, Tensor::new(x, &[nb, rows, NODE_FEATURES])?)?;
             out.push(split_head(head, p, hidden, a, spec.agent_dof[a])?);
         }
         // The value: every entity's root, relative to the mean of the roots.
@@ -218,8 +256,9 @@ impl ReleaseMlp {
                 push_node(&mut x, obs, b, spec.entity_root_node[e], inputs.origin[b], yaw);
             }
         }
-        let [ez, eh] = self.critic_embed.forward(p, Tensor::new(x, &[nb, ne, NODE_FEATURES])?)?;
-        let value = self.critic.forward_parts(p, &[ez, eh])?.reshape(&[nb])?;
+        let hidden = self.critic_embed.hidden(p, &self.critic, Tensor::new(x, &[nb, ne, NODE_FEATURES])?)?;
+        let last = &self.critic.layers[self.critic.layers.len() - 1];
+        let value = last.forward(p, hidden)?.reshape(&[nb])?;
         Ok(PolicyOutput { agents: out, value, assignment: graph.assignment })
     }
 }

@@ -4,9 +4,10 @@
 //!
 //! For agent `i` (eqs. (somp) to (pi), with Algorithm 1's labels `C(i) = i`, `C(j) = i`):
 //! 1. the entities' root rows, positions re-based by the labels
-//!    ([`InputProcessor::actor_entities`]: the agent at its own origin, its assigned object
-//!    at the unit direction to it), go through one round of `φ_o` over the assignment edges
-//!    (the release's actor), giving `h'_i` and `O_i = OP(Z'_i W_u)`;
+//!    ([`InputProcessor::actor_entities`]: in Team Reach the agent at its own origin, its
+//!    assigned ball at the unit direction to it; in Team Sumo relative to `c`), go through
+//!    one round of `φ_o` over the assignment edges (the release's actor), giving `h'_i` and
+//!    `O_i = OP(Z'_i W_u)`;
 //! 2. eq. (lrf): `o'_i = [{O_i^T Z_{i,k}, h_{i,k}}_{k=1}^{K_i}, O_i^T Z_{j,1}, h_{j,1}]` for
 //!    `j ∈ N(i)` (the neighbour rows of [`InputProcessor::neighbours`]), positions
 //!    `p_{i,k} - p_{i,1}` and `p_{j,1} - p_{i,1}` (the latter a unit direction by default);

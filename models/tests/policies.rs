@@ -577,3 +577,108 @@ fn sumo_team_1_sees_the_scene_from_its_own_side() {
         assert!(max_diff(&own, &other) > 1e-6, "{name}");
     }
 }
+
+/// The release's MLP (`mlp_hn`) against a plain hand computation of its formula
+/// (`models/MLP.py`: per-row affine embeddings of the 9 vector components and the scalars,
+/// rows = own nodes, own root, assigned ball, positions relative to the own root in the
+/// heading frame; 256, 256 per agent; the critic on every entity root relative to the mean
+/// root), which the model computes with the embedding folded into the first layer.
+#[test]
+fn release_mlp_matches_its_formula_computed_by_hand() {
+    let (spec, vectors, scalars, heading) = observations("team_reach/2_ants", B, 41);
+    let (mut store, mut model) = build(&ModelConfig::new("mlp_hn"), &spec, 0, 12);
+    let mut r = rng(3);
+    // Generic biases (zero biases would hide a misplaced one).
+    let ids: Vec<nn::ParamId> =
+        store.names().iter().filter(|n| n.ends_with("bias")).map(|n| store.find(n).unwrap()).collect();
+    for id in ids {
+        let t = store.get(id).clone();
+        let v: Vec<f64> = (0..t.numel()).map(|_| r.random_range(-0.5..0.5)).collect();
+        store.set(id, Tensor::new(v, t.shape()).unwrap()).unwrap();
+    }
+    let got = run(&mut model, &store, &spec, &vectors, &scalars, &heading);
+    let param = |n: &str| store.get(store.find(&format!("team.{n}")).unwrap()).to_vec();
+    let obs = ObsBatch::new(B, spec.n_nodes, &vectors[..], &scalars[..]).unwrap();
+    // A node's 19 features seen from `origin` in the frame of heading `yaw`.
+    let row = |b: usize, node: usize, origin: [f64; 3], yaw: f64| -> Vec<f64> {
+        let (s, c) = yaw.sin_cos();
+        let mut f = Vec::new();
+        for k in 0..3 {
+            let mut v = obs.vec3(b, node, k);
+            if k == 0 {
+                (0..3).for_each(|i| v[i] -= origin[i]);
+            }
+            f.extend([c * v[0] + s * v[1], -s * v[0] + c * v[1], v[2]]);
+        }
+        f.extend((0..10).map(|i| obs.scalar(b, node, i)));
+        f
+    };
+    let affine = |x: &[f64], w: &[f64], bias: &[f64], relu: bool| -> Vec<f64> {
+        let out = bias.len();
+        (0..out)
+            .map(|j| {
+                let y = bias[j] + x.iter().enumerate().map(|(i, xi)| xi * w[i * out + j]).sum::<f64>();
+                if relu { y.max(0.0) } else { y }
+            })
+            .collect()
+    };
+    // [e^z of every row, then e^h of every row] through `layers` MLP layers under `prefix`.
+    let mlp = |rows: &[Vec<f64>], embed: &str, prefix: &str| -> Vec<f64> {
+        let (ez, eh): (Vec<f64>, Vec<f64>) = (
+            rows.iter()
+                .flat_map(|x| {
+                    affine(
+                        &x[..9],
+                        &param(&format!("{embed}.embed_z.weight")),
+                        &param(&format!("{embed}.embed_z.bias")),
+                        false,
+                    )
+                })
+                .collect(),
+            rows.iter()
+                .flat_map(|x| {
+                    affine(
+                        &x[9..],
+                        &param(&format!("{embed}.embed_h.weight")),
+                        &param(&format!("{embed}.embed_h.bias")),
+                        false,
+                    )
+                })
+                .collect(),
+        );
+        let mut h: Vec<f64> = ez.into_iter().chain(eh).collect();
+        for i in 0..3 {
+            h = affine(&h, &param(&format!("{prefix}.{i}.weight")), &param(&format!("{prefix}.{i}.bias")), i < 2);
+        }
+        h
+    };
+    let graph_inputs = InputProcessor::new(&spec, Translation::RootMean).unwrap().entities::<f64, f64>(&obs).unwrap();
+    let graph = GraphBuilder::new(&spec, AssignmentMethod::Greedy, 0, 0).unwrap().build(&graph_inputs).unwrap();
+    let mut want = Vec::new();
+    for a in 0..2 {
+        let (root, k) = (spec.agent_root_node[a], 1 + spec.agent_dof[a]);
+        let outs: Vec<Vec<f64>> = (0..B)
+            .map(|b| {
+                let (o, yaw) = (obs.vec3(b, root, 0), heading[b * 2 + a]);
+                let ball = spec.entity_root_node[graph.agent_entity[b * 2 + a]];
+                let mut rows: Vec<Vec<f64>> = (root..root + k).map(|n| row(b, n, o, yaw)).collect();
+                rows.push(row(b, root, o, yaw));
+                rows.push(row(b, ball, o, yaw));
+                mlp(&rows, "actor", &format!("actor.{a}"))
+            })
+            .collect();
+        let dof = k - 1;
+        want.extend(outs.iter().flat_map(|o| o[..dof].to_vec()));
+        want.extend(outs.iter().flat_map(|o| o[dof..].to_vec()));
+    }
+    for b in 0..B {
+        let roots: Vec<usize> = spec.entity_root_node.clone();
+        let mut c = [0.0; 3];
+        for &n in &roots {
+            (0..3).for_each(|i| c[i] += obs.vec3(b, n, 0)[i] / roots.len() as f64);
+        }
+        let rows: Vec<Vec<f64>> = roots.iter().map(|&n| row(b, n, c, heading[b * 2])).collect();
+        want.extend(mlp(&rows, "critic", "critic.mlp"));
+    }
+    assert!(max_diff(&got, &want) < 1e-10, "{}", max_diff(&got, &want));
+}
