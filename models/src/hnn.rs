@@ -20,7 +20,7 @@ use nn::{Bound, EdgeList, Linear, Mlp, Scope};
 use tensor::{Activation, Float, Tensor, Var};
 
 use crate::assignment::UNASSIGNED;
-use crate::config::NeighbourOffset;
+use crate::config::{NeighbourOffset, layer_sizes};
 use crate::critic::critic_order;
 use crate::entity_graph::GraphBuilder;
 use crate::error::{ModelError, Result};
@@ -171,24 +171,20 @@ impl Hnn {
         agents: &[usize],
     ) -> Result<Self> {
         let mp = ScalarMp::new(&mut s.sub("entity"), 3 * NODE_VECTORS + ENTITY_SCALARS, sizes)?;
-        let widths = |input: usize, h: &[usize], out: usize| {
-            let mut v = vec![input];
-            v.extend_from_slice(h);
-            v.push(out);
-            v
-        };
         let mut actor = s.sub("actor");
         let slots = if neighbour == NeighbourOffset::None { 0 } else { graph.slots() };
         let heads = agents
             .iter()
             .map(|&a| {
                 let k = 1 + spec.agent_dof[a] + slots;
-                let sz = widths(k * (3 * NODE_VECTORS + N_SCALARS) + sizes.scalars, head_hidden, 2 * spec.agent_dof[a]);
+                let sz =
+                    layer_sizes(k * (3 * NODE_VECTORS + N_SCALARS) + sizes.scalars, head_hidden, 2 * spec.agent_dof[a]);
                 Mlp::new(&mut actor.sub(a), &sz, Activation::Relu)
             })
             .collect::<nn::Result<Vec<_>>>()?;
         let ne = spec.entity_root_node.len();
-        let critic = Mlp::new(&mut s.sub("critic"), &widths(ne * sizes.scalars, critic_hidden, 1), Activation::Relu)?;
+        let critic =
+            Mlp::new(&mut s.sub("critic"), &layer_sizes(ne * sizes.scalars, critic_hidden, 1), Activation::Relu)?;
         let critic_entities = critic_order(spec, agents);
         Ok(Self { proc, graph, frame, neighbour, mp, heads, critic, critic_entities })
     }

@@ -205,7 +205,7 @@ impl ReleaseMlp {
         &mut self.graph
     }
 
-    /// The assignment width of one scene (0: the method needs none stored).
+    /// The task-assignment graph builder.
     pub(crate) fn graph(&self) -> &GraphBuilder {
         &self.graph
     }
