@@ -412,7 +412,7 @@ impl FlatMlp {
     }
 }
 
-/// Checks `[B, n]` shapes of an assignment given to a model without one.
+/// Refuses a non-empty assignment given to a model that has no task assignment.
 pub(crate) fn no_assignment(fixed: Option<&[u32]>) -> Result<()> {
     match fixed {
         Some(f) if !f.is_empty() => {
