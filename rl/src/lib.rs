@@ -13,13 +13,15 @@
 //! act step), [`rollout`] (an iteration's data and minibatches), [`gae`], [`ppo`] (the loss),
 //! [`train`](mod@train) (the loop and the run directory), [`evaluate`](mod@evaluate), [`checkpoint`], [`metrics`],
 //! [`run_dir`], [`progress`], [`curve`], [`plot`] (SVG line plots), [`sweep`] (`meben ablate`),
-//! [`report`](mod@report) (`meben report`), [`info`] (`meben info`: parameter counts).
+//! [`report`](mod@report) (`meben report`), [`export`](mod@export) (`meben export`: a run tree's
+//! evidence without checkpoints), [`info`] (`meben info`: parameter counts).
 
 pub mod checkpoint;
 pub mod config;
 pub mod curve;
 pub mod error;
 pub mod evaluate;
+pub mod export;
 pub mod gae;
 pub mod info;
 pub mod metrics;
@@ -41,6 +43,6 @@ pub use evaluate::{EvalOptions, evaluate};
 pub use plot::LinePlot;
 pub use report::{Report, report};
 pub use run_dir::{RunDir, RunStatus};
-pub use sweep::{Shard, Sweep, SweepOutcome, SweepRun, run_sweep};
+pub use sweep::{RunSelection, Shard, Sweep, SweepOutcome, SweepRun, run_sweep};
 pub use team::Team;
 pub use train::{EvalSummary, RunSummary, TrainOptions, Trainer, train};

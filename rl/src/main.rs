@@ -37,6 +37,9 @@ enum Command {
     /// Tables (Markdown, CSV) and learning curves of a sweep or of runs under a directory
     /// (also redraws each run's curve.svg).
     Report(ReportArgs),
+    /// Copy the evidence of the runs under a directory (config.toml, metrics.csv, done.json,
+    /// curve.svg, the sweep file) to another, without checkpoints: for committing results.
+    Export(ExportArgs),
     /// Record an episode of a trained run: .html (animation), .gif, or .csv (body poses).
     Render(RenderArgs),
     /// The simulator's rollout tool (random actions, timing, trajectories).
@@ -172,9 +175,24 @@ struct AblateArgs {
     /// Only this shard, k/n (1-based): runs with index % n == k - 1.
     #[arg(long)]
     shard: Option<String>,
+    /// Only the runs whose name (`<env>/<model>/seed<N>`) contains this; repeatable.
+    #[arg(long)]
+    only: Vec<String>,
+    /// Worker threads of every run (0: every core), whatever the sweep says; results do not
+    /// depend on it.
+    #[arg(long)]
+    threads: Option<usize>,
     /// No progress bar.
     #[arg(long)]
     quiet: bool,
+}
+
+#[derive(Args)]
+struct ExportArgs {
+    /// Directory holding run directories (a sweep's --out).
+    from: PathBuf,
+    /// Where the evidence goes (e.g. results/<experiment>).
+    to: PathBuf,
 }
 
 #[derive(Args)]
@@ -210,6 +228,7 @@ fn main() -> ExitCode {
         Some(Command::Eval(a)) => cmd_eval(a),
         Some(Command::Ablate(a)) => cmd_ablate(a),
         Some(Command::Report(a)) => cmd_report(a),
+        Some(Command::Export(a)) => cmd_export(a),
         Some(Command::Render(a)) => cmd_render(a),
         Some(Command::Sim(a)) => envs::rollout_tool::run(&a).map_err(|e| e.to_string()),
         Some(Command::Info(a)) => cmd_info(a),
@@ -375,10 +394,12 @@ fn cmd_eval(a: EvalArgs) -> Result<(), String> {
 fn cmd_ablate(a: AblateArgs) -> Result<(), String> {
     let sweep = rl::sweep::Sweep::load(&a.sweep).map_err(|e| e.to_string())?;
     let shard = a.shard.as_deref().map(rl::sweep::Shard::parse).transpose().map_err(|e| e.to_string())?;
+    let selection = rl::RunSelection { shard, only: a.only.clone() };
     let options = TrainOptions { progress: !a.quiet, stop_after: None };
-    let outcome = rl::sweep::run_sweep(&sweep, &a.out, shard, |c, r| {
+    let outcome = rl::sweep::run_sweep(&sweep, &a.out, &selection, |c, r| {
         eprintln!("meben: run {} ({} on {}, seed {})", r.root().display(), c.model, c.env, c.seed);
-        rl::train(c, r, &options)
+        let c = TrainConfig { threads: a.threads.unwrap_or(c.threads), ..c.clone() };
+        rl::train(&c, r, &options)
     })
     .map_err(|e| e.to_string())?;
     println!("{outcome:?}");
@@ -394,6 +415,22 @@ fn cmd_report(a: ReportArgs) -> Result<(), String> {
     let text = std::fs::read_to_string(&r.markdown).map_err(|e| format!("{}: {e}", r.markdown.display()))?;
     println!("{text}");
     eprintln!("meben: wrote {}", r.markdown.display());
+    Ok(())
+}
+
+fn cmd_export(a: ExportArgs) -> Result<(), String> {
+    let s = rl::export::export(&a.from, &a.to).map_err(|e| e.to_string())?;
+    println!(
+        "meben: exported {} runs ({} unfinished, {} bytes) from {} to {}",
+        s.runs.len(),
+        s.unfinished.len(),
+        s.bytes,
+        a.from.display(),
+        a.to.display()
+    );
+    for u in &s.unfinished {
+        println!("  unfinished: {}", u.display());
+    }
     Ok(())
 }
 

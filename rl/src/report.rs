@@ -8,10 +8,10 @@
 //!   path relative to the root with its seed component (`seed<N>`) removed, so the runs
 //!   `team_reach_1_ant/shnn+no_entropy/seed{0,1,2}` of a sweep form one group.
 //! - A run's final value is its metric in the last row of `metrics.csv` that has it: Team
-//!   Reach `eval_success_rate`, Team Sumo `eval_win_rate_t0` (and `eval_draw_rate`). A run
-//!   without evaluation rows falls back to the training rate (`train_success_rate`,
-//!   `train_win_rate_t0`, `train_draw_rate`: episodes that ended during collection); the
-//!   table marks such groups. A run with neither is listed as having no result yet.
+//!   Reach `eval_success_rate`, Team Sumo `eval_win_rate_t0` (and its loss rate, team 1's
+//!   `eval_win_rate_t1`, and `eval_draw_rate`). A run without evaluation rows falls back to
+//!   the training rate (`train_success_rate`, `train_win_rate_t0`, `train_win_rate_t1`,
+//!   `train_draw_rate`: episodes that ended during collection); the table marks such groups. A run with neither is listed as having no result yet.
 //! - A run evaluated at further rotations (`eval_rotations`, e.g. `[0.0, 180.0]` for the
 //!   paper's equivariance test) adds one group per rotation with values
 //!   (`eval_success_rate_rot180`, `eval_win_rate_t0_rot180` and `eval_draw_rate_rot180`),
@@ -20,7 +20,8 @@
 //! - Per group: the number of seeds, the mean and the standard error (sample standard
 //!   deviation / sqrt(n); 0 for one seed) of the final values, and the env steps reached
 //!   (the last row's `env_steps`, min–max over the seeds).
-//! - Curves: per group, the mean over seeds with a shaded ± s.e. band. Seeds are aligned on
+//! - Curves: per group, the mean over seeds with a shaded ± s.e. band (Team Sumo: one curve
+//!   each for the win, loss and draw rates of team 0). Seeds are aligned on
 //!   the env steps of the seed with the fewest points; every other seed contributes its
 //!   value at its last row at or before each of those env steps.
 //!
@@ -84,10 +85,17 @@ pub struct GroupReport {
     pub se: f64,
     /// Team Sumo: mean and standard error of the final draw rate, in percent.
     pub draw: Option<(f64, f64)>,
+    /// Team Sumo: mean and standard error of the final loss rate of team 0 (team 1's win
+    /// rate), in percent.
+    pub lose: Option<(f64, f64)>,
     /// Fewest and most env steps reached over the runs.
     pub env_steps: (u64, u64),
     /// The learning curve (mean and s.e. over seeds).
     pub curve: Vec<CurvePoint>,
+    /// Team Sumo: the curves of the loss and draw rates (empty for Team Reach).
+    pub curve_lose: Vec<CurvePoint>,
+    /// See `curve_lose`.
+    pub curve_draw: Vec<CurvePoint>,
 }
 
 /// What [`report`] found and wrote.
@@ -209,9 +217,29 @@ struct RunResult {
     from_train: bool,
     final_value: f64,
     final_draw: Option<f64>,
+    final_lose: Option<f64>,
     env_steps: u64,
     /// `(env_steps, value)`, env steps strictly increasing.
     curve: Vec<(f64, f64)>,
+    curve_lose: Vec<(f64, f64)>,
+    curve_draw: Vec<(f64, f64)>,
+}
+
+/// `(env_steps, value)` of every row with a finite value in `column`, env steps strictly
+/// increasing (a resumed run may repeat env steps: the later rows replace the earlier ones).
+fn column_curve(rows: &[BTreeMap<String, f64>], column: &str) -> Vec<(f64, f64)> {
+    let mut curve: Vec<(f64, f64)> = Vec::new();
+    for r in rows {
+        let (Some(&x), Some(&y)) = (r.get("env_steps"), r.get(column)) else { continue };
+        if !(x.is_finite() && y.is_finite()) {
+            continue;
+        }
+        while curve.last().is_some_and(|&(px, _)| px >= x) {
+            curve.pop();
+        }
+        curve.push((x, y));
+    }
+    curve
 }
 
 /// Reads a run: its result (then one per further rotation with values), or
@@ -222,53 +250,51 @@ fn read_run(dir: &Path) -> Result<std::result::Result<Vec<RunResult>, String>> {
     let path = run.metrics();
     let text = std::fs::read_to_string(&path).map_err(|e| RlError::file(&path, format!("cannot read: {e}")))?;
     let rows = metrics::parse_csv(&text).map_err(|e| RlError::file(&path, e))?;
-    let (eval, train, eval_draw, train_draw) = if config.is_sumo() {
-        ("eval_win_rate_t0", "train_win_rate_t0", Some("eval_draw_rate"), Some("train_draw_rate"))
+    // (success or win, loss, draw) columns of evaluations and of training.
+    let (eval, train) = if config.is_sumo() {
+        (
+            ("eval_win_rate_t0", Some(("eval_win_rate_t1", "eval_draw_rate"))),
+            ("train_win_rate_t0", Some(("train_win_rate_t1", "train_draw_rate"))),
+        )
     } else {
-        ("eval_success_rate", "train_success_rate", None, None)
+        (("eval_success_rate", None), ("train_success_rate", None))
     };
     let has = |col: &str| rows.iter().any(|r| r.get(col).is_some_and(|v| v.is_finite()));
-    let (metric, draw, from_train) = if has(eval) {
-        (eval, eval_draw, false)
-    } else if has(train) {
-        (train, train_draw, true)
+    let ((metric, others), from_train) = if has(eval.0) {
+        (eval, false)
+    } else if has(train.0) {
+        (train, true)
     } else if rows.is_empty() {
         return Ok(Err("no rows yet".into()));
     } else {
-        return Ok(Err(format!("no {eval} or {train} values yet")));
+        return Ok(Err(format!("no {} or {} values yet", eval.0, train.0)));
     };
     let env_steps = rows.iter().rev().find_map(|r| r.get("env_steps").copied()).unwrap_or(0.0).max(0.0) as u64;
-    let result = |metric: String, draw: Option<String>, rotation_deg: f64, from_train: bool| {
+    let result = |metric: String, others: Option<(String, String)>, rotation_deg: f64, from_train: bool| {
         let last = |col: &str| rows.iter().rev().find_map(|r| r.get(col).copied().filter(|v| v.is_finite()));
-        let mut curve: Vec<(f64, f64)> = Vec::new();
-        for r in &rows {
-            let (Some(&x), Some(&y)) = (r.get("env_steps"), r.get(&metric)) else { continue };
-            if !(x.is_finite() && y.is_finite()) {
-                continue;
-            }
-            // A resumed run may repeat env steps: the later rows replace the earlier ones.
-            while curve.last().is_some_and(|&(px, _)| px >= x) {
-                curve.pop();
-            }
-            curve.push((x, y));
-        }
+        let (lose, draw) = others.unzip();
         RunResult {
             rel: PathBuf::new(),
             config: config.clone(),
             final_value: last(&metric).unwrap_or(f64::NAN),
             final_draw: draw.as_deref().and_then(last),
+            final_lose: lose.as_deref().and_then(last),
+            curve: column_curve(&rows, &metric),
+            curve_lose: lose.as_deref().map(|c| column_curve(&rows, c)).unwrap_or_default(),
+            curve_draw: draw.as_deref().map(|c| column_curve(&rows, c)).unwrap_or_default(),
             metric,
             rotation_deg,
             from_train,
             env_steps,
-            curve,
         }
     };
-    let mut out = vec![result(metric.to_string(), draw.map(str::to_string), 0.0, from_train)];
+    let owned = |o: Option<(&str, &str)>| o.map(|(l, d)| (l.to_string(), d.to_string()));
+    let mut out = vec![result(metric.to_string(), owned(others), 0.0, from_train)];
     for &deg in config.eval_rotations.iter().skip(1) {
-        let rotated = metrics::eval_column(eval, deg);
+        let rotated = metrics::eval_column(eval.0, deg);
         if has(&rotated) {
-            out.push(result(rotated, eval_draw.map(|d| metrics::eval_column(d, deg)), deg, false));
+            let others = eval.1.map(|(l, d)| (metrics::eval_column(l, deg), metrics::eval_column(d, deg)));
+            out.push(result(rotated, others, deg, false));
         }
     }
     Ok(Ok(out))
@@ -308,12 +334,17 @@ fn summarise(variant: String, mut runs: Vec<RunResult>) -> GroupReport {
     let (mean, se) = mean_and_se(&finals);
     let draws: Vec<f64> = runs.iter().filter_map(|r| r.final_draw.map(|d| 100.0 * d)).collect();
     let draw = (!draws.is_empty()).then(|| mean_and_se(&draws));
+    let loses: Vec<f64> = runs.iter().filter_map(|r| r.final_lose.map(|d| 100.0 * d)).collect();
+    let lose = (!loses.is_empty()).then(|| mean_and_se(&loses));
     let from_train = runs.iter().any(|r| r.from_train);
     let shown = if from_train { runs.iter().find(|r| r.from_train) } else { runs.first() };
     let metric = shown.map(|r| r.metric.clone()).unwrap_or_default();
     let steps = runs.iter().map(|r| r.env_steps);
     let env_steps = (steps.clone().min().unwrap_or(0), steps.max().unwrap_or(0));
-    let curves: Vec<&[(f64, f64)]> = runs.iter().map(|r| r.curve.as_slice()).collect();
+    let aligned = |of: fn(&RunResult) -> &[(f64, f64)]| {
+        let curves: Vec<&[(f64, f64)]> = runs.iter().map(of).collect();
+        align_curves(&curves)
+    };
     GroupReport {
         env: c.env.clone(),
         model: c.model.clone(),
@@ -329,8 +360,11 @@ fn summarise(variant: String, mut runs: Vec<RunResult>) -> GroupReport {
         mean,
         se,
         draw,
+        lose,
         env_steps,
-        curve: align_curves(&curves),
+        curve: aligned(|r| &r.curve),
+        curve_lose: aligned(|r| &r.curve_lose),
+        curve_draw: aligned(|r| &r.curve_draw),
     }
 }
 
@@ -376,15 +410,27 @@ fn metric_title(sumo: bool) -> &'static str {
 
 fn curve_plot(env: &str, groups: &[GroupReport]) -> LinePlot {
     let sumo = env.starts_with("team_sumo");
-    let mut plot = LinePlot::new(env).x_label("env steps").y_label(metric_title(sumo)).y_range(0.0, 100.0);
+    let y_label = if sumo { "win / loss / draw % (team 0)" } else { metric_title(sumo) };
+    let mut plot = LinePlot::new(env).x_label("env steps").y_label(y_label).y_range(0.0, 100.0);
     for g in groups.iter().filter(|g| g.env == env) {
-        let points = g.curve.iter().map(|p| (p.env_steps, p.mean)).collect();
-        let band = g.curve.iter().map(|p| (p.mean - p.se, p.mean + p.se)).collect();
         let mut name = format!("{} (n={})", g.label, g.runs.len());
         if g.from_train {
             name.push_str(" [train]");
         }
-        plot = plot.series_with_band(name, points, band);
+        let series: Vec<(String, &[CurvePoint])> = if sumo {
+            vec![
+                (format!("{name} win"), g.curve.as_slice()),
+                (format!("{name} loss"), g.curve_lose.as_slice()),
+                (format!("{name} draw"), g.curve_draw.as_slice()),
+            ]
+        } else {
+            vec![(name, g.curve.as_slice())]
+        };
+        for (name, curve) in series {
+            let points = curve.iter().map(|p| (p.env_steps, p.mean)).collect();
+            let band = curve.iter().map(|p| (p.mean - p.se, p.mean + p.se)).collect();
+            plot = plot.series_with_band(name, points, band);
+        }
     }
     plot
 }
@@ -423,7 +469,8 @@ fn render_markdown(root: &Path, groups: &[GroupReport], pending: &[(PathBuf, Str
     let _ = writeln!(
         md,
         "{runs} runs in {} groups. Final value of a run: its metric in the last row of `metrics.csv` that has it \
-         (Team Reach `eval_success_rate`, Team Sumo `eval_win_rate_t0` and `eval_draw_rate`), in percent; \
+         (Team Reach `eval_success_rate`, Team Sumo `eval_win_rate_t0`, `eval_win_rate_t1` and `eval_draw_rate`), \
+         in percent; \
          mean ± standard error over seeds (sample standard deviation / √n; 0 for one seed). Env steps: the last \
          row's, over the seeds. Curves: mean over seeds with a ± s.e. band. Rows \"rotated N°\" are \
          evaluations of the same runs with every start rotated by N degrees about the vertical (`eval_rotations`).\n",
@@ -435,9 +482,10 @@ fn render_markdown(root: &Path, groups: &[GroupReport], pending: &[(PathBuf, Str
         if sumo {
             let _ = writeln!(
                 md,
-                "| run | model | opponent | seeds | win % team 0 (mean ± s.e.) | draw % (mean ± s.e.) | env steps |"
+                "| run | model | opponent | seeds | win % team 0 (mean ± s.e.) | loss % team 0 (mean ± s.e.) | \
+                 draw % (mean ± s.e.) | env steps |"
             );
-            let _ = writeln!(md, "|---|---|---|---:|---:|---:|---:|");
+            let _ = writeln!(md, "|---|---|---|---:|---:|---:|---:|---:|");
         } else {
             let _ = writeln!(md, "| run | model | seeds | success % (mean ± s.e.) | env steps |");
             let _ = writeln!(md, "|---|---|---:|---:|---:|");
@@ -448,11 +496,14 @@ fn render_markdown(root: &Path, groups: &[GroupReport], pending: &[(PathBuf, Str
             any_train |= g.from_train;
             let value = format!("{:.2} ± {:.2}{mark}", g.mean, g.se);
             if sumo {
-                let draw = g.draw.map(|(m, s)| format!("{m:.2} ± {s:.2}{mark}")).unwrap_or_else(|| "–".into());
+                let cell = |v: Option<(f64, f64)>| {
+                    v.map(|(m, s)| format!("{m:.2} ± {s:.2}{mark}")).unwrap_or_else(|| "–".into())
+                };
+                let (lose, draw) = (cell(g.lose), cell(g.draw));
                 let opponent = if g.opponent.is_empty() { "same".to_string() } else { format!("`{}`", g.opponent) };
                 let _ = writeln!(
                     md,
-                    "| {} | `{}` | {} | {} | {value} | {draw} | {} |",
+                    "| {} | `{}` | {} | {} | {value} | {lose} | {draw} | {} |",
                     md_cell(&g.label),
                     md_cell(&g.model),
                     md_cell(&opponent),
@@ -475,7 +526,7 @@ fn render_markdown(root: &Path, groups: &[GroupReport], pending: &[(PathBuf, Str
                 md,
                 "\n† at least one run has no evaluation rows: its final value is the training rate \
                  (`{}`: episodes that ended during collection), not an evaluation.",
-                if sumo { "train_win_rate_t0`, `train_draw_rate" } else { "train_success_rate" }
+                if sumo { "train_win_rate_t0`, `train_win_rate_t1`, `train_draw_rate" } else { "train_success_rate" }
             );
         }
         let _ = writeln!(md, "\n![{env}](curves/{}.svg)\n", sanitize_component(env));
@@ -497,14 +548,15 @@ fn csv_field(s: &str) -> String {
 fn render_csv(groups: &[GroupReport]) -> String {
     let mut out = String::from(
         "env,model,opponent,variant,metric,seeds,seed_list,mean_pct,se_pct,draw_mean_pct,draw_se_pct,\
-         env_steps_min,env_steps_max,rotation_deg\n",
+         env_steps_min,env_steps_max,rotation_deg,lose_mean_pct,lose_se_pct\n",
     );
     for g in groups {
         let seeds: Vec<String> = g.seed_list.iter().map(|s| s.to_string()).collect();
         let (dm, ds) = g.draw.map(|(m, s)| (m.to_string(), s.to_string())).unwrap_or_default();
+        let (lm, ls) = g.lose.map(|(m, s)| (m.to_string(), s.to_string())).unwrap_or_default();
         let _ = writeln!(
             out,
-            "{},{},{},{},{},{},{},{},{},{dm},{ds},{},{},{}",
+            "{},{},{},{},{},{},{},{},{},{dm},{ds},{},{},{},{lm},{ls}",
             csv_field(&g.env),
             csv_field(&g.model),
             csv_field(&g.opponent),

@@ -32,7 +32,12 @@
 //! under the output directory.
 //!
 //! **Shards.** `--shard k/n` runs the runs whose index `i` (0-based, in the order above)
-//! has `i % n == k - 1`; the `n` shards partition the sweep.
+//! has `i % n == k - 1`; the `n` shards partition the sweep. `--only PATTERN` (repeatable)
+//! keeps the runs whose name contains one of the patterns (`--only mlp_hn/ --only
+//! 2_ants/shnn/`), applied after the shard: cheap runs first, or one run of a sweep.
+//!
+//! **Threads.** A run's results do not depend on its thread count, so `threads` may differ
+//! between a checkpoint and the sweep (`meben ablate --threads 1`, two sweeps side by side).
 //!
 //! **Restarts.** A run that is done (`done.json`) is skipped; one with a checkpoint is
 //! resumed, after checking that it was started with the same configuration (except
@@ -109,6 +114,45 @@ pub struct Shard {
     pub index: usize,
     /// How many shards.
     pub count: usize,
+}
+
+/// Which runs of a sweep to run: a shard and name patterns (module docs).
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct RunSelection {
+    /// Only this shard (all runs if `None`).
+    pub shard: Option<Shard>,
+    /// Only runs whose name contains one of these (all runs if empty).
+    pub only: Vec<String>,
+}
+
+impl RunSelection {
+    /// Every run.
+    pub fn all() -> RunSelection {
+        RunSelection::default()
+    }
+
+    /// The runs of one shard.
+    pub fn shard(shard: Shard) -> RunSelection {
+        RunSelection { shard: Some(shard), only: Vec::new() }
+    }
+
+    /// Whether the run named `name` at 0-based position `i` of the sweep is selected.
+    pub fn contains(&self, i: usize, name: &str) -> bool {
+        self.shard.is_none_or(|s| s.contains(i))
+            && (self.only.is_empty() || self.only.iter().any(|p| name.contains(p.as_str())))
+    }
+
+    /// ` (shard k/n, only a, b)`, or empty when every run is selected: for progress lines.
+    fn describe(&self) -> String {
+        let mut parts = Vec::new();
+        if let Some(s) = self.shard {
+            parts.push(format!("shard {s}"));
+        }
+        if !self.only.is_empty() {
+            parts.push(format!("only {}", self.only.join(", ")));
+        }
+        if parts.is_empty() { String::new() } else { format!(" ({})", parts.join(", ")) }
+    }
 }
 
 /// What [`run_sweep`] did.
@@ -282,7 +326,7 @@ impl Sweep {
     }
 }
 
-/// Runs the runs of `shard` (all if `None`) of `sweep` under `out`, skipping finished runs,
+/// Runs the runs of `sweep` chosen by `selection` under `out`, skipping finished runs,
 /// resuming partial ones (module docs) and calling `train_fn` for the others; writes a copy
 /// of the sweep file to `<out>/sweep.toml` if there is none.
 ///
@@ -292,13 +336,21 @@ impl Sweep {
 pub fn run_sweep(
     sweep: &Sweep,
     out: &Path,
-    shard: Option<Shard>,
+    selection: &RunSelection,
     mut train_fn: impl FnMut(&TrainConfig, &RunDir) -> Result<RunSummary>,
 ) -> Result<SweepOutcome> {
     let all = sweep.runs()?;
     let total = all.len();
     let runs: Vec<(usize, SweepRun)> =
-        all.into_iter().enumerate().filter(|(i, _)| shard.is_none_or(|s| s.contains(*i))).collect();
+        all.into_iter().enumerate().filter(|(i, r)| selection.contains(*i, &r.name)).collect();
+    if runs.is_empty() {
+        return Err(RlError::config(
+            "command line",
+            "--only",
+            selection.only.join(", "),
+            format!("no run of the {total} in {} is selected{}", sweep.source, selection.describe()),
+        ));
+    }
     std::fs::create_dir_all(out).map_err(|e| RlError::file(out, format!("cannot create the directory: {e}")))?;
     let copy = out.join("sweep.toml");
     if !copy.exists()
@@ -310,7 +362,7 @@ pub fn run_sweep(
     }
     let mut outcome = SweepOutcome { runs: runs.len(), ..SweepOutcome::default() };
     let mut failed: Vec<String> = Vec::new();
-    let shard_text = shard.map(|s| format!(" (shard {s})")).unwrap_or_default();
+    let shard_text = selection.describe();
     for (pos, (i, run)) in runs.iter().enumerate() {
         let dir = RunDir::new(out.join(&run.name));
         let status = dir.status();
@@ -399,12 +451,14 @@ fn check_resumable(dir: &RunDir, wanted: &TrainConfig) -> Result<()> {
     ))
 }
 
-/// `field: saved X, sweep Y` for every field that differs (`steps` only if `with_steps`).
+/// `field: saved X, sweep Y` for every field that differs (`steps` only if `with_steps`;
+/// never `threads`, which the results do not depend on).
 fn config_differences(saved: &TrainConfig, wanted: &TrainConfig, with_steps: bool) -> Vec<String> {
     let a = toml::Table::try_from(saved).unwrap_or_default();
     let b = toml::Table::try_from(wanted).unwrap_or_default();
     let keys: BTreeSet<&String> = a.keys().chain(b.keys()).collect();
     keys.into_iter()
+        .filter(|k| k.as_str() != "threads")
         .filter(|k| with_steps || k.as_str() != "steps")
         .filter(|k| a.get(*k) != b.get(*k))
         .map(|k| {
@@ -724,6 +778,38 @@ config = { entropy_coef = 0.0 }
         let ablation = Sweep::load(&dir.join("ablation_assignment.toml")).unwrap().runs().unwrap();
         assert!(ablation.iter().any(|r| r.config.model == "shnn:assignment=stochastic"));
         assert!(ablation.iter().any(|r| r.config.model == "hnn_dn"));
+
+        // The reproduction (issue 15): the paper preset but for the budget and the number of
+        // evaluations, sampled-action evaluation on 1024 episodes.
+        let repro = |name: &str, runs: usize, steps: u64| {
+            let runs_of = Sweep::load(&dir.join(name)).unwrap().runs().unwrap();
+            assert_eq!(runs_of.len(), runs, "{name}");
+            for r in &runs_of {
+                let paper = TrainConfig::preset(Preset::Paper, &r.config.env);
+                let expected = TrainConfig {
+                    model: r.config.model.clone(),
+                    seed: r.config.seed,
+                    steps,
+                    num_evals: 20,
+                    opponent: r.config.opponent.clone(),
+                    fixed_start: r.config.fixed_start,
+                    eval_rotations: r.config.eval_rotations.clone(),
+                    ..paper
+                };
+                assert_eq!(r.config, expected, "{name}: {}", r.name);
+                assert!(!r.config.eval_deterministic && r.config.eval_episodes == 1024);
+            }
+            runs_of
+        };
+        for name in ["repro_reach_1_ant.toml", "repro_reach_2_ants.toml"] {
+            let runs = repro(name, 6, if name.contains("2_ants") { 20_000_000 } else { 10_000_000 });
+            let seeds: Vec<u64> = runs.iter().map(|r| r.config.seed).collect();
+            assert_eq!(seeds, [0, 1, 2, 0, 1, 2]);
+        }
+        let eq = repro("repro_equivariance.toml", 9, 10_000_000);
+        assert!(eq.iter().all(|r| r.config.fixed_start && r.config.eval_rotations == [0.0, 180.0]));
+        let sumo = repro("repro_sumo.toml", 1, 10_000_000);
+        assert_eq!((sumo[0].config.model.as_str(), sumo[0].config.opponent.as_str()), ("shnn", "mlp_hn"));
     }
 
     /// Writes what a trainer leaves behind: `config.toml`, then a checkpoint, then `done.json`.
@@ -752,7 +838,7 @@ config = { entropy_coef = 0.0 }
             fake_run(r, c, true);
             Ok(RunSummary::default())
         };
-        let outcome = run_sweep(&sweep, &tmp.0, None, fake_train).unwrap();
+        let outcome = run_sweep(&sweep, &tmp.0, &RunSelection::all(), fake_train).unwrap();
         assert_eq!(outcome, SweepOutcome { runs: 4, trained: 2, resumed: 1, skipped: 1 });
         let called: Vec<(String, u64)> = calls.borrow().iter().map(|(m, s, _)| (m.clone(), *s)).collect();
         assert_eq!(called, [("mlp_hn".to_string(), 1), ("shnn".into(), 0), ("shnn".into(), 1)]);
@@ -761,7 +847,7 @@ config = { entropy_coef = 0.0 }
 
         // Everything is done now.
         calls.borrow_mut().clear();
-        let outcome = run_sweep(&sweep, &tmp.0, None, fake_train).unwrap();
+        let outcome = run_sweep(&sweep, &tmp.0, &RunSelection::all(), fake_train).unwrap();
         assert_eq!(outcome, SweepOutcome { runs: 4, trained: 0, resumed: 0, skipped: 4 });
         assert!(calls.borrow().is_empty());
     }
@@ -773,7 +859,7 @@ config = { entropy_coef = 0.0 }
         let sweep = Sweep::parse(text, "s.toml").unwrap();
         let runs = sweep.runs().unwrap();
         let mut seeds = Vec::new();
-        let outcome = run_sweep(&sweep, &tmp.0, Some(Shard::parse("2/2").unwrap()), |c, _| {
+        let outcome = run_sweep(&sweep, &tmp.0, &RunSelection::shard(Shard::parse("2/2").unwrap()), |c, _| {
             seeds.push(c.seed);
             Ok(RunSummary::default())
         })
@@ -785,7 +871,7 @@ config = { entropy_coef = 0.0 }
         let other = TrainConfig { learning_rate: 1e-3, num_evals: 3, ..runs[0].config.clone() };
         fake_run(&RunDir::new(tmp.0.join(&runs[0].name)), &other, false);
         let mut seeds = Vec::new();
-        let msg = run_sweep(&sweep, &tmp.0, Some(Shard::parse("1/2").unwrap()), |c, _| {
+        let msg = run_sweep(&sweep, &tmp.0, &RunSelection::shard(Shard::parse("1/2").unwrap()), |c, _| {
             seeds.push(c.seed);
             Ok(RunSummary::default())
         })
@@ -796,5 +882,32 @@ config = { entropy_coef = 0.0 }
             assert!(msg.contains(w), "{msg} (missing {w})");
         }
         assert!(!msg.contains("steps:"), "{msg}");
+    }
+
+    #[test]
+    fn only_patterns_select_runs_and_threads_do_not_block_a_resume() {
+        let tmp = TempDir::new("only");
+        let text = "envs = [\"team_reach/1_ant\"]\nmodels = [\"mlp_hn\", \"shnn\"]\nseeds = [0, 1]\npreset = \"quick\"";
+        let sweep = Sweep::parse(text, "s.toml").unwrap();
+        let runs = sweep.runs().unwrap();
+        // A partial shnn run trained with one thread; the sweep says every core.
+        let one_thread = TrainConfig { threads: 1, ..runs[3].config.clone() };
+        fake_run(&RunDir::new(tmp.0.join(&runs[3].name)), &one_thread, false);
+        let selection = RunSelection { shard: None, only: vec!["shnn/".into(), "mlp_hn/seed0".into()] };
+        let mut called = Vec::new();
+        let outcome = run_sweep(&sweep, &tmp.0, &selection, |c, _| {
+            called.push((c.model.clone(), c.seed));
+            Ok(RunSummary::default())
+        })
+        .unwrap();
+        assert_eq!(called, [("mlp_hn".to_string(), 0), ("shnn".into(), 0), ("shnn".into(), 1)]);
+        assert_eq!(outcome, SweepOutcome { runs: 3, trained: 2, resumed: 1, skipped: 0 });
+
+        // A pattern that matches nothing is an error naming it, not a silent no-op.
+        let none = RunSelection { shard: Some(Shard::parse("2/2").unwrap()), only: vec!["2_ants".into()] };
+        let msg = run_sweep(&sweep, &tmp.0, &none, |_, _| Ok(RunSummary::default())).unwrap_err().to_string();
+        for w in ["--only", "2_ants", "no run of the 4", "s.toml", "shard 2/2"] {
+            assert!(msg.contains(w), "{msg} (missing {w})");
+        }
     }
 }

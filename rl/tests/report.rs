@@ -4,7 +4,7 @@
 use std::path::Path;
 
 use rl::metrics::{MetricsLayout, MetricsRow};
-use rl::{Preset, RunDir, RunSummary, Sweep, TrainConfig, report, run_sweep};
+use rl::{Preset, RunDir, RunSelection, RunSummary, Sweep, TrainConfig, report, run_sweep};
 
 mod common;
 
@@ -75,12 +75,20 @@ fn report_of_synthetic_runs() {
             &[("env_steps", 3000.0)],
         ],
     );
-    // Team Sumo, two seeds: wins 0.4 and 0.7, draws 0.1 and 0.3.
-    for (seed, (win, draw)) in [(0.4, 0.1), (0.7, 0.3)].into_iter().enumerate() {
+    // Team Sumo, two seeds: wins 0.4 and 0.7, losses 0.5 and 0.0, draws 0.1 and 0.3.
+    for (seed, (win, lose, draw)) in [(0.4, 0.5, 0.1), (0.7, 0.0, 0.3)].into_iter().enumerate() {
         write_run(
             &root.join(format!("team_sumo_2_ants/shnn/seed{seed}")),
             &config("team_sumo/2_ants", "shnn", seed as u64),
-            &[&[("env_steps", 5000.0), ("eval_win_rate_t0", win), ("eval_draw_rate", draw)]],
+            &[
+                &[("env_steps", 2500.0), ("eval_win_rate_t0", 0.0), ("eval_win_rate_t1", 1.0), ("eval_draw_rate", 0.0)],
+                &[
+                    ("env_steps", 5000.0),
+                    ("eval_win_rate_t0", win),
+                    ("eval_win_rate_t1", lose),
+                    ("eval_draw_rate", draw),
+                ],
+            ],
         );
     }
     // A run that has not written a row yet, and a directory that is no run.
@@ -128,6 +136,14 @@ fn report_of_synthetic_runs() {
     assert!(close(sumo.mean, 55.0) && close(sumo.se, 15.0));
     let (dm, ds) = sumo.draw.unwrap();
     assert!(close(dm, 20.0) && close(ds, 10.0));
+    let (lm, ls) = sumo.lose.unwrap();
+    assert!(close(lm, 25.0) && close(ls, 25.0));
+    // Win, loss and draw curves over training.
+    let at = |c: &[rl::report::CurvePoint]| c.iter().map(|p| (p.env_steps, p.mean)).collect::<Vec<_>>();
+    assert_eq!(at(&sumo.curve), [(2500.0, 0.0), (5000.0, 55.0)]);
+    assert_eq!(at(&sumo.curve_lose), [(2500.0, 100.0), (5000.0, 25.0)]);
+    assert!(close(sumo.curve_draw[1].mean, 20.0));
+    assert!(shnn.curve_lose.is_empty() && shnn.lose.is_none());
 
     // Files.
     assert_eq!(r.markdown, root.join("report.md"));
@@ -137,8 +153,7 @@ fn report_of_synthetic_runs() {
         "## team_sumo/2_ants",
         "| shnn | `shnn` | 3 | 66.67 ± 12.02 | 3k |",
         "25.00 ± 0.00 †",
-        "55.00 ± 15.00",
-        "20.00 ± 10.00",
+        "| shnn | `shnn` | same | 2 | 55.00 ± 15.00 | 25.00 ± 25.00 | 20.00 ± 10.00 | 5k |",
         "curves/team_reach_1_ant.svg",
         "team_reach_1_ant/shnn/seed9",
     ] {
@@ -148,13 +163,18 @@ fn report_of_synthetic_runs() {
     assert_eq!(csv.lines().count(), 1 + 4);
     assert!(
         csv.lines()
-            .any(|l| l.starts_with("team_sumo/2_ants,shnn,,team_sumo_2_ants/shnn,eval_win_rate_t0,2,0 1,55,15,20,10,"))
+            .any(|l| l.starts_with("team_sumo/2_ants,shnn,,team_sumo_2_ants/shnn,eval_win_rate_t0,2,0 1,55,15,20,10,")
+                && l.ends_with(",0,25,25"))
     );
     assert_eq!(r.curves, [root.join("curves/team_reach_1_ant.svg"), root.join("curves/team_sumo_2_ants.svg")]);
     for path in &r.curves {
         let svg = std::fs::read_to_string(path).unwrap();
         assert!(svg.starts_with("<svg") && svg.trim_end().ends_with("</svg>"));
         assert!(svg.contains("<path") && svg.contains("fill-opacity"), "no band in {}", path.display());
+    }
+    let sumo_svg = std::fs::read_to_string(&r.curves[1]).unwrap();
+    for series in ["shnn (n=2) win", "shnn (n=2) loss", "shnn (n=2) draw"] {
+        assert!(sumo_svg.contains(series), "the Sumo plot lacks {series}");
     }
 }
 
@@ -195,8 +215,9 @@ fn report_has_a_group_and_a_curve_per_evaluation_rotation() {
     assert!(close(r.groups[1].mean, 1.0) && close(r.groups[3].mean, 45.0), "{:?}", r.groups);
     assert_eq!(r.groups[3].curve.len(), 2);
     let csv = std::fs::read_to_string(&r.csv).unwrap();
-    assert!(csv.lines().next().unwrap().ends_with(",rotation_deg"));
-    assert!(csv.lines().any(|l| l.contains("eval_success_rate_rot180") && l.ends_with(",180")), "{csv}");
+    assert!(csv.lines().next().unwrap().ends_with(",rotation_deg,lose_mean_pct,lose_se_pct"));
+    // Team Reach has no loss rate: the last two fields are empty.
+    assert!(csv.lines().any(|l| l.contains("eval_success_rate_rot180") && l.ends_with(",180,,")), "{csv}");
     let svg = std::fs::read_to_string(&r.curves[0]).unwrap();
     assert!(svg.contains("shnn, rotated 180°") && svg.contains("mlp, rotated 180°"));
 }
@@ -230,7 +251,7 @@ config = { learning_rate = 1e-3 }
 "#;
     let sweep = Sweep::parse(text, "sweep.toml").unwrap();
     // The fake trainer's final success depends on the seed and the learning rate.
-    let outcome = run_sweep(&sweep, &tmp.0, None, |c, run| {
+    let outcome = run_sweep(&sweep, &tmp.0, &RunSelection::all(), |c, run| {
         let value = 0.1 * (c.seed + 1) as f64 + if c.learning_rate > 5e-4 { 0.5 } else { 0.0 };
         let column = if c.is_sumo() { "eval_win_rate_t0" } else { "eval_success_rate" };
         write_run(
