@@ -58,7 +58,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 }
                 let p = store.bind(&tape);
                 let out = model.forward_batch(&p, &obs, &heading)?;
-                let mut loss = out.value.mean_all()?;
+                let mut loss = out.team_value()?.mean_all()?;
                 for a in &out.agents {
                     loss = loss.add(a.loc.mean_all()?)?.add(a.std().mean_all()?)?;
                 }

@@ -189,7 +189,8 @@ impl Hnn {
         Ok(Self { proc, graph, frame, neighbour, mp, heads, critic, critic_entities })
     }
 
-    /// Policy and value (module docs).
+    /// Policy and (if `with_value`) value (module docs).
+    #[allow(clippy::too_many_arguments)]
     pub(crate) fn forward<'t, T: Float, S: ObsElement>(
         &mut self,
         p: &Bound<'t, T>,
@@ -198,6 +199,7 @@ impl Hnn {
         agents: &[usize],
         spec: &ObsSpec,
         fixed: Option<&[u32]>,
+        with_value: bool,
     ) -> Result<PolicyOutput<'t, T>> {
         let tape = p.tape();
         let (nb, na) = (obs.batch, spec.n_agents);
@@ -255,9 +257,12 @@ impl Hnn {
                 scale: head.forward_output_columns(p, hidden, dof, dof)?,
             });
         }
+        if !with_value {
+            return Ok(PolicyOutput { agents: out, value: None, assignment: graph.assignment });
+        }
         let rows: Vec<usize> = (0..nb).flat_map(|b| self.critic_entities.iter().map(move |&e| b * ne + e)).collect();
         let s = h.shape()[1];
         let value = self.critic.forward(p, h.index_select(0, &rows)?.reshape(&[nb, ne * s])?)?.reshape(&[nb])?;
-        Ok(PolicyOutput { agents: out, value, assignment: graph.assignment })
+        Ok(PolicyOutput { agents: out, value: Some(value), assignment: graph.assignment })
     }
 }

@@ -210,7 +210,8 @@ impl ReleaseMlp {
         &self.graph
     }
 
-    /// Policy and value (module docs).
+    /// Policy and (if `with_value`) value (module docs).
+    #[allow(clippy::too_many_arguments)]
     pub(crate) fn forward<'t, T: Float, S: ObsElement>(
         &mut self,
         p: &Bound<'t, T>,
@@ -219,6 +220,7 @@ impl ReleaseMlp {
         agents: &[usize],
         spec: &ObsSpec,
         fixed: Option<&[u32]>,
+        with_value: bool,
     ) -> Result<PolicyOutput<'t, T>> {
         let nb = obs.batch;
         let inputs = self.proc.entities::<T, S>(obs)?;
@@ -247,6 +249,9 @@ impl ReleaseMlp {
             let hidden = self.actor_embed.hidden(p, head, Tensor::new(x, &[nb, rows, NODE_FEATURES])?)?;
             out.push(split_head(head, p, hidden, a, spec.agent_dof[a])?);
         }
+        if !with_value {
+            return Ok(PolicyOutput { agents: out, value: None, assignment: graph.assignment });
+        }
         // The value: every entity's root, relative to the mean of the roots.
         let ne = self.order.len();
         let mut x = tensor::pool::with_capacity(nb * ne * NODE_FEATURES);
@@ -259,7 +264,7 @@ impl ReleaseMlp {
         let hidden = self.critic_embed.hidden(p, &self.critic, Tensor::new(x, &[nb, ne, NODE_FEATURES])?)?;
         let last = &self.critic.layers[self.critic.layers.len() - 1];
         let value = last.forward(p, hidden)?.reshape(&[nb])?;
-        Ok(PolicyOutput { agents: out, value, assignment: graph.assignment })
+        Ok(PolicyOutput { agents: out, value: Some(value), assignment: graph.assignment })
     }
 }
 
@@ -356,7 +361,7 @@ impl FlatMlp {
         Ok(Tensor::new(x, &[nb, nodes.len() * NODE_FEATURES])?)
     }
 
-    /// Policy and value (module docs).
+    /// Policy and (if `with_value`) value (module docs).
     pub(crate) fn forward<'t, T: Float, S: ObsElement>(
         &self,
         p: &Bound<'t, T>,
@@ -364,6 +369,7 @@ impl FlatMlp {
         heading: &[S],
         agents: &[usize],
         spec: &ObsSpec,
+        with_value: bool,
     ) -> Result<PolicyOutput<'t, T>> {
         let tape = p.tape();
         let nb = obs.batch;
@@ -383,6 +389,9 @@ impl FlatMlp {
                     out.push(AgentPolicy { agent: a, loc, scale });
                 }
             }
+        }
+        if !with_value {
+            return Ok(PolicyOutput { agents: out, value: None, assignment: Vec::new() });
         }
         // The critic, in the frame of the team's first agent.
         let value = match &self.critic {
@@ -408,7 +417,7 @@ impl FlatMlp {
                 head.forward_all(p, tokens)?.reshape(&[nb, roots.len()])?.mean(1, false)?
             }
         };
-        Ok(PolicyOutput { agents: out, value, assignment: Vec::new() })
+        Ok(PolicyOutput { agents: out, value: Some(value), assignment: Vec::new() })
     }
 }
 

@@ -78,11 +78,20 @@ impl<'t, T: Float> AgentPolicy<'t, T> {
 pub struct PolicyOutput<'t, T: Float> {
     /// One entry per agent of the team, in scene order ([`Model::agents`]).
     pub agents: Vec<AgentPolicy<'t, T>>,
-    /// The team's value `[B]` (eq. (value)).
-    pub value: Var<'t, T>,
+    /// The team's value `[B]` (eq. (value)); `None` from [`Model::forward_policy_batch`],
+    /// which skips the value network.
+    pub value: Option<Var<'t, T>>,
     /// The task assignment the batch was processed with, `[B * Model::assignment_width]`
     /// ([`crate::EntityGraph::assignment`]; empty for models without one).
     pub assignment: Vec<u32>,
+}
+
+impl<'t, T: Float> PolicyOutput<'t, T> {
+    /// The team's value `[B]`; an error if this output was made without it
+    /// ([`Model::forward_policy_batch`]).
+    pub fn team_value(&self) -> Result<Var<'t, T>> {
+        self.value.ok_or_else(|| ModelError::Input("the value was not computed (forward_policy_batch skips it)".into()))
+    }
 }
 
 /// A model's parameter count by part (`meben info`).
@@ -402,6 +411,30 @@ impl Model {
         heading: &[S],
         assignment: Option<&[u32]>,
     ) -> Result<PolicyOutput<'t, T>> {
+        self.forward_parts(p, obs, heading, assignment, true)
+    }
+
+    /// [`Model::forward_batch`] without the value network (`PolicyOutput::value` is `None`):
+    /// acting (collection, evaluation) needs only the policy, and the SHNN family's critic
+    /// is most of a forward pass. The policy is the same, to the bit: no part of it reads the
+    /// value network.
+    pub fn forward_policy_batch<'t, T: Float, S: ObsElement>(
+        &mut self,
+        p: &Bound<'t, T>,
+        obs: &ObsBatch<'_, S>,
+        heading: &[S],
+    ) -> Result<PolicyOutput<'t, T>> {
+        self.forward_parts(p, obs, heading, None, false)
+    }
+
+    fn forward_parts<'t, T: Float, S: ObsElement>(
+        &mut self,
+        p: &Bound<'t, T>,
+        obs: &ObsBatch<'_, S>,
+        heading: &[S],
+        assignment: Option<&[u32]>,
+        with_value: bool,
+    ) -> Result<PolicyOutput<'t, T>> {
         let nb = obs.batch;
         if obs.nodes != self.spec.n_nodes || nb == 0 || heading.len() != nb * self.spec.n_agents {
             return Err(ModelError::Input(format!(
@@ -424,12 +457,12 @@ impl Model {
             *obs
         };
         match &mut self.arch {
-            Arch::Shnn(m) => m.forward(p, obs, &self.agents, &self.spec, assignment),
-            Arch::Hnn(m) => m.forward(p, obs, heading, &self.agents, &self.spec, assignment),
-            Arch::Mlp(m) => m.forward(p, obs, heading, &self.agents, &self.spec, assignment),
+            Arch::Shnn(m) => m.forward(p, obs, &self.agents, &self.spec, assignment, with_value),
+            Arch::Hnn(m) => m.forward(p, obs, heading, &self.agents, &self.spec, assignment, with_value),
+            Arch::Mlp(m) => m.forward(p, obs, heading, &self.agents, &self.spec, assignment, with_value),
             Arch::Flat(m) => {
                 no_assignment(assignment)?;
-                m.forward(p, obs, heading, &self.agents, &self.spec)
+                m.forward(p, obs, heading, &self.agents, &self.spec, with_value)
             }
         }
     }

@@ -74,8 +74,8 @@ pub(crate) struct Shnn {
 }
 
 impl Shnn {
-    /// Policy and value; `fixed` replaces the batch's task assignment (module
-    /// [`crate::entity_graph`]).
+    /// Policy and (if `with_value`) value; `fixed` replaces the batch's task assignment
+    /// (module [`crate::entity_graph`]).
     pub(crate) fn forward<'t, T: Float, S: ObsElement>(
         &mut self,
         p: &Bound<'t, T>,
@@ -83,6 +83,7 @@ impl Shnn {
         agents: &[usize],
         spec: &ObsSpec,
         fixed: Option<&[u32]>,
+        with_value: bool,
     ) -> Result<PolicyOutput<'t, T>> {
         let tape = p.tape();
         let nb = obs.batch;
@@ -141,12 +142,13 @@ impl Shnn {
         }
         // Eq. (value).
         let value = match &self.critic {
-            Critic::Separate(c) => c.forward(p, obs)?,
+            _ if !with_value => None,
+            Critic::Separate(c) => Some(c.forward(p, obs)?),
             Critic::Shared(head, order) => {
                 let ne = inputs.entities;
                 let rows: Vec<usize> = (0..nb).flat_map(|b| order.iter().map(move |&e| b * ne + e)).collect();
                 let s = f.h.shape()[1];
-                head.forward(p, f.h.index_select(0, &rows)?.reshape(&[nb, ne, s])?)?
+                Some(head.forward(p, f.h.index_select(0, &rows)?.reshape(&[nb, ne, s])?)?)
             }
         };
         Ok(PolicyOutput { agents: out, value, assignment: graph.assignment })

@@ -67,7 +67,7 @@ fn flatten<T: tensor::Float>(out: &PolicyOutput<'_, T>) -> Vec<f64> {
         v.extend(a.loc.value().data().iter().map(|x| x.to_f64()));
         v.extend(a.scale.value().data().iter().map(|x| x.to_f64()));
     }
-    v.extend(out.value.value().data().iter().map(|x| x.to_f64()));
+    v.extend(out.team_value().unwrap().value().data().iter().map(|x| x.to_f64()));
     v
 }
 
@@ -219,8 +219,17 @@ fn forward_on_every_builtin_environment_for_every_model() {
                     let own_head = store.num_elements_under(&format!("{prefix}.actor.{a}."));
                     assert_eq!(own_head > 0, !name.contains("transformer") && name != "shgnn", "{name}");
                 }
-                assert_eq!(out.value.shape(), [2], "{name} on {env}");
-                assert!(out.value.value().all_finite(), "{name} on {env}");
+                assert_eq!(out.team_value().unwrap().shape(), [2], "{name} on {env}");
+                assert!(out.team_value().unwrap().value().all_finite(), "{name} on {env}");
+                // Acting skips the value network and gets the same policy, to the bit.
+                let obs = venv.obs();
+                let acting = model.forward_policy_batch(&p, &ObsBatch::from_observation(obs), &obs.heading).unwrap();
+                assert!(acting.value.is_none() && acting.team_value().is_err(), "{name} on {env}");
+                assert_eq!(acting.assignment, out.assignment, "{name} on {env}");
+                for (x, y) in out.agents.iter().zip(&acting.agents) {
+                    assert_eq!(x.loc.value().data(), y.loc.value().data(), "{name} on {env}");
+                    assert_eq!(x.scale.value().data(), y.scale.value().data(), "{name} on {env}");
+                }
                 // The entity stage (and a Transformer head) exist once per team.
                 let shared = store.num_elements_under(&format!("{prefix}.entity."));
                 assert_eq!(shared > 0, name.starts_with("sh") || name.starts_with("hnn"), "{name}");
@@ -258,7 +267,7 @@ fn whole<'t>(
         parts.push(flat(a.loc)?);
         parts.push(flat(a.std())?);
     }
-    parts.push(out.value);
+    parts.push(out.team_value().unwrap());
     tape.cat(&parts, 0)
 }
 

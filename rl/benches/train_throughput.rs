@@ -13,6 +13,7 @@
 //! (`update_floor_ratio`: its wall seconds against its FLOPs at the matmul rate). The rate is
 //! sampled before the first and after every measured iteration and the median taken: on a
 //! shared VM it moves by a third within minutes (`matmul_rate_gflops=median [min..max]`).
+//! `BENCH_ENVS=team_reach/2_ants BENCH_MODELS=shnn,mlp` replaces the pairs measured.
 //! `minibatch_ms` is the median of `MINIBATCH_REPS` (default 5) forward-and-backward passes of
 //! one minibatch, with its own ratio.
 //!
@@ -121,8 +122,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let iterations = env_usize("ITERATIONS", 2);
     let reps = env_usize("MINIBATCH_REPS", 5);
     let warmup = env_usize("WARMUP", 1);
-    for env in ["team_reach/1_ant", "team_reach/3_ant_claw_centipede"] {
-        for model in ["shnn", "mlp_hn"] {
+    // `BENCH_ENVS` / `BENCH_MODELS` (comma-separated) replace the default pairs.
+    let list = |var: &str, default: &[&str]| -> Vec<String> {
+        std::env::var(var)
+            .map(|v| v.split(',').map(|s| s.trim().to_string()).filter(|s| !s.is_empty()).collect())
+            .unwrap_or_else(|_| default.iter().map(|s| s.to_string()).collect())
+    };
+    for env in list("BENCH_ENVS", &["team_reach/1_ant", "team_reach/3_ant_claw_centipede"]) {
+        for model in list("BENCH_MODELS", &["shnn", "mlp_hn"]) {
             let label = format!("{env} {model}");
             if filter.as_ref().is_some_and(|f| !label.contains(f.as_str())) {
                 continue;

@@ -156,11 +156,11 @@ pub fn ppo_loss<'t>(
     let bootstrap = {
         let _no_grad = tape.no_grad();
         let (obs, heading) = slice(n, rows)?;
-        model.forward_batch(p, &obs, heading)?.value.value()
+        model.forward_batch(p, &obs, heading)?.team_value()?.value()
     };
 
     // GAE from the current critic, held constant.
-    let values = out.value.value();
+    let values = out.team_value()?.value();
     let vals: Vec<f32> = values.data().iter().chain(bootstrap.data()).copied().collect();
     let final_values: Vec<f32> =
         (0..n).map(|i| if mb.final_row[i] != u32::MAX { vals[mb.final_row[i] as usize] } else { 0.0 }).collect();
@@ -176,7 +176,7 @@ pub fn ppo_loss<'t>(
     let (adv, targets) = gae(&u, hp.discount, hp.gae_lambda);
 
     // Value loss on the T M transitions.
-    let v = out.value;
+    let v = out.team_value()?;
     let mean_advantage = adv.iter().map(|&x| x as f64).sum::<f64>() / n as f64;
     let var = |xs: &mut dyn Iterator<Item = f64>| {
         let xs: Vec<f64> = xs.collect();

@@ -112,7 +112,9 @@ pub fn act(
     let _no_grad = tape.no_grad();
     let p = store.bind(&tape);
     let obs = ObsBatch::new(b, spec.n_nodes, &scratch.vectors, &scratch.scalars)?;
-    let out = model.forward_batch(&p, &obs, heading)?;
+    // Acting reads the policy only (the update recomputes values from the stored
+    // observations): the value network is skipped.
+    let out = model.forward_policy_batch(&p, &obs, heading)?;
     logp.iter_mut().for_each(|x| *x = 0.0);
     for (ai, pol) in out.agents.iter().enumerate() {
         let (off, dof) = (spec.agent_action_offset[pol.agent], spec.agent_dof[pol.agent]);

@@ -149,7 +149,7 @@ fn outputs(model: &mut Model, store: &ParamStore<f64>, spec: &ObsSpec, v: &[f64]
         all.extend(a.loc.value().data());
         all.extend(a.scale.value().data());
     }
-    all.extend(out.value.value().data());
+    all.extend(out.team_value().unwrap().value().data());
     all
 }
 

@@ -112,7 +112,7 @@ fn loss_matches_a_hand_computation(kind: EntropyKind) {
     let out = team.model.forward_batch(&p2, &obs, &mb.heading).unwrap();
     let (tl, m) = (mb.steps, mb.unrolls);
     let n = tl * m;
-    let values = out.value.value().to_vec();
+    let values = out.team_value().unwrap().value().to_vec();
     let finals: Vec<f32> =
         (0..n).map(|i| if mb.final_row[i] != NO_FINAL { values[mb.final_row[i] as usize] } else { 0.0 }).collect();
     let (adv, targets) = gae(

@@ -38,7 +38,7 @@ fn run(env_name: &str, model: &str, batch: usize, steps: usize) -> (Vec<f64>, us
             let _no_grad = tape.no_grad();
             let p = stores[t].bind(&tape);
             let out = m.forward(&p, env.obs()).unwrap();
-            assert!(out.value.value().all_finite(), "{model}: value");
+            assert!(out.team_value().unwrap().value().all_finite(), "{model}: value");
             for head in &out.agents {
                 let (loc, std) = (head.loc.value(), head.std().value());
                 let dof = spec.agent_dof[head.agent];
@@ -103,7 +103,7 @@ fn the_value_loss_reaches_every_parameter_of_an_shnn_critic() {
     let tape = Tape::new();
     let p = store.bind(&tape);
     let out = m.forward(&p, env.obs()).unwrap();
-    let loss = out.value.square().mean_all().unwrap();
+    let loss = out.team_value().unwrap().square().mean_all().unwrap();
     let grads = p.grads(&tape.backward(loss).unwrap());
     let mut reached = 0;
     for ((name, _), g) in store.iter().zip(&grads) {
