@@ -790,7 +790,7 @@ config = { entropy_coef = 0.0 }
                     model: r.config.model.clone(),
                     seed: r.config.seed,
                     steps,
-                    num_evals: 20,
+                    num_evals: 10,
                     opponent: r.config.opponent.clone(),
                     fixed_start: r.config.fixed_start,
                     eval_rotations: r.config.eval_rotations.clone(),
