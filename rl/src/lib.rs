@@ -37,7 +37,7 @@ pub mod sweep;
 pub mod team;
 pub mod train;
 
-pub use config::{EntropyKind, ObsNormKind, Preset, TrainConfig};
+pub use config::{EntropyKind, NormStart, ObsNormKind, Preset, TrainConfig};
 pub use error::{Result, RlError};
 pub use evaluate::{EvalOptions, evaluate};
 pub use plot::LinePlot;

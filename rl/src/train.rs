@@ -28,7 +28,7 @@ use serde::{Deserialize, Serialize};
 use tensor::Tape;
 
 use crate::checkpoint::{Checkpoint, TeamState, VERSION};
-use crate::config::TrainConfig;
+use crate::config::{NormStart, TrainConfig};
 use crate::error::{Result, RlError};
 use crate::evaluate::{EvalOptions, evaluate};
 use crate::metrics::{MetricsLayout, MetricsRow, eval_column};
@@ -158,10 +158,11 @@ impl Trainer {
         env.reset();
         let obs_spec = env.scene().obs_spec.clone();
         let mut teams = (0..obs_spec.n_teams).map(|k| Team::build(config, &obs_spec, k)).collect::<Result<Vec<_>>>()?;
-        // The normalisers start from the first observations, so that the first iteration's
-        // behaviour policy does not see raw values.
-        for t in &mut teams {
-            t.norm.update(&env.obs().vectors, &env.obs().scalars);
+        // `obs_norm_start`: empty statistics (the release), or those of the starts.
+        if config.obs_norm_start == NormStart::FirstObservation {
+            for t in &mut teams {
+                t.norm.update(&env.obs().vectors, &env.obs().scalars);
+            }
         }
         let nt = obs_spec.n_teams;
         // A stochastic task assignment is stored with each transition (the update must see the

@@ -212,3 +212,21 @@ fn the_entropy_estimate_is_reproducible_from_the_minibatch_stream() {
     assert_eq!(run(EntropyKind::Normal, 0), run(EntropyKind::Normal, 1));
     assert_ne!(run(EntropyKind::Normal, 0).1, a.1);
 }
+
+/// `obs_norm_start`: starting from the statistics of the starts (bodies at rest) magnifies
+/// the first iteration's velocities to their scale floor, so the first update sees data far
+/// from its behaviour policy; the release's empty start (identity for the first iteration)
+/// keeps it an order of magnitude nearer (measured at the quick preset's sizes: approx-KL
+/// 2.4 against 23.6 for `mlp_hn`, 2.9 against 34.3 for `shnn`).
+#[test]
+fn an_empty_normaliser_start_keeps_the_first_update_near_its_behaviour_policy() {
+    for model in ["mlp_hn", "shnn"] {
+        let first_kl = |start: &str| {
+            let c = common::tiny("team_reach/1_ant", model, 1, &[("obs_norm_start", start)]);
+            let mut t = Trainer::new(&c).unwrap();
+            t.iterate().unwrap().losses[0].approx_kl
+        };
+        let (empty, first_obs) = (first_kl("empty"), first_kl("first_observation"));
+        assert!(empty.is_finite() && first_obs > 5.0 * empty, "{model}: approx-KL {empty} (empty) vs {first_obs}");
+    }
+}
