@@ -36,8 +36,9 @@
 //! keeps the runs whose name contains one of the patterns (`--only mlp_hn/ --only
 //! 2_ants/shnn/`), applied after the shard: cheap runs first, or one run of a sweep.
 //!
-//! **Threads.** A run's results do not depend on its thread count, so `threads` may differ
-//! between a checkpoint and the sweep (`meben ablate --threads 1`, two sweeps side by side).
+//! **Threads and checkpoints.** A run's results depend neither on its thread count nor on
+//! how often it writes checkpoints, so `threads` and `checkpoint_every` may differ between
+//! a checkpoint and the sweep (`meben ablate --threads 1`, two sweeps side by side).
 //!
 //! **Restarts.** A run that is done (`done.json`) is skipped; one with a checkpoint is
 //! resumed, after checking that it was started with the same configuration (except
@@ -452,13 +453,13 @@ fn check_resumable(dir: &RunDir, wanted: &TrainConfig) -> Result<()> {
 }
 
 /// `field: saved X, sweep Y` for every field that differs (`steps` only if `with_steps`;
-/// never `threads`, which the results do not depend on).
+/// never `threads` or `checkpoint_every`, which the results do not depend on).
 fn config_differences(saved: &TrainConfig, wanted: &TrainConfig, with_steps: bool) -> Vec<String> {
     let a = toml::Table::try_from(saved).unwrap_or_default();
     let b = toml::Table::try_from(wanted).unwrap_or_default();
     let keys: BTreeSet<&String> = a.keys().chain(b.keys()).collect();
     keys.into_iter()
-        .filter(|k| k.as_str() != "threads")
+        .filter(|k| !matches!(k.as_str(), "threads" | "checkpoint_every"))
         .filter(|k| with_steps || k.as_str() != "steps")
         .filter(|k| a.get(*k) != b.get(*k))
         .map(|k| {
@@ -791,6 +792,7 @@ config = { entropy_coef = 0.0 }
                     seed: r.config.seed,
                     steps,
                     num_evals: 10,
+                    checkpoint_every: 1,
                     opponent: r.config.opponent.clone(),
                     fixed_start: r.config.fixed_start,
                     eval_rotations: r.config.eval_rotations.clone(),
@@ -890,8 +892,9 @@ config = { entropy_coef = 0.0 }
         let text = "envs = [\"team_reach/1_ant\"]\nmodels = [\"mlp_hn\", \"shnn\"]\nseeds = [0, 1]\npreset = \"quick\"";
         let sweep = Sweep::parse(text, "s.toml").unwrap();
         let runs = sweep.runs().unwrap();
-        // A partial shnn run trained with one thread; the sweep says every core.
-        let one_thread = TrainConfig { threads: 1, ..runs[3].config.clone() };
+        // A partial shnn run trained with one thread and other checkpoints; the sweep says
+        // every core and its own checkpoint interval.
+        let one_thread = TrainConfig { threads: 1, checkpoint_every: 7, ..runs[3].config.clone() };
         fake_run(&RunDir::new(tmp.0.join(&runs[3].name)), &one_thread, false);
         let selection = RunSelection { shard: None, only: vec!["shnn/".into(), "mlp_hn/seed0".into()] };
         let mut called = Vec::new();
