@@ -2,7 +2,7 @@
 //! ([`env`]), trained policies ([`policy`]) and training ([`train`](mod@train)) over the
 //! `envs` and `rl` crates, with numpy arrays across the boundary ([`arrays`]) and Rust
 //! errors as Python exceptions ([`errors`]). The plain-Python parts (`make`, the Gymnasium
-//! and PettingZoo adapters) are in `python/meben/`.
+//! and PettingZoo adapters) are in `python/python/meben/`.
 
 pub mod arrays;
 pub mod env;
