@@ -16,4 +16,5 @@ cargo test --workspace --release
 # The Rust programs the Python tests compare with (already built by cargo test; cheap).
 cargo build --release -p rl --bin meben -p envs --example replay_actions
 python -m pip install --quiet --disable-pip-version-check --no-build-isolation --no-deps --force-reinstall ./python
-python -m pytest -q python/tests
+# No cache provider: pytest would write .pytest_cache into the source tree.
+python -m pytest -q -p no:cacheprovider python/tests

@@ -31,7 +31,8 @@ def main():
     run = sys.argv[1] if len(sys.argv) > 1 else None
     if run is None:
         run = "target/example_run"
-        meben.train(out=run, env="team_reach/1_ant", model="mlp_hn", steps=2048, num_envs=16, num_evals=1)
+        tiny = dict(steps=160, num_envs=8, batch_size=4, num_minibatches=4, epochs=1, num_evals=1, eval_episodes=2)
+        meben.train(out=run, env="team_reach/1_ant", model="mlp_hn", **tiny)
     policy = meben.Policy.load(run)
     rng = np.random.default_rng(0)
     env = meben.make_eval(policy.env, 256, seed=1)
