@@ -28,7 +28,7 @@ fn run(args: &[String]) -> Result<(), String> {
     let actions: Vec<f32> = bytes.chunks_exact(4).map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect();
     let mut env = VecEnv::from_name(name, batch, seed, StartMode::Random).map_err(|e| e.to_string())?;
     let row = batch * env.n_actions();
-    if bytes.len() % 4 != 0 || actions.len() % row != 0 {
+    if !bytes.len().is_multiple_of(4) || !actions.len().is_multiple_of(row) {
         return Err(format!("{} bytes of actions is not a whole number of steps of {row} f32", bytes.len()));
     }
     let mut trace = Vec::new();
