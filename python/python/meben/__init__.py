@@ -1,0 +1,40 @@
+"""MeBen from Python: batched Team Reach and Team Sumo environments, trained policies and
+training, backed by the Rust crates of meben-rs (the extension module ``meben._core``).
+
+>>> import meben, numpy as np
+>>> env = meben.make("team_reach/2_ants", num_envs=256, seed=0)
+>>> obs = env.reset()
+>>> actions = np.zeros((env.num_envs, env.num_actions), np.float32)
+>>> obs, reward, terminated, truncated, info = env.step(actions)
+
+Adapters: ``meben.gymnasium.GymVecEnv`` (Gymnasium's vector-env API) and
+``meben.pettingzoo.ParallelEnv`` (PettingZoo's parallel API); they import their packages
+only when used.
+"""
+
+from ._core import BUILTIN_NAMES, OUTCOMES, Policy, VecEnv
+from ._train import train
+
+__all__ = ["BUILTIN_NAMES", "OUTCOMES", "Policy", "VecEnv", "make", "make_eval", "train"]
+
+
+def make(name, num_envs=1, seed=0, **options):
+    """``num_envs`` environments of ``name``, a built-in name (``meben.BUILTIN_NAMES``) or a
+    composition such as ``"team_reach:agents=ant+claw;R=5;balls=2"`` (a morphology may be a
+    Brax-config ``.txt`` file), seeded with ``seed``.
+
+    Options (keywords): ``auto_reset=True`` (an ended environment begins its next episode in
+    the same step; ``info["final_obs"]`` holds the true last observation), ``fixed_start=None``
+    (a seed: every episode starts from the start drawn with it), ``rotation_deg=0.0`` and
+    ``point=(0, 0)`` (the fixed start rotated about the vertical through ``point``),
+    ``record=False`` (record environment 0 for ``env.render(path)``).
+    """
+    return VecEnv(name, num_envs, seed, **options)
+
+
+def make_eval(name, num_envs, seed=0, **options):
+    """The environments of ``meben eval``: one episode each, auto-reset off, starts drawn as
+    the Rust evaluation draws them. Options: ``fixed_start=None`` (a seed), ``rotation_deg``
+    (about the vertical through the origin), ``translation=(0, 0)``, ``record=False``.
+    """
+    return VecEnv.evaluation(name, num_envs, seed, **options)

@@ -1,0 +1,38 @@
+"""``meben.train``: the trainer of ``meben train`` with its configuration fields as keywords."""
+
+import json
+import math
+import os
+
+from . import _core
+
+
+def _toml_value(field, value):
+    """``value`` as the TOML text ``meben train --set field=...`` takes."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, int):
+        return str(value)
+    if isinstance(value, float):
+        if not math.isfinite(value):
+            raise ValueError(f"bad {field} = {value}: must be finite")
+        return repr(value)
+    if isinstance(value, str):
+        return json.dumps(value)  # a JSON string is a valid TOML basic string
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(_toml_value(field, v) for v in value) + "]"
+    raise ValueError(f"bad {field} = {value!r}: expected a bool, number, string or list")
+
+
+def train(*, out, preset=None, config=None, progress=False, **fields):
+    """Trains as ``meben train`` does and returns the run summary (the ``done.json`` dict).
+
+    ``out`` is the run directory (a run with a checkpoint there resumes); ``preset`` is
+    ``"quick"`` (default) or ``"paper"``; ``config`` a TOML file; every other keyword is a
+    field of the Rust ``TrainConfig`` (``env``, ``model``, ``steps``, ``seed``, ``num_envs``,
+    ...), applied last like ``--set field=value``. Unknown fields and bad values raise
+    ``ValueError`` naming them.
+    """
+    overrides = [(k, _toml_value(k, v)) for k, v in fields.items()]
+    config = os.fspath(config) if config is not None else None
+    return json.loads(_core.train(os.fspath(out), overrides, preset, config, progress))

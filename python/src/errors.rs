@@ -1,0 +1,31 @@
+//! Rust errors as Python exceptions with the same message: input the caller got wrong
+//! (names, compositions, arrays, arguments, configuration values) is a `ValueError`, a file
+//! that cannot be read or written an `OSError`, anything else a `RuntimeError`.
+
+use envs::tasks::TaskError;
+use pyo3::PyErr;
+use pyo3::exceptions::{PyOSError, PyRuntimeError, PyValueError};
+use rl::RlError;
+
+/// A task error (every variant is caused by the caller's input) as a `ValueError`.
+pub fn task_error(e: TaskError) -> PyErr {
+    match e {
+        TaskError::Model { .. } => PyRuntimeError::new_err(e.to_string()),
+        _ => PyValueError::new_err(e.to_string()),
+    }
+}
+
+/// A training or evaluation error as the matching Python exception (module docs).
+pub fn rl_error(e: RlError) -> PyErr {
+    match e {
+        RlError::Env(t) => task_error(t),
+        RlError::Config { .. } | RlError::Checkpoint { .. } => PyValueError::new_err(e.to_string()),
+        RlError::File { .. } => PyOSError::new_err(e.to_string()),
+        RlError::NonFinite { .. } | RlError::Model(_) | RlError::Nn(_) => PyRuntimeError::new_err(e.to_string()),
+    }
+}
+
+/// A `ValueError` naming the argument, its value and what is accepted.
+pub fn bad_argument(what: &str, value: impl std::fmt::Display, message: &str) -> PyErr {
+    PyValueError::new_err(format!("bad {what} = {value}: {message}"))
+}

@@ -1,0 +1,68 @@
+"""Bad input raises a clear exception (naming the argument and the value) and leaves the
+environment usable: after the error it steps exactly as a twin that never saw the error."""
+
+import numpy as np
+import pytest
+
+import meben
+
+NAME = "team_reach/2_ants"
+
+
+def twins():
+    return meben.make(NAME, num_envs=2, seed=9), meben.make(NAME, num_envs=2, seed=9)
+
+
+def good(env):
+    return np.full((env.num_envs, env.num_actions), 0.3, np.float32)
+
+
+def nan_actions(env):
+    a = good(env)
+    a[1, 3] = np.nan
+    return a
+
+
+@pytest.mark.parametrize(
+    "make_bad,match",
+    [
+        (lambda env: np.zeros((env.num_envs, env.num_actions + 1), np.float32), r"bad actions = an array of shape \[2, 17\]: expected shape \[2, 16\]"),
+        (lambda env: np.zeros(env.num_envs * env.num_actions, np.float32), r"shape \[32\]"),
+        (lambda env: np.zeros((env.num_envs, env.num_actions), np.float64), r"dtype float64|dtype <f8"),
+        (lambda env: [[0.0] * env.num_actions] * env.num_envs, r"bad actions = a list: expected a numpy float32 array"),
+        (nan_actions, r"actions\[19\] \(environment 1, action 3\) = NaN"),
+    ],
+)
+def test_bad_actions_raise_and_change_nothing(make_bad, match):
+    env, twin = twins()
+    env.step(good(env))
+    twin.step(good(twin))
+    with pytest.raises(ValueError, match=match):
+        env.step(make_bad(env))
+    a, b = env.step(good(env)), twin.step(good(twin))
+    for key in ("vectors", "scalars", "heading"):
+        assert np.array_equal(a[0][key], b[0][key])
+    assert np.array_equal(a[1], b[1])
+
+
+def test_bad_names_and_arguments():
+    with pytest.raises(ValueError, match=r'unknown environment "team_reach/9_ants"; known environments: team_reach/1_ant'):
+        meben.make("team_reach/9_ants")
+    with pytest.raises(ValueError, match=r'morphology "octopus"'):
+        meben.make("team_reach:agents=ant+octopus")
+    with pytest.raises(ValueError, match=r"bad num_envs = 0: must be at least 1"):
+        meben.make(NAME, num_envs=0)
+    with pytest.raises(ValueError, match=r"bad seed = -1"):
+        meben.make(NAME, seed=-1)
+    with pytest.raises(ValueError, match=r"bad path = .*expected a file name ending in .html, .gif or .csv"):
+        meben.make(NAME, record=True).render("episode.mp4")
+
+
+def test_malformed_morphology_file(tmp_path):
+    bad = tmp_path / "broken.txt"
+    bad.write_text("bodies { name: 'torso' colliders { capsule { radius: oops")
+    with pytest.raises(ValueError, match=r"morphology \".*broken.txt\""):
+        meben.make(f"team_reach:agents={bad}")
+    # Nothing is left broken: other environments still build and step.
+    env = meben.make(NAME, num_envs=1)
+    env.step(good(env))

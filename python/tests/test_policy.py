@@ -1,0 +1,88 @@
+"""Training from Python writes the run directory `meben` writes; the policy loaded from it
+acts in Python exactly as the Rust evaluation (`meben eval`) does: replaying the evaluation
+in Python gives the same returns, lengths and success rate, to the last bit."""
+
+import json
+import subprocess
+
+import numpy as np
+import pytest
+
+import meben
+
+TINY = dict(batch_size=4, num_minibatches=4, epochs=1, num_evals=1, eval_episodes=2, num_envs=8, steps=160)
+
+
+@pytest.fixture(scope="module")
+def run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("runs") / "reach"
+    summary = meben.train(out=out, env="team_reach/1_ant", model="mlp_hn", seed=3, **TINY)
+    assert summary["env_steps"] >= 160 and summary["final_eval"]["episodes"] == 2
+    for f in ("config.toml", "metrics.csv", "checkpoint.json", "done.json"):
+        assert (out / f).is_file(), f
+    return out
+
+
+def python_evaluation(policy, episodes, seed, deterministic):
+    """rl::evaluate replayed with the Python API: one episode per environment."""
+    env = meben.make_eval(policy.env, episodes, seed)
+    teams = env.spec["num_teams"]
+    obs = env.observation()
+    alive = np.ones(episodes, bool)
+    returns = np.zeros((episodes, teams), np.float64)
+    outcome, length = np.zeros(episodes, np.int8), np.zeros(episodes, np.uint32)
+    for _ in range(env.spec["episode_steps"] + 1):
+        if not alive.any():
+            break
+        obs, reward, terminated, truncated, info = env.step(policy.act(obs, deterministic=deterministic))
+        for e in np.flatnonzero(alive):
+            for k in range(teams):
+                returns[e, k] += float(reward[e, k])  # f64 sums of f32 rewards, as Rust
+            if terminated[e] or truncated[e]:
+                alive[e] = False
+                outcome[e], length[e] = info["outcome"][e], info["episode_len"][e]
+    n = episodes
+    return {
+        "success_rate": float(np.sum(outcome == 1)) / n,
+        "mean_return": [sum(returns[e, k] for e in range(n)) / n for k in range(teams)],
+        "mean_length": sum(float(x) for x in length) / n,
+    }
+
+
+@pytest.mark.parametrize("deterministic", [True, False])
+def test_loaded_policy_acts_as_the_rust_evaluation(run, meben_cli, deterministic):
+    episodes, seed = 3, 5
+    flag = "--mean" if deterministic else "--stochastic"
+    subprocess.run(
+        [meben_cli, "eval", "--run", run, "--episodes", str(episodes), "--seed", str(seed), flag],
+        check=True,
+        capture_output=True,
+    )
+    rust = json.loads((run / "eval.json").read_text())
+    policy = meben.Policy.load(run, seed=seed)
+    assert policy.env == "team_reach/1_ant" and policy.model == "mlp_hn"
+    python = python_evaluation(policy, episodes, seed, deterministic)
+    assert rust["sampled"] == (not deterministic)
+    assert python == {k: rust[k] for k in python}, (python, rust)
+
+
+def test_policy_actions_are_deterministic_and_bounded(run):
+    policy = meben.Policy.load(run)
+    obs = meben.make("team_reach/1_ant", num_envs=4, seed=0).reset()
+    a, b = policy.act(obs), policy.act(obs)
+    assert a.shape == (4, 8) and a.dtype == np.float32
+    assert np.array_equal(a, b) and np.all(np.abs(a) <= 1)
+    with pytest.raises(ValueError, match=r'bad obs\["vectors"\] = an array of shape \[4, 9, 3, 3\]'):
+        policy.act({**obs, "vectors": obs["vectors"][:, :9]})
+    with pytest.raises(ValueError, match="without \"scalars\""):
+        policy.act({"vectors": obs["vectors"], "heading": obs["heading"]})
+    assert np.array_equal(policy.act(obs), a)
+
+
+def test_bad_runs_and_configurations(tmp_path):
+    with pytest.raises(OSError, match="not a run directory"):
+        meben.Policy.load(tmp_path)
+    with pytest.raises(ValueError, match="num_envz"):
+        meben.train(out=tmp_path / "x", num_envz=8)
+    with pytest.raises(ValueError, match=r"steps = nan: must be finite"):
+        meben.train(out=tmp_path / "x", steps=float("nan"))
