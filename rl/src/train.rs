@@ -31,6 +31,7 @@ use crate::checkpoint::{Checkpoint, TeamState, VERSION};
 use crate::config::TrainConfig;
 use crate::error::{Result, RlError};
 use crate::evaluate::{EvalOptions, evaluate};
+use crate::lock::{RunLock, remove_stale_temporaries};
 use crate::metrics::{MetricsLayout, MetricsRow, eval_column};
 use crate::ppo::{LossStats, PpoParams, ppo_loss};
 use crate::rollout::{MinibatchBuf, Rollout};
@@ -566,7 +567,9 @@ fn metrics_upto(path: &std::path::Path, iteration: u64, layout: &MetricsLayout) 
 /// Trains `config` in `run`: from scratch, or from the run's checkpoint (module docs). The
 /// resolved configuration goes to `config.toml`, a row per iteration to `metrics.csv`, the
 /// state to `checkpoint.json` and the summary to `done.json` at the end. A run whose
-/// `done.json` exists and whose steps are reached returns its summary at once.
+/// `done.json` exists and whose steps are reached returns its summary at once. The run
+/// directory is locked while training ([`RunLock`]: a second training of it fails at once,
+/// naming the holder); temporary files of interrupted writes are removed first.
 pub fn train(config: &TrainConfig, run: &RunDir, options: &TrainOptions) -> Result<RunSummary> {
     let threads = config.threads;
     let pool = rayon::ThreadPoolBuilder::new()
@@ -578,6 +581,9 @@ pub fn train(config: &TrainConfig, run: &RunDir, options: &TrainOptions) -> Resu
 
 fn train_in_pool(config: &TrainConfig, run: &RunDir, options: &TrainOptions) -> Result<RunSummary> {
     std::fs::create_dir_all(run.root()).map_err(|e| RlError::file(run.root(), format!("cannot create: {e}")))?;
+    // Held until training returns: a second training of this directory is refused.
+    let lock = RunLock::acquire(run.root())?;
+    remove_stale_temporaries(run.root(), &lock)?;
     let ckpt_path = run.checkpoint();
     let (mut trainer, wall_before, mut last_evals) = if ckpt_path.is_file() {
         let c = Checkpoint::load(&ckpt_path)?;

@@ -142,3 +142,37 @@ fn info_prints_each_teams_parameter_counts_and_rejects_bad_names() {
     let (ok, _, stderr) = meben(&["info", "--env", "team_reach/1_ant", "--model", "shnn:critic=huge"]);
     assert!(!ok && stderr.contains("model") && stderr.contains("critic"), "{stderr}");
 }
+
+#[test]
+fn a_second_training_of_a_run_directory_is_refused_naming_the_first() {
+    let dir = common::TempDir::new("cli-lock");
+    let out = dir.0.join("run");
+    let out_s = out.to_str().unwrap();
+    let mut args = vec!["train", "--model", "mlp_hn", "--out", out_s, "--steps", "40000"];
+    args.extend_from_slice(&TINY[..TINY.len() - 3]);
+    args.push("--quiet");
+    let mut first = Command::new(env!("CARGO_BIN_EXE_meben"))
+        .args(&args)
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let lock = out.join("lock");
+    let t0 = std::time::Instant::now();
+    while !std::fs::read_to_string(&lock).is_ok_and(|s| s.contains("process")) {
+        assert!(t0.elapsed().as_secs() < 60, "the first training never took the lock");
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    let (ok, _, stderr) = meben(&args);
+    let still_running = first.try_wait().unwrap().is_none();
+    first.kill().unwrap();
+    first.wait().unwrap();
+    assert!(still_running, "the first training ended before the second started");
+    assert!(!ok, "the second training of one directory succeeded");
+    assert!(stderr.contains(&format!("in use by process {} on host", first.id())), "{stderr}");
+    // Killed, the first holds nothing: the directory resumes.
+    let mut args = vec!["train", "--model", "mlp_hn", "--out", out_s];
+    args.extend_from_slice(TINY);
+    let (ok, _, stderr) = meben(&args);
+    assert!(ok, "resume after kill failed: {stderr}");
+}
