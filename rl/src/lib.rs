@@ -17,6 +17,7 @@
 //! evidence without checkpoints), [`info`] (`meben info`: parameter counts).
 
 pub mod checkpoint;
+pub mod checksum;
 pub mod config;
 pub mod curve;
 pub mod error;

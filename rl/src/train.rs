@@ -228,6 +228,7 @@ impl Trainer {
         }
         for (team, s) in t.teams.iter_mut().zip(&c.teams) {
             s.params.load_into(&mut team.store).map_err(|e| bad(e.to_string()))?;
+            s.adam.check_fits(&team.store).map_err(|e| bad(e.to_string()))?;
             // The moments and count from the checkpoint; the schedule of this configuration
             // (its length follows `steps`, which may have been extended).
             let schedule = team.adam.config.lr;
