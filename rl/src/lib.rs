@@ -26,6 +26,7 @@ pub mod export;
 pub mod gae;
 pub mod info;
 pub mod lock;
+pub mod memory;
 pub mod metrics;
 pub mod normalizer;
 pub mod plot;

@@ -169,6 +169,27 @@ impl Trainer {
         // graph the behaviour policy acted on); the deterministic ones are solved again.
         let widths: Vec<usize> =
             teams.iter().map(|t| if t.model.assignment_is_random() { t.model.assignment_width() } else { 0 }).collect();
+        let bytes = Rollout::bytes(
+            config.unrolls_per_iteration(),
+            config.unroll_length,
+            config.num_envs,
+            env.obs(),
+            env.n_actions(),
+            widths.len(),
+        );
+        crate::memory::check_fits_in_memory(bytes).map_err(|e| {
+            RlError::config(
+                "config",
+                "batch_size",
+                config.batch_size,
+                format!(
+                    "an iteration of batch_size x num_minibatches x unroll_length = {} env steps on {}: its rollout \
+                     {e}",
+                    config.steps_per_iteration(),
+                    config.env
+                ),
+            )
+        })?;
         let rollout = Rollout::new(
             config.unrolls_per_iteration(),
             config.unroll_length,

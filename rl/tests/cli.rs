@@ -176,3 +176,25 @@ fn a_second_training_of_a_run_directory_is_refused_naming_the_first() {
     let (ok, _, stderr) = meben(&args);
     assert!(ok, "resume after kill failed: {stderr}");
 }
+
+#[test]
+fn impossible_sizes_are_clear_errors_not_panics() {
+    let dir = common::TempDir::new("cli-sizes");
+    let out = dir.0.join("r");
+    let out_s = out.to_str().unwrap();
+    let train = |extra: &[&str], needles: &[&str]| {
+        let mut args = vec!["train", "--out", out_s, "--quiet"];
+        args.extend_from_slice(extra);
+        fails_with(&args, needles);
+    };
+    train(&["--set", "batch_size=4611686018427387904", "--set", "num_minibatches=4"], &["batch_size", "16777216"]);
+    train(&["--set", "batch_size=1099511627776"], &["batch_size", "1099511627776"]);
+    train(&["--model", "mlp:head=4000000000"], &["model", "head", "4000000000"]);
+    train(&["--env", "team_reach:agents=ant;R=1e160"], &["R", "1e160", "at most 1000"]);
+    train(&["--set", "eval_episodes=18446744073709551615"], &["eval_episodes"]);
+    assert!(!out.exists(), "a run directory was created for an invalid configuration");
+    let mut args = vec!["train", "--model", "mlp_hn", "--out", out_s];
+    args.extend_from_slice(TINY);
+    assert!(meben(&args).0);
+    fails_with(&["eval", "--run", out_s, "--episodes", "18446744073709551615"], &["episodes", "18446744073709551615"]);
+}
