@@ -192,9 +192,15 @@ fn impossible_sizes_are_clear_errors_not_panics() {
     train(&["--model", "mlp:head=4000000000"], &["model", "head", "4000000000"]);
     train(&["--env", "team_reach:agents=ant;R=1e160"], &["R", "1e160", "at most 1000"]);
     train(&["--set", "eval_episodes=18446744073709551615"], &["eval_episodes"]);
+    train(&["--model", "transformer_hn:critic=shared"], &["transformer_hn", "takes no option `critic`"]);
     assert!(!out.exists(), "a run directory was created for an invalid configuration");
     let mut args = vec!["train", "--model", "mlp_hn", "--out", out_s];
     args.extend_from_slice(TINY);
     assert!(meben(&args).0);
     fails_with(&["eval", "--run", out_s, "--episodes", "18446744073709551615"], &["episodes", "18446744073709551615"]);
+    // A huge but finite rotation: the evaluation is kept under a name of bounded length.
+    let (ok, _, stderr) =
+        meben(&["eval", "--run", out_s, "--episodes", "1", "--rotate", "1e308", "--translate", "1e-300,0"]);
+    assert!(ok, "{stderr}");
+    assert!(out.join("eval_rotate1e308_translate1e-300_0.json").is_file(), "{stderr}");
 }
