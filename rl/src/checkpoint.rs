@@ -118,7 +118,7 @@ impl Checkpoint {
             }
         }
         c.check_consistent().map_err(bad)?;
-        c.check_finite().map_err(|what| bad(format!("{what}")))?;
+        c.check_finite().map_err(bad)?;
         Ok(c)
     }
 
