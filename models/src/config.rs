@@ -254,7 +254,9 @@ impl ModelConfig {
                 "actor_steps" => {
                     let n = v.parse::<usize>().ok().filter(|&n| (1..=MAX_ACTOR_STEPS).contains(&n));
                     c.actor_steps = Some(n.ok_or_else(|| {
-                        ModelError::Option(format!("actor_steps `{v}` is not an integer in 1 ..= {MAX_ACTOR_STEPS}"))
+                        ModelError::Option(format!(
+                            "actor_steps `{v}` is not a positive integer at most {MAX_ACTOR_STEPS}"
+                        ))
                     })?);
                 }
                 "variant" => c.variant = Some(MlpVariant::parse(v)?),
@@ -321,7 +323,8 @@ fn parse_widths(key: &str, v: &str) -> Result<Vec<usize>> {
         .filter(|w: &Vec<usize>| w.len() <= MAX_LAYERS)
         .ok_or_else(|| {
             ModelError::Option(format!(
-                "model option `{key}`: hidden widths `{v}` are not at most {MAX_LAYERS} integers in 1 ..= {MAX_WIDTH} joined by x"
+                "model option `{key}`: hidden widths `{v}` are not at most {MAX_LAYERS} positive integers, \
+                 each at most {MAX_WIDTH}, joined by x"
             ))
         })?;
     Ok(w)
