@@ -18,8 +18,7 @@
 use crate::data::Data;
 use crate::mjcf::{self, MjcfError};
 use std::fmt;
-use std::io::Write;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// Open-loop rollout of an MJCF model; writes qpos per control step.
 #[derive(clap::Args, Clone, Debug, PartialEq)]
@@ -108,6 +107,7 @@ pub fn run(args: &RolloutArgs) -> Result<(), RolloutError> {
     if args.frames == 0 {
         return Err(arg("--frames", "must be at least 1".into()));
     }
+    check_not_an_input(&args.out, &[("--mjcf", &args.mjcf), ("--controls", &args.controls)])?;
     let model = mjcf::load_file(&args.mjcf)?;
     let mut data = Data::new(&model);
     if let Some(q) = &args.qpos {
@@ -131,31 +131,52 @@ pub fn run(args: &RolloutArgs) -> Result<(), RolloutError> {
         controls.push(row);
     }
     let out_path = args.out.display().to_string();
-    let file = std::fs::File::create(&args.out)
-        .map_err(|e| RolloutError::File { path: out_path.clone(), message: format!("cannot create: {e}") })?;
-    let mut out = std::io::BufWriter::new(file);
-    let io = |e: std::io::Error| RolloutError::File { path: out_path.clone(), message: format!("write failed: {e}") };
+    let mut out = String::new();
     let header: Vec<String> = (0..model.nq).map(|i| format!("q{i}")).collect();
-    writeln!(out, "{}", header.join(",")).map_err(io)?;
-    let write_row = |out: &mut std::io::BufWriter<std::fs::File>, q: &[f64]| {
+    out.push_str(&header.join(","));
+    out.push('\n');
+    let write_row = |out: &mut String, q: &[f64]| {
         let row: Vec<String> = q.iter().map(|x| format!("{x:e}")).collect();
-        writeln!(out, "{}", row.join(",")).map_err(io)
+        out.push_str(&row.join(","));
+        out.push('\n');
     };
-    write_row(&mut out, &data.qpos)?;
+    write_row(&mut out, &data.qpos);
     let mut first_non_finite = None;
     for (k, row) in controls.iter().enumerate() {
         data.ctrl.copy_from_slice(row);
         for _ in 0..args.frames {
             crate::step(&model, &mut data);
         }
-        write_row(&mut out, &data.qpos)?;
+        write_row(&mut out, &data.qpos);
         if first_non_finite.is_none() && !data.is_finite() {
             first_non_finite = Some(k + 1);
         }
     }
-    out.flush().map_err(io)?;
+    nn::write_atomic(&args.out, out.as_bytes())
+        .map_err(|e| RolloutError::File { path: out_path.clone(), message: format!("cannot write: {e}") })?;
     match first_non_finite {
         Some(control_step) => Err(RolloutError::NonFinite { control_step }),
         None => Ok(()),
     }
+}
+
+/// Refuses an output path that names one of the inputs (compared canonicalised, so
+/// `dir/./x.csv` and a symbolic link are found too): the rollout would overwrite its input.
+fn check_not_an_input(out: &Path, inputs: &[(&str, &Path)]) -> Result<(), RolloutError> {
+    let canonical = |p: &Path| -> Option<PathBuf> {
+        p.canonicalize().ok().or_else(|| {
+            let parent = p.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
+            Some(parent.canonicalize().ok()?.join(p.file_name()?))
+        })
+    };
+    let Some(out_c) = canonical(out) else { return Ok(()) };
+    for (flag, input) in inputs {
+        if canonical(input).is_some_and(|i| i == out_c) {
+            return Err(RolloutError::Argument {
+                flag: "--out".into(),
+                message: format!("{} is the {flag} input; the rollout would overwrite it", out.display()),
+            });
+        }
+    }
+    Ok(())
 }

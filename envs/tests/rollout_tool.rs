@@ -112,8 +112,30 @@ fn bad_inputs_name_the_flag_or_the_file_and_line() {
     a = args(&dir, &[]);
     a.out = dir.join("no/such/dir/out.csv");
     let e = run(&a).unwrap_err();
-    assert!(e.to_string().contains("cannot create"), "{e}");
+    assert!(e.to_string().contains("cannot write") && e.to_string().contains("out.csv"), "{e}");
+    assert!(!dir.join("no").exists());
     // A required flag missing is clap's error.
     assert!(Cli::try_parse_from(["rollout", "--mjcf", ANT]).is_err());
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn the_output_never_overwrites_an_input() {
+    let dir = scratch("inputs");
+    let controls = dir.join("controls.csv");
+    std::fs::write(&controls, "0,0,0,0,0,0,0,0\n").unwrap();
+    let mjcf = dir.join("ant.xml");
+    std::fs::copy(ANT, &mjcf).unwrap();
+    let before = std::fs::read(&mjcf).unwrap();
+    for (out, flag) in [(dir.join("controls.csv"), "--controls"), (dir.join(".").join("ant.xml"), "--mjcf")] {
+        let mut a = args(&dir, &[]);
+        a.mjcf = mjcf.clone();
+        a.out = out;
+        let e = run(&a).unwrap_err();
+        assert!(matches!(&e, RolloutError::Argument { flag: f, .. } if f == "--out"), "{e}");
+        assert!(e.to_string().contains(flag), "{e}");
+    }
+    assert_eq!(std::fs::read_to_string(&controls).unwrap(), "0,0,0,0,0,0,0,0\n");
+    assert_eq!(std::fs::read(&mjcf).unwrap(), before);
     let _ = std::fs::remove_dir_all(&dir);
 }

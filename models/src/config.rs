@@ -230,10 +230,20 @@ impl ModelConfig {
         let (name, opts) = s.split_once(':').unwrap_or((s, ""));
         check_name(name)?;
         let mut c = Self::new(name);
-        for item in opts.split(';').filter(|x| !x.is_empty()) {
+        let mut seen: Vec<&str> = Vec::new();
+        for item in opts.split(';').filter(|_| !opts.is_empty()) {
+            if item.trim().is_empty() {
+                return Err(ModelError::Option(format!(
+                    "`{s}` has an empty model option (options are key=value joined by `;`)"
+                )));
+            }
             let (k, v) = item.split_once('=').ok_or_else(|| {
                 ModelError::Option(format!("model option `{item}` is not key=value (keys: {})", OPTION_KEYS.join(", ")))
             })?;
+            if seen.contains(&k) {
+                return Err(ModelError::Option(format!("model option `{k}` is given twice in `{s}`")));
+            }
+            seen.push(k);
             match k {
                 "assignment" => c.assignment = Some(AssignmentMethod::parse(v).map_err(ModelError::Option)?),
                 "translation" => c.translation = Some(Translation::parse(v)?),
@@ -242,18 +252,19 @@ impl ModelConfig {
                 "critic" => c.critic = Some(CriticKind::parse(v)?),
                 "gravity" => c.gravity = Some(GravityMode::parse(v)?),
                 "actor_steps" => {
-                    let n = v.parse::<usize>().ok().filter(|&n| n > 0);
-                    c.actor_steps =
-                        Some(n.ok_or_else(|| {
-                            ModelError::Option(format!("actor_steps `{v}` is not a positive integer"))
-                        })?);
+                    let n = v.parse::<usize>().ok().filter(|&n| (1..=MAX_ACTOR_STEPS).contains(&n));
+                    c.actor_steps = Some(n.ok_or_else(|| {
+                        ModelError::Option(format!(
+                            "actor_steps `{v}` is not a positive integer at most {MAX_ACTOR_STEPS}"
+                        ))
+                    })?);
                 }
                 "variant" => c.variant = Some(MlpVariant::parse(v)?),
                 "seed" => {
                     c.seed = v.parse().map_err(|_| ModelError::Option(format!("seed `{v}` is not an integer")))?;
                 }
-                "head" => c.head_hidden = Some(parse_widths(v)?),
-                "critic_hidden" => c.critic_hidden = Some(parse_widths(v)?),
+                "head" => c.head_hidden = Some(parse_widths(k, v)?),
+                "critic_hidden" => c.critic_hidden = Some(parse_widths(k, v)?),
                 _ => {
                     return Err(ModelError::Option(format!(
                         "unknown model option `{k}` (known: {})",
@@ -295,12 +306,27 @@ impl ModelConfig {
     }
 }
 
-fn parse_widths(v: &str) -> Result<Vec<usize>> {
+/// The widest hidden layer an option may ask for (a 8192 x 8192 layer is 67M parameters).
+pub const MAX_WIDTH: usize = 8192;
+
+/// The most hidden layers an option may ask for.
+pub const MAX_LAYERS: usize = 16;
+
+/// The most message-passing steps of `actor_steps`.
+pub const MAX_ACTOR_STEPS: usize = 64;
+
+fn parse_widths(key: &str, v: &str) -> Result<Vec<usize>> {
     let w: Vec<usize> = v
         .split('x')
-        .map(|x| x.parse::<usize>().ok().filter(|&n| n > 0))
+        .map(|x| x.parse::<usize>().ok().filter(|&n| (1..=MAX_WIDTH).contains(&n)))
         .collect::<Option<_>>()
-        .ok_or_else(|| ModelError::Option(format!("hidden widths `{v}` are not positive integers joined by x")))?;
+        .filter(|w: &Vec<usize>| w.len() <= MAX_LAYERS)
+        .ok_or_else(|| {
+            ModelError::Option(format!(
+                "model option `{key}`: hidden widths `{v}` are not at most {MAX_LAYERS} positive integers, \
+                 each at most {MAX_WIDTH}, joined by x"
+            ))
+        })?;
     Ok(w)
 }
 
@@ -318,4 +344,27 @@ pub(crate) fn layer_sizes(input: usize, hidden: &[usize], output: usize) -> Vec<
     v.extend_from_slice(hidden);
     v.push(output);
     v
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn empty_repeated_and_huge_options_are_refused() {
+        for (spec, needle) in [
+            ("shnn:;;;", "empty model option"),
+            ("shnn:critic=shared;", "empty model option"),
+            ("shnn:critic=shared;critic=separate", "`critic` is given twice"),
+            ("mlp:head=4000000000", "8192"),
+            ("mlp:head=64x0", "head"),
+            (&format!("mlp:head={}", ["8"; 17].join("x")), "at most 16"),
+            ("shnn:actor_steps=100000", "actor_steps"),
+        ] {
+            let e = ModelConfig::parse(spec).unwrap_err().to_string();
+            assert!(e.contains(needle), "{spec}: {e}");
+        }
+        assert!(ModelConfig::parse("shnn:").is_ok());
+        assert_eq!(ModelConfig::parse("mlp:head=8192x16").unwrap().head_hidden, Some(vec![8192, 16]));
+    }
 }

@@ -34,6 +34,7 @@
 //! # }
 //! ```
 
+pub mod atomic;
 pub mod attention;
 pub mod equivariant;
 pub mod error;
@@ -47,6 +48,7 @@ pub mod rbf;
 pub mod state;
 pub mod transformer;
 
+pub use atomic::{is_temporary, write_atomic};
 pub use attention::MultiHeadAttention;
 pub use equivariant::{SubeqSizes, SubequivariantFn, VectorLinear, gram};
 pub use error::{NnError, Result};
@@ -57,5 +59,5 @@ pub use norm::LayerNorm;
 pub use optim::{Adam, AdamConfig, LrSchedule, clip_elementwise, clip_global_norm};
 pub use params::{Bound, ParamId, ParamStore, Scope, init_rng};
 pub use rbf::RadialBasis;
-pub use state::{StateDict, write_atomic};
+pub use state::StateDict;
 pub use transformer::{TransformerConfig, TransformerEncoder, TransformerEncoderLayer};

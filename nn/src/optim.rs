@@ -106,6 +106,56 @@ impl Adam {
         Self { config, t: 0, m: zeros.clone(), v: zeros }
     }
 
+    /// Checks a loaded state against `store`: one first and one second moment buffer per
+    /// parameter, each with the parameter's number of elements, all finite. Errors name the
+    /// parameter.
+    pub fn check_fits<T: Float>(&self, store: &ParamStore<T>) -> Result<()> {
+        if self.m.len() != store.len() || self.v.len() != store.len() {
+            return Err(NnError::Config(format!(
+                "Adam: {} first and {} second moment buffers for {} parameters",
+                self.m.len(),
+                self.v.len(),
+                store.len()
+            )));
+        }
+        for (i, value) in store.values().iter().enumerate() {
+            for (moment, buf) in [("first", &self.m[i]), ("second", &self.v[i])] {
+                if buf.len() != value.numel() {
+                    return Err(NnError::Param {
+                        name: store.names()[i].clone(),
+                        detail: format!(
+                            "the saved Adam {moment} moment has {} elements for a parameter of {}",
+                            buf.len(),
+                            value.numel()
+                        ),
+                    });
+                }
+            }
+        }
+        match self.non_finite() {
+            Some((i, moment)) => Err(NnError::Param {
+                name: store.names()[i].clone(),
+                detail: format!("the saved Adam {moment} moment is not finite"),
+            }),
+            None => Ok(()),
+        }
+    }
+
+    /// The first moment buffer holding a NaN or an infinity: its parameter's index (store
+    /// order) and which moment (`first` or `second`).
+    pub fn non_finite(&self) -> Option<(usize, &'static str)> {
+        let bad = |b: &Vec<f64>| !b.iter().all(|x| x.is_finite());
+        (0..self.m.len().max(self.v.len())).find_map(|i| {
+            if self.m.get(i).is_some_and(bad) {
+                Some((i, "first"))
+            } else if self.v.get(i).is_some_and(bad) {
+                Some((i, "second"))
+            } else {
+                None
+            }
+        })
+    }
+
     /// The learning rate the next update will use.
     pub fn current_lr(&self) -> f64 {
         self.config.lr.at(self.t)
@@ -148,5 +198,41 @@ impl Adam {
             },
         );
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn store() -> ParamStore<f32> {
+        let mut s = ParamStore::new();
+        s.add("a.weight", Tensor::zeros(&[2, 3])).unwrap();
+        s.add("b.bias", Tensor::zeros(&[4])).unwrap();
+        s
+    }
+
+    #[test]
+    fn loaded_moments_must_fit_the_store_and_be_finite() {
+        let store = store();
+        let adam = Adam::new(AdamConfig::default(), &store);
+        adam.check_fits(&store).unwrap();
+        assert_eq!(adam.non_finite(), None);
+
+        let mut short = adam.clone();
+        short.v[1].pop();
+        let e = short.check_fits(&store).unwrap_err().to_string();
+        assert!(e.contains("b.bias") && e.contains("second moment has 3 elements"), "{e}");
+
+        let mut fewer = adam.clone();
+        fewer.m.pop();
+        let e = fewer.check_fits(&store).unwrap_err().to_string();
+        assert!(e.contains("1 first and 2 second"), "{e}");
+
+        let mut nan = adam;
+        nan.m[0][4] = f64::NAN;
+        assert_eq!(nan.non_finite(), Some((0, "first")));
+        let e = nan.check_fits(&store).unwrap_err().to_string();
+        assert!(e.contains("a.weight") && e.contains("not finite"), "{e}");
     }
 }

@@ -6,6 +6,7 @@ use std::path::Path;
 use serde::{Deserialize, Serialize};
 use tensor::{Float, Tensor};
 
+use crate::atomic::write_atomic;
 use crate::error::{NnError, Result};
 use crate::params::ParamStore;
 
@@ -105,18 +106,4 @@ impl StateDict {
         }
         Ok(sd)
     }
-}
-
-/// Writes `bytes` to `path` by writing a sibling temporary file and renaming it over
-/// `path`, so a crash never leaves a half-written file.
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    let io = |e| NnError::Io { path: path.into(), source: e };
-    let tmp = path.with_extension(format!("{}.tmp", path.extension().and_then(|e| e.to_str()).unwrap_or("")));
-    {
-        use std::io::Write;
-        let mut f = std::fs::File::create(&tmp).map_err(io)?;
-        f.write_all(bytes).map_err(io)?;
-        f.sync_all().map_err(io)?;
-    }
-    std::fs::rename(&tmp, path).map_err(io)
 }

@@ -23,6 +23,10 @@ use serde::{Deserialize, Serialize};
 
 use crate::error::{Result, RlError};
 
+/// The most env steps of one iteration (`batch_size * num_minibatches * unroll_length`):
+/// 100 times the paper's 163 840, and small enough that the checked products never overflow.
+pub const MAX_STEPS_PER_ITERATION: u64 = 1 << 24;
+
 /// Which observation normaliser to use (module [`crate::normalizer`] has the maths). Every
 /// model of a comparison gets the same one unless a run says otherwise (the paper's "same
 /// input" rule).
@@ -384,6 +388,28 @@ impl TrainConfig {
         if self.num_envs > 1 << 20 {
             return err("num_envs", &self.num_envs, "at most 1048576 environments");
         }
+        let per_iteration = (self.batch_size as u64)
+            .checked_mul(self.num_minibatches as u64)
+            .and_then(|u| u.checked_mul(self.unroll_length as u64))
+            .filter(|&n| n <= MAX_STEPS_PER_ITERATION);
+        if per_iteration.is_none() {
+            return err(
+                "batch_size",
+                &self.batch_size,
+                &format!(
+                    "an iteration of batch_size x num_minibatches x unroll_length = {} x {} x {} env steps is more \
+                     than the {MAX_STEPS_PER_ITERATION} this program allows",
+                    self.batch_size, self.num_minibatches, self.unroll_length
+                ),
+            );
+        }
+        if self.eval_episodes > crate::evaluate::MAX_EPISODES {
+            return err(
+                "eval_episodes",
+                &self.eval_episodes,
+                &format!("at most {} (one environment per episode)", crate::evaluate::MAX_EPISODES),
+            );
+        }
         if !(self.batch_size * self.num_minibatches).is_multiple_of(self.num_envs) {
             return err(
                 "num_envs",
@@ -513,6 +539,10 @@ mod tests {
             ("eval_rotations", "[]", "eval_rotations"),
             ("eval_rotations", "[0.0, 90.0, 90.0]", "90 appears twice"),
             ("eval_rotations", "[0.0, nan]", "finite"),
+            ("batch_size", "4611686018427387904", "batch_size"),
+            ("batch_size", "1099511627776", "16777216"),
+            ("unroll_length", "18446744073709551615", "unroll_length"),
+            ("eval_episodes", "18446744073709551615", "eval_episodes"),
             ("entropy", "gaussian", "entropy"),
         ];
         for (field, value, named) in cases {

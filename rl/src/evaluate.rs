@@ -52,6 +52,9 @@ impl EvalOptions {
     }
 }
 
+/// The most episodes of one evaluation (one environment each, as `num_envs` at most).
+pub const MAX_EPISODES: usize = 1 << 20;
+
 /// The start of evaluation episode `e` (module docs).
 pub fn episode_start(scene: &Scene, options: &EvalOptions, e: usize) -> Start {
     let base = match &options.mode {
@@ -64,6 +67,14 @@ pub fn episode_start(scene: &Scene, options: &EvalOptions, e: usize) -> Start {
 /// The environments of an evaluation, auto-reset off, every episode begun from its
 /// [`episode_start`].
 pub fn eval_envs(env: &str, options: &EvalOptions) -> Result<VecEnv> {
+    if !(1..=MAX_EPISODES).contains(&options.episodes) {
+        return Err(crate::RlError::config(
+            "evaluation",
+            "episodes",
+            options.episodes,
+            format!("must lie in 1 ..= {MAX_EPISODES} (one environment per episode)"),
+        ));
+    }
     options.mode.validate()?;
     options.motion().validate()?;
     let spec = TaskSpec::from_name(env)?;

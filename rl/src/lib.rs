@@ -17,6 +17,7 @@
 //! evidence without checkpoints), [`info`] (`meben info`: parameter counts).
 
 pub mod checkpoint;
+pub mod checksum;
 pub mod config;
 pub mod curve;
 pub mod error;
@@ -24,6 +25,8 @@ pub mod evaluate;
 pub mod export;
 pub mod gae;
 pub mod info;
+pub mod lock;
+pub mod memory;
 pub mod metrics;
 pub mod normalizer;
 pub mod plot;
@@ -40,6 +43,7 @@ pub mod train;
 pub use config::{EntropyKind, NormStart, ObsNormKind, Preset, TrainConfig};
 pub use error::{Result, RlError};
 pub use evaluate::{EvalOptions, evaluate};
+pub use lock::RunLock;
 pub use plot::LinePlot;
 pub use report::{Report, report};
 pub use run_dir::{RunDir, RunStatus};

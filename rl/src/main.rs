@@ -375,20 +375,32 @@ fn cmd_eval(a: EvalArgs) -> Result<(), String> {
     };
     let e = rl::evaluate(&config.env, &teams, &options).map_err(|e| e.to_string())?;
     print_eval(config.is_sumo(), &e);
-    let mut name = match a.rotate {
-        Some(d) => format!("eval_rotate{d}"),
-        None if a.fixed || moved => "eval_fixed".into(),
-        None => "eval".into(),
-    };
-    if let Some([x, y]) = a.translate {
-        name = if a.rotate.is_some() { format!("{name}_translate{x}_{y}") } else { format!("eval_translate{x}_{y}") };
-    }
-    let name = format!("{name}.json");
+    let name = eval_file_name(a.rotate, a.translate, a.fixed);
     let path = a.run.join(name);
     let text = serde_json::to_string_pretty(&e).map_err(|e| e.to_string())?;
     nn::write_atomic(&path, text.as_bytes()).map_err(|e| e.to_string())?;
     eprintln!("meben: wrote {}", path.display());
     Ok(())
+}
+
+/// The file an evaluation is written to: `eval.json`, `eval_fixed.json`,
+/// `eval_rotate<deg>.json`, `eval[_rotate<deg>]_translate<x>_<y>.json`, every number in at
+/// most 24 characters (`1e308`, not 309 digits: a file name has a length limit).
+fn eval_file_name(rotate: Option<f64>, translate: Option<[f64; 2]>, fixed: bool) -> String {
+    let num = |x: f64| {
+        let plain = x.to_string();
+        if plain.len() <= 24 { plain } else { format!("{x:e}") }
+    };
+    let mut name = match rotate {
+        Some(d) => format!("eval_rotate{}", num(d)),
+        None if fixed || translate.is_some() => "eval_fixed".into(),
+        None => "eval".into(),
+    };
+    if let Some([x, y]) = translate {
+        let base = if rotate.is_some() { name.as_str() } else { "eval" };
+        name = format!("{base}_translate{}_{}", num(x), num(y));
+    }
+    format!("{name}.json")
 }
 
 fn cmd_ablate(a: AblateArgs) -> Result<(), String> {

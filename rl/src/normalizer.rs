@@ -263,6 +263,15 @@ impl ObsNormalizer {
         Ok(())
     }
 
+    /// The first statistics (`positions`, `vectors` or `scalars`) holding a NaN or an
+    /// infinity, if any.
+    pub fn non_finite(&self) -> Option<&'static str> {
+        [("positions", &self.positions), ("vectors", &self.vectors), ("scalars", &self.scalars)]
+            .into_iter()
+            .find(|(_, s)| !(s.count.is_finite() && s.mean.iter().chain(&s.m2).all(|x| x.is_finite())))
+            .map(|(name, _)| name)
+    }
+
     /// Adds a batch of raw observations (`[B, N, 3, 3]` vectors, `[B, N, N_SCALARS]` scalars).
     pub fn update<S: Float>(&mut self, vectors: &[S], scalars: &[S]) {
         match self.kind {

@@ -112,6 +112,23 @@ impl MinibatchBuf {
 }
 
 impl Rollout {
+    /// Bytes the buffers of [`Rollout::new`] take for these sizes (`None` past `u128`).
+    pub fn bytes(
+        blocks: usize,
+        steps: usize,
+        envs: usize,
+        obs: &Observation,
+        n_actions: usize,
+        teams: usize,
+    ) -> Option<u128> {
+        let (blocks, steps, envs) = (blocks as u128, steps as u128, envs as u128);
+        let rows = blocks.checked_mul(steps + 1)?.checked_mul(envs)?;
+        let tr = blocks.checked_mul(steps)?.checked_mul(envs)?;
+        let per_row = 4 * (obs.nodes as u128 * (9 + N_SCALARS as u128) + obs.agents as u128);
+        let per_tr = 4 * (n_actions as u128 + 2 * teams as u128) + 2 + 4 + 8 * teams as u128;
+        rows.checked_mul(per_row)?.checked_add(tr.checked_mul(per_tr)?)
+    }
+
     /// Storage for `blocks` unrolls of `steps` steps of `envs` environments; team `k` stores
     /// `assignment_width[k]` assignment entries per transition.
     pub fn new(

@@ -8,9 +8,11 @@
 //! | `checkpoint.json` | every `checkpoint_every` iterations, after evaluations, at the end | everything needed to resume exactly ([`crate::checkpoint`]) |
 //! | `curve.svg` | after every evaluation | the learning curve |
 //! | `done.json` | at the end | the [`crate::RunSummary`]; a run with it is finished |
+//! | `lock` | at the start | the process id and host of the training that holds the directory's lock ([`crate::lock`]) |
 //!
 //! Every file is written atomically (a temporary file, then a rename), so an interrupted run
-//! leaves either the old or the new version.
+//! leaves either the old or the new version; the temporary files of a killed run are removed
+//! when training resumes.
 
 use std::path::{Path, PathBuf};
 

@@ -31,6 +31,7 @@ use crate::checkpoint::{Checkpoint, TeamState, VERSION};
 use crate::config::{NormStart, TrainConfig};
 use crate::error::{Result, RlError};
 use crate::evaluate::{EvalOptions, evaluate};
+use crate::lock::{RunLock, remove_stale_temporaries};
 use crate::metrics::{MetricsLayout, MetricsRow, eval_column};
 use crate::ppo::{LossStats, PpoParams, ppo_loss};
 use crate::rollout::{MinibatchBuf, Rollout};
@@ -169,6 +170,27 @@ impl Trainer {
         // graph the behaviour policy acted on); the deterministic ones are solved again.
         let widths: Vec<usize> =
             teams.iter().map(|t| if t.model.assignment_is_random() { t.model.assignment_width() } else { 0 }).collect();
+        let bytes = Rollout::bytes(
+            config.unrolls_per_iteration(),
+            config.unroll_length,
+            config.num_envs,
+            env.obs(),
+            env.n_actions(),
+            widths.len(),
+        );
+        crate::memory::check_fits_in_memory(bytes).map_err(|e| {
+            RlError::config(
+                "config",
+                "batch_size",
+                config.batch_size,
+                format!(
+                    "an iteration of batch_size x num_minibatches x unroll_length = {} env steps on {}: its rollout \
+                     {e}",
+                    config.steps_per_iteration(),
+                    config.env
+                ),
+            )
+        })?;
         let rollout = Rollout::new(
             config.unrolls_per_iteration(),
             config.unroll_length,
@@ -228,6 +250,7 @@ impl Trainer {
         }
         for (team, s) in t.teams.iter_mut().zip(&c.teams) {
             s.params.load_into(&mut team.store).map_err(|e| bad(e.to_string()))?;
+            s.adam.check_fits(&team.store).map_err(|e| bad(e.to_string()))?;
             // The moments and count from the checkpoint; the schedule of this configuration
             // (its length follows `steps`, which may have been extended).
             let schedule = team.adam.config.lr;
@@ -545,15 +568,18 @@ fn metrics_row(t: &Trainer, s: &IterationStats, wall: f64, sps: f64, evals: &[Ev
 }
 
 /// Keeps the metrics rows of iterations up to `iteration` (a resumed run drops rows written
-/// after its checkpoint) and returns the file's text, with the header of `layout`.
+/// after its checkpoint), each iteration once and in increasing order (the first row of an
+/// iteration wins), and returns the file's text, with the header of `layout`.
 fn metrics_upto(path: &std::path::Path, iteration: u64, layout: &MetricsLayout) -> String {
     let mut out = layout.header();
     out.push('\n');
+    let mut last: Option<u64> = None;
     if let Ok(text) = std::fs::read_to_string(path) {
         for line in text.lines().skip(1) {
             let complete = line.split(',').count() == layout.columns().len();
             match line.split(',').next().and_then(|c| c.parse::<u64>().ok()) {
-                Some(i) if complete && i <= iteration => {
+                Some(i) if complete && i <= iteration && last.is_none_or(|l| i > l) => {
+                    last = Some(i);
                     out.push_str(line);
                     out.push('\n');
                 }
@@ -567,7 +593,9 @@ fn metrics_upto(path: &std::path::Path, iteration: u64, layout: &MetricsLayout) 
 /// Trains `config` in `run`: from scratch, or from the run's checkpoint (module docs). The
 /// resolved configuration goes to `config.toml`, a row per iteration to `metrics.csv`, the
 /// state to `checkpoint.json` and the summary to `done.json` at the end. A run whose
-/// `done.json` exists and whose steps are reached returns its summary at once.
+/// `done.json` exists and whose steps are reached returns its summary at once. The run
+/// directory is locked while training ([`RunLock`]: a second training of it fails at once,
+/// naming the holder); temporary files of interrupted writes are removed first.
 pub fn train(config: &TrainConfig, run: &RunDir, options: &TrainOptions) -> Result<RunSummary> {
     let threads = config.threads;
     let pool = rayon::ThreadPoolBuilder::new()
@@ -578,15 +606,25 @@ pub fn train(config: &TrainConfig, run: &RunDir, options: &TrainOptions) -> Resu
 }
 
 fn train_in_pool(config: &TrainConfig, run: &RunDir, options: &TrainOptions) -> Result<RunSummary> {
-    std::fs::create_dir_all(run.root()).map_err(|e| RlError::file(run.root(), format!("cannot create: {e}")))?;
     let ckpt_path = run.checkpoint();
+    // A new run is built before its directory is created: building checks what validation
+    // cannot (model options that do not apply to the model, the rollout's memory).
+    let fresh = if ckpt_path.is_file() { None } else { Some(Trainer::new(config)?) };
+    std::fs::create_dir_all(run.root()).map_err(|e| RlError::file(run.root(), format!("cannot create: {e}")))?;
+    // Held until training returns: a second training of this directory is refused.
+    let lock = RunLock::acquire(run.root())?;
+    remove_stale_temporaries(run.root(), &lock)?;
     let (mut trainer, wall_before, mut last_evals) = if ckpt_path.is_file() {
         let c = Checkpoint::load(&ckpt_path)?;
         let t = Trainer::from_checkpoint(&c, config, &ckpt_path)?;
         let evals: Vec<EvalSummary> = c.last_eval.iter().chain(&c.last_eval_rotated).cloned().collect();
         (t, c.wall_s, evals)
     } else {
-        (Trainer::new(config)?, 0.0, Vec::new())
+        let t = match fresh {
+            Some(t) => t,
+            None => Trainer::new(config)?,
+        };
+        (t, 0.0, Vec::new())
     };
     let total = config.iterations();
     if trainer.iteration >= total
@@ -664,6 +702,23 @@ mod tests {
         assert_eq!(due, vec![3, 5, 8, 10]);
         assert_eq!((1..=7).filter(|&i| eval_due(i, 7, 50)).count(), 7);
         assert!(!(1..=7).any(|i| eval_due(i, 7, 0)));
+    }
+
+    #[test]
+    fn resumed_metrics_keep_each_iteration_once_in_order() {
+        let layout = MetricsLayout::new(&[0.0]);
+        let row = |i: u64| {
+            let mut r = MetricsRow::default();
+            r.set("iteration", i as f64);
+            layout.to_csv(&r)
+        };
+        let path = std::env::temp_dir().join(format!("meben-metrics-{}.csv", std::process::id()));
+        let rows = [1, 2, 2, 3, 1, 4, 5].map(row).join("\n");
+        std::fs::write(&path, format!("{}\n{rows}\n", layout.header())).unwrap();
+        let text = metrics_upto(&path, 4, &layout);
+        let _ = std::fs::remove_file(&path);
+        let kept: Vec<&str> = text.lines().skip(1).map(|l| l.split(',').next().unwrap()).collect();
+        assert_eq!(kept, ["1", "2", "3", "4"]);
     }
 
     #[test]

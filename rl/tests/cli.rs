@@ -142,3 +142,65 @@ fn info_prints_each_teams_parameter_counts_and_rejects_bad_names() {
     let (ok, _, stderr) = meben(&["info", "--env", "team_reach/1_ant", "--model", "shnn:critic=huge"]);
     assert!(!ok && stderr.contains("model") && stderr.contains("critic"), "{stderr}");
 }
+
+#[test]
+fn a_second_training_of_a_run_directory_is_refused_naming_the_first() {
+    let dir = common::TempDir::new("cli-lock");
+    let out = dir.0.join("run");
+    let out_s = out.to_str().unwrap();
+    let mut args = vec!["train", "--model", "mlp_hn", "--out", out_s, "--steps", "40000"];
+    args.extend_from_slice(&TINY[..TINY.len() - 3]);
+    args.push("--quiet");
+    let mut first = Command::new(env!("CARGO_BIN_EXE_meben"))
+        .args(&args)
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let lock = out.join("lock");
+    let t0 = std::time::Instant::now();
+    while !std::fs::read_to_string(&lock).is_ok_and(|s| s.contains("process")) {
+        assert!(t0.elapsed().as_secs() < 60, "the first training never took the lock");
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    let (ok, _, stderr) = meben(&args);
+    let still_running = first.try_wait().unwrap().is_none();
+    first.kill().unwrap();
+    first.wait().unwrap();
+    assert!(still_running, "the first training ended before the second started");
+    assert!(!ok, "the second training of one directory succeeded");
+    assert!(stderr.contains(&format!("in use by process {} on host", first.id())), "{stderr}");
+    // Killed, the first holds nothing: the directory resumes.
+    let mut args = vec!["train", "--model", "mlp_hn", "--out", out_s];
+    args.extend_from_slice(TINY);
+    let (ok, _, stderr) = meben(&args);
+    assert!(ok, "resume after kill failed: {stderr}");
+}
+
+#[test]
+fn impossible_sizes_are_clear_errors_not_panics() {
+    let dir = common::TempDir::new("cli-sizes");
+    let out = dir.0.join("r");
+    let out_s = out.to_str().unwrap();
+    let train = |extra: &[&str], needles: &[&str]| {
+        let mut args = vec!["train", "--out", out_s, "--quiet"];
+        args.extend_from_slice(extra);
+        fails_with(&args, needles);
+    };
+    train(&["--set", "batch_size=4611686018427387904", "--set", "num_minibatches=4"], &["batch_size", "16777216"]);
+    train(&["--set", "batch_size=1099511627776"], &["batch_size", "1099511627776"]);
+    train(&["--model", "mlp:head=4000000000"], &["model", "head", "4000000000"]);
+    train(&["--env", "team_reach:agents=ant;R=1e160"], &["R", "1e160", "at most 1000"]);
+    train(&["--set", "eval_episodes=18446744073709551615"], &["eval_episodes"]);
+    train(&["--model", "transformer_hn:critic=shared"], &["transformer_hn", "takes no option `critic`"]);
+    assert!(!out.exists(), "a run directory was created for an invalid configuration");
+    let mut args = vec!["train", "--model", "mlp_hn", "--out", out_s];
+    args.extend_from_slice(TINY);
+    assert!(meben(&args).0);
+    fails_with(&["eval", "--run", out_s, "--episodes", "18446744073709551615"], &["episodes", "18446744073709551615"]);
+    // A huge but finite rotation: the evaluation is kept under a name of bounded length.
+    let (ok, _, stderr) =
+        meben(&["eval", "--run", out_s, "--episodes", "1", "--rotate", "1e308", "--translate", "1e-300,0"]);
+    assert!(ok, "{stderr}");
+    assert!(out.join("eval_rotate1e308_translate1e-300_0.json").is_file(), "{stderr}");
+}

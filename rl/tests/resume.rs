@@ -95,7 +95,9 @@ fn bad_checkpoints_and_changed_configurations_are_refused() {
     assert!(e.contains("checkpoint.json") && e.contains("normaliser"), "{e}");
     let text = String::from_utf8(good.clone()).unwrap();
     assert!(text.contains("\"kind\":\"Invariant\""));
-    std::fs::write(run.checkpoint(), text.replace("\"kind\":\"Invariant\"", "\"kind\":\"Rotation\"")).unwrap();
+    let rl::checksum::Unsealed::Checked(payload) = rl::checksum::unseal(&good).unwrap() else { panic!("unsealed") };
+    let renamed = payload.replace("\"kind\":\"Invariant\"", "\"kind\":\"Rotation\"");
+    std::fs::write(run.checkpoint(), rl::checksum::seal(renamed.as_bytes())).unwrap();
     let e = train(&config, &run, &TrainOptions::default()).unwrap_err().to_string();
     assert!(e.contains("checkpoint.json") && e.contains("Rotation"), "{e}");
     // The checkpoint of another model.
