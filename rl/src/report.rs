@@ -90,6 +90,9 @@ pub struct GroupReport {
     pub lose: Option<(f64, f64)>,
     /// Fewest and most env steps reached over the runs.
     pub env_steps: (u64, u64),
+    /// The runs' budget (the largest `steps` of their configurations): a group whose
+    /// runs stopped short of it is still training (or was stopped), and the table says so.
+    pub target_steps: u64,
     /// The learning curve (mean and s.e. over seeds).
     pub curve: Vec<CurvePoint>,
     /// Team Sumo: the curves of the loss and draw rates (empty for Team Reach).
@@ -341,6 +344,7 @@ fn summarise(variant: String, mut runs: Vec<RunResult>) -> GroupReport {
     let metric = shown.map(|r| r.metric.clone()).unwrap_or_default();
     let steps = runs.iter().map(|r| r.env_steps);
     let env_steps = (steps.clone().min().unwrap_or(0), steps.max().unwrap_or(0));
+    let target_steps = runs.iter().map(|r| r.config.steps).max().unwrap_or(0);
     let aligned = |of: fn(&RunResult) -> &[(f64, f64)]| {
         let curves: Vec<&[(f64, f64)]> = runs.iter().map(of).collect();
         align_curves(&curves)
@@ -362,6 +366,7 @@ fn summarise(variant: String, mut runs: Vec<RunResult>) -> GroupReport {
         draw,
         lose,
         env_steps,
+        target_steps,
         curve: aligned(|r| &r.curve),
         curve_lose: aligned(|r| &r.curve_lose),
         curve_draw: aligned(|r| &r.curve_draw),
@@ -453,9 +458,12 @@ fn format_steps(steps: u64) -> String {
     }
 }
 
+/// The env steps reached, with ` of <budget>` when a run stopped short of its budget (the
+/// last iteration may overshoot `steps`, never fall short, in a finished run).
 fn steps_range(g: &GroupReport) -> String {
     let (lo, hi) = g.env_steps;
-    if lo == hi { format_steps(lo) } else { format!("{}–{}", format_steps(lo), format_steps(hi)) }
+    let reached = if lo == hi { format_steps(lo) } else { format!("{}–{}", format_steps(lo), format_steps(hi)) };
+    if lo < g.target_steps { format!("{reached} of {}", format_steps(g.target_steps)) } else { reached }
 }
 
 fn md_cell(s: &str) -> String {
@@ -472,7 +480,7 @@ fn render_markdown(root: &Path, groups: &[GroupReport], pending: &[(PathBuf, Str
          (Team Reach `eval_success_rate`, Team Sumo `eval_win_rate_t0`, `eval_win_rate_t1` and `eval_draw_rate`), \
          in percent; \
          mean ± standard error over seeds (sample standard deviation / √n; 0 for one seed). Env steps: the last \
-         row's, over the seeds. Curves: mean over seeds with a ± s.e. band. Rows \"rotated N°\" are \
+         row's, over the seeds (\"of N\": runs still short of their budget N). Curves: mean over seeds with a ± s.e. band. Rows \"rotated N°\" are \
          evaluations of the same runs with every start rotated by N degrees about the vertical (`eval_rotations`).\n",
         groups.len()
     );

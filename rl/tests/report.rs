@@ -151,9 +151,9 @@ fn report_of_synthetic_runs() {
     for want in [
         "## team_reach/1_ant",
         "## team_sumo/2_ants",
-        "| shnn | `shnn` | 3 | 66.67 ± 12.02 | 3k |",
+        "| shnn | `shnn` | 3 | 66.67 ± 12.02 | 3k of 1.5M |",
         "25.00 ± 0.00 †",
-        "| shnn | `shnn` | same | 2 | 55.00 ± 15.00 | 25.00 ± 25.00 | 20.00 ± 10.00 | 5k |",
+        "| shnn | `shnn` | same | 2 | 55.00 ± 15.00 | 25.00 ± 25.00 | 20.00 ± 10.00 | 5k of 1.5M |",
         "curves/team_reach_1_ant.svg",
         "team_reach_1_ant/shnn/seed9",
     ] {
@@ -188,6 +188,8 @@ fn report_has_a_group_and_a_curve_per_evaluation_rotation() {
             let c = TrainConfig {
                 fixed_start: true,
                 eval_rotations: vec![0.0, 180.0],
+                // Finished runs: the budget is the last row's env steps.
+                steps: 200,
                 ..config("team_reach/1_centipede", model, seed as u64)
             };
             write_run(
@@ -220,6 +222,10 @@ fn report_has_a_group_and_a_curve_per_evaluation_rotation() {
     assert!(csv.lines().any(|l| l.contains("eval_success_rate_rot180") && l.ends_with(",180,,")), "{csv}");
     let svg = std::fs::read_to_string(&r.curves[0]).unwrap();
     assert!(svg.contains("shnn, rotated 180°") && svg.contains("mlp, rotated 180°"));
+    // Runs that reached their budget show the steps alone.
+    let md = std::fs::read_to_string(&r.markdown).unwrap();
+    assert!(md.contains("| 2 | 45.00 ± 3.00 | 200 |"), "{md}");
+    assert!(md.lines().filter(|l| l.starts_with('|')).all(|l| !l.contains(" of ")), "{md}");
 }
 
 #[test]
