@@ -71,21 +71,7 @@ fn copy_file(src: &Path, dst: &Path) -> Result<u64> {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    struct TempDir(PathBuf);
-    impl TempDir {
-        fn new(tag: &str) -> TempDir {
-            let p = std::env::temp_dir().join(format!("meben-export-{tag}-{}", std::process::id()));
-            let _ = std::fs::remove_dir_all(&p);
-            std::fs::create_dir_all(&p).unwrap();
-            TempDir(p)
-        }
-    }
-    impl Drop for TempDir {
-        fn drop(&mut self) {
-            let _ = std::fs::remove_dir_all(&self.0);
-        }
-    }
+    use crate::test_util::TempDir;
 
     fn write(path: &Path, text: &str) {
         std::fs::create_dir_all(path.parent().unwrap()).unwrap();
@@ -94,7 +80,7 @@ mod tests {
 
     #[test]
     fn copies_the_evidence_and_leaves_checkpoints_behind() {
-        let tmp = TempDir::new("copy");
+        let tmp = TempDir::new("export-copy");
         let (runs, results) = (tmp.0.join("runs"), tmp.0.join("results"));
         write(&runs.join("sweep.toml"), "seeds = [0]");
         for (run, done) in [("team_reach_1_ant/shnn/seed0", true), ("team_reach_1_ant/shnn/seed1", false)] {
@@ -127,7 +113,7 @@ mod tests {
 
     #[test]
     fn a_directory_without_runs_is_an_error_naming_it() {
-        let tmp = TempDir::new("empty");
+        let tmp = TempDir::new("export-empty");
         let msg = export(&tmp.0, &tmp.0.join("out")).unwrap_err().to_string();
         assert!(msg.contains(&tmp.0.display().to_string()) && msg.contains("no run directory"), "{msg}");
         let missing = tmp.0.join("missing");

@@ -38,6 +38,8 @@ pub mod run_dir;
 pub mod seeding;
 pub mod sweep;
 pub mod team;
+#[cfg(test)]
+mod test_util;
 pub mod train;
 
 pub use config::{EntropyKind, NormStart, ObsNormKind, Preset, TrainConfig};

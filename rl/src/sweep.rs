@@ -592,7 +592,6 @@ fn parse_variant(item: &toml::Value, i: usize, source: &str, before: &[Variant])
 #[cfg(test)]
 mod tests {
     use std::cell::RefCell;
-    use std::path::PathBuf;
 
     use super::*;
 
@@ -609,23 +608,7 @@ name = "no_entropy"
 config = { entropy_coef = 0.0 }
 "#;
 
-    /// A fresh directory under the system temporary directory, removed when dropped.
-    struct TempDir(PathBuf);
-
-    impl TempDir {
-        fn new(name: &str) -> TempDir {
-            let p = std::env::temp_dir().join(format!("rl-sweep-{name}-{}", std::process::id()));
-            let _ = std::fs::remove_dir_all(&p);
-            std::fs::create_dir_all(&p).unwrap();
-            TempDir(p)
-        }
-    }
-
-    impl Drop for TempDir {
-        fn drop(&mut self) {
-            let _ = std::fs::remove_dir_all(&self.0);
-        }
-    }
+    use crate::test_util::TempDir;
 
     fn err_of(text: &str) -> String {
         Sweep::parse(text, "bad.toml").and_then(|s| s.runs()).unwrap_err().to_string()
@@ -826,7 +809,7 @@ config = { entropy_coef = 0.0 }
 
     #[test]
     fn skips_done_resumes_partial_trains_new() {
-        let tmp = TempDir::new("resume");
+        let tmp = TempDir::new("sweep-resume");
         let text = "envs = [\"team_reach/1_ant\"]\nmodels = [\"mlp_hn\", \"shnn\"]\nseeds = [0, 1]\npreset = \"quick\"";
         let sweep = Sweep::parse(text, "s.toml").unwrap();
         let runs = sweep.runs().unwrap();
@@ -856,7 +839,7 @@ config = { entropy_coef = 0.0 }
 
     #[test]
     fn shards_run_only_their_runs_and_mismatched_checkpoints_fail() {
-        let tmp = TempDir::new("shard");
+        let tmp = TempDir::new("sweep-shard");
         let text = "envs = [\"team_reach/1_ant\"]\nmodels = [\"mlp_hn\"]\nseeds = [0, 1, 2, 3, 4]\npreset = \"quick\"";
         let sweep = Sweep::parse(text, "s.toml").unwrap();
         let runs = sweep.runs().unwrap();
@@ -888,7 +871,7 @@ config = { entropy_coef = 0.0 }
 
     #[test]
     fn only_patterns_select_runs_and_threads_do_not_block_a_resume() {
-        let tmp = TempDir::new("only");
+        let tmp = TempDir::new("sweep-only");
         let text = "envs = [\"team_reach/1_ant\"]\nmodels = [\"mlp_hn\", \"shnn\"]\nseeds = [0, 1]\npreset = \"quick\"";
         let sweep = Sweep::parse(text, "s.toml").unwrap();
         let runs = sweep.runs().unwrap();
