@@ -134,6 +134,18 @@ fn unknown_names_and_bad_compositions_are_clear_errors() {
     }
     let e = Scene::from_name("team_reach:agents=ant+spider").unwrap_err().to_string();
     assert!(e.contains("spider") && e.contains("centipede"), "{e}");
+    // A morphology file that does not exist is a file that cannot be read, not an unknown
+    // name; one without an actuated joint is refused before any network is sized for it.
+    let dir = std::env::temp_dir().join(format!("envs-morphology-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let missing = dir.join("missing.txt");
+    let e = Scene::from_name(&format!("team_reach:agents={}", missing.display())).unwrap_err().to_string();
+    assert!(e.contains("missing.txt") && e.contains("cannot read") && !e.contains("unknown"), "{e}");
+    let still = dir.join("still.txt");
+    std::fs::write(&still, "bodies {\n  name: \"torso\"\n  colliders {\n    capsule {\n      radius: 0.25\n      length: 0.5\n    }\n  }\n  mass: 10.0\n}\n").unwrap();
+    let e = Scene::from_name(&format!("team_reach:agents={}", still.display())).unwrap_err().to_string();
+    let _ = std::fs::remove_dir_all(&dir);
+    assert!(e.contains("still.txt") && e.contains("no actuated joint"), "{e}");
     let mut env = VecEnv::from_name("team_reach/1_ant", 2, 0, StartMode::Random).unwrap();
     let e = env.step(&[0.0; 3]).unwrap_err().to_string();
     assert!(e.contains("3 values") && e.contains("16"), "{e}");

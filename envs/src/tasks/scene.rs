@@ -72,15 +72,28 @@ pub struct Scene {
     pub obs_spec: ObsSpec,
 }
 
-/// Loads a morphology by built-in name, or from a file when the name ends in `.txt`.
+/// Loads a morphology by built-in name, or from a file when the name ends in `.txt` (a
+/// missing file is reported as a file that cannot be read, not as an unknown name).
 fn load_tree(name: &str, physics: &BraxPhysics) -> Result<AgentTree, TaskError> {
-    let config = if name.ends_with(".txt") && std::path::Path::new(name).is_file() {
+    let bad = |message: String| TaskError::Morphology { name: name.to_string(), message };
+    let config = if name.ends_with(".txt") {
+        let path = std::path::Path::new(name);
+        if !path.is_file() {
+            let why = match std::fs::metadata(path) {
+                Ok(_) => "not a regular file".to_string(),
+                Err(e) => e.to_string(),
+            };
+            return Err(bad(format!("cannot read the morphology file: {why}")));
+        }
         load_config_file(name)
     } else {
         load_morphology(name)
     };
-    let config = config.map_err(|e| TaskError::Morphology { name: name.to_string(), message: e.to_string() })?;
-    Ok(AgentTree::from_config(&config, physics))
+    let tree = AgentTree::from_config(&config.map_err(|e| bad(e.to_string()))?, physics);
+    if tree.motors.is_empty() {
+        return Err(bad("has no actuated joint: every agent needs at least one action".into()));
+    }
+    Ok(tree)
 }
 
 /// Horizontal radius about the root of every geom at rest.
