@@ -4,12 +4,17 @@ pool of 16 action batches, cycled; 10 warm-up steps), one line each with the rat
 
     python python/bench.py            # STEPS=200 NENV=256 by default, as the Rust bench
 
+``ROUNDS`` (default 3) rounds alternate the Rust bench and the Python steps (a shared
+machine's load moves between runs); the medians give the ratio, every round is printed.
+Brax's own figure on this CPU: ``python/bench_brax.py``.
+
 Run from the repository with the package installed (./test.sh installs it into
 target/pyenv). The Python figure includes building the observation, reward and info arrays.
 """
 
 import os
 import re
+import statistics
 import subprocess
 import sys
 import time
@@ -47,13 +52,23 @@ def rust_rates(nenv, steps):
 
 def main():
     nenv, steps = int(os.environ.get("NENV", 256)), int(os.environ.get("STEPS", 200))
-    rust = rust_rates(nenv, steps)
+    rounds = int(os.environ.get("ROUNDS", 3))
+    rust = {name: [] for name in ENVS}
+    py = {name: [] for name in ENVS}
+    for _ in range(rounds):
+        measured = rust_rates(nenv, steps)
+        for name in ENVS:
+            if name not in measured:
+                sys.exit(f"error: the Rust bench printed no line for {name}")
+            rust[name].append(measured[name])
+            py[name].append(python_rate(name, nenv, steps))
     for name in ENVS:
-        py = python_rate(name, nenv, steps)
-        r = rust.get(name)
-        if r is None:
-            sys.exit(f"error: the Rust bench printed no line for {name}")
-        print(f"{name} python_env_steps_per_s={py:.0f} rust_env_steps_per_s={r:.0f} ratio={py / r:.3f} envs={nenv} steps={steps}")
+        p, r = statistics.median(py[name]), statistics.median(rust[name])
+        print(
+            f"{name} python_env_steps_per_s={p:.0f} rust_env_steps_per_s={r:.0f} ratio={p / r:.3f} "
+            f"python_rounds=[{' '.join(f'{x:.0f}' for x in py[name])}] "
+            f"rust_rounds=[{' '.join(f'{x:.0f}' for x in rust[name])}] envs={nenv} steps={steps}"
+        )
 
 
 if __name__ == "__main__":
