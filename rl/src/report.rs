@@ -11,7 +11,9 @@
 //!   Reach `eval_success_rate`, Team Sumo `eval_win_rate_t0` (and its loss rate, team 1's
 //!   `eval_win_rate_t1`, and `eval_draw_rate`). A run without evaluation rows falls back to
 //!   the training rate (`train_success_rate`, `train_win_rate_t0`, `train_win_rate_t1`,
-//!   `train_draw_rate`: episodes that ended during collection); the table marks such groups. A run with neither is listed as having no result yet.
+//!   `train_draw_rate`: episodes that ended during collection); the table marks such groups.
+//!   In a group where some runs have evaluations, the runs without one yet are left out
+//!   (listed as without a result) rather than averaged in with a training rate. A run with neither is listed as having no result yet.
 //! - A run evaluated at further rotations (`eval_rotations`, e.g. `[0.0, 180.0]` for the
 //!   paper's equivariance test) adds one group per rotation with values
 //!   (`eval_success_rate_rot180`, `eval_win_rate_t0_rot180` and `eval_draw_rate_rot180`),
@@ -189,8 +191,22 @@ pub fn report(root: &Path) -> Result<Report> {
             Err(reason) => pending.push((rel, reason)),
         }
     }
-    let groups: Vec<GroupReport> =
-        groups.into_iter().map(|((_, _, variant, _, _, _), runs)| summarise(variant, runs)).collect();
+    // A group with evaluated runs leaves out its runs not evaluated yet: a training rate
+    // (episodes that ended, early ones all successes) is no value to average with them.
+    let groups: Vec<GroupReport> = groups
+        .into_iter()
+        .map(|((_, _, variant, _, _, _), runs)| {
+            let evaluated = runs.iter().any(|r| !r.from_train);
+            let (kept, waiting): (Vec<RunResult>, Vec<RunResult>) =
+                runs.into_iter().partition(|r| !(evaluated && r.from_train));
+            for r in waiting {
+                pending.push((r.rel, "no evaluation yet (the other seeds of its group have one)".into()));
+            }
+            summarise(variant, kept)
+        })
+        .collect();
+    pending.sort();
+    pending.dedup();
 
     let markdown = root.join("report.md");
     let csv = root.join("report.csv");

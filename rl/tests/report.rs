@@ -202,7 +202,19 @@ fn report_has_a_group_and_a_curve_per_evaluation_rotation() {
             );
         }
     }
+    // A third mlp seed, just started: a training rate but no evaluation yet. It is left out
+    // of its group (listed as without a result), not averaged in.
+    let c = TrainConfig {
+        fixed_start: true,
+        eval_rotations: vec![0.0, 180.0],
+        steps: 200,
+        ..config("team_reach/1_centipede", "mlp", 2)
+    };
+    write_run(&root.join("mlp/seed2"), &c, &[&[("env_steps", 100.0), ("train_success_rate", 1.0)]]);
     let r = report(root).unwrap();
+    assert_eq!(r.pending.len(), 1, "{:?}", r.pending);
+    assert_eq!(r.pending[0].0, Path::new("mlp/seed2"));
+    assert!(r.groups.iter().all(|g| g.runs.len() == 2 && !g.from_train));
     let groups: Vec<(&str, &str, f64)> =
         r.groups.iter().map(|g| (g.label.as_str(), g.metric.as_str(), g.rotation_deg)).collect();
     assert_eq!(
