@@ -206,7 +206,6 @@ pub fn report(root: &Path) -> Result<Report> {
         })
         .collect();
     pending.sort();
-    pending.dedup();
 
     let markdown = root.join("report.md");
     let csv = root.join("report.csv");
