@@ -485,7 +485,7 @@ impl Counts {
     }
 }
 
-/// The parameter counts of the table in `docs/ARCHITECTURE.md` ("Policies and critics"),
+/// The parameter counts of the table in `docs/MODELS.md` ("Parameter counts"),
 /// team 0 of `team_reach/3_ant_claw_centipede` (all three agents), part by part, against
 /// the counts the structures imply; and those counts with the release's widths give the
 /// release's own figures.
@@ -534,7 +534,7 @@ fn parameter_counts_of_the_docs_table() {
         let (store, model) = build(&ModelConfig::parse(name).unwrap(), &spec, 0, 0);
         let part = |p: &str| store.num_elements_under(&format!("team.{p}"));
         let got = (part("entity."), part("actor."), part("critic."));
-        assert_eq!(got, (entity, actor, critic), "{name}: update the table in docs/ARCHITECTURE.md");
+        assert_eq!(got, (entity, actor, critic), "{name}: update the table in docs/MODELS.md");
         let counts = model.param_counts(&store);
         assert_eq!((counts.policy, counts.critic), (entity + actor, critic), "{name}");
         assert_eq!(model.num_params(&store), entity + actor + critic, "{name}");

@@ -5,7 +5,7 @@
 //! structure of the agent (one connected tree of bodies). Errors name the source, the line and
 //! column, the field path and the offending value.
 //!
-//! What happens to each field (see also `docs/ARCHITECTURE.md`, "Brax v1 configs"):
+//! What happens to each field (see also `docs/SIMULATOR.md`, "Brax v1 configs"):
 //!
 //! | message | kept and used | kept, unused | ignored on purpose | refused |
 //! |---|---|---|---|---|

@@ -16,7 +16,7 @@
 //! assert_eq!(model.qpos0, tree.rest_qpos());
 //! ```
 //!
-//! Semantics follow `../shared/reference/MEBEN.md` section 1; `docs/ARCHITECTURE.md`
+//! Semantics follow `../shared/reference/MEBEN.md` section 1; `docs/SIMULATOR.md`
 //! ("Brax v1 configs") documents them and the physical constants.
 
 pub mod config;

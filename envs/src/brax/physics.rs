@@ -4,7 +4,7 @@
 //! constants "in MuJoCo's style": masses from the config, inertia from the collider geometry,
 //! armature and damping so that the default time step (0.01 s, 5 steps per 0.05 s control
 //! step, `../shared/bench/SIM.md`) is stable, gear from `strength`. The table of values and
-//! their reasons is repeated in `docs/ARCHITECTURE.md` ("Brax v1 configs").
+//! their reasons is repeated in `docs/SIMULATOR.md` ("Brax v1 configs").
 
 /// Physical constants used when a Brax config becomes a simulator model.
 #[derive(Clone, Debug, PartialEq)]

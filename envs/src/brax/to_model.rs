@@ -97,7 +97,7 @@ pub fn add_agent(
 /// of the bias forces with respect to each floating root's angular velocity). Under bang-bang
 /// actions at the Brax strengths, plain `Euler`'s explicit gyroscopic term lets an agent lying
 /// on its back spin up to a numerical blow-up (2 of 704 four-ant Team Sumo scenes over 1000
-/// control steps; `docs/ARCHITECTURE.md`, "The step pipeline").
+/// control steps; `docs/SIMULATOR.md`, "Why `EulerGyro`").
 pub fn brax_options() -> Options {
     Options { timestep: BRAX_TIMESTEP, integrator: Integrator::EulerGyro, ..Options::default() }
 }

@@ -1,6 +1,5 @@
 //! MeBen's tasks, Team Reach and Team Sumo, as batched multi-agent environments on the
-//! simulator (`../shared/reference/MEBEN.md` sections 2 to 4 and 8; `docs/ARCHITECTURE.md`,
-//! "envs: the MeBen tasks").
+//! simulator (`../shared/reference/MEBEN.md` sections 2 to 4 and 8; `docs/TASKS.md`).
 //!
 //! ```
 //! use envs::tasks::{StartMode, VecEnv};
