@@ -1,5 +1,5 @@
 //! The Rust core of the `meben` Python package (`meben._core`): batched MeBen environments
-//! ([`env`]), trained policies ([`policy`]) and training ([`train`](mod@train)) over the
+//! ([`env`](mod@env)), trained policies ([`policy`]) and training ([`train`](mod@train)) over the
 //! `envs` and `rl` crates, with numpy arrays across the boundary ([`arrays`]) and Rust
 //! errors as Python exceptions ([`errors`]). The plain-Python parts (`make`, the Gymnasium
 //! and PettingZoo adapters) are in `python/python/meben/`.

@@ -215,13 +215,38 @@ pub enum Op {
     /// Broadcasting binary function.
     Binary(NodeId, NodeId, BinaryOp),
     /// Reduction over `axis` (None: all elements).
-    Reduce { x: NodeId, op: ReduceOp, axis: Option<usize>, keepdim: bool },
+    Reduce {
+        /// The reduced input.
+        x: NodeId,
+        /// Sum, mean or max.
+        op: ReduceOp,
+        /// The reduced axis; `None` reduces every element.
+        axis: Option<usize>,
+        /// Whether the reduced axis stays as size 1.
+        keepdim: bool,
+    },
     /// Batched matrix product of the last two dims, with optional transposes read as strides.
-    MatMul { a: NodeId, b: NodeId, ta: bool, tb: bool },
+    MatMul {
+        /// Left operand.
+        a: NodeId,
+        /// Right operand.
+        b: NodeId,
+        /// Whether `a`'s last two dims are read transposed.
+        ta: bool,
+        /// Whether `b`'s last two dims are read transposed.
+        tb: bool,
+    },
     /// Fused `act(sum_i x_i @ w_i + b)` over the last dims of the `x_i` (`parts` are the
     /// `(x_i, w_i)`; one part is an ordinary layer, several are one layer applied to the
     /// concatenation of the `x_i` without building it).
-    Linear { parts: Vec<(NodeId, NodeId)>, b: Option<NodeId>, act: Activation },
+    Linear {
+        /// The `(x_i, w_i)` input/weight pairs.
+        parts: Vec<(NodeId, NodeId)>,
+        /// The bias, if any.
+        b: Option<NodeId>,
+        /// The activation applied after the bias.
+        act: Activation,
+    },
     /// Same data, new shape.
     Reshape(NodeId),
     /// Axis permutation.
@@ -229,25 +254,84 @@ pub enum Op {
     /// Broadcast to a larger shape.
     Expand(NodeId),
     /// `len` entries of `axis` starting at `start`.
-    Narrow { x: NodeId, axis: usize, start: usize },
+    Narrow {
+        /// The input.
+        x: NodeId,
+        /// The narrowed axis.
+        axis: usize,
+        /// The first kept entry.
+        start: usize,
+    },
     /// Concatenation along `axis`.
-    Cat { xs: Vec<NodeId>, axis: usize },
+    Cat {
+        /// The inputs, in order.
+        xs: Vec<NodeId>,
+        /// The concatenation axis.
+        axis: usize,
+    },
     /// Selection of entries of `axis` by index (repeats allowed).
-    IndexSelect { x: NodeId, axis: usize, idx: Arc<Vec<usize>> },
+    IndexSelect {
+        /// The input.
+        x: NodeId,
+        /// The indexed axis.
+        axis: usize,
+        /// The selected entries, in output order.
+        idx: Arc<Vec<usize>>,
+    },
     /// `x` with `src` entries added at `idx` along `axis` (duplicates accumulate).
-    IndexAdd { x: NodeId, src: NodeId, axis: usize, idx: Arc<Vec<usize>> },
+    IndexAdd {
+        /// The tensor added into.
+        x: NodeId,
+        /// The entries added.
+        src: NodeId,
+        /// The indexed axis.
+        axis: usize,
+        /// Where each entry of `src` goes along `axis`.
+        idx: Arc<Vec<usize>>,
+    },
     /// Element-wise gather along `axis` with an index array shaped like the output.
-    Gather { x: NodeId, axis: usize, idx: Arc<Vec<usize>> },
+    Gather {
+        /// The input.
+        x: NodeId,
+        /// The gathered axis.
+        axis: usize,
+        /// One index along `axis` per output element.
+        idx: Arc<Vec<usize>>,
+    },
     /// Sums (or means) of rows grouped by a sorted segment id (axis 0).
-    Segment { x: NodeId, seg: Arc<Vec<usize>>, mean: bool },
+    Segment {
+        /// The rows.
+        x: NodeId,
+        /// The sorted segment id of every row.
+        seg: Arc<Vec<usize>>,
+        /// Mean instead of sum.
+        mean: bool,
+    },
     /// `mask ? a : b` with broadcasting.
-    Where { a: NodeId, b: NodeId, mask: Arc<Vec<bool>> },
+    Where {
+        /// Taken where the mask is true.
+        a: NodeId,
+        /// Taken where the mask is false.
+        b: NodeId,
+        /// The mask, in the output's shape.
+        mask: Arc<Vec<bool>>,
+    },
     /// Softmax along the last axis.
     Softmax(NodeId),
     /// Euclidean norm over the last axis, `sqrt(sum x^2 + eps)`, keeping the axis as size 1.
-    NormLast { x: NodeId, eps: f64 },
+    NormLast {
+        /// The input.
+        x: NodeId,
+        /// Added to the sum of squares inside the root.
+        eps: f64,
+    },
     /// `(x - mean) / sqrt(var + eps)` over the last axis (biased variance).
-    Standardize { x: NodeId, eps: f64 },
+    Standardize {
+        /// The input.
+        x: NodeId,
+        /// Added to the variance inside the root.
+        eps: f64,
+    },
 }
 
 impl Op {

@@ -262,7 +262,10 @@ fn inner_split_suits(m: usize, k: usize, n: usize) -> bool {
 /// A pointer that may cross threads; each thread writes a disjoint block through it.
 #[derive(Clone, Copy)]
 struct SendPtr<T>(*mut T);
+// SAFETY: a `SendPtr` is only made from a live `&mut [T]` whose owner waits for the
+// parallel scope to end, and each thread writes a block disjoint from every other's.
 unsafe impl<T> Send for SendPtr<T> {}
+// SAFETY: as for `Send`: shared only to hand each thread its own disjoint block.
 unsafe impl<T> Sync for SendPtr<T> {}
 
 impl<T> SendPtr<T> {

@@ -97,39 +97,41 @@ mod x86 {
         n: usize,
     ) {
         let (ap, bp, op) = (a.as_ptr(), b.as_ptr(), out.as_mut_ptr());
-        for i in 0..m {
-            // SAFETY (all pointer arithmetic below): row i of a spans [i k, (i + 1) k) with
-            // i < m, rows j of b span [j k, (j + 1) k) with j < n, and out[i n + j] with
-            // j < n; the caller checked a.len() >= m k, b.len() >= n k, out.len() >= m n,
-            // and k is a multiple of 8, so every 8-lane load stays inside its row.
-            let ar = unsafe { ap.add(i * k) };
-            let mut j0 = 0;
-            while j0 < n {
-                let nb = (n - j0).min(8);
-                let mut acc = [_mm256_setzero_ps(); 8];
-                for p in (0..k).step_by(8) {
-                    let av = unsafe { _mm256_loadu_ps(ar.add(p)) };
-                    for (jj, s) in acc.iter_mut().enumerate().take(nb) {
-                        let bv = unsafe { _mm256_loadu_ps(bp.add((j0 + jj) * k + p)) };
-                        *s = _mm256_fmadd_ps(av, bv, *s);
+        // SAFETY: every pointer below stays in bounds: row i of a spans [i k, (i + 1) k) with
+        // i < m, rows j of b span [j k, (j + 1) k) with j < n, and out[i n + j] with
+        // j < n; the caller checked a.len() >= m k, b.len() >= n k, out.len() >= m n,
+        // and k is a multiple of 8, so every 8-lane load stays inside its row.
+        unsafe {
+            for i in 0..m {
+                let ar = ap.add(i * k);
+                let mut j0 = 0;
+                while j0 < n {
+                    let nb = (n - j0).min(8);
+                    let mut acc = [_mm256_setzero_ps(); 8];
+                    for p in (0..k).step_by(8) {
+                        let av = _mm256_loadu_ps(ar.add(p));
+                        for (jj, s) in acc.iter_mut().enumerate().take(nb) {
+                            let bv = _mm256_loadu_ps(bp.add((j0 + jj) * k + p));
+                            *s = _mm256_fmadd_ps(av, bv, *s);
+                        }
                     }
+                    let mut r = sum_lanes_8(&acc);
+                    let o = op.add(i * n + j0);
+                    if nb == 8 {
+                        if accumulate {
+                            r = _mm256_add_ps(_mm256_loadu_ps(o), r);
+                        }
+                        _mm256_storeu_ps(o, r);
+                    } else {
+                        let mut lanes = [0.0f32; 8];
+                        _mm256_storeu_ps(lanes.as_mut_ptr(), r);
+                        for (jj, &v) in lanes.iter().enumerate().take(nb) {
+                            let dst = &mut *o.add(jj);
+                            *dst = if accumulate { *dst + v } else { v };
+                        }
+                    }
+                    j0 += nb;
                 }
-                let mut r = sum_lanes_8(&acc);
-                let o = unsafe { op.add(i * n + j0) };
-                if nb == 8 {
-                    if accumulate {
-                        r = _mm256_add_ps(unsafe { _mm256_loadu_ps(o) }, r);
-                    }
-                    unsafe { _mm256_storeu_ps(o, r) };
-                } else {
-                    let mut lanes = [0.0f32; 8];
-                    unsafe { _mm256_storeu_ps(lanes.as_mut_ptr(), r) };
-                    for (jj, &v) in lanes.iter().enumerate().take(nb) {
-                        let dst = unsafe { &mut *o.add(jj) };
-                        *dst = if accumulate { *dst + v } else { v };
-                    }
-                }
-                j0 += nb;
             }
         }
     }
