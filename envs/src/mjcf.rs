@@ -49,16 +49,13 @@ pub struct MjcfError {
 
 impl fmt::Display for MjcfError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        // `file[:line][: <element>][ attribute 'a'][ value "v"]: message`.
+        write!(f, "{}", self.file)?;
         if self.line > 0 {
-            write!(f, "{}:{}:", self.file, self.line)?;
-        } else if self.element.is_empty() {
-            // No location at all (an unreadable file): `file: message`.
-            write!(f, "{}", self.file)?;
-        } else {
-            write!(f, "{}:", self.file)?;
+            write!(f, ":{}", self.line)?;
         }
         if !self.element.is_empty() {
-            write!(f, " <{}>", self.element)?;
+            write!(f, ": <{}>", self.element)?;
         }
         if let Some(a) = &self.attribute {
             write!(f, " attribute '{a}'")?;
