@@ -3,7 +3,8 @@
 //!
 //! - [`ModelBuilder`] builds an immutable [`Model`]; [`Data`] holds one environment's state;
 //! - `step` advances one `Data` by one time step; `step_batch` many in parallel;
-//! - `mjcf` loads MuJoCo XML files, `brax` MeBen's agent configs;
+//! - `mjcf` loads MuJoCo XML files, `brax` MeBen's agent configs; `mjcf_agent` reads an MJCF
+//!   file as one agent of a task, as `brax` does a config;
 //! - `tasks`: the MeBen tasks (Team Reach, Team Sumo) as batched multi-agent environments;
 //! - [`rollout_tool`]: the open-loop MJCF rollout program (`--example rollout`, `meben sim`).
 
@@ -19,6 +20,7 @@ pub mod integrator;
 pub mod kinematics;
 pub mod math;
 pub mod mjcf;
+pub mod mjcf_agent;
 pub mod model;
 pub mod rne;
 pub mod rollout_tool;

@@ -49,13 +49,13 @@ pub struct MjcfError {
 
 impl fmt::Display for MjcfError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        // `file[:line][: <element>][ attribute 'a'][ value "v"]: message`.
+        write!(f, "{}", self.file)?;
         if self.line > 0 {
-            write!(f, "{}:{}:", self.file, self.line)?;
-        } else {
-            write!(f, "{}:", self.file)?;
+            write!(f, ":{}", self.line)?;
         }
         if !self.element.is_empty() {
-            write!(f, " <{}>", self.element)?;
+            write!(f, ": <{}>", self.element)?;
         }
         if let Some(a) = &self.attribute {
             write!(f, " attribute '{a}'")?;
@@ -86,6 +86,13 @@ pub fn load_file(path: impl AsRef<Path>) -> Result<Model, MjcfError> {
 
 /// Loads MJCF from a string; `file` names it in error messages.
 pub fn load_str(text: &str, file: &str) -> Result<Model, MjcfError> {
+    load_str_with_sources(text, file).map(|(model, _)| model)
+}
+
+/// Loads MJCF from a string and says where each body, joint, geom and actuator of the model
+/// came from (for checks a caller makes beyond the loader's, such as
+/// [`crate::mjcf_agent`]'s); `file` names it in error messages.
+pub fn load_str_with_sources(text: &str, file: &str) -> Result<(Model, MjcfSources), MjcfError> {
     let doc = roxmltree::Document::parse(text).map_err(|e| MjcfError {
         file: file.to_string(),
         line: e.pos().row,
@@ -102,9 +109,56 @@ pub fn load_str(text: &str, file: &str) -> Result<Model, MjcfError> {
         classes: HashMap::new(),
         b: ModelBuilder::new(),
         joints: HashMap::new(),
-        lines: Lines::default(),
+        sources: MjcfSources::default(),
+        joint_ndof: Vec::new(),
     };
-    p.run()
+    let model = p.run()?;
+    Ok((model, p.sources))
+}
+
+/// One attribute of an element as it applies (its own, or its class default's), with the
+/// line where it is written.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SourceAttribute {
+    /// Attribute name.
+    pub name: String,
+    /// Value as written.
+    pub value: String,
+    /// 1-based line where it is written (the element's, or its `<default>` class's).
+    pub line: u32,
+}
+
+/// The element behind one body, joint, geom or actuator of a loaded model.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ElementSource {
+    /// Element name (`body`, `joint`, `freejoint`, `geom`, `motor`).
+    pub element: String,
+    /// 1-based line of the element.
+    pub line: u32,
+    /// Every attribute that applies to it, class defaults included, sorted by name.
+    pub attributes: Vec<SourceAttribute>,
+}
+
+impl ElementSource {
+    /// The attribute with this name, if it applies.
+    pub fn get(&self, name: &str) -> Option<&SourceAttribute> {
+        self.attributes.iter().find(|a| a.name == name)
+    }
+}
+
+/// Where every part of a loaded model came from, in model order: `bodies[i]` is model body
+/// `i + 1` (the world has no element), `joints[j]` model joint `j`, `geoms[g]` model geom
+/// `g`, `actuators[u]` model actuator `u`.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct MjcfSources {
+    /// The body elements.
+    pub bodies: Vec<ElementSource>,
+    /// The joint and freejoint elements.
+    pub joints: Vec<ElementSource>,
+    /// The geom elements.
+    pub geoms: Vec<ElementSource>,
+    /// The actuator elements.
+    pub actuators: Vec<ElementSource>,
 }
 
 /// One attribute value with the line it came from.
@@ -123,17 +177,6 @@ struct Class {
     motor: HashMap<String, Val>,
 }
 
-/// Lines of the elements that became bodies, joints, geoms, actuators (to locate
-/// `ModelBuilder::build` errors).
-#[derive(Default)]
-struct Lines {
-    body: Vec<(u32, String)>,
-    joint: Vec<(u32, String)>,
-    joint_ndof: Vec<usize>,
-    geom: Vec<(u32, String)>,
-    actuator: Vec<(u32, String)>,
-}
-
 struct Parser<'a, 'i> {
     file: String,
     doc: &'a roxmltree::Document<'i>,
@@ -142,7 +185,11 @@ struct Parser<'a, 'i> {
     classes: HashMap<String, Class>,
     b: ModelBuilder,
     joints: HashMap<String, JointId>,
-    lines: Lines,
+    /// The elements that became bodies, joints, geoms, actuators (also locate
+    /// `ModelBuilder::build` errors).
+    sources: MjcfSources,
+    /// DoF of each joint in `sources.joints`.
+    joint_ndof: Vec<usize>,
 }
 
 type Node<'a, 'i> = roxmltree::Node<'a, 'i>;
@@ -152,6 +199,18 @@ struct Attrs {
     map: HashMap<String, Val>,
     element: String,
     line: u32,
+}
+
+impl Attrs {
+    fn source(&self) -> ElementSource {
+        let mut attributes: Vec<SourceAttribute> = self
+            .map
+            .iter()
+            .map(|(name, v)| SourceAttribute { name: name.clone(), value: v.text.clone(), line: v.line })
+            .collect();
+        attributes.sort_by(|a, b| a.name.cmp(&b.name));
+        ElementSource { element: self.element.clone(), line: self.line, attributes }
+    }
 }
 
 impl<'a, 'i> Parser<'a, 'i> {
@@ -455,7 +514,7 @@ impl<'a, 'i> Parser<'a, 'i> {
         let id = self.b.add_body(parent, pos, quat);
         let name = a.map.get("name").map(|v| v.text.clone()).unwrap_or_default();
         self.b.set_body_name(id, &name);
-        self.lines.body.push((a.line, "body".into()));
+        self.sources.bodies.push(a.source());
         self.body_children(n, id, &cc, false)
     }
 
@@ -550,7 +609,7 @@ impl<'a, 'i> Parser<'a, 'i> {
             spec.name = v.text.clone();
         }
         self.b.add_geom(body, spec);
-        self.lines.geom.push((a.line, a.element.clone()));
+        self.sources.geoms.push(a.source());
         Ok(())
     }
 
@@ -613,8 +672,8 @@ impl<'a, 'i> Parser<'a, 'i> {
         if !name.is_empty() && self.joints.insert(name.clone(), id).is_some() {
             return Err(self.err_attr(&a, "name", "duplicate joint name"));
         }
-        self.lines.joint.push((a.line, a.element.clone()));
-        self.lines.joint_ndof.push(if ty == "free" { 6 } else { 1 });
+        self.sources.joints.push(a.source());
+        self.joint_ndof.push(if ty == "free" { 6 } else { 1 });
         Ok(())
     }
 
@@ -651,23 +710,25 @@ impl<'a, 'i> Parser<'a, 'i> {
             if let Some(v) = a.map.get("name") {
                 self.b.set_actuator_name(id, &v.text);
             }
-            self.lines.actuator.push((a.line, a.element.clone()));
+            self.sources.actuators.push(a.source());
         }
         Ok(())
     }
 
     /// Locates a builder error on the element that caused it.
     fn model_error(&self, e: ModelError) -> MjcfError {
-        let loc = |v: &Vec<(u32, String)>, i: usize| v.get(i).cloned().unwrap_or((0, String::new()));
+        let loc = |v: &Vec<ElementSource>, i: usize| {
+            v.get(i).map(|s| (s.line, s.element.clone())).unwrap_or((0, String::new()))
+        };
         let (line, element) = match &e {
-            ModelError::BadFreeJoint { body } => loc(&self.lines.body, body.wrapping_sub(1)),
-            ModelError::PlaneOnMovingBody { geom } => loc(&self.lines.geom, *geom),
-            ModelError::ActuatorNotOnHinge { actuator } => loc(&self.lines.actuator, *actuator),
+            ModelError::BadFreeJoint { body } => loc(&self.sources.bodies, body.wrapping_sub(1)),
+            ModelError::PlaneOnMovingBody { geom } => loc(&self.sources.geoms, *geom),
+            ModelError::ActuatorNotOnHinge { actuator } => loc(&self.sources.actuators, *actuator),
             ModelError::SingularMassMatrix { dof } => {
                 let (mut first, mut found) = (0, (0, String::new()));
-                for (i, n) in self.lines.joint_ndof.iter().enumerate() {
+                for (i, n) in self.joint_ndof.iter().enumerate() {
                     if *dof < first + n {
-                        found = loc(&self.lines.joint, i);
+                        found = loc(&self.sources.joints, i);
                         break;
                     }
                     first += n;

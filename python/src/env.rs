@@ -77,7 +77,8 @@ impl PyVecEnv {
 #[pymethods]
 impl PyVecEnv {
     /// `num_envs` environments of `name` (a built-in name or a composition string; a
-    /// morphology may be a Brax-config `.txt` file), random streams from `seed`. Episodes
+    /// morphology may be a Brax-config `.txt` or an MJCF `.xml` file), random streams from
+    /// `seed`. Episodes
     /// start at random, or all from the start drawn with `fixed_start` rotated by
     /// `rotation_deg` about the vertical through `point`. `auto_reset=False` keeps an ended
     /// environment in its last state; `record=True` records environment 0 for `render`.

@@ -51,7 +51,8 @@ enum Command {
 
 #[derive(Args)]
 struct InfoArgs {
-    /// Environment (e.g. team_reach/3_ant_claw_centipede).
+    /// Environment (e.g. team_reach/3_ant_claw_centipede, or a composition whose
+    /// morphologies may be Brax-config .txt or MJCF .xml files, as for train).
     #[arg(long, default_value = "team_reach/1_ant")]
     env: String,
     /// Model specification, with options ("shnn:critic=shared"); repeatable.
@@ -64,7 +65,11 @@ struct InfoArgs {
 
 #[derive(Args, Default)]
 struct TrainArgs {
-    /// Environment (e.g. team_reach/1_ant, team_sumo/2_ants, or a custom composition).
+    /// Environment: a built-in name (e.g. team_reach/1_ant, team_sumo/2_ants) or a custom
+    /// composition ("team_reach:agents=ant+claw;R=5;balls=2",
+    /// "team_sumo:team1=ant;team2=claw;R=3"); a morphology is a built-in name (ant, claw,
+    /// centipede, unimal_1, ...), a Brax-config file (.txt) or an MJCF file (.xml: bodies with
+    /// sphere/capsule geoms, ranged hinges, motors, a free root; see envs::mjcf_agent).
     #[arg(long)]
     env: Option<String>,
     /// Model of team 0 (shnn, shnn_og3, shnn_so3, mlp, mlp_hn, transformer_hn, shtransformer,

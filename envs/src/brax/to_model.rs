@@ -1,4 +1,5 @@
-//! Hands a Brax agent ([`AgentTree`]) to the simulator's [`ModelBuilder`].
+//! Hands an agent ([`AgentTree`], from a Brax config or an MJCF file) to the simulator's
+//! [`ModelBuilder`].
 //!
 //! [`add_agent`] adds one agent to a scene under construction (several agents, goal balls
 //! and the ground are the scene's business); [`agent_model`] builds the common case of one
@@ -76,8 +77,11 @@ pub fn add_agent(
             let spec = spec.at(g.pos).with_quat(g.quat).ends(g.ends).friction(physics.friction);
             geoms.push(builder.add_geom(id, spec));
         }
-        // Mass from the config; the inertia of the geoms (uniform density) scaled to it.
-        builder.set_body_mass(id, b.mass);
+        match &b.inertia {
+            Some(i) => builder.set_body_inertia(id, b.mass, i.com, i.inertia),
+            // Mass from the config; the inertia of the geoms (uniform density) scaled to it.
+            None => builder.set_body_mass(id, b.mass),
+        }
         bodies.push(id);
     }
     let actuators = tree

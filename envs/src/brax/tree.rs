@@ -1,9 +1,11 @@
-//! A Brax config as a kinematic tree in the simulator's conventions (MEBEN.md section 1):
+//! An agent as a kinematic tree in the simulator's conventions (MEBEN.md section 1):
 //! bodies placed in their parent's frame, hinges with axes and anchors in the body frame,
 //! geoms, masses, motors, all in SI units and radians. No simulator types are needed here
-//! except [`CapsuleEnds`]; [`super::to_model`] hands the tree to the `ModelBuilder`.
+//! except [`CapsuleEnds`]; [`super::to_model`] hands the tree to the `ModelBuilder`. The
+//! MeBen tasks build every agent from one: [`AgentTree::from_config`] makes it from a Brax
+//! config, [`crate::mjcf_agent`] from an MJCF file.
 //!
-//! Semantics:
+//! Semantics of [`AgentTree::from_config`]:
 //! - the root body (the one that is no joint's child) gets a free joint; its frame is the
 //!   config's root frame;
 //! - a joint places its child at `pos = parent_offset - R(reference_rotation) * child_offset`
@@ -44,7 +46,8 @@ pub struct AgentTree {
 pub struct TreeBody {
     /// The config's body name.
     pub name: String,
-    /// Index of the body in [`SystemConfig::bodies`].
+    /// Index of the body in [`SystemConfig::bodies`] (MJCF: the body's index in the file's
+    /// model, world = 0).
     pub config_index: usize,
     /// Parent index in [`AgentTree::bodies`] (`None` for the root).
     pub parent: Option<usize>,
@@ -54,18 +57,31 @@ pub struct TreeBody {
     pub quat: Quat,
     /// Mass (kg), from the config.
     pub mass: f64,
+    /// The mass distribution when it is known exactly (MJCF: from each geom's own density or
+    /// mass); `None` (Brax): the geoms' inertia at uniform density, scaled to `mass`.
+    pub inertia: Option<TreeInertia>,
     /// Hinges moving this body relative to its parent, applied in order.
     pub hinges: Vec<TreeHinge>,
     /// Collision geometry, which also gives the inertia.
     pub geoms: Vec<TreeGeom>,
 }
 
-/// A hinge (one DoF of a Brax joint).
+/// A body's mass distribution in its own frame.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TreeInertia {
+    /// Centre of mass in the body frame (m).
+    pub com: Vec3,
+    /// Rotational inertia about the centre of mass, body axes (kg m^2).
+    pub inertia: [[f64; 3]; 3],
+}
+
+/// A hinge (one DoF of a Brax joint, or an MJCF hinge).
 #[derive(Clone, Debug, PartialEq)]
 pub struct TreeHinge {
     /// Joint name, with `.1`/`.2` appended for the DoFs of a 2-DoF joint.
     pub name: String,
-    /// Index of the Brax joint in [`SystemConfig::joints`].
+    /// Index of the Brax joint in [`SystemConfig::joints`] (MJCF: the joint's index in the
+    /// file's model).
     pub config_joint: usize,
     /// Which DoF of the Brax joint (0: about the joint frame's x, 1: about its y).
     pub dof: usize,
@@ -214,6 +230,7 @@ impl AgentTree {
                 pos,
                 quat,
                 mass: body.mass,
+                inertia: None,
                 hinges,
                 geoms,
             });

@@ -1,5 +1,6 @@
 //! One simulator [`Model`] for a composition: the ground plane and every agent, each a
-//! kinematic tree added with [`crate::brax::add_agent`] at its rest pose.
+//! kinematic tree (from a built-in or file Brax config, or an MJCF file) added with
+//! [`crate::brax::add_agent`] at its rest pose.
 //!
 //! The goal balls (Reach) and the centre ball (Sumo) are not bodies of the model: they are
 //! fixed, collide with nothing and so never influence the physics, while their positions
@@ -13,6 +14,7 @@ use super::spec::{TaskKind, TaskSpec};
 use crate::brax::rotation::{add, quat_rotate};
 use crate::brax::tree::TreeShape;
 use crate::brax::{AgentTree, BraxPhysics, add_agent, brax_options, load_config_file, load_morphology};
+use crate::mjcf_agent::load_agent_file;
 use crate::model::{JointKind, Model};
 use crate::{BodyId, GeomSpec, ModelBuilder};
 
@@ -22,7 +24,7 @@ pub const BALL_RADIUS: f64 = 0.1;
 /// Where one agent lives in the scene's model and in the action and state arrays.
 #[derive(Clone, Debug, PartialEq)]
 pub struct AgentLayout {
-    /// Morphology name or config path, as in the spec.
+    /// Morphology name or file path (Brax config or MJCF), as in the spec.
     pub morphology: String,
     /// Team index (0-based; Reach has only team 0).
     pub team: usize,
@@ -72,11 +74,13 @@ pub struct Scene {
     pub obs_spec: ObsSpec,
 }
 
-/// Loads a morphology by built-in name, or from a file when the name ends in `.txt` (a
-/// missing file is reported as a file that cannot be read, not as an unknown name).
+/// Loads a morphology by built-in name, or from a file when the name ends in `.txt` (a Brax
+/// config) or `.xml` (MJCF, the subset of [`crate::mjcf_agent`]). A missing file is reported
+/// as a file that cannot be read, not as an unknown name.
 fn load_tree(name: &str, physics: &BraxPhysics) -> Result<AgentTree, TaskError> {
     let bad = |message: String| TaskError::Morphology { name: name.to_string(), message };
-    let config = if name.ends_with(".txt") {
+    let is_file = name.ends_with(".txt") || name.ends_with(".xml");
+    if is_file {
         let path = std::path::Path::new(name);
         if !path.is_file() {
             let why = match std::fs::metadata(path) {
@@ -85,11 +89,13 @@ fn load_tree(name: &str, physics: &BraxPhysics) -> Result<AgentTree, TaskError> 
             };
             return Err(bad(format!("cannot read the morphology file: {why}")));
         }
-        load_config_file(name)
+    }
+    let tree = if name.ends_with(".xml") {
+        load_agent_file(name, physics).map_err(|e| bad(e.to_string()))?
     } else {
-        load_morphology(name)
+        let config = if is_file { load_config_file(name) } else { load_morphology(name) };
+        AgentTree::from_config(&config.map_err(|e| bad(e.to_string()))?, physics)
     };
-    let tree = AgentTree::from_config(&config.map_err(|e| bad(e.to_string()))?, physics);
     if tree.motors.is_empty() {
         return Err(bad("has no actuated joint: every agent needs at least one action".into()));
     }

@@ -8,8 +8,9 @@
 //!   `R` to 5);
 //! - `team_sumo:team1=ant+claw;team2=ant+ant;R=3` (`R` defaults to 3).
 //!
-//! Morphologies are the built-in names of [`crate::brax::morphologies`] or paths to Brax
-//! config files (ending in `.txt`).
+//! Morphologies are the built-in names of [`crate::brax::morphologies`], or paths to Brax
+//! config files (ending in `.txt`) or MJCF files (ending in `.xml`, the subset of
+//! [`crate::mjcf_agent`]), e.g. `team_sumo:team1=ant+my/agent.xml;team2=ant+ant`.
 
 use super::error::TaskError;
 use serde::{Deserialize, Serialize};
@@ -42,7 +43,7 @@ pub struct TaskSpec {
     pub name: String,
     /// Which game.
     pub kind: TaskKind,
-    /// Morphology names (or config paths) per team: Reach has one team, Sumo two.
+    /// Morphology names (or Brax-config / MJCF paths) per team: Reach has one team, Sumo two.
     pub teams: Vec<Vec<String>>,
     /// Reach: placement radius of agents and balls (m); Sumo: arena radius (m).
     pub radius: f64,

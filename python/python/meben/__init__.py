@@ -21,7 +21,10 @@ __all__ = ["BUILTIN_NAMES", "OUTCOMES", "Policy", "VecEnv", "make", "make_eval",
 def make(name, num_envs=1, seed=0, **options):
     """``num_envs`` environments of ``name``, a built-in name (``meben.BUILTIN_NAMES``) or a
     composition such as ``"team_reach:agents=ant+claw;R=5;balls=2"`` (a morphology may be a
-    Brax-config ``.txt`` file), seeded with ``seed``.
+    Brax-config ``.txt`` file or an MJCF ``.xml`` file, e.g.
+    ``"team_reach:agents=ant+my/agent.xml"``), seeded with ``seed``. A bad name or a
+    malformed morphology file raises ``ValueError`` naming it (for a file: its line, element,
+    attribute and value).
 
     Options (keywords): ``auto_reset=True`` (an ended environment begins its next episode in
     the same step; ``info["final_obs"]`` holds the true last observation), ``fixed_start=None``
