@@ -103,6 +103,7 @@ pub fn load_str(text: &str, file: &str) -> Result<Model, MjcfError> {
         b: ModelBuilder::new(),
         joints: HashMap::new(),
         lines: Lines::default(),
+        newlines: text.bytes().enumerate().filter(|(_, c)| *c == b'\n').map(|(i, _)| i).collect(),
     };
     p.run()
 }
@@ -143,6 +144,8 @@ struct Parser<'a, 'i> {
     b: ModelBuilder,
     joints: HashMap<String, JointId>,
     lines: Lines,
+    /// Byte offsets of the text's line breaks, for [`Parser::line_of`].
+    newlines: Vec<usize>,
 }
 
 type Node<'a, 'i> = roxmltree::Node<'a, 'i>;
@@ -155,8 +158,12 @@ struct Attrs {
 }
 
 impl<'a, 'i> Parser<'a, 'i> {
+    /// 1-based line of byte offset `pos`: one plus the line breaks before it, as
+    /// `roxmltree::Document::text_pos_at` counts, found by binary search in the table of line
+    /// breaks (`text_pos_at` scans from the start of the text: once per element and attribute,
+    /// that is quadratic in the size of the file).
     fn line_of(&self, pos: usize) -> u32 {
-        self.doc.text_pos_at(pos).row
+        1 + self.newlines.partition_point(|&nl| nl < pos) as u32
     }
 
     fn err_node(&self, node: Node, msg: impl Into<String>) -> MjcfError {

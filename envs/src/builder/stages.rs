@@ -447,24 +447,16 @@ pub(super) struct ContactPairs {
 pub(super) fn contact_pairs(geoms: &[Geom]) -> ContactPairs {
     let (mut plane_pairs, mut geom_pairs) = (Vec::new(), Vec::new());
     let mut nslot = 0;
-    for a in 0..geoms.len() {
-        for b in a + 1..geoms.len() {
-            let (ga, gb) = (&geoms[a], &geoms[b]);
-            if ga.tree == gb.tree {
-                continue; // same agent, or both static
-            }
-            if ga.contype & gb.conaffinity == 0 && gb.contype & ga.conaffinity == 0 {
-                continue;
-            }
-            let (pa, pb) = (ga.shape == Shape::Plane, gb.shape == Shape::Plane);
-            if pa || pb {
-                let (p, o) = if pa { (a, b) } else { (b, a) };
-                let n = if matches!(geoms[o].shape, Shape::Capsule { .. }) { 2 } else { 1 };
-                plane_pairs.push(CollisionPair { g1: p, g2: o, slot: nslot });
-                nslot += n;
-            } else {
-                geom_pairs.push(CollisionPair { g1: a, g2: b, slot: 0 });
-            }
+    for (a, b) in candidate_pairs(geoms) {
+        let (ga, gb) = (&geoms[a], &geoms[b]);
+        let (pa, pb) = (ga.shape == Shape::Plane, gb.shape == Shape::Plane);
+        if pa || pb {
+            let (p, o) = if pa { (a, b) } else { (b, a) };
+            let n = if matches!(geoms[o].shape, Shape::Capsule { .. }) { 2 } else { 1 };
+            plane_pairs.push(CollisionPair { g1: p, g2: o, slot: nslot });
+            nslot += n;
+        } else {
+            geom_pairs.push(CollisionPair { g1: a, g2: b, slot: 0 });
         }
     }
     let tree_key = |p: &CollisionPair| {
@@ -483,6 +475,53 @@ pub(super) fn contact_pairs(geoms: &[Geom]) -> ContactPairs {
         }
     }
     ContactPairs { plane_pairs, geom_pairs, pair_groups, nslot }
+}
+
+/// The geom pairs `(a, b)`, `a < b`, in different trees (static geoms count as one tree)
+/// whose bits match (`contype_a & conaffinity_b` or `contype_b & conaffinity_a` non-zero),
+/// in increasing order.
+///
+/// Testing every pair would cost the square of the number of geoms even when few pairs are
+/// kept (one large agent, or many bodies that only touch the ground). Instead the geoms are
+/// grouped by their two bit masks (few distinct values), each group sorted by tree; for each
+/// geom and each matching group, the geoms of the other trees are the group minus one run
+/// (found by binary search). The cost is `O(G log G + P log P)` for `G` geoms and `P` kept
+/// pairs (`P` itself is quadratic when every pair of agents' geoms may collide).
+fn candidate_pairs(geoms: &[Geom]) -> Vec<(usize, usize)> {
+    // Masks -> geoms sorted by (tree, index); a BTreeMap for a fixed group order.
+    let mut groups: std::collections::BTreeMap<(u32, u32), Vec<usize>> = Default::default();
+    for (g, geom) in geoms.iter().enumerate() {
+        groups.entry((geom.contype, geom.conaffinity)).or_default().push(g);
+    }
+    let groups: Vec<((u32, u32), Vec<usize>)> = groups
+        .into_iter()
+        .map(|(masks, mut members)| {
+            members.sort_by_key(|&g| (geoms[g].tree, g));
+            (masks, members)
+        })
+        .collect();
+    let mut pairs = Vec::new();
+    for (i, ((type_i, aff_i), members_i)) in groups.iter().enumerate() {
+        for (j, ((type_j, aff_j), members_j)) in groups.iter().enumerate().skip(i) {
+            if type_i & aff_j == 0 && type_j & aff_i == 0 {
+                continue;
+            }
+            let same_group = i == j;
+            for &a in members_i {
+                let tree = geoms[a].tree;
+                let lo = members_j.partition_point(|&g| geoms[g].tree < tree);
+                let hi = members_j.partition_point(|&g| geoms[g].tree <= tree);
+                for &b in members_j[..lo].iter().chain(&members_j[hi..]) {
+                    // Within one group every pair is seen twice: keep it once.
+                    if !same_group || a < b {
+                        pairs.push((a.min(b), a.max(b)));
+                    }
+                }
+            }
+        }
+    }
+    pairs.sort_unstable();
+    pairs
 }
 
 fn bad(what: &str, value: f64) -> ModelError {
