@@ -1,17 +1,16 @@
 //! [`ModelBuilder`]: the one way to make a [`Model`] (used by the MJCF and Brax loaders and by
 //! tests). See the module documentation of [`crate::model`] for an overview and an example.
 //!
-//! Inertia from geometry follows MuJoCo's `inertiafromgeom`: every sphere and capsule geom of a
-//! body is a solid of uniform density (or of a given mass); the body's mass, centre of mass and
-//! inertia tensor are the sums (parallel-axis theorem).
+//! The `add_*` methods record a description; [`ModelBuilder::build`] checks and compiles it
+//! in named stages (module `stages`: options, bodies, geoms, inertia from geometry (module `inertia`),
+//! joints and DoFs, the DoF tree, kinematic trees, actuators, contact pairs).
 
-#![allow(clippy::neg_cmp_op_on_partial_ord)] // `!(x > 0.0)` deliberately rejects NaN too
+mod inertia;
+mod stages;
 
 use crate::math::{self, Mat3, Quat, Vec3};
-use crate::model::{
-    Actuator, ActuatorId, Body, BodyId, CapsuleEnds, CollisionPair, Geom, GeomId, Joint, JointId, JointKind, Model,
-    ModelError, NONE, Options, PairGroup, Shape, Tree,
-};
+use crate::model::{ActuatorId, BodyId, CapsuleEnds, GeomId, JointId, JointKind, Model, ModelError, Options, Shape};
+use stages::Joints;
 
 /// Description of a geom for [`ModelBuilder::add_geom`]; construct with [`GeomSpec::sphere`],
 /// [`GeomSpec::capsule`], [`GeomSpec::capsule_fromto`] or [`GeomSpec::plane`] and adjust with
@@ -360,372 +359,21 @@ impl ModelBuilder {
         self.bodies.len()
     }
 
-    /// Validates the description and builds the model.
+    /// Validates the description and builds the model, stage by stage as MuJoCo's compiler
+    /// does (each stage is a function of the private module `stages` saying what it reads and writes).
     pub fn build(&self) -> Result<Model, ModelError> {
-        let opt = self.options.clone();
-        check_finite("option timestep", opt.timestep)?;
-        if opt.timestep <= 0.0 {
-            return Err(bad("option timestep", opt.timestep));
-        }
-        for (k, g) in opt.gravity.iter().enumerate() {
-            check_finite(&format!("option gravity[{k}]"), *g)?;
-        }
-        if !(opt.solref[0] > 0.0 && opt.solref[1] > 0.0) {
-            return Err(bad("option solref", opt.solref[0].min(opt.solref[1])));
-        }
-        let [dmin, dmax, width, mid, power] = opt.solimp;
-        if !(0.0 < dmin && dmin <= dmax && dmax < 1.0 && width > 0.0 && mid > 0.0 && mid < 1.0 && power >= 1.0) {
-            return Err(bad("option solimp", dmin));
-        }
-
-        // Bodies.
-        let nbody = self.bodies.len();
-        let mut bodies = Vec::with_capacity(nbody);
-        for (i, b) in self.bodies.iter().enumerate() {
-            if i > 0 && b.parent >= i {
-                return Err(ModelError::BadId { what: "parent body", index: b.parent });
-            }
-            check_vec(&format!("body {i} pos"), b.pos)?;
-            let quat = unit_quat(&format!("body {i} quat"), b.quat)?;
-            bodies.push(Body {
-                name: b.name.clone(),
-                parent: if i == 0 { 0 } else { b.parent },
-                pos: b.pos,
-                quat,
-                mass: 0.0,
-                ipos: [0.0; 3],
-                inertia: [[0.0; 3]; 3],
-                tree: NONE,
-                jnt_adr: 0,
-                jnt_num: 0,
-                dof_adr: 0,
-                dof_num: 0,
-            });
-        }
-
-        // Geoms and inertia from geometry.
-        let mut geoms = Vec::with_capacity(self.geoms.len());
-        let mut acc: Vec<Vec<(f64, Vec3, Mat3)>> = vec![Vec::new(); nbody];
-        for (gi, (body, s)) in self.geoms.iter().enumerate() {
-            if *body >= nbody {
-                return Err(ModelError::BadId { what: "body", index: *body });
-            }
-            check_vec(&format!("geom {gi} pos"), s.pos)?;
-            let quat = unit_quat(&format!("geom {gi} quat"), s.quat)?;
-            let positive = |what: &str, v: f64| -> Result<(), ModelError> {
-                if v.is_finite() && v > 0.0 { Ok(()) } else { Err(bad(&format!("geom {gi} {what}"), v)) }
-            };
-            let rbound = match s.shape {
-                Shape::Sphere { radius } => {
-                    positive("radius", radius)?;
-                    radius
-                }
-                Shape::Capsule { radius, half_length } => {
-                    positive("radius", radius)?;
-                    if !(half_length.is_finite() && half_length >= 0.0) {
-                        return Err(bad(&format!("geom {gi} half_length"), half_length));
-                    }
-                    radius + half_length
-                }
-                Shape::Plane => f64::INFINITY,
-            };
-            if !(s.density.is_finite() && s.density >= 0.0) {
-                return Err(bad(&format!("geom {gi} density"), s.density));
-            }
-            if let Some(m) = s.mass
-                && !(m.is_finite() && m >= 0.0)
-            {
-                return Err(bad(&format!("geom {gi} mass"), m));
-            }
-            if !(s.friction.is_finite() && s.friction >= 0.0) {
-                return Err(bad(&format!("geom {gi} friction"), s.friction));
-            }
-            if let Some((m, ic)) = solid_inertia(&s.shape, s.density, s.mass) {
-                let r = math::quat_to_mat(quat);
-                acc[*body].push((m, s.pos, math::rotate_tensor(&r, &ic)));
-            }
-            geoms.push(Geom {
-                name: s.name.clone(),
-                body: *body,
-                shape: s.shape,
-                pos: s.pos,
-                quat,
-                mat: math::quat_to_mat(quat),
-                friction: s.friction,
-                contype: s.contype,
-                conaffinity: s.conaffinity,
-                ends: s.ends,
-                rbound,
-                tree: NONE,
-            });
-        }
-        for (i, b) in bodies.iter_mut().enumerate() {
-            let (m, c, inertia) = combine(&acc[i]);
-            match &self.bodies[i].mass {
-                MassOverride::FromGeoms => {
-                    b.mass = m;
-                    b.ipos = c;
-                    b.inertia = inertia;
-                }
-                MassOverride::Mass(target) => {
-                    if !(target.is_finite() && *target >= 0.0) {
-                        return Err(bad(&format!("body {i} mass"), *target));
-                    }
-                    if m <= 0.0 && *target > 0.0 {
-                        return Err(ModelError::Degenerate {
-                            what: format!("body {i} geometry (mass set but no solid geom)"),
-                        });
-                    }
-                    let s = if m > 0.0 { target / m } else { 0.0 };
-                    b.mass = *target;
-                    b.ipos = c;
-                    b.inertia = inertia.map(|row| row.map(|x| x * s));
-                }
-                MassOverride::Explicit { mass, com, inertia } => {
-                    if !(mass.is_finite() && *mass >= 0.0) {
-                        return Err(bad(&format!("body {i} mass"), *mass));
-                    }
-                    check_vec(&format!("body {i} com"), *com)?;
-                    for row in inertia {
-                        check_vec(&format!("body {i} inertia"), *row)?;
-                    }
-                    b.mass = *mass;
-                    b.ipos = *com;
-                    b.inertia = *inertia;
-                }
-            }
-        }
-        if bodies[0].mass != 0.0 {
-            // Geoms on the world are static: they carry no mass.
-            bodies[0].mass = 0.0;
-            bodies[0].inertia = [[0.0; 3]; 3];
-        }
-
-        // Joints and dofs, in body order.
-        let mut joints = Vec::with_capacity(self.joints.len());
-        let (mut nq, mut nv) = (0usize, 0usize);
-        let mut qpos0 = Vec::new();
-        let mut last_body = 0usize;
-        for (ji, j) in self.joints.iter().enumerate() {
-            if j.body >= nbody {
-                return Err(ModelError::BadId { what: "body", index: j.body });
-            }
-            if j.body == 0 {
-                return Err(ModelError::JointOnWorld);
-            }
-            if j.body < last_body {
-                return Err(ModelError::BadValue {
-                    what: format!("joint {ji} order (joints must be added in body order)"),
-                    value: j.body as f64,
-                });
-            }
-            last_body = j.body;
-            let b = &mut bodies[j.body];
-            if b.jnt_num == 0 {
-                b.jnt_adr = ji;
-                b.dof_adr = nv;
-            }
-            b.jnt_num += 1;
-            let h = &j.hinge;
-            let (axis, limited, range) = match j.kind {
-                JointKind::Free => {
-                    if b.parent != 0 {
-                        return Err(ModelError::BadFreeJoint { body: j.body });
-                    }
-                    qpos0.extend_from_slice(&b.pos);
-                    qpos0.extend_from_slice(&b.quat);
-                    ([0.0, 0.0, 1.0], false, [0.0, 0.0])
-                }
-                JointKind::Hinge => {
-                    let axis = math::normalize(h.axis).filter(|a| a.iter().all(|x| x.is_finite()));
-                    let axis = axis.ok_or_else(|| ModelError::Degenerate { what: format!("joint {ji} axis") })?;
-                    check_vec(&format!("joint {ji} anchor"), h.anchor)?;
-                    check_finite(&format!("joint {ji} initial angle"), h.init)?;
-                    let range = h.range.unwrap_or([0.0, 0.0]);
-                    if let Some([lo, hi]) = h.range {
-                        check_finite(&format!("joint {ji} range lower"), lo)?;
-                        check_finite(&format!("joint {ji} range upper"), hi)?;
-                        if lo > hi {
-                            return Err(bad(&format!("joint {ji} range (lower > upper)"), lo));
-                        }
-                    }
-                    qpos0.push(h.init);
-                    (axis, h.range.is_some(), range)
-                }
-            };
-            for (what, v) in [("armature", h.armature), ("damping", h.damping)] {
-                if !(v.is_finite() && v >= 0.0) {
-                    return Err(bad(&format!("joint {ji} {what}"), v));
-                }
-            }
-            let (q, v) = if j.kind == JointKind::Free { (7, 6) } else { (1, 1) };
-            joints.push(Joint {
-                name: h.name.clone(),
-                kind: j.kind,
-                body: j.body,
-                axis,
-                anchor: h.anchor,
-                limited,
-                range,
-                armature: h.armature,
-                damping: h.damping,
-                qpos_adr: nq,
-                dof_adr: nv,
-            });
-            b.dof_num += v;
-            nq += q;
-            nv += v;
-        }
-        for b in &bodies {
-            if b.jnt_num > 1 && (b.jnt_adr..b.jnt_adr + b.jnt_num).any(|j| joints[j].kind == JointKind::Free) {
-                let body = joints[b.jnt_adr].body;
-                return Err(ModelError::BadFreeJoint { body });
-            }
-        }
-
-        // Dof tree structure.
-        let mut dof_parent = vec![NONE; nv];
-        let mut dof_body = vec![0; nv];
-        let mut dof_joint = vec![0; nv];
-        let mut dof_armature = vec![0.0; nv];
-        let mut dof_damping = vec![0.0; nv];
-        for (ji, j) in joints.iter().enumerate() {
-            let n = if j.kind == JointKind::Free { 6 } else { 1 };
-            for k in 0..n {
-                dof_body[j.dof_adr + k] = j.body;
-                dof_joint[j.dof_adr + k] = ji;
-                dof_armature[j.dof_adr + k] = j.armature;
-                dof_damping[j.dof_adr + k] = j.damping;
-            }
-        }
-        for i in 1..nbody {
-            let b = &bodies[i];
-            if b.dof_num == 0 {
-                continue;
-            }
-            // Last dof of the nearest ancestor with dofs.
-            let mut p = b.parent;
-            let mut parent_dof = NONE;
-            while p != 0 {
-                if bodies[p].dof_num > 0 {
-                    parent_dof = bodies[p].dof_adr + bodies[p].dof_num - 1;
-                    break;
-                }
-                p = bodies[p].parent;
-            }
-            for k in 0..b.dof_num {
-                dof_parent[b.dof_adr + k] = if k == 0 { parent_dof } else { b.dof_adr + k - 1 };
-            }
-        }
-        let mut body_last_dof = vec![NONE; nbody];
-        for i in 1..nbody {
-            let b = &bodies[i];
-            body_last_dof[i] = if b.dof_num > 0 { b.dof_adr + b.dof_num - 1 } else { body_last_dof[b.parent] };
-        }
-        let mut dof_depth = vec![0; nv];
-        let mut dof_chain_adr = vec![0; nv];
-        let mut dof_chain = Vec::new();
-        for i in 0..nv {
-            dof_depth[i] = if dof_parent[i] == NONE { 1 } else { dof_depth[dof_parent[i]] + 1 };
-            dof_chain_adr[i] = dof_chain.len();
-            let mut j = i;
-            while j != NONE {
-                dof_chain.push(j);
-                j = dof_parent[j];
-            }
-        }
-
-        // Trees: a body with joints whose parent is static starts a tree.
-        let mut trees: Vec<Tree> = Vec::new();
-        for i in 1..nbody {
-            let ptree = bodies[bodies[i].parent].tree;
-            bodies[i].tree = if ptree != NONE {
-                ptree
-            } else if bodies[i].jnt_num > 0 {
-                trees.push(Tree { root: i, bodies: Vec::new(), geoms: Vec::new() });
-                trees.len() - 1
-            } else {
-                NONE
-            };
-            if bodies[i].tree != NONE {
-                trees[bodies[i].tree].bodies.push(i);
-            }
-        }
-        for (gi, g) in geoms.iter_mut().enumerate() {
-            g.tree = bodies[g.body].tree;
-            if g.tree != NONE {
-                if g.shape == Shape::Plane {
-                    return Err(ModelError::PlaneOnMovingBody { geom: gi });
-                }
-                trees[g.tree].geoms.push(gi);
-            }
-        }
-
-        // Actuators.
-        let mut actuators = Vec::with_capacity(self.actuators.len());
-        for (ai, a) in self.actuators.iter().enumerate() {
-            let j = joints.get(a.joint).ok_or(ModelError::BadId { what: "joint", index: a.joint })?;
-            if j.kind != JointKind::Hinge {
-                return Err(ModelError::ActuatorNotOnHinge { actuator: ai });
-            }
-            check_finite(&format!("actuator {ai} gear"), a.gear)?;
-            if let Some([lo, hi]) = a.ctrlrange
-                && !(lo.is_finite() && hi.is_finite() && lo <= hi)
-            {
-                return Err(bad(&format!("actuator {ai} ctrlrange"), lo));
-            }
-            actuators.push(Actuator {
-                name: a.name.clone(),
-                joint: a.joint,
-                dof: j.dof_adr,
-                gear: a.gear,
-                ctrlrange: a.ctrlrange,
-            });
-        }
-
-        // Collision pairs: different trees (or tree vs static), masks compatible.
-        let (mut plane_pairs, mut geom_pairs) = (Vec::new(), Vec::new());
-        let mut nslot = 0;
-        for a in 0..geoms.len() {
-            for b in a + 1..geoms.len() {
-                let (ga, gb) = (&geoms[a], &geoms[b]);
-                if ga.tree == gb.tree {
-                    continue; // same agent, or both static
-                }
-                if ga.contype & gb.conaffinity == 0 && gb.contype & ga.conaffinity == 0 {
-                    continue;
-                }
-                let (pa, pb) = (ga.shape == Shape::Plane, gb.shape == Shape::Plane);
-                if pa || pb {
-                    let (p, o) = if pa { (a, b) } else { (b, a) };
-                    let n = if matches!(geoms[o].shape, Shape::Capsule { .. }) { 2 } else { 1 };
-                    plane_pairs.push(CollisionPair { g1: p, g2: o, slot: nslot });
-                    nslot += n;
-                } else {
-                    geom_pairs.push(CollisionPair { g1: a, g2: b, slot: 0 });
-                }
-            }
-        }
-        // Group the geom pairs by tree pair (for the tree-level broad phase), then give slots.
-        let tree_key = |p: &CollisionPair| {
-            let (t1, t2) = (geoms[p.g1].tree, geoms[p.g2].tree);
-            (t1.min(t2), t1.max(t2))
-        };
-        geom_pairs.sort_by_key(|p| (tree_key(p), p.g1, p.g2));
-        let mut pair_groups: Vec<PairGroup> = Vec::new();
-        for (i, p) in geom_pairs.iter_mut().enumerate() {
-            p.slot = nslot;
-            nslot += 1;
-            let (t1, t2) = tree_key(p);
-            match pair_groups.last_mut() {
-                Some(g) if (g.tree1, g.tree2) == (t1, t2) => g.end = i + 1,
-                _ => pair_groups.push(PairGroup { tree1: t1, tree2: t2, start: i, end: i + 1 }),
-            }
-        }
+        stages::check_options(&self.options)?;
+        let mut bodies = stages::bodies(&self.bodies)?;
+        let mut geoms = stages::geoms(&self.geoms, bodies.len())?;
+        stages::inertia(&self.bodies, &self.geoms, &geoms, &mut bodies)?;
+        let Joints { joints, nq, nv, qpos0 } = stages::joints(&self.joints, &mut bodies)?;
+        let dofs = stages::dof_tree(&bodies, &joints, nv);
+        let trees = stages::trees(&mut bodies, &mut geoms)?;
+        let actuators = stages::actuators(&self.actuators, &joints)?;
+        let pairs = stages::contact_pairs(&geoms);
         let nlimited = joints.iter().filter(|j| j.limited).count();
-
-        let model = Model {
-            opt,
+        let mut model = Model {
+            opt: self.options.clone(),
             bodies,
             joints,
             geoms,
@@ -734,100 +382,24 @@ impl ModelBuilder {
             nq,
             nv,
             qpos0,
-            dof_parent,
-            dof_body,
-            dof_joint,
-            dof_armature,
-            dof_damping,
-            body_last_dof,
-            dof_depth,
-            dof_chain_adr,
-            dof_chain,
-            plane_pairs,
-            geom_pairs,
-            pair_groups,
-            nslot,
+            dof_parent: dofs.parent,
+            dof_body: dofs.body,
+            dof_joint: dofs.joint,
+            dof_armature: dofs.armature,
+            dof_damping: dofs.damping,
+            body_last_dof: dofs.body_last_dof,
+            dof_depth: dofs.depth,
+            dof_chain_adr: dofs.chain_adr,
+            dof_chain: dofs.chain,
+            plane_pairs: pairs.plane_pairs,
+            geom_pairs: pairs.geom_pairs,
+            pair_groups: pairs.pair_groups,
+            nslot: pairs.nslot,
             nlimited,
             dof_invweight0: Vec::new(),
         };
-        let mut model = model;
+        // Positive definiteness at qpos0, and MuJoCo's dof_invweight0 from the same factor.
         model.dof_invweight0 = crate::crba::check_positive_definite(&model)?;
         Ok(model)
     }
-}
-
-fn bad(what: &str, value: f64) -> ModelError {
-    ModelError::BadValue { what: what.to_string(), value }
-}
-
-fn check_finite(what: &str, v: f64) -> Result<(), ModelError> {
-    if v.is_finite() { Ok(()) } else { Err(bad(what, v)) }
-}
-
-fn check_vec(what: &str, v: Vec3) -> Result<(), ModelError> {
-    for x in v {
-        check_finite(what, x)?;
-    }
-    Ok(())
-}
-
-fn unit_quat(what: &str, q: Quat) -> Result<Quat, ModelError> {
-    for x in q {
-        check_finite(what, x)?;
-    }
-    let n = (q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]).sqrt();
-    if n < 1e-12 {
-        return Err(ModelError::Degenerate { what: what.to_string() });
-    }
-    Ok([q[0] / n, q[1] / n, q[2] / n, q[3] / n])
-}
-
-/// Mass and inertia (about the centre, geom axes) of a solid sphere or capsule.
-///
-/// Capsule (radius r, cylinder height h = 2 * half_length, axis z): the cylinder has
-/// `I_z = m r^2 / 2`, `I_x = m (3 r^2 + h^2) / 12`; each hemisphere of mass `m_s / 2` has
-/// `I_z = m r^2 / 5 * ...` about the axis and, about a transverse axis through its own centre
-/// of mass (at 3r/8 from the flat face), `83/320 m r^2`; moving both to the capsule centre
-/// (distance h/2 + 3r/8) gives `m_s (2 r^2 / 5 + h (3 r + 2 h) / 8)` for the pair.
-pub(crate) fn solid_inertia(shape: &Shape, density: f64, mass: Option<f64>) -> Option<(f64, Mat3)> {
-    use std::f64::consts::PI;
-    let diag = |a: f64, b: f64, c: f64| [[a, 0.0, 0.0], [0.0, b, 0.0], [0.0, 0.0, c]];
-    match *shape {
-        Shape::Plane => None,
-        Shape::Sphere { radius: r } => {
-            let vol = 4.0 / 3.0 * PI * r * r * r;
-            let m = mass.unwrap_or(density * vol);
-            let i = 0.4 * m * r * r;
-            Some((m, diag(i, i, i)))
-        }
-        Shape::Capsule { radius: r, half_length } => {
-            let h = 2.0 * half_length;
-            let v_sph = 4.0 / 3.0 * PI * r * r * r;
-            let v_cyl = PI * r * r * h;
-            let m = mass.unwrap_or(density * (v_sph + v_cyl));
-            let ms = m * v_sph / (v_sph + v_cyl);
-            let mc = m - ms;
-            let ix = mc * (3.0 * r * r + h * h) / 12.0 + ms * (0.4 * r * r + h * (3.0 * r + 2.0 * h) / 8.0);
-            let iz = mc * r * r / 2.0 + ms * 0.4 * r * r;
-            Some((m, diag(ix, ix, iz)))
-        }
-    }
-}
-
-/// Total mass, centre of mass and inertia about it of parts `(mass, centre, inertia about
-/// own centre)`.
-fn combine(parts: &[(f64, Vec3, Mat3)]) -> (f64, Vec3, Mat3) {
-    let m: f64 = parts.iter().map(|p| p.0).sum();
-    if m <= 0.0 {
-        return (0.0, [0.0; 3], [[0.0; 3]; 3]);
-    }
-    let mut c = [0.0; 3];
-    for p in parts {
-        c = math::add_scaled(c, p.1, p.0 / m);
-    }
-    let mut i = [[0.0; 3]; 3];
-    for p in parts {
-        i = math::mat_add(&i, &math::mat_add(&p.2, &math::point_inertia(p.0, math::sub(p.1, c))));
-    }
-    (m, c, i)
 }

@@ -38,12 +38,9 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord)] // `!(x > 0.0)` deliberately rejects NaN too
 
 use crate::crba::ltdl_half_solve;
-use crate::data::Data;
+use crate::data::{Contact, Data};
 use crate::math::{self, Vec3, Vec6};
 use crate::model::{JointKind, Model, NONE};
-
-/// Row destination marker for joint limits (`LIMIT_BASE + joint`).
-const LIMIT_BASE: usize = 1 << 48;
 
 /// Dot product with four partial sums (independent of threads: a fixed order).
 #[inline(always)]
@@ -73,17 +70,6 @@ fn clear_warm(warm: &mut [[f64; 4]], used: &mut Vec<usize>) {
         warm[s] = [0.0; 4];
     }
     used.clear();
-}
-
-/// Distance of the contact whose normal row is `kn`.
-#[inline]
-fn efc_dist(contacts: &[crate::data::Contact], nlim: usize, kn: usize) -> f64 {
-    contacts[(kn - nlim) / 3].dist
-}
-
-#[inline]
-fn dof_of_limit(dst: &[usize], k: usize, m: &Model) -> usize {
-    m.joints[dst[k] - LIMIT_BASE].dof_adr
 }
 
 /// MuJoCo's impedance `imp(r)` for `solimp = [dmin, dmax, width, mid, power]`.
@@ -144,8 +130,7 @@ fn add_point_jacobian(
     }
 }
 
-/// Tangent directions of a contact with unit normal `n` (for the z normal: x and y, so that
-/// the pyramid is exact for sliding along world axes).
+/// Tangent directions of a contact with unit normal `n` (for the z normal: x and y).
 #[inline]
 fn tangents(n: Vec3) -> (Vec3, Vec3) {
     let a = if n[0].abs() < 0.9 { [1.0, 0.0, 0.0] } else { [0.0, 1.0, 0.0] };
@@ -153,33 +138,91 @@ fn tangents(n: Vec3) -> (Vec3, Vec3) {
     (t1, math::cross(n, t1))
 }
 
-/// Assembles and solves the constraints of the current state into `d.qfrc_constraint`.
-/// Needs the kinematics, `cdof`, the factor of `M` (`d.qlm`), `d.qacc_smooth` and
-/// `d.contacts`.
+/// Constraint rows of one step (MuJoCo's `efc_*` arrays; scratch whose capacities persist).
+/// Rows are the active joint limits first, then three per contact (normal, two tangents).
+#[derive(Clone, Debug, Default)]
+pub(crate) struct Efc {
+    /// Number of rows.
+    pub n: usize,
+    /// Number of joint-limit rows (the first `nlim`).
+    pub nlim: usize,
+    /// Joint of each limit row (`nlim` entries): where its force is kept for the warm start.
+    pub limit_joint: Vec<usize>,
+    /// Jacobian rows, `n x nv`.
+    pub j: Vec<f64>,
+    /// `W = J L^-1` (with `M = L^T D L`), row per constraint (`n x nv`).
+    pub y: Vec<f64>,
+    /// `1 / D`.
+    pub dinv: Vec<f64>,
+    /// An nv scratch vector.
+    pub wd: Vec<f64>,
+    /// Support `[lo, hi)` of each Jacobian row.
+    pub span: Vec<(usize, usize)>,
+    /// Rows coupled to each row (overlapping supports), concatenated; empty when all are.
+    pub nbr: Vec<u32>,
+    /// Start of each row's list in `nbr` (n + 1 entries).
+    pub nbr_adr: Vec<usize>,
+    /// `A = J M^-1 J^T`, `n x n`.
+    pub a: Vec<f64>,
+    /// Reference acceleration `aref`.
+    pub aref: Vec<f64>,
+    /// Signed distance `r` of each row (limits and normals; 0 for friction rows), then, from
+    /// [`references`] on, the regulariser `R`.
+    pub r: Vec<f64>,
+    /// Unconstrained acceleration in constraint space, `J M^-1 f`.
+    pub a0: Vec<f64>,
+    /// Force.
+    pub f: Vec<f64>,
+}
+
+/// Assembles and solves the constraints of the current state into `d.qfrc_constraint`, in
+/// MuJoCo's stages. Needs the kinematics, `cdof`, the factor of `M` (`d.qlm`),
+/// `d.qacc_smooth` and `d.contacts`.
 pub fn solve(m: &Model, d: &mut Data) {
-    let nv = m.nv;
-    let h = m.opt.timestep;
-    // Count rows.
-    let mut nlim = 0;
-    if !m.opt.disable_limit && m.nlimited > 0 {
-        for j in &m.joints {
-            if j.limited && j.kind == JointKind::Hinge {
-                let q = d.qpos[j.qpos_adr];
-                if q < j.range[0] || q > j.range[1] {
-                    nlim += 1;
-                }
-            }
-        }
-    }
-    let n = nlim + 3 * d.contacts.len();
     d.qfrc_constraint.iter_mut().for_each(|x| *x = 0.0);
-    d.efc.n = n;
+    let nlim = count_limit_rows(m, d);
+    let n = nlim + 3 * d.contacts.len();
     if n == 0 {
-        clear_warm(&mut d.warm, &mut d.warm_used);
-        d.warm_limit.iter_mut().for_each(|w| *w = 0.0);
+        d.efc.n = 0;
+        forget_warm_starts(d);
         return;
     }
-    let efc = &mut d.efc;
+    // The rows are the solver's own scratch: taken out of `d` (an empty `Efc` does not
+    // allocate) so that the stages can read the rest of `d` while writing them.
+    let mut efc = std::mem::take(&mut d.efc);
+    make_rows(m, d, nlim, &mut efc);
+    project(m, d, &mut efc);
+    references(m, d, &mut efc);
+    pgs(m, &d.contacts, &mut efc);
+    d.efc = efc;
+    apply(d);
+}
+
+/// Counts the active joint-limit rows: limited hinges outside their range (none when limits
+/// are disabled). Reads `d.qpos`.
+fn count_limit_rows(m: &Model, d: &Data) -> usize {
+    if m.opt.disable_limit || m.nlimited == 0 {
+        return 0;
+    }
+    m.joints
+        .iter()
+        .filter(|j| j.limited && j.kind == JointKind::Hinge)
+        .filter(|j| {
+            let q = d.qpos[j.qpos_adr];
+            q < j.range[0] || q > j.range[1]
+        })
+        .count()
+}
+
+/// Rows (MuJoCo's `mj_makeConstraint`): reads `d.qpos` (limits), `d.contacts`, the
+/// kinematics (`d.tree_ref`, `d.cdof`) and the warm starts; sizes every row array and writes
+/// the Jacobian rows `j`, the distances into `r`, the warm-start forces `f` and each limit
+/// row's joint.
+fn make_rows(m: &Model, d: &Data, nlim: usize, efc: &mut Efc) {
+    let nv = m.nv;
+    let n = nlim + 3 * d.contacts.len();
+    efc.n = n;
+    efc.nlim = nlim;
     let resize = |v: &mut Vec<f64>, len: usize| {
         v.clear();
         v.resize(len, 0.0);
@@ -193,9 +236,7 @@ pub fn solve(m: &Model, d: &mut Data) {
     resize(&mut efc.f, n);
     resize(&mut efc.dinv, nv);
     resize(&mut efc.wd, nv);
-    efc.dst.clear();
-    efc.dst.resize(n, 0);
-    // Distances go to `r` for now; turned into regularisers below.
+    efc.limit_joint.clear();
     let mut row = 0;
     if nlim > 0 {
         for (ji, j) in m.joints.iter().enumerate() {
@@ -213,7 +254,7 @@ pub fn solve(m: &Model, d: &mut Data) {
             efc.j[row * nv + j.dof_adr] = s;
             efc.r[row] = dist;
             efc.f[row] = d.warm_limit[ji];
-            efc.dst[row] = LIMIT_BASE + ji;
+            efc.limit_joint.push(ji);
             row += 1;
         }
     }
@@ -234,19 +275,23 @@ pub fn solve(m: &Model, d: &mut Data) {
         for k in 0..3 {
             efc.r[row + k] = if k == 0 { c.dist } else { 0.0 };
             efc.f[row + k] = warm[k];
-            efc.dst[row + k] = 4 * c.slot + k;
         }
         row += 3;
     }
     debug_assert_eq!(row, n);
+}
 
-    // With M = L^T D L: A = J M^-1 J^T = W D^-1 W^T, W = J L^-1 (rows: L^T w = J_k^T). A
-    // Jacobian row lives on one or two dof chains and so does its w (the half solve only
-    // moves entries to ancestors): cheap, and one full solve with J^T f at the end replaces
-    // a solve per row.
-    // Each row's support [lo, hi) holds its Jacobian and its W (from the first dof of the
-    // trees it touches to its last non-zero). Rows of different agents do not overlap: their
-    // A entries are zero without a dot product.
+/// Projection (MuJoCo's `mj_projectConstraint`): reads the rows `j` and the factor of `M`
+/// (`d.qlm`); writes each row's support `span`, `W = J L^-1` (`y`) and `A = J M^-1 J^T`.
+///
+/// With `M = L^T D L`: `A = W D^-1 W^T`, `W = J L^-1` (rows: `L^T w = J_k^T`). A Jacobian
+/// row lives on one or two DoF chains and so does its `w` (the half solve only moves entries
+/// to ancestors): cheap, and one full solve with `J^T f` at the end replaces a solve per row.
+/// Each row's support `[lo, hi)` holds its Jacobian and its `W` (from the first DoF of the
+/// trees it touches to its last non-zero). Rows of different agents do not overlap: their
+/// `A` entries are zero without a dot product.
+fn project(m: &Model, d: &Data, efc: &mut Efc) {
+    let (n, nv) = (efc.n, m.nv);
     efc.y.copy_from_slice(&efc.j);
     efc.span.clear();
     for k in 0..n {
@@ -274,9 +319,18 @@ pub fn solve(m: &Model, d: &mut Data) {
             efc.a[l * n + k] = s;
         }
     }
+}
+
+/// References and regularisation (MuJoCo's `mj_referenceConstraint`; module docs for the
+/// formulas): reads the rows, their distances in `r`, `A`, `d.qvel`, `d.qacc_smooth` and the
+/// contacts' distances; writes `a0 = J qacc_smooth`, `aref`, the regulariser `R` (over the
+/// distances in `r`) and clears warm-start forces outside the cone (negative normal forces,
+/// non-finite friction forces).
+fn references(m: &Model, d: &Data, efc: &mut Efc) {
+    let (n, nv, nlim) = (efc.n, m.nv, efc.nlim);
     let [tc, zeta] = m.opt.solref;
     let dmax = m.opt.solimp[1];
-    let tau = tc.max(2.0 * h);
+    let tau = tc.max(2.0 * m.opt.timestep);
     let bb = 2.0 / (dmax * tau);
     let kk = 1.0 / (dmax * dmax * tau * tau * zeta * zeta);
     for k in 0..n {
@@ -290,7 +344,7 @@ pub fn solve(m: &Model, d: &mut Data) {
             let imp = impedance(&m.opt.solimp, dist);
             efc.aref[k] = -bb * vel - kk * imp * dist;
             // Limits: MuJoCo's constant dof_invweight0; contacts: the exact diagonal of A.
-            let w = if k < nlim { m.dof_invweight0[dof_of_limit(&efc.dst, k, m)] } else { efc.a[k * n + k] };
+            let w = if k < nlim { m.dof_invweight0[m.joints[efc.limit_joint[k]].dof_adr] } else { efc.a[k * n + k] };
             efc.r[k] = (1.0 - imp) / imp * w;
             if !(efc.f[k] >= 0.0) {
                 efc.f[k] = 0.0;
@@ -298,7 +352,7 @@ pub fn solve(m: &Model, d: &mut Data) {
         } else {
             // Friction row: damper only, with the impedance of its contact's normal row.
             let kn = k - (k - nlim) % 3;
-            let imp = impedance(&m.opt.solimp, efc_dist(&d.contacts, nlim, kn));
+            let imp = impedance(&m.opt.solimp, d.contacts[(kn - nlim) / 3].dist);
             efc.aref[k] = -bb * vel;
             // The same regulariser for both tangents (mean of their diagonal entries): a
             // choice independent of how the tangent frame is oriented, so that the contact
@@ -311,12 +365,18 @@ pub fn solve(m: &Model, d: &mut Data) {
             }
         }
     }
+}
 
-    // Projected (block) Gauss-Seidel.
-    // Rows coupled to each row (overlapping supports): all rows for one agent, only its own
-    // agent's (and cross-agent contacts') rows in a multi-agent scene, so a sweep costs the
-    // sum over agents of their rows squared rather than the square of all rows.
-    // (With a single tree every row reaches its root dofs: all rows are coupled.)
+/// Projected (block) Gauss-Seidel, `Options::iterations` sweeps: reads `A`, `R`, `a0`,
+/// `aref`, the spans and the contacts' friction coefficients; writes the coupling lists
+/// (`nbr`) and the forces `f`, starting from the warm starts.
+///
+/// Rows coupled to each row (overlapping supports): all rows for one agent, only its own
+/// agent's (and cross-agent contacts') rows in a multi-agent scene, so a sweep costs the sum
+/// over agents of their rows squared rather than the square of all rows. (With a single tree
+/// every row reaches its root dofs: all rows are coupled.)
+fn pgs(m: &Model, contacts: &[Contact], efc: &mut Efc) {
+    let (n, nlim) = (efc.n, efc.nlim);
     let all_coupled = m.trees.len() <= 1;
     efc.nbr.clear();
     efc.nbr_adr.clear();
@@ -333,30 +393,19 @@ pub fn solve(m: &Model, d: &mut Data) {
         }
         efc.nbr_adr.push(efc.nbr.len());
     }
-    let residual = |efc: &crate::data::Efc, k: usize| -> f64 {
-        let base = efc.a0[k] - efc.aref[k] + efc.r[k] * efc.f[k];
-        if all_coupled {
-            return base + dot(&efc.a[k * n..(k + 1) * n], &efc.f);
-        }
-        let row = &efc.a[k * n..(k + 1) * n];
-        base + efc.nbr[efc.nbr_adr[k]..efc.nbr_adr[k + 1]]
-            .iter()
-            .map(|&l| row[l as usize] * efc.f[l as usize])
-            .sum::<f64>()
-    };
     for _ in 0..m.opt.iterations {
         for k in 0..nlim {
             let diag = efc.a[k * n + k] + efc.r[k];
             if diag > 0.0 {
-                let g = residual(efc, k);
+                let g = residual(efc, all_coupled, k);
                 efc.f[k] = (efc.f[k] - g / diag).max(0.0);
             }
         }
-        for (ci, c) in d.contacts.iter().enumerate() {
+        for (ci, c) in contacts.iter().enumerate() {
             let k = nlim + 3 * ci;
             let diag = efc.a[k * n + k] + efc.r[k];
             if diag > 0.0 {
-                let g = residual(efc, k);
+                let g = residual(efc, all_coupled, k);
                 efc.f[k] = (efc.f[k] - g / diag).max(0.0);
             }
             let fmax = c.friction * efc.f[k];
@@ -366,7 +415,7 @@ pub fn solve(m: &Model, d: &mut Data) {
                 continue;
             }
             // 2x2 block solve for the tangential forces, then projection onto the disc.
-            let (g1, g2) = (residual(efc, k + 1), residual(efc, k + 2));
+            let (g1, g2) = (residual(efc, all_coupled, k + 1), residual(efc, all_coupled, k + 2));
             let a11 = efc.a[(k + 1) * n + k + 1] + efc.r[k + 1];
             let a22 = efc.a[(k + 2) * n + k + 2] + efc.r[k + 2];
             let a12 = efc.a[(k + 1) * n + k + 2];
@@ -385,10 +434,30 @@ pub fn solve(m: &Model, d: &mut Data) {
             efc.f[k + 2] = f2;
         }
     }
-    // Apply, and remember forces for the next step's warm start.
+}
+
+/// Residual of row `k`, `(A + R) f + a0 - aref` (only the coupled rows' terms of `A f`
+/// unless `all_coupled`).
+#[inline]
+fn residual(efc: &Efc, all_coupled: bool, k: usize) -> f64 {
+    let n = efc.n;
+    let base = efc.a0[k] - efc.aref[k] + efc.r[k] * efc.f[k];
+    if all_coupled {
+        return base + dot(&efc.a[k * n..(k + 1) * n], &efc.f);
+    }
+    let row = &efc.a[k * n..(k + 1) * n];
+    base + efc.nbr[efc.nbr_adr[k]..efc.nbr_adr[k + 1]].iter().map(|&l| row[l as usize] * efc.f[l as usize]).sum::<f64>()
+}
+
+/// Apply (MuJoCo's `mj_constraintUpdate`): reads the forces and rows; writes
+/// `d.qfrc_constraint = J^T f` and the warm starts for the next step (limits per joint,
+/// contacts per slot with the friction force as a world vector).
+fn apply(d: &mut Data) {
+    let efc = &d.efc;
+    let nv = d.qfrc_constraint.len();
     clear_warm(&mut d.warm, &mut d.warm_used);
     d.warm_limit.iter_mut().for_each(|w| *w = 0.0);
-    for k in 0..n {
+    for k in 0..efc.n {
         let f = efc.f[k];
         if f != 0.0 {
             let (lk, hk) = efc.span[k];
@@ -396,16 +465,21 @@ pub fn solve(m: &Model, d: &mut Data) {
                 *q += j * f;
             }
         }
-        let dst = efc.dst[k];
-        if dst >= LIMIT_BASE {
-            d.warm_limit[dst - LIMIT_BASE] = f;
-        }
+    }
+    for (k, &ji) in efc.limit_joint.iter().enumerate() {
+        d.warm_limit[ji] = efc.f[k];
     }
     for (ci, c) in d.contacts.iter().enumerate() {
-        let k = nlim + 3 * ci;
+        let k = efc.nlim + 3 * ci;
         let (t1, t2) = tangents(c.normal);
         let ft = math::add(math::scale(t1, efc.f[k + 1]), math::scale(t2, efc.f[k + 2]));
         d.warm[c.slot] = [efc.f[k], ft[0], ft[1], ft[2]];
         d.warm_used.push(c.slot);
     }
+}
+
+/// No constraint this step: every warm start is forgotten.
+fn forget_warm_starts(d: &mut Data) {
+    clear_warm(&mut d.warm, &mut d.warm_used);
+    d.warm_limit.iter_mut().for_each(|w| *w = 0.0);
 }

@@ -7,6 +7,7 @@
 //! over from one step to the next, for exact checkpoints: everything else is recomputed by
 //! every step before it is read.
 
+use crate::constraints::Efc;
 use crate::math::{Mat3, Quat, SpatialInertia, Vec3, Vec6};
 use crate::model::Model;
 use serde::{Deserialize, Serialize};
@@ -128,39 +129,6 @@ pub struct Data {
     pub(crate) warm_limit: Vec<f64>,
     /// Constraint scratch.
     pub(crate) efc: Efc,
-}
-
-/// Constraint rows of one step (scratch; capacities persist).
-#[derive(Clone, Debug, Default)]
-pub(crate) struct Efc {
-    /// Number of rows.
-    pub n: usize,
-    /// Jacobian rows, `n x nv`.
-    pub j: Vec<f64>,
-    /// `W = J L^-1` (with `M + hD = L^T D L`), row per constraint (`n x nv`).
-    pub y: Vec<f64>,
-    /// `1 / D`.
-    pub dinv: Vec<f64>,
-    /// An nv scratch vector.
-    pub wd: Vec<f64>,
-    /// Support `[lo, hi)` of each Jacobian row.
-    pub span: Vec<(usize, usize)>,
-    /// Rows coupled to each row (overlapping supports), concatenated; empty when all are.
-    pub nbr: Vec<u32>,
-    /// Start of each row's list in `nbr` (n + 1 entries).
-    pub nbr_adr: Vec<usize>,
-    /// `A = J (M + hD)^-1 J^T`, `n x n`.
-    pub a: Vec<f64>,
-    /// Reference acceleration.
-    pub aref: Vec<f64>,
-    /// Regulariser.
-    pub r: Vec<f64>,
-    /// Unconstrained acceleration in constraint space.
-    pub a0: Vec<f64>,
-    /// Force.
-    pub f: Vec<f64>,
-    /// Where to store the force afterwards: slot * 4 + facet, or `LIMIT_BASE + joint`.
-    pub dst: Vec<usize>,
 }
 
 impl Data {

@@ -111,6 +111,7 @@ pub fn load_str_with_sources(text: &str, file: &str) -> Result<(Model, MjcfSourc
         joints: HashMap::new(),
         sources: MjcfSources::default(),
         joint_ndof: Vec::new(),
+        newlines: text.bytes().enumerate().filter(|(_, c)| *c == b'\n').map(|(i, _)| i).collect(),
     };
     let model = p.run()?;
     Ok((model, p.sources))
@@ -190,6 +191,8 @@ struct Parser<'a, 'i> {
     sources: MjcfSources,
     /// DoF of each joint in `sources.joints`.
     joint_ndof: Vec<usize>,
+    /// Byte offsets of the text's line breaks, for [`Parser::line_of`].
+    newlines: Vec<usize>,
 }
 
 type Node<'a, 'i> = roxmltree::Node<'a, 'i>;
@@ -214,8 +217,12 @@ impl Attrs {
 }
 
 impl<'a, 'i> Parser<'a, 'i> {
+    /// 1-based line of byte offset `pos`: one plus the line breaks before it, as
+    /// `roxmltree::Document::text_pos_at` counts, found by binary search in the table of line
+    /// breaks (`text_pos_at` scans from the start of the text: once per element and attribute,
+    /// that is quadratic in the size of the file).
     fn line_of(&self, pos: usize) -> u32 {
-        self.doc.text_pos_at(pos).row
+        1 + self.newlines.partition_point(|&nl| nl < pos) as u32
     }
 
     fn err_node(&self, node: Node, msg: impl Into<String>) -> MjcfError {

@@ -20,6 +20,7 @@
 use super::error::{BraxError, Location};
 use super::prototext::{Field, Message, Value};
 use super::rotation::Vec3;
+use std::collections::{HashMap, HashSet};
 
 /// Top-level fields of Brax v1's `Config` that describe the scene or Brax's own solver
 /// (friction, gravity, time step, ...). The project's simulator sets these itself, so they
@@ -208,7 +209,8 @@ impl SystemConfig {
 
     /// Index of the root body: the only body that is no joint's child (checked on load).
     pub fn root_body(&self) -> usize {
-        (0..self.bodies.len()).find(|&b| !self.joints.iter().any(|j| j.child == self.bodies[b].name)).unwrap_or(0)
+        let children: HashSet<&str> = self.joints.iter().map(|j| j.child.as_str()).collect();
+        (0..self.bodies.len()).find(|&b| !children.contains(self.bodies[b].name.as_str())).unwrap_or(0)
     }
 
     /// Total number of joint DoFs (hinges).
@@ -218,49 +220,77 @@ impl SystemConfig {
 
     /// Number of actuated DoFs: the length of the action vector.
     pub fn actuated_dof(&self) -> usize {
+        let joints = first_index(self.joints.iter().map(|j| j.name.as_str()));
         self.actuators
             .iter()
-            .filter_map(|a| self.joint_index(&a.joint))
+            .filter_map(|a| joints.get(a.joint.as_str()).copied())
             .map(|j| self.joints[j].angle_limits.len())
             .sum()
     }
 
-    /// Checks that the bodies and joints form one tree and that actuators name joints.
+    /// Checks that the bodies and joints form one tree and that actuators name joints, in
+    /// this order: bodies (present, names unique), joints (names unique, known bodies, one
+    /// parent per body), one root, no cycle, actuators (known joints, each driven once). Names
+    /// are looked up in maps built once, so the checks are linear in the size of the config.
     fn check_structure(&self) -> Result<(), BraxError> {
-        let err = |at: TextPos, field: String, value: Option<String>, message: String| BraxError::Config {
+        let body_of = first_index(self.bodies.iter().map(|b| b.name.as_str()));
+        self.check_bodies(&body_of)?;
+        let parent_joint = self.check_joints(&body_of)?;
+        let root = self.check_one_root(&parent_joint)?;
+        self.check_no_cycle(&body_of, &parent_joint, root)?;
+        self.check_actuators()
+    }
+
+    /// A structure error at `at`.
+    fn structure_error(&self, at: TextPos, field: String, value: Option<String>, message: String) -> BraxError {
+        BraxError::Config {
             location: Location { source: self.source.clone(), line: at.line, column: at.column },
             field,
             value,
             message,
-        };
+        }
+    }
+
+    /// At least one body; no body name given twice (the second is reported).
+    fn check_bodies(&self, body_of: &HashMap<&str, usize>) -> Result<(), BraxError> {
         if self.bodies.is_empty() {
             let start = TextPos { line: 1, column: 1 };
-            return Err(err(start, "bodies".into(), None, "the config has no bodies".into()));
+            return Err(self.structure_error(start, "bodies".into(), None, "the config has no bodies".into()));
         }
         for (i, b) in self.bodies.iter().enumerate() {
-            if let Some(first) = self.bodies[..i].iter().find(|o| o.name == b.name) {
-                return Err(err(
+            let first = body_of[b.name.as_str()];
+            if first != i {
+                return Err(self.structure_error(
                     b.at,
                     "bodies.name".into(),
                     Some(format!("{:?}", b.name)),
-                    format!("duplicate body name (first defined at line {})", first.at.line),
+                    format!("duplicate body name (first defined at line {})", self.bodies[first].at.line),
                 ));
             }
         }
+        Ok(())
+    }
+
+    /// Joints in file order: unique names, known parent and child, not a body to itself, and
+    /// several joints on one child only from the same parent at the same point. Returns the
+    /// joints of each body as a child.
+    fn check_joints(&self, body_of: &HashMap<&str, usize>) -> Result<Vec<Vec<usize>>, BraxError> {
+        let joint_of = first_index(self.joints.iter().map(|j| j.name.as_str()));
         let known_bodies = || self.bodies.iter().map(|b| format!("{:?}", b.name)).collect::<Vec<_>>().join(", ");
         let mut parent_joint: Vec<Vec<usize>> = vec![Vec::new(); self.bodies.len()];
         for (ji, j) in self.joints.iter().enumerate() {
-            if let Some(first) = self.joints[..ji].iter().find(|o| o.name == j.name) {
-                return Err(err(
+            let first = joint_of[j.name.as_str()];
+            if first != ji {
+                return Err(self.structure_error(
                     j.at,
                     format!("joints[{:?}].name", j.name),
                     Some(format!("{:?}", j.name)),
-                    format!("duplicate joint name (first defined at line {})", first.at.line),
+                    format!("duplicate joint name (first defined at line {})", self.joints[first].at.line),
                 ));
             }
             let index = |field: &str, name: &str, at: TextPos| {
-                self.body_index(name).ok_or_else(|| {
-                    err(
+                body_of.get(name).copied().ok_or_else(|| {
+                    self.structure_error(
                         at,
                         format!("joints[{:?}].{field}", j.name),
                         Some(format!("{name:?}")),
@@ -270,70 +300,87 @@ impl SystemConfig {
             };
             let p = index("parent", &j.parent, j.parent_at)?;
             let c = index("child", &j.child, j.child_at)?;
-            if p == c {
-                return Err(err(
+            let child_error = |message: String| {
+                self.structure_error(
                     j.child_at,
                     format!("joints[{:?}].child", j.name),
                     Some(format!("{:?}", j.child)),
-                    "a joint cannot connect a body to itself".into(),
-                ));
+                    message,
+                )
+            };
+            if p == c {
+                return Err(child_error("a joint cannot connect a body to itself".into()));
             }
             if let Some(&other) = parent_joint[c].first() {
                 let o = &self.joints[other];
-                let reason = if o.parent != j.parent {
-                    Some(format!(
+                if o.parent != j.parent {
+                    return Err(child_error(format!(
                         "body has two parents: it is already the child of joint {:?} (line {}) whose parent is {:?}",
                         o.name, o.at.line, o.parent
-                    ))
-                } else if !same(o.parent_offset, j.parent_offset)
+                    )));
+                }
+                if !same(o.parent_offset, j.parent_offset)
                     || !same(o.child_offset, j.child_offset)
                     || !same(o.reference_rotation, j.reference_rotation)
                 {
-                    Some(format!(
+                    return Err(child_error(format!(
                         "body is already the child of joint {:?} (line {}) from the same parent: several joints on one child must share parent_offset, child_offset and reference_rotation",
                         o.name, o.at.line
-                    ))
-                } else {
-                    None
-                };
-                if let Some(message) = reason {
-                    return Err(err(
-                        j.child_at,
-                        format!("joints[{:?}].child", j.name),
-                        Some(format!("{:?}", j.child)),
-                        message,
-                    ));
+                    )));
                 }
             }
             parent_joint[c].push(ji);
         }
+        Ok(parent_joint)
+    }
+
+    /// Exactly one body without a parent joint (one connected agent); returns it.
+    fn check_one_root(&self, parent_joint: &[Vec<usize>]) -> Result<usize, BraxError> {
         let roots: Vec<usize> = (0..self.bodies.len()).filter(|&b| parent_joint[b].is_empty()).collect();
-        if roots.len() != 1 {
-            let names: Vec<String> = roots.iter().map(|&b| format!("{:?}", self.bodies[b].name)).collect();
-            let (at, message) = match roots.first() {
-                Some(&b) => (
-                    self.bodies[b].at,
-                    format!(
-                        "a config must describe one connected agent, but several bodies have no parent joint: {}",
-                        names.join(", ")
-                    ),
-                ),
-                None => (
-                    self.joints.first().map_or(TextPos { line: 1, column: 1 }, |j| j.at),
-                    "every body has a parent joint: the joints form a cycle".into(),
-                ),
-            };
-            return Err(err(at, "joints".into(), None, message));
+        if roots.len() == 1 {
+            return Ok(roots[0]);
         }
-        // Every body must reach the root by following parents (no cycle).
+        let names: Vec<String> = roots.iter().map(|&b| format!("{:?}", self.bodies[b].name)).collect();
+        let (at, message) = match roots.first() {
+            Some(&b) => (
+                self.bodies[b].at,
+                format!(
+                    "a config must describe one connected agent, but several bodies have no parent joint: {}",
+                    names.join(", ")
+                ),
+            ),
+            None => (
+                self.joints.first().map_or(TextPos { line: 1, column: 1 }, |j| j.at),
+                "every body has a parent joint: the joints form a cycle".into(),
+            ),
+        };
+        Err(self.structure_error(at, "joints".into(), None, message))
+    }
+
+    /// Every body reaches the root by following parents: the first body (in file order) that
+    /// does not is reported, at the joint taken at the step after as many steps as bodies. A
+    /// walk stops at a body already known to reach the root, so each body is walked through
+    /// once.
+    fn check_no_cycle(
+        &self,
+        body_of: &HashMap<&str, usize>,
+        parent_joint: &[Vec<usize>],
+        root: usize,
+    ) -> Result<(), BraxError> {
+        let mut reaches_root = vec![false; self.bodies.len()];
+        let mut path = Vec::new();
         for start in 0..self.bodies.len() {
             let mut b = start;
             let mut steps = 0;
-            while let Some(&j) = parent_joint[b].first() {
-                b = self.body_index(&self.joints[j].parent).unwrap_or(roots[0]);
+            path.clear();
+            while !reaches_root[b]
+                && let Some(&j) = parent_joint[b].first()
+            {
+                path.push(b);
+                b = body_of.get(self.joints[j].parent.as_str()).copied().unwrap_or(root);
                 steps += 1;
                 if steps > self.bodies.len() {
-                    return Err(err(
+                    return Err(self.structure_error(
                         self.joints[j].parent_at,
                         format!("joints[{:?}].parent", self.joints[j].name),
                         Some(format!("{:?}", self.joints[j].parent)),
@@ -341,28 +388,51 @@ impl SystemConfig {
                     ));
                 }
             }
-        }
-        for (ai, a) in self.actuators.iter().enumerate() {
-            if self.joint_index(&a.joint).is_none() {
-                let known: Vec<String> = self.joints.iter().map(|j| format!("{:?}", j.name)).collect();
-                return Err(err(
-                    a.joint_at,
-                    format!("actuators[{:?}].joint", a.name),
-                    Some(format!("{:?}", a.joint)),
-                    format!("unknown joint name; known joints: {}", known.join(", ")),
-                ));
-            }
-            if let Some(first) = self.actuators[..ai].iter().find(|o| o.joint == a.joint) {
-                return Err(err(
-                    a.joint_at,
-                    format!("actuators[{:?}].joint", a.name),
-                    Some(format!("{:?}", a.joint)),
-                    format!("joint already driven by actuator {:?} (line {})", first.name, first.at.line),
-                ));
+            for &p in &path {
+                reaches_root[p] = true;
             }
         }
         Ok(())
     }
+
+    /// Actuators in file order: each names a known joint, and no joint is driven twice (the
+    /// second actuator is reported).
+    fn check_actuators(&self) -> Result<(), BraxError> {
+        let joint_of = first_index(self.joints.iter().map(|j| j.name.as_str()));
+        let mut driven: HashMap<&str, usize> = HashMap::new();
+        for (ai, a) in self.actuators.iter().enumerate() {
+            let error = |message: String| {
+                self.structure_error(
+                    a.joint_at,
+                    format!("actuators[{:?}].joint", a.name),
+                    Some(format!("{:?}", a.joint)),
+                    message,
+                )
+            };
+            if !joint_of.contains_key(a.joint.as_str()) {
+                let known: Vec<String> = self.joints.iter().map(|j| format!("{:?}", j.name)).collect();
+                return Err(error(format!("unknown joint name; known joints: {}", known.join(", "))));
+            }
+            if let Some(&first) = driven.get(a.joint.as_str()) {
+                let first = &self.actuators[first];
+                return Err(error(format!(
+                    "joint already driven by actuator {:?} (line {})",
+                    first.name, first.at.line
+                )));
+            }
+            driven.insert(a.joint.as_str(), ai);
+        }
+        Ok(())
+    }
+}
+
+/// Index of the first occurrence of each name.
+pub(crate) fn first_index<'a>(names: impl Iterator<Item = &'a str>) -> HashMap<&'a str, usize> {
+    let mut map = HashMap::new();
+    for (i, name) in names.enumerate() {
+        map.entry(name).or_insert(i);
+    }
+    map
 }
 
 /// Whether two vectors agree to 1e-9 (offsets and angles written by the same generator).

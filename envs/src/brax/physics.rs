@@ -36,7 +36,7 @@ pub struct BraxPhysics {
     /// Control range of every motor. Default [-1, 1] (actions are clipped there, as in
     /// MuJoCo's ant and Brax).
     pub ctrlrange: [f64; 2],
-    /// Coulomb friction of every geom. Default 1 (issue 4; MuJoCo's ant and Brax's default).
+    /// Coulomb friction of every geom. Default 1 (MuJoCo's ant and Brax's default).
     pub friction: f64,
     /// Whether Brax's capsule `end` (only one cap touches the ground plane) is passed to the
     /// simulator. Default true, as in Brax (the ant's feet are the `end: -1` caps).

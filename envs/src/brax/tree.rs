@@ -25,12 +25,13 @@
 //!   in the file; hinges (qpos after the free joint) follow that order; motors follow the
 //!   actuators' file order, one per DoF of the driven joint.
 
-use super::config::{ColliderShape, SystemConfig};
+use super::config::{ColliderShape, SystemConfig, first_index};
 use super::physics::BraxPhysics;
 use super::rotation::{
     IDENTITY, Quat, Vec3, add, euler_degrees_to_quat, quat_from_axis_angle, quat_mul, quat_rotate, sub,
 };
 use crate::model::CapsuleEnds;
+use std::collections::{HashMap, HashSet};
 
 /// The agent as a tree of bodies, ready for a model builder.
 #[derive(Clone, Debug, PartialEq)]
@@ -149,30 +150,38 @@ impl AgentTree {
     /// Builds the tree of a checked config with the given constants.
     pub fn from_config(config: &SystemConfig, physics: &BraxPhysics) -> AgentTree {
         let root = config.root_body();
+        // Lookups by name, built once (linear in the size of the config): the children of
+        // each parent name in the order of their first joint, the joints of each child name,
+        // the first actuator of each joint name.
+        let body_of = first_index(config.bodies.iter().map(|b| b.name.as_str()));
+        let mut children_of: HashMap<&str, Vec<usize>> = HashMap::new();
+        let mut joints_of: HashMap<&str, Vec<usize>> = HashMap::new();
+        let mut linked: HashSet<(&str, usize)> = HashSet::new();
+        for (ji, j) in config.joints.iter().enumerate() {
+            if let Some(&c) = body_of.get(j.child.as_str())
+                && linked.insert((j.parent.as_str(), c))
+            {
+                children_of.entry(j.parent.as_str()).or_default().push(c);
+            }
+            joints_of.entry(j.child.as_str()).or_default().push(ji);
+        }
+        let actuator_of = first_index(config.actuators.iter().map(|a| a.joint.as_str()));
+        let strength_of = |joint: &str| actuator_of.get(joint).map(|&a| config.actuators[a].strength);
+
         // Depth-first order, children in the order of their first joint.
         let mut order: Vec<(usize, Option<usize>)> = Vec::new();
         let mut stack = vec![(root, None)];
         while let Some((b, parent)) = stack.pop() {
             let me = order.len();
             order.push((b, parent));
-            let name = &config.bodies[b].name;
-            let mut children: Vec<usize> = Vec::new();
-            for j in config.joints.iter().filter(|j| &j.parent == name) {
-                if let Some(c) = config.body_index(&j.child)
-                    && !children.contains(&c)
-                {
-                    children.push(c);
-                }
-            }
-            stack.extend(children.into_iter().rev().map(|c| (c, Some(me))));
+            let children = children_of.get(config.bodies[b].name.as_str()).map_or(&[][..], |c| &c[..]);
+            stack.extend(children.iter().rev().map(|&c| (c, Some(me))));
         }
 
-        let strength_of = |joint: &str| config.actuators.iter().find(|a| a.joint == joint).map(|a| a.strength);
         let mut bodies = Vec::with_capacity(order.len());
         for &(b, parent) in &order {
             let body = &config.bodies[b];
-            let joints: Vec<usize> =
-                (0..config.joints.len()).filter(|&j| config.joints[j].child == body.name).collect();
+            let joints: &[usize] = joints_of.get(body.name.as_str()).map_or(&[], |j| &j[..]);
             let (pos, quat) = match joints.first() {
                 Some(&j) => {
                     let j = &config.joints[j];
@@ -182,7 +191,7 @@ impl AgentTree {
                 None => ([0.0; 3], IDENTITY),
             };
             let mut hinges = Vec::new();
-            for &ji in &joints {
+            for &ji in joints {
                 let j = &config.joints[ji];
                 let frame = euler_degrees_to_quat(j.rotation);
                 let axes = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
@@ -237,14 +246,18 @@ impl AgentTree {
         }
 
         let mut tree = AgentTree { bodies, motors: Vec::new() };
-        let hinges: Vec<(usize, usize)> = tree.hinges().iter().map(|h| (h.config_joint, h.dof)).collect();
+        let mut hinge_of: HashMap<(usize, usize), usize> = HashMap::new();
+        for (h, hinge) in tree.hinges().iter().enumerate() {
+            hinge_of.entry((hinge.config_joint, hinge.dof)).or_insert(h);
+        }
+        let joint_of = first_index(config.joints.iter().map(|j| j.name.as_str()));
         for a in &config.actuators {
-            let Some(ji) = config.joint_index(&a.joint) else {
+            let Some(&ji) = joint_of.get(a.joint.as_str()) else {
                 continue;
             };
             let ndof = config.joints[ji].angle_limits.len();
             for k in 0..ndof {
-                if let Some(h) = hinges.iter().position(|&h| h == (ji, k)) {
+                if let Some(&h) = hinge_of.get(&(ji, k)) {
                     tree.motors.push(TreeMotor {
                         name: if ndof == 1 { a.name.clone() } else { format!("{}.{}", a.name, k + 1) },
                         hinge: h,
