@@ -441,6 +441,10 @@ impl ModelBuilder {
                 return Err(bad(&format!("geom {gi} friction"), s.friction));
             }
             if let Some((m, ic)) = solid_inertia(&s.shape, s.density, s.mass) {
+                // Finite inputs can still overflow here (density * size^3, mass * size^2).
+                if !(m.is_finite() && ic.iter().flatten().all(|x| x.is_finite())) {
+                    return Err(bad(&format!("geom {gi} mass from its density and size"), m));
+                }
                 let r = math::quat_to_mat(quat);
                 acc[*body].push((m, s.pos, math::rotate_tensor(&r, &ic)));
             }
@@ -472,14 +476,18 @@ impl ModelBuilder {
                         return Err(bad(&format!("body {i} mass"), *target));
                     }
                     if m <= 0.0 && *target > 0.0 {
-                        return Err(ModelError::Degenerate {
-                            what: format!("body {i} geometry (mass set but no solid geom)"),
-                        });
+                        return Err(bad(&format!("body {i} mass (the body has no solid geom to carry it)"), *target));
                     }
                     let s = if m > 0.0 { target / m } else { 0.0 };
                     b.mass = *target;
                     b.ipos = c;
                     b.inertia = inertia.map(|row| row.map(|x| x * s));
+                    if !b.inertia.iter().flatten().all(|x| x.is_finite()) {
+                        return Err(bad(
+                            &format!("body {i} mass (its inertia, scaled from its geoms, overflows)"),
+                            *target,
+                        ));
+                    }
                 }
                 MassOverride::Explicit { mass, com, inertia } => {
                     if !(mass.is_finite() && *mass >= 0.0) {
@@ -537,7 +545,11 @@ impl ModelBuilder {
                     ([0.0, 0.0, 1.0], false, [0.0, 0.0])
                 }
                 JointKind::Hinge => {
-                    let axis = math::normalize(h.axis).filter(|a| a.iter().all(|x| x.is_finite()));
+                    // Scaled by the largest component first: the squares of 1e200 overflow
+                    // and the axis would become zero.
+                    let big = h.axis.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+                    let axis = if big > 0.0 && big.is_finite() { math::scale(h.axis, 1.0 / big) } else { h.axis };
+                    let axis = math::normalize(axis).filter(|a| a.iter().all(|x| x.is_finite()));
                     let axis = axis.ok_or_else(|| ModelError::Degenerate { what: format!("joint {ji} axis") })?;
                     check_vec(&format!("joint {ji} anchor"), h.anchor)?;
                     check_finite(&format!("joint {ji} initial angle"), h.init)?;
@@ -775,10 +787,14 @@ fn unit_quat(what: &str, q: Quat) -> Result<Quat, ModelError> {
     for x in q {
         check_finite(what, x)?;
     }
-    let n = (q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]).sqrt();
-    if n < 1e-12 {
+    // A norm below 1e-12 is degenerate (the norm is at least the largest component); the
+    // rest is scaled by the largest component first: the squares of 1e200 overflow.
+    let big = q.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    if big < 1e-12 && (q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]).sqrt() < 1e-12 {
         return Err(ModelError::Degenerate { what: what.to_string() });
     }
+    let q = q.map(|x| x / big);
+    let n = (q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]).sqrt();
     Ok([q[0] / n, q[1] / n, q[2] / n, q[3] / n])
 }
 
