@@ -12,6 +12,18 @@ export PATH="$PWD/$venv/bin:$PATH"
 # The build backend and the test dependencies (gymnasium and pettingzoo: the adapters' API checks).
 python -m pip install --quiet --disable-pip-version-check "maturin>=1.9.4,<2" "numpy>=1.21" "pytest>=7" \
     "gymnasium>=1.0" "pettingzoo>=1.24"
+# The HTML player's test runs its page in headless Chromium; here a missing browser is a
+# failure, not a skip (MEBEN_REQUIRE_BROWSER), so install Debian's package when it is absent.
+if ! command -v chromium >/dev/null 2>&1 && ! command -v chromium-browser >/dev/null 2>&1; then
+    if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then
+        export DEBIAN_FRONTEND=noninteractive
+        apt-get install -y chromium || { apt-get update && apt-get install -y chromium; }
+    else
+        echo "test.sh: Chromium is missing; install it (Debian: sudo apt-get install chromium) and run again" >&2
+        exit 1
+    fi
+fi
+export MEBEN_REQUIRE_BROWSER=1
 cargo test --workspace --release
 # The Rust programs the Python tests compare with (already built by cargo test; cheap).
 cargo build --release -p rl --bin meben -p envs --example replay_actions

@@ -178,13 +178,19 @@ pub(crate) fn check_positive_definite(m: &Model) -> Result<Vec<f64>, ModelError>
     crate::kinematics::kinematics(m, &mut d);
     crate::kinematics::com_pos(m, &mut d);
     crba(m, &mut d);
-    factor_h(m, &mut d, 0.0).map_err(|dof| ModelError::SingularMassMatrix { dof })?;
+    let singular = |dof: usize| {
+        let b = m.dof_body[dof];
+        let name = &m.bodies[b].name;
+        let body = if name.is_empty() { format!("body {b}") } else { name.clone() };
+        ModelError::SingularMassMatrix { dof, body }
+    };
+    factor_h(m, &mut d, 0.0).map_err(singular)?;
     // A pivot that is tiny relative to the largest one is numerically singular too.
     let nv = m.nv;
     let max = (0..nv).map(|i| diag(m, &d.qm, i)).fold(0.0, f64::max);
     for i in 0..nv {
         if diag(m, &d.qh, i) <= 1e-12 * max {
-            return Err(ModelError::SingularMassMatrix { dof: i });
+            return Err(singular(i));
         }
     }
     Ok(inverse_diagonal(m, &d.qh))

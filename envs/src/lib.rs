@@ -18,6 +18,7 @@ pub mod data;
 pub mod diagnostics;
 pub mod integrator;
 pub mod kinematics;
+pub mod limits;
 pub mod math;
 pub mod mjcf;
 pub mod mjcf_agent;

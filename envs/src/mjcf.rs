@@ -18,12 +18,18 @@
 //! The `integrator` is recorded in [`crate::Options::integrator`]; `Euler` and `implicit` are
 //! stepped as named, `RK4` and `implicitfast` with Euler (see [`crate::integrator`]).
 //!
+//! Every number is checked against its physical range ([`crate::limits`]: lengths, sizes,
+//! masses, densities, angles, time step, gravity, gears, damping, armature, friction,
+//! control ranges), so that an absurd value is refused where it is written rather than
+//! reported later as a singular mass matrix or a non-finite state.
+//!
 //! Every error is a [`MjcfError`] naming the file, the line, the element, the attribute and
 //! the offending value; loading never panics.
 
 #![allow(clippy::result_large_err)] // errors carry file/line/element/attribute/value; cold path
 
 use crate::builder::{GeomSpec, HingeSpec, ModelBuilder};
+use crate::limits::{self, Limit};
 use crate::math::{self, Quat, Vec3};
 use crate::model::{BodyId, Integrator, JointId, Model, ModelError};
 use std::collections::HashMap;
@@ -318,14 +324,41 @@ impl<'a, 'i> Parser<'a, 'i> {
         Ok(self.nums(a, name, 3, 3)?.map(|v| [v[0], v[1], v[2]]))
     }
 
-    fn nonneg(&self, a: &Attrs, name: &str) -> Result<Option<f64>, MjcfError> {
+    /// Attribute `name` (a non-negative number) checked against `limit`.
+    fn nonneg(&self, a: &Attrs, name: &str, limit: &Limit) -> Result<Option<f64>, MjcfError> {
         match a.map.get(name) {
             None => Ok(None),
             Some(v) => {
                 let x = v.text.trim().parse::<f64>().ok().filter(|x| x.is_finite() && *x >= 0.0);
-                x.map(Some).ok_or_else(|| self.err_attr(a, name, "expected a non-negative number"))
+                let x = x.ok_or_else(|| self.err_attr(a, name, "expected a non-negative number"))?;
+                self.within(a, name, &[x], limit)?;
+                Ok(Some(x))
             }
         }
+    }
+
+    /// Checks the numbers `values` read from attribute `name` against `limit`.
+    fn within(&self, a: &Attrs, name: &str, values: &[f64], limit: &Limit) -> Result<(), MjcfError> {
+        for &x in values {
+            limit.check(x).map_err(|m| self.err_attr(a, name, m))?;
+        }
+        Ok(())
+    }
+
+    /// Checks angles read from attribute `name` (in the compiler's unit) against
+    /// [`limits::ANGLE_DEGREES`].
+    fn angles_within(&self, a: &Attrs, name: &str, values: &[f64]) -> Result<(), MjcfError> {
+        let degrees: Vec<f64> = values.iter().map(|&x| if self.degree { x } else { x.to_degrees() }).collect();
+        self.within(a, name, &degrees, &limits::ANGLE_DEGREES)
+    }
+
+    /// A `vec3` attribute whose components are lengths ([`limits::LENGTH`]).
+    fn position(&self, a: &Attrs, name: &str) -> Result<Option<Vec3>, MjcfError> {
+        let p = self.vec3(a, name)?;
+        if let Some(p) = &p {
+            self.within(a, name, p, &limits::LENGTH)?;
+        }
+        Ok(p)
     }
 
     fn bits(&self, a: &Attrs, name: &str, default: u32) -> Result<u32, MjcfError> {
@@ -362,13 +395,17 @@ impl<'a, 'i> Parser<'a, 'i> {
             return Err(self.err_attr(a, "euler", "both quat and euler given"));
         }
         if let Some(q) = self.nums(a, "quat", 4, 4)? {
+            // Scaled by the largest component first: the squares of 1e300 would overflow.
+            let s = q.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+            let q: Vec<f64> = q.iter().map(|x| if s > 0.0 { x / s } else { 0.0 }).collect();
             let n = (q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]).sqrt();
-            if n < 1e-12 {
+            if s == 0.0 || s * n < 1e-12 {
                 return Err(self.err_attr(a, "quat", "zero quaternion"));
             }
             return Ok([q[0] / n, q[1] / n, q[2] / n, q[3] / n]);
         }
         if let Some(e) = self.vec3(a, "euler")? {
+            self.angles_within(a, "euler", &e)?;
             return Ok(math::quat_euler([self.angle(e[0]), self.angle(e[1]), self.angle(e[2])], self.eulerseq));
         }
         Ok(math::QUAT_IDENTITY)
@@ -433,9 +470,11 @@ impl<'a, 'i> Parser<'a, 'i> {
             if t <= 0.0 {
                 return Err(self.err_attr(&a, "timestep", "must be positive"));
             }
+            self.within(&a, "timestep", &[t], &limits::TIMESTEP)?;
             o.timestep = t;
         }
         if let Some(g) = self.vec3(&a, "gravity")? {
+            self.within(&a, "gravity", &g, &limits::GRAVITY)?;
             o.gravity = g;
         }
         if let Some(v) = self.keyword(&a, "integrator", &["Euler", "RK4", "implicit", "implicitfast"])? {
@@ -507,7 +546,7 @@ impl<'a, 'i> Parser<'a, 'i> {
 
     fn body(&mut self, n: Node, parent: BodyId, childclass: &str) -> Result<(), MjcfError> {
         let a = self.plain(n);
-        let pos = self.vec3(&a, "pos")?.unwrap_or([0.0; 3]);
+        let pos = self.position(&a, "pos")?.unwrap_or([0.0; 3]);
         let quat = self.orientation(&a)?;
         let cc = match a.map.get("childclass") {
             Some(v) => {
@@ -535,6 +574,9 @@ impl<'a, 'i> Parser<'a, 'i> {
         let ty = ty.unwrap_or("sphere");
         let size = self.nums(&a, "size", 1, 3)?;
         let fromto = self.nums(&a, "fromto", 6, 6)?;
+        if let Some(f) = &fromto {
+            self.within(&a, "fromto", f, &limits::LENGTH)?;
+        }
         let positive = |v: f64| v.is_finite() && v > 0.0;
         let mut spec = match ty {
             "sphere" => {
@@ -542,6 +584,7 @@ impl<'a, 'i> Parser<'a, 'i> {
                 if !positive(s[0]) {
                     return Err(self.err_attr(&a, "size", "the radius must be positive"));
                 }
+                self.within(&a, "size", &s[..1], &limits::SIZE)?;
                 GeomSpec::sphere(s[0])
             }
             "capsule" => {
@@ -549,6 +592,7 @@ impl<'a, 'i> Parser<'a, 'i> {
                 if !positive(s[0]) {
                     return Err(self.err_attr(&a, "size", "the radius must be positive"));
                 }
+                self.within(&a, "size", &s[..1], &limits::SIZE)?;
                 match &fromto {
                     Some(f) => {
                         let (p, q) = ([f[0], f[1], f[2]], [f[3], f[4], f[5]]);
@@ -568,6 +612,7 @@ impl<'a, 'i> Parser<'a, 'i> {
                                 "a capsule without fromto needs size \"radius half-length\"",
                             ));
                         }
+                        self.within(&a, "size", &s[1..2], &limits::LENGTH)?;
                         GeomSpec::capsule(s[0], s[1])
                     }
                 }
@@ -582,7 +627,7 @@ impl<'a, 'i> Parser<'a, 'i> {
             }
         };
         if fromto.is_none() {
-            if let Some(p) = self.vec3(&a, "pos")? {
+            if let Some(p) = self.position(&a, "pos")? {
                 spec.pos = p;
             }
             spec.quat = self.orientation(&a)?;
@@ -593,18 +638,21 @@ impl<'a, 'i> Parser<'a, 'i> {
             if dn < 0.0 {
                 return Err(self.err_attr(&a, "density", "must be non-negative"));
             }
+            self.within(&a, "density", &[dn], &limits::DENSITY)?;
             spec.density = dn;
         }
         if let Some(m) = self.num(&a, "mass")? {
             if m < 0.0 {
                 return Err(self.err_attr(&a, "mass", "must be non-negative"));
             }
+            self.within(&a, "mass", &[m], &limits::MASS)?;
             spec.mass = Some(m);
         }
         if let Some(f) = self.nums(&a, "friction", 1, 3)? {
             if f[0] < 0.0 {
                 return Err(self.err_attr(&a, "friction", "must be non-negative"));
             }
+            self.within(&a, "friction", &f[..1], &limits::FRICTION)?;
             spec.friction = f[0];
         }
         spec.contype = self.bits(&a, "contype", 1)?;
@@ -640,7 +688,8 @@ impl<'a, 'i> Parser<'a, 'i> {
                     return Err(self.err_attr(&a, "pos", "a free joint must be at the body origin"));
                 }
                 let id = self.b.add_free_joint(body);
-                let (armature, damping) = (self.nonneg(&a, "armature")?, self.nonneg(&a, "damping")?);
+                let armature = self.nonneg(&a, "armature", &limits::ARMATURE)?;
+                let damping = self.nonneg(&a, "damping", &limits::DAMPING)?;
                 self.b.set_joint_armature_damping(id, armature.unwrap_or(0.0), damping.unwrap_or(0.0));
                 id
             }
@@ -650,10 +699,13 @@ impl<'a, 'i> Parser<'a, 'i> {
                     return Err(self.err_attr(&a, "axis", "zero joint axis"));
                 }
                 let mut spec = HingeSpec::new(axis);
-                if let Some(p) = self.vec3(&a, "pos")? {
+                if let Some(p) = self.position(&a, "pos")? {
                     spec.anchor = p;
                 }
                 let range = self.nums(&a, "range", 2, 2)?;
+                if let Some(r) = &range {
+                    self.angles_within(&a, "range", r)?;
+                }
                 let limited = match self.keyword(&a, "limited", &["true", "false", "auto"])? {
                     Some("true") => true,
                     Some("false") => false,
@@ -666,8 +718,8 @@ impl<'a, 'i> Parser<'a, 'i> {
                     }
                     spec.range = Some([self.angle(r[0]), self.angle(r[1])]);
                 }
-                spec.armature = self.nonneg(&a, "armature")?.unwrap_or(0.0);
-                spec.damping = self.nonneg(&a, "damping")?.unwrap_or(0.0);
+                spec.armature = self.nonneg(&a, "armature", &limits::ARMATURE)?.unwrap_or(0.0);
+                spec.damping = self.nonneg(&a, "damping", &limits::DAMPING)?.unwrap_or(0.0);
                 spec.name = name.clone();
                 self.b.add_hinge(body, spec)
             }
@@ -698,7 +750,11 @@ impl<'a, 'i> Parser<'a, 'i> {
             let joint =
                 *self.joints.get(&jname).ok_or_else(|| self.err_attr(&a, "joint", "no hinge joint with this name"))?;
             let gear = self.nums(&a, "gear", 1, 6)?.map_or(1.0, |g| g[0]);
+            self.within(&a, "gear", &[gear], &limits::TORQUE)?;
             let range = self.nums(&a, "ctrlrange", 2, 2)?;
+            if let Some(r) = &range {
+                self.within(&a, "ctrlrange", r, &limits::CONTROL)?;
+            }
             let limited = match self.keyword(&a, "ctrllimited", &["true", "false", "auto"])? {
                 Some("true") => true,
                 Some("false") => false,
@@ -731,7 +787,7 @@ impl<'a, 'i> Parser<'a, 'i> {
             ModelError::BadFreeJoint { body } => loc(&self.sources.bodies, body.wrapping_sub(1)),
             ModelError::PlaneOnMovingBody { geom } => loc(&self.sources.geoms, *geom),
             ModelError::ActuatorNotOnHinge { actuator } => loc(&self.sources.actuators, *actuator),
-            ModelError::SingularMassMatrix { dof } => {
+            ModelError::SingularMassMatrix { dof, .. } => {
                 let (mut first, mut found) = (0, (0, String::new()));
                 for (i, n) in self.joint_ndof.iter().enumerate() {
                     if *dof < first + n {

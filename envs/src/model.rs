@@ -438,10 +438,13 @@ pub enum ModelError {
         actuator: usize,
     },
     /// The mass matrix at the initial pose is not positive definite (a moving body without
-    /// mass or inertia).
+    /// mass or inertia), or numerically so (a pivot below 1e-12 times the largest diagonal
+    /// entry: a body far lighter than the rest of the scene).
     SingularMassMatrix {
         /// First dof where factorisation failed.
         dof: usize,
+        /// The name of the body that dof moves (`body <index>` when it has none).
+        body: String,
     },
 }
 
@@ -461,9 +464,11 @@ impl fmt::Display for ModelError {
             ModelError::ActuatorNotOnHinge { actuator } => {
                 write!(f, "actuator {actuator}: motors drive hinge joints only")
             }
-            ModelError::SingularMassMatrix { dof } => {
-                write!(f, "mass matrix not positive definite at dof {dof}: a moving body lacks mass or inertia")
-            }
+            ModelError::SingularMassMatrix { dof, body } => write!(
+                f,
+                "mass matrix not positive definite at dof {dof} (body {body:?}): a moving body lacks mass or inertia, \
+                 or its mass and inertia are below 1e-12 times the largest in the scene"
+            ),
         }
     }
 }

@@ -16,6 +16,7 @@
 //! (the programs print it on stderr and exit with a non-zero code).
 
 use crate::data::Data;
+use crate::limits;
 use crate::mjcf::{self, MjcfError};
 use std::fmt;
 use std::path::{Path, PathBuf};
@@ -101,6 +102,32 @@ fn parse_row(text: &str) -> Result<Vec<f64>, String> {
         .collect()
 }
 
+/// Parses a controls file (`text`, named `source` in errors): one row per control step,
+/// `actuators` comma-separated numbers each, blank lines skipped. Every value must be finite
+/// and within [`limits::CONTROL`] (a motor without a control range multiplies it by its
+/// gear); errors name `source:line` and the column.
+pub fn parse_controls(text: &str, source: &str, actuators: usize) -> Result<Vec<Vec<f64>>, RolloutError> {
+    let mut controls = Vec::new();
+    for (i, line) in text.lines().enumerate() {
+        if line.trim().is_empty() {
+            continue;
+        }
+        let at = || format!("{source}:{}", i + 1);
+        let row = parse_row(line).map_err(|message| RolloutError::File { path: at(), message })?;
+        if row.len() != actuators {
+            let message = format!("{} columns, but the model has {actuators} actuators", row.len());
+            return Err(RolloutError::File { path: at(), message });
+        }
+        for (k, x) in row.iter().enumerate() {
+            limits::CONTROL
+                .check(*x)
+                .map_err(|m| RolloutError::File { path: at(), message: format!("column {}: {m}", k + 1) })?;
+        }
+        controls.push(row);
+    }
+    Ok(controls)
+}
+
 /// Runs the rollout `args` describes (module docs), writing `args.out`.
 pub fn run(args: &RolloutArgs) -> Result<(), RolloutError> {
     let arg = |flag: &str, message: String| RolloutError::Argument { flag: flag.into(), message };
@@ -117,19 +144,7 @@ pub fn run(args: &RolloutArgs) -> Result<(), RolloutError> {
     let controls_path = args.controls.display().to_string();
     let text = std::fs::read_to_string(&args.controls)
         .map_err(|e| RolloutError::File { path: controls_path.clone(), message: format!("cannot read: {e}") })?;
-    let mut controls = Vec::new();
-    for (i, line) in text.lines().enumerate() {
-        if line.trim().is_empty() {
-            continue;
-        }
-        let at = || format!("{controls_path}:{}", i + 1);
-        let row = parse_row(line).map_err(|message| RolloutError::File { path: at(), message })?;
-        if row.len() != model.nu() {
-            let message = format!("{} columns, but the model has {} actuators", row.len(), model.nu());
-            return Err(RolloutError::File { path: at(), message });
-        }
-        controls.push(row);
-    }
+    let controls = parse_controls(&text, &controls_path, model.nu())?;
     let out_path = args.out.display().to_string();
     let mut out = String::new();
     let header: Vec<String> = (0..model.nq).map(|i| format!("q{i}")).collect();

@@ -230,6 +230,108 @@ fn wrong_counts_and_values_are_rejected() {
     assert!(config_error(&end, 3).contains("`end` must be -1, 0 or 1"));
 }
 
+/// Absurd physical values are refused at their field with the accepted range (issue 18
+/// item 8). Before, `mass: 1e300`, `parent_offset { x: 1e160 }`, `strength: 1e300` or a
+/// collider at `x: 1e300` passed the loader and were reported by the simulator as a mass
+/// matrix that is not positive definite; `angle_limit { min: -1e300 max: 1e300 }` loaded and
+/// made training stop on a non-finite gradient; `radius: 1e-200` became "degenerate body
+/// geometry"; `mass: 1e-300`, `angular_damping: 1e300`, `rotation { y: 1e300 }` and a negative
+/// `inertia` loaded silently.
+#[test]
+fn extreme_physical_values_are_refused_naming_field_value_and_range() {
+    let cases: &[(&str, &str, usize, &str, &str)] = &[
+        (
+            "name: \"a\" mass: 1",
+            "name: \"a\" mass: 1e300",
+            2,
+            "bodies[\"a\"].mass` = 1e300",
+            "a mass must be between 1e-6 and 1e6 kg",
+        ),
+        ("name: \"a\" mass: 1", "name: \"a\" mass: 1e-300", 2, "bodies[\"a\"].mass` = 1e-300", "a mass must be"),
+        ("radius: 0.1", "radius: 1e160", 2, "sphere[0].radius` = 1e160", "a size must be between 1e-4 and 1000 m"),
+        ("radius: 0.05", "radius: 1e-200", 3, "capsule[0].radius` = 1e-200", "a size must be"),
+        ("length: 0.3", "length: 1e300", 3, "capsule[0].length` = 1e300", "a size must be"),
+        (
+            "child: \"b\"",
+            "child: \"b\" parent_offset { x: 1e160 }",
+            7,
+            "joints[\"j\"].parent_offset.x` = 1e160",
+            "a length or position must be between -1000 and 1000 m",
+        ),
+        (
+            "child: \"b\"",
+            "child: \"b\" child_offset { z: -2e3 }",
+            7,
+            "joints[\"j\"].child_offset.z` = -2e3",
+            "a length or position",
+        ),
+        (
+            "child: \"b\"",
+            "child: \"b\" rotation { y: 1e300 }",
+            7,
+            "joints[\"j\"].rotation.y` = 1e300",
+            "an angle must be between -3600 and 3600 degrees",
+        ),
+        (
+            "child: \"b\"",
+            "child: \"b\" reference_rotation { x: -1e20 }",
+            7,
+            "reference_rotation.x` = -1e20",
+            "an angle",
+        ),
+        (
+            "child: \"b\"",
+            "child: \"b\" angular_damping: 1e300",
+            7,
+            "joints[\"j\"].angular_damping` = 1e300",
+            "a damping must be between 0 and 1e6 N m s/rad",
+        ),
+        ("min: -10 max: 10", "min: -1e300 max: 1e300", 8, "angle_limit[0].min` = -1e300", "an angle must be"),
+        ("strength: 100", "strength: 1e300", 10, "actuators[\"m\"].strength` = 1e300", "a gear or strength must be"),
+        (
+            "sphere { radius: 0.1 }",
+            "position { x: 1e300 } sphere { radius: 0.1 }",
+            2,
+            "colliders[0].position.x` = 1e300",
+            "a length or position",
+        ),
+        (
+            "sphere { radius: 0.1 }",
+            "rotation { z: 1e17 } sphere { radius: 0.1 }",
+            2,
+            "colliders[0].rotation.z` = 1e17",
+            "an angle",
+        ),
+        (
+            "name: \"a\" mass: 1",
+            "name: \"a\" mass: 1 inertia { x: -1 y: 1 z: 1 }",
+            2,
+            "bodies[\"a\"].inertia.x` = -1",
+            "an inertia must be between 1e-12 and 1e12 kg m^2",
+        ),
+        (
+            "name: \"a\" mass: 1",
+            "name: \"a\" mass: 1 inertia { x: 1 y: 1 }",
+            2,
+            "bodies[\"a\"].inertia` = {...}: `z` is missing, so 0",
+            "an inertia must be",
+        ),
+    ];
+    for (old, new, line, field, range) in cases {
+        assert!(TWO_BODIES.contains(old), "{old}");
+        let m = config_error(&TWO_BODIES.replacen(old, new, 1), *line);
+        assert!(m.contains(field), "{new}: field missing from: {m}");
+        assert!(m.contains("is out of range") && m.contains(range), "{new}: range missing from: {m}");
+    }
+    // The bounds themselves are accepted, and so is every built-in morphology (loaded above).
+    let edge = TWO_BODIES
+        .replacen("name: \"a\" mass: 1", "name: \"a\" mass: 1e6", 1)
+        .replacen("radius: 0.1", "radius: 1e-4", 1)
+        .replacen("min: -10 max: 10", "min: -3600 max: 3600", 1)
+        .replacen("strength: 100", "strength: 1e6", 1);
+    parse_config(&edge, "cfg.txt").unwrap();
+}
+
 #[test]
 fn unknown_and_unsupported_fields_are_rejected_and_scene_settings_ignored() {
     let typo = TWO_BODIES.replace("strength: 100", "strenght: 100");

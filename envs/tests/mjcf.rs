@@ -263,3 +263,73 @@ fn actuator_errors() {
     expect_err(&a("<motor joint=\"j\" ctrllimited=\"maybe\"/>"), 7, &["ctrllimited", "\"maybe\""]);
     expect_err(&a("<motor joint=\"j\" class=\"none\"/>"), 7, &["class", "\"none\"", "unknown default class"]);
 }
+
+/// Absurd physical values are refused where they are written, with the accepted range
+/// (issue 18 item 8). Before, `mass="1e300"`, `size="1e160"`, `pos="1e300 .."`,
+/// `armature="1e300"` or `density="1e-300"` were reported as "mass matrix not positive
+/// definite" on some joint's line; `timestep="1e9"`, `gravity="0 0 -1e300"` and
+/// `gear="1e300"` loaded and the rollout stopped on a non-finite state; `fromto` with 1e300
+/// gave "bad value inf for geom 2 half_length" without a line; `timestep="1e-300"`,
+/// `density="1e300"`, `size="1e-200"`, `friction="1e300"`, `damping="1e300"`,
+/// `range="-1e300 1e300"`, `euler="1e300 0 0"` and `ctrlrange="-1e300 1e300"` loaded silently.
+#[test]
+fn extreme_physical_values_are_refused_where_written() {
+    let top = |attrs: &str| doc(&format!("<option {attrs}/>"), BODY, "");
+    let g = |attrs: &str| doc("", &format!("<body>\n<geom {attrs}/>\n</body>"), "");
+    let j = |attrs: &str| doc("", &format!("<body>\n<geom size=\"0.1\"/>\n<joint {attrs}/>\n</body>"), "");
+    let b = |attrs: &str| doc("", &format!("<body {attrs}>\n<geom size=\"0.1\"/>\n</body>"), "");
+    let a = |attrs: &str| doc("", BODY, &format!("<actuator>\n<motor joint=\"j\" {attrs}/>\n</actuator>"));
+    let cases: Vec<(String, u32, &str, &str)> = vec![
+        (top("timestep=\"1e9\""), 2, "'timestep' value \"1e9\"", "a time step must be between 1e-6 and 1 s"),
+        (top("timestep=\"1e-300\""), 2, "'timestep' value \"1e-300\"", "a time step"),
+        (top("gravity=\"0 0 -1e300\""), 2, "'gravity'", "a gravity component must be between -1000 and 1000 m/s^2"),
+        (g("size=\"1e160\""), 5, "'size' value \"1e160\"", "a size must be between 1e-4 and 1000 m"),
+        (g("size=\"1e-200\""), 5, "'size' value \"1e-200\"", "a size"),
+        (
+            g("type=\"capsule\" size=\"0.1 1e300\""),
+            5,
+            "'size'",
+            "a length or position must be between -1000 and 1000 m",
+        ),
+        (g("type=\"capsule\" size=\"0.1\" fromto=\"0 0 0 1e300 0 0\""), 5, "'fromto'", "a length or position"),
+        (g("size=\"0.1\" pos=\"0 1e300 0\""), 5, "'pos'", "a length or position"),
+        (g("size=\"0.1\" mass=\"1e300\""), 5, "'mass' value \"1e300\"", "a mass must be 0 or between 1e-6 and 1e6 kg"),
+        (g("size=\"0.1\" density=\"1e300\""), 5, "'density'", "a density must be 0 or between 1e-6 and 1e6 kg/m^3"),
+        (g("size=\"0.1\" density=\"1e-300\""), 5, "'density'", "a density"),
+        (g("size=\"0.1\" friction=\"1e300\""), 5, "'friction'", "a friction coefficient must be between 0 and 1000"),
+        (g("size=\"0.1\" euler=\"0 0 1e300\""), 5, "'euler'", "an angle must be between -3600 and 3600 degrees"),
+        (j("armature=\"1e300\""), 6, "'armature'", "an armature must be between 0 and 1e6 kg m^2"),
+        (j("damping=\"1e300\""), 6, "'damping'", "a damping must be between 0 and 1e6 N m s/rad"),
+        (j("range=\"-1e300 1e300\""), 6, "'range'", "an angle"),
+        (j("pos=\"1e300 0 0\""), 6, "'pos'", "a length or position"),
+        (b("pos=\"1e160 0 0\""), 4, "<body> attribute 'pos'", "a length or position"),
+        (b("euler=\"1e300 0 0\""), 4, "'euler'", "an angle"),
+        (a("gear=\"1e300\""), 7, "'gear'", "a gear or strength must be between -1e6 and 1e6 N m"),
+        (a("ctrlrange=\"-1e300 1e300\""), 7, "'ctrlrange'", "a control must be between -1e6 and 1e6"),
+    ];
+    for (xml, line, attr, range) in &cases {
+        expect_err(xml, *line, &[attr, "is out of range", range]);
+    }
+    // Radians: 100 rad is 5730 degrees.
+    let rad = doc("<compiler angle=\"radian\"/>", "<body euler=\"100 0 0\">\n<geom size=\"0.1\"/>\n</body>", "");
+    expect_err(&rad, 4, &["'euler'", "5729.5", "an angle"]);
+    // The bounds themselves load.
+    load_str(&g("size=\"1e-4\" mass=\"1e6\" friction=\"1000\" pos=\"1000 0 0\""), "edge.xml").unwrap();
+    load_str(&top("timestep=\"1\" gravity=\"0 0 -1000\""), "edge.xml").unwrap();
+}
+
+/// Huge but finite direction components are normalised, not zeroed: before, the norm of a
+/// hinge axis "0 0 1e300" overflowed and the axis became (0, 0, 0), a joint that moves
+/// nothing (here refused as "mass matrix not positive definite"; with armature, as in the
+/// ant, loaded silently); a quaternion "1e300 0 0 0" was refused as a zero quaternion.
+#[test]
+fn huge_axis_and_quaternion_components_are_normalised_not_zeroed() {
+    let xml = |axis: &str, quat: &str| {
+        doc("", &format!("<body quat=\"{quat}\">\n<geom size=\"0.1\"/>\n<joint axis=\"{axis}\"/>\n</body>"), "")
+    };
+    let huge = load_str(&xml("0 0 1e300", "1e300 0 0 0"), "huge.xml").unwrap();
+    let unit = load_str(&xml("0 0 1", "1 0 0 0"), "unit.xml").unwrap();
+    assert_eq!(huge.joints[0].axis, [0.0, 0.0, 1.0]);
+    assert_eq!(huge.joints[0].axis, unit.joints[0].axis);
+    assert_eq!(huge.bodies[1].quat, unit.bodies[1].quat);
+}

@@ -280,3 +280,32 @@ fn every_builtin_stays_finite_under_bang_bang_actions() {
         }
     }
 }
+
+/// Values inside the loaders' ranges can still make a body numerically massless (a 1e-6 kg,
+/// 0.1 mm limb without armature under a 1e6 kg torso): the simulator's refusal names the body
+/// and the morphology file (issue 18 item 8; before: "mass matrix not positive definite at
+/// dof 7: a moving body lacks mass or inertia", nothing else).
+#[test]
+fn a_singular_body_is_named_with_its_morphology() {
+    let ant = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/morphologies/ant.txt")).unwrap();
+    let foot = ant.find("name: \"$ Body 4_0\"").unwrap();
+    let mass = foot + ant[foot..].find("mass: 1").unwrap();
+    let mut text = format!("{}mass: 0.000001{}", &ant[..mass], &ant[mass + "mass: 1".len()..]);
+    text = text.replacen("mass: 10", "mass: 1e6", 1);
+    text = text.replacen(
+        "radius: 0.08\n          length: 0.7256854176521301",
+        "radius: 0.0001\n          length: 0.0002",
+        1,
+    );
+    let act = text.find("joint: \"Aux 1_$ Body 4_0\"").unwrap();
+    let strength = act + text[act..].find("strength: 350.0").unwrap();
+    text.replace_range(strength..strength + "strength: 350.0".len(), "strength: 0.0");
+    let dir = std::env::temp_dir().join(format!("envs-singular-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("feather_foot.txt");
+    std::fs::write(&file, text).unwrap();
+    let e = Scene::from_name(&format!("team_reach:agents=ant+{}", file.display())).unwrap_err().to_string();
+    let _ = std::fs::remove_dir_all(&dir);
+    assert!(e.contains("mass matrix not positive definite"), "{e}");
+    assert!(e.contains("body \"a1/$ Body 4_0\"") && e.contains("agent a1") && e.contains("feather_foot.txt"), "{e}");
+}

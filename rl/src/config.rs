@@ -385,6 +385,20 @@ impl TrainConfig {
                 return err(field, &v, "must be at least 1");
             }
         }
+        // TOML integers are signed 64-bit: a larger value is written to config.toml but
+        // cannot be read back, and the run could then neither resume nor be evaluated.
+        for (field, v) in [
+            ("seed", self.seed),
+            ("steps", self.steps),
+            ("epochs", self.epochs as u64),
+            ("num_evals", self.num_evals as u64),
+            ("checkpoint_every", self.checkpoint_every as u64),
+            ("threads", self.threads as u64),
+        ] {
+            if v > i64::MAX as u64 {
+                return err(field, &v, "at most 9223372036854775807 (TOML integers are signed 64-bit)");
+            }
+        }
         if self.num_envs > 1 << 20 {
             return err("num_envs", &self.num_envs, "at most 1048576 environments");
         }
@@ -523,6 +537,30 @@ mod tests {
         assert_eq!(c.model, "mlp_hn");
         let back: TrainConfig = toml::from_str(&c.to_toml()).unwrap();
         assert_eq!(back, c);
+    }
+
+    /// Found by the property test `a_configuration_survives_its_toml_file`: a configuration
+    /// built in Rust with a seed or step count above `i64::MAX` validated, was written to
+    /// config.toml, and could not be read back ("u64 value was too large"), so the run could
+    /// neither resume nor be evaluated. Validation now refuses it, naming the field.
+    #[test]
+    fn integers_beyond_toml_are_refused_before_anything_is_written() {
+        for field in ["seed", "steps", "epochs", "checkpoint_every"] {
+            let mut c = TrainConfig::preset(Preset::Quick, "team_reach/1_ant");
+            match field {
+                "seed" => c.seed = 1 << 63,
+                "steps" => c.steps = u64::MAX,
+                "epochs" => c.epochs = usize::MAX,
+                _ => c.checkpoint_every = usize::MAX,
+            }
+            let e = c.validate("test").unwrap_err().to_string();
+            assert!(e.contains(field) && e.contains("signed 64-bit"), "{e}");
+        }
+        let mut c = TrainConfig::preset(Preset::Quick, "team_reach/1_ant");
+        c.seed = i64::MAX as u64;
+        c.validate("test").unwrap();
+        let back: TrainConfig = toml::from_str(&c.to_toml()).unwrap();
+        assert_eq!(back.seed, i64::MAX as u64);
     }
 
     #[test]

@@ -569,16 +569,20 @@ fn metrics_row(t: &Trainer, s: &IterationStats, wall: f64, sps: f64, evals: &[Ev
 
 /// Keeps the metrics rows of iterations up to `iteration` (a resumed run drops rows written
 /// after its checkpoint), each iteration once and in increasing order (the first row of an
-/// iteration wins), and returns the file's text, with the header of `layout`.
+/// iteration wins), and returns the file's text, with the header of `layout`. Damaged rows
+/// (incomplete, not numbered, or with bytes that are not UTF-8) are dropped one by one: the
+/// file is read as bytes, so one bad byte does not cost the other rows.
 fn metrics_upto(path: &std::path::Path, iteration: u64, layout: &MetricsLayout) -> String {
     let mut out = layout.header();
     out.push('\n');
     let mut last: Option<u64> = None;
-    if let Ok(text) = std::fs::read_to_string(path) {
+    if let Ok(bytes) = std::fs::read(path) {
+        let text = String::from_utf8_lossy(&bytes);
         for line in text.lines().skip(1) {
             let complete = line.split(',').count() == layout.columns().len();
+            let clean = !line.contains(char::REPLACEMENT_CHARACTER);
             match line.split(',').next().and_then(|c| c.parse::<u64>().ok()) {
-                Some(i) if complete && i <= iteration && last.is_none_or(|l| i > l) => {
+                Some(i) if complete && clean && i <= iteration && last.is_none_or(|l| i > l) => {
                     last = Some(i);
                     out.push_str(line);
                     out.push('\n');
@@ -627,6 +631,9 @@ fn train_in_pool(config: &TrainConfig, run: &RunDir, options: &TrainOptions) -> 
         (t, 0.0, Vec::new())
     };
     let total = config.iterations();
+    // Written before a finished run returns too: running the command again repairs a
+    // damaged config.toml, which evaluation and rendering read.
+    config.save(&run.config())?;
     if trainer.iteration >= total
         && let Ok(text) = std::fs::read_to_string(run.done())
         && let Ok(s) = serde_json::from_str::<RunSummary>(&text)
@@ -634,7 +641,6 @@ fn train_in_pool(config: &TrainConfig, run: &RunDir, options: &TrainOptions) -> 
         return Ok(s);
     }
     let _ = std::fs::remove_file(run.done());
-    config.save(&run.config())?;
     let metrics_path = run.metrics();
     let layout = MetricsLayout::new(&config.eval_rotations);
     nn::write_atomic(&metrics_path, metrics_upto(&metrics_path, trainer.iteration, &layout).as_bytes())?;
@@ -719,6 +725,32 @@ mod tests {
         let _ = std::fs::remove_file(&path);
         let kept: Vec<&str> = text.lines().skip(1).map(|l| l.split(',').next().unwrap()).collect();
         assert_eq!(kept, ["1", "2", "3", "4"]);
+    }
+
+    /// Bytes that are not UTF-8 cost only the rows that hold them (before, the whole file
+    /// was unreadable and every row was dropped on resume).
+    #[test]
+    fn a_damaged_metrics_row_costs_only_itself() {
+        let layout = MetricsLayout::new(&[0.0]);
+        let row = |i: u64| {
+            let mut r = MetricsRow::default();
+            r.set("iteration", i as f64);
+            layout.to_csv(&r)
+        };
+        let path = std::env::temp_dir().join(format!("meben-metrics-damaged-{}.csv", std::process::id()));
+        let mut bytes = format!("{}\n{}\n", layout.header(), row(1)).into_bytes();
+        let mut damaged = row(2).into_bytes();
+        damaged[3] = 0xff;
+        bytes.extend_from_slice(&damaged);
+        bytes.extend_from_slice(format!("\n{}\n", row(2)).as_bytes());
+        bytes.extend_from_slice(b"\xfe garbage\n");
+        bytes.extend_from_slice(format!("{}\n", row(3)).as_bytes());
+        std::fs::write(&path, &bytes).unwrap();
+        let text = metrics_upto(&path, 3, &layout);
+        let _ = std::fs::remove_file(&path);
+        let kept: Vec<&str> = text.lines().skip(1).map(|l| l.split(',').next().unwrap()).collect();
+        assert_eq!(kept, ["1", "2", "3"]);
+        assert!(!text.contains(char::REPLACEMENT_CHARACTER));
     }
 
     #[test]

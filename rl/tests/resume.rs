@@ -8,7 +8,7 @@ mod common;
 use rl::checkpoint::Checkpoint;
 use rl::metrics::parse_csv;
 use rl::normalizer::{NormKind, ObsNormalizer};
-use rl::{RunDir, TrainOptions, train};
+use rl::{RunDir, TrainConfig, TrainOptions, train};
 
 /// Metrics without the wall-clock columns.
 fn metrics(run: &RunDir) -> Vec<Vec<(String, f64)>> {
@@ -107,4 +107,42 @@ fn bad_checkpoints_and_changed_configurations_are_refused() {
     let e = train(&shnn, &run, &TrainOptions::default()).unwrap_err().to_string();
     assert!(e.contains("checkpoint.json") && e.contains("model"), "{e}");
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Damaged files other than the checkpoint (issue 18, "a corrupted file"): `metrics.csv`
+/// keeps its good rows when another line holds bytes that are not UTF-8 (before, one such
+/// byte made the whole file unreadable and every earlier row was dropped on resume); a
+/// damaged `config.toml` is refused by evaluation naming the file, and running the training
+/// again rewrites it, also for a finished run (before, a finished run returned without
+/// writing it, so it stayed unreadable); a damaged `done.json` is written again.
+#[test]
+fn damaged_metrics_config_and_done_files_are_repaired_or_refused_by_name() {
+    let dir = common::TempDir::new("damaged-files");
+    let config = common::tiny("team_reach/1_ant", "mlp", 2, &[]);
+    let run = RunDir::new(dir.0.join("run"));
+    train(&config, &run, &TrainOptions { stop_after: Some(1), ..Default::default() }).unwrap();
+    let mut metrics = std::fs::read(run.metrics()).unwrap();
+    let row1 = String::from_utf8(metrics.clone()).unwrap().lines().nth(1).unwrap().to_string();
+    assert!(row1.starts_with("1,"), "{row1}");
+    metrics.extend_from_slice(b"\xff\xfe garbage\n");
+    std::fs::write(run.metrics(), &metrics).unwrap();
+    train(&config, &run, &TrainOptions::default()).unwrap();
+    let text = std::fs::read_to_string(run.metrics()).unwrap();
+    let rows: Vec<&str> = text.lines().skip(1).collect();
+    assert_eq!(rows.len(), 2, "{text}");
+    assert_eq!(rows[0], row1);
+    assert!(rows[1].starts_with("2,"), "{text}");
+
+    // The run is finished; its config.toml is damaged.
+    std::fs::write(run.config(), "env = [broken").unwrap();
+    let e = rl::checkpoint::load_policies(&run).unwrap_err().to_string();
+    assert!(e.contains("config.toml") && e.contains("line 1"), "{e}");
+    assert_eq!(train(&config, &run, &TrainOptions::default()).unwrap().iterations, 2);
+    assert_eq!(TrainConfig::load(&run.config()).unwrap(), config);
+    rl::checkpoint::load_policies(&run).unwrap();
+
+    std::fs::write(run.done(), "{\"iterations\": 2, broken").unwrap();
+    assert_eq!(train(&config, &run, &TrainOptions::default()).unwrap().iterations, 2);
+    let done: rl::RunSummary = serde_json::from_str(&std::fs::read_to_string(run.done()).unwrap()).unwrap();
+    assert_eq!(done.iterations, 2);
 }

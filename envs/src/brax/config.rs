@@ -15,12 +15,16 @@
 //! | joint | `name`, `parent`, `child`, offsets, `rotation`, `reference_rotation`, `angle_limit`, `angular_damping` | `stiffness` | `spring_damping`, `limit_strength` | |
 //! | actuator | `name`, `joint`, `strength`, `torque {}` | | | `angle {}` (position servos) |
 //!
-//! Any other field name is an error, so that typos do not pass silently.
+//! Any other field name is an error, so that typos do not pass silently. Every number is
+//! checked against its physical range ([`crate::limits`]: masses, sizes, offsets, angles,
+//! damping, strengths), so that an absurd value is refused at its line rather than reported
+//! later as a singular mass matrix or a non-finite gradient.
 
 use super::error::{BraxError, Location};
 use super::prototext::{Field, Message, Value};
 use super::rotation::Vec3;
 use std::collections::{HashMap, HashSet};
+use crate::limits::{self, Limit};
 
 /// Top-level fields of Brax v1's `Config` that describe the scene or Brax's own solver
 /// (friction, gravity, time step, ...). The project's simulator sets these itself, so they
@@ -450,11 +454,12 @@ fn read_body(r: &Reader<'_>, field: &Field) -> Result<BodyConfig, BraxError> {
     if mass <= 0.0 {
         return Err(r.bad(mass_field, "mass must be positive"));
     }
+    r.within(mass_field, mass, &Limit { zero: false, ..limits::MASS })?;
     let mut colliders = Vec::new();
     for (i, f) in r.msg.fields_named("colliders").enumerate() {
         colliders.push(read_collider(&r.child(f, "colliders", i)?, f)?);
     }
-    let inertia = r.optional("inertia")?.map(|f| r.vec3(f)).transpose()?;
+    let inertia = r.optional("inertia")?.map(|f| r.vec3(f, &limits::INERTIA)).transpose()?;
     Ok(BodyConfig { name, mass, colliders, inertia, at: TextPos::of(field) })
 }
 
@@ -465,23 +470,23 @@ fn read_collider(r: &Reader<'_>, field: &Field) -> Result<ColliderConfig, BraxEr
         &["material"],
         &["box", "plane", "heightMap", "mesh", "clipped_plane", "no_contact"],
     )?;
-    let position = r.vec3_or_zero("position")?;
-    let rotation = r.vec3_or_zero("rotation")?;
+    let position = r.vec3_or_zero("position", &limits::LENGTH)?;
+    let rotation = r.vec3_or_zero("rotation", &limits::ANGLE_DEGREES)?;
     let sphere = r.optional("sphere")?;
     let capsule = r.optional("capsule")?;
     let shape = match (sphere, capsule) {
         (Some(s), None) => {
             let s = r.child(s, "sphere", 0)?;
             s.check_names(&["radius"], &[], &[])?;
-            let radius = s.positive(s.required("radius")?)?;
+            let radius = s.positive(s.required("radius")?, &limits::SIZE)?;
             ColliderShape::Sphere { radius }
         }
         (None, Some(c)) => {
             let c = r.child(c, "capsule", 0)?;
             c.check_names(&["radius", "length", "end"], &[], &[])?;
-            let radius = c.positive(c.required("radius")?)?;
+            let radius = c.positive(c.required("radius")?, &limits::SIZE)?;
             let length_field = c.required("length")?;
-            let length = c.positive(length_field)?;
+            let length = c.positive(length_field, &limits::SIZE)?;
             if length < 2.0 * radius * (1.0 - 1e-9) {
                 return Err(c.bad(
                     length_field,
@@ -538,9 +543,10 @@ fn read_joint(r: &Reader<'_>, field: &Field) -> Result<JointConfig, BraxError> {
     for (i, f) in r.msg.fields_named("angle_limit").enumerate() {
         let l = r.child(f, "angle_limit", i)?;
         l.check_names(&["min", "max"], &[], &[])?;
-        let min = l.optional("min")?.map(|f| l.number(f)).transpose()?.unwrap_or(0.0);
+        let angle = |f: &Field| l.number(f).and_then(|x| l.within(f, x, &limits::ANGLE_DEGREES));
+        let min = l.optional("min")?.map(angle).transpose()?.unwrap_or(0.0);
         let max_field = l.optional("max")?;
-        let max = max_field.map(|f| l.number(f)).transpose()?.unwrap_or(0.0);
+        let max = max_field.map(angle).transpose()?.unwrap_or(0.0);
         if min > max {
             return Err(l.bad(max_field.unwrap_or(f), &format!("angle limit has min {min} > max {max}")));
         }
@@ -558,16 +564,18 @@ fn read_joint(r: &Reader<'_>, field: &Field) -> Result<JointConfig, BraxError> {
             message,
         });
     }
-    let angular_damping = r.non_negative_or_zero("angular_damping")?;
-    let stiffness = r.non_negative_or_zero("stiffness")?;
+    let angular_damping = r.non_negative_or_zero("angular_damping", &limits::DAMPING)?;
+    // Unused (Brax's joint spring); any finite non-negative value is accepted.
+    let unbounded = Limit { min: 0.0, max: f64::MAX, ..limits::DAMPING };
+    let stiffness = r.non_negative_or_zero("stiffness", &unbounded)?;
     Ok(JointConfig {
         name,
         parent,
         child,
-        parent_offset: r.vec3_or_zero("parent_offset")?,
-        child_offset: r.vec3_or_zero("child_offset")?,
-        rotation: r.vec3_or_zero("rotation")?,
-        reference_rotation: r.vec3_or_zero("reference_rotation")?,
+        parent_offset: r.vec3_or_zero("parent_offset", &limits::LENGTH)?,
+        child_offset: r.vec3_or_zero("child_offset", &limits::LENGTH)?,
+        rotation: r.vec3_or_zero("rotation", &limits::ANGLE_DEGREES)?,
+        reference_rotation: r.vec3_or_zero("reference_rotation", &limits::ANGLE_DEGREES)?,
         angle_limits,
         angular_damping,
         stiffness,
@@ -591,7 +599,7 @@ fn read_actuator(r: &Reader<'_>, field: &Field) -> Result<ActuatorConfig, BraxEr
     if let Some(t) = r.optional("torque")? {
         r.message(t)?;
     }
-    let strength = r.non_negative(r.required("strength")?)?;
+    let strength = r.non_negative(r.required("strength")?, &limits::TORQUE)?;
     Ok(ActuatorConfig { name, joint, strength, at: TextPos::of(field), joint_at })
 }
 
@@ -705,35 +713,46 @@ impl<'a> Reader<'a> {
         }
     }
 
-    fn positive(&self, field: &Field) -> Result<f64, BraxError> {
+    /// `value` (read from `field`) if `limit` accepts it, else an error naming its range.
+    fn within(&self, field: &Field, value: f64, limit: &Limit) -> Result<f64, BraxError> {
+        limit.check(value).map_err(|m| self.bad(field, &m))
+    }
+
+    fn positive(&self, field: &Field, limit: &Limit) -> Result<f64, BraxError> {
         let v = self.number(field)?;
-        if v > 0.0 { Ok(v) } else { Err(self.bad(field, "expected a positive number")) }
+        if v > 0.0 { self.within(field, v, limit) } else { Err(self.bad(field, "expected a positive number")) }
     }
 
-    fn non_negative(&self, field: &Field) -> Result<f64, BraxError> {
+    fn non_negative(&self, field: &Field, limit: &Limit) -> Result<f64, BraxError> {
         let v = self.number(field)?;
-        if v >= 0.0 { Ok(v) } else { Err(self.bad(field, "expected a number >= 0")) }
+        if v >= 0.0 { self.within(field, v, limit) } else { Err(self.bad(field, "expected a number >= 0")) }
     }
 
-    fn non_negative_or_zero(&self, name: &str) -> Result<f64, BraxError> {
-        Ok(self.optional(name)?.map(|f| self.non_negative(f)).transpose()?.unwrap_or(0.0))
+    fn non_negative_or_zero(&self, name: &str, limit: &Limit) -> Result<f64, BraxError> {
+        Ok(self.optional(name)?.map(|f| self.non_negative(f, limit)).transpose()?.unwrap_or(0.0))
     }
 
-    /// A `{ x: .. y: .. z: .. }` message; missing components are 0.
-    fn vec3(&self, field: &'a Field) -> Result<Vec3, BraxError> {
+    /// A `{ x: .. y: .. z: .. }` message, each component within `limit`; missing components
+    /// are 0 (an error, at the message, when `limit` refuses 0).
+    fn vec3(&self, field: &'a Field, limit: &Limit) -> Result<Vec3, BraxError> {
         let v = self.child(field, &field.name, 0)?;
         let v = Reader { path: self.field_path(&field.name), ..v };
         v.check_names(&["x", "y", "z"], &[], &[])?;
         let mut out = [0.0; 3];
         for (k, axis) in ["x", "y", "z"].iter().enumerate() {
-            if let Some(f) = v.optional(axis)? {
-                out[k] = v.number(f)?;
+            match v.optional(axis)? {
+                Some(f) => out[k] = v.within(f, v.number(f)?, limit)?,
+                None => {
+                    if let Err(m) = limit.check(0.0) {
+                        return Err(self.bad(field, &format!("`{axis}` is missing, so 0: {m}")));
+                    }
+                }
             }
         }
         Ok(out)
     }
 
-    fn vec3_or_zero(&self, name: &str) -> Result<Vec3, BraxError> {
-        Ok(self.optional(name)?.map(|f| self.vec3(f)).transpose()?.unwrap_or([0.0; 3]))
+    fn vec3_or_zero(&self, name: &str, limit: &Limit) -> Result<Vec3, BraxError> {
+        Ok(self.optional(name)?.map(|f| self.vec3(f, limit)).transpose()?.unwrap_or([0.0; 3]))
     }
 }

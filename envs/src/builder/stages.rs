@@ -128,8 +128,12 @@ pub(super) fn inertia(
     bodies: &mut [Body],
 ) -> Result<(), ModelError> {
     let mut parts: Vec<Vec<(f64, Vec3, Mat3)>> = vec![Vec::new(); bodies.len()];
-    for ((body, s), g) in geom_specs.iter().zip(geoms) {
+    for (gi, ((body, s), g)) in geom_specs.iter().zip(geoms).enumerate() {
         if let Some((m, ic)) = solid_inertia(&s.shape, s.density, s.mass) {
+            // Finite inputs can still overflow here (density * size^3, mass * size^2).
+            if !(m.is_finite() && ic.iter().flatten().all(|x| x.is_finite())) {
+                return Err(bad(&format!("geom {gi} mass from its density and size"), m));
+            }
             parts[*body].push((m, s.pos, math::rotate_tensor(&g.mat, &ic)));
         }
     }
@@ -146,14 +150,18 @@ pub(super) fn inertia(
                     return Err(bad(&format!("body {i} mass"), *target));
                 }
                 if m <= 0.0 && *target > 0.0 {
-                    return Err(ModelError::Degenerate {
-                        what: format!("body {i} geometry (mass set but no solid geom)"),
-                    });
+                    return Err(bad(&format!("body {i} mass (the body has no solid geom to carry it)"), *target));
                 }
                 let s = if m > 0.0 { target / m } else { 0.0 };
                 b.mass = *target;
                 b.ipos = c;
                 b.inertia = inertia.map(|row| row.map(|x| x * s));
+                if !b.inertia.iter().flatten().all(|x| x.is_finite()) {
+                    return Err(bad(
+                        &format!("body {i} mass (its inertia, scaled from its geoms, overflows)"),
+                        *target,
+                    ));
+                }
             }
             MassOverride::Explicit { mass, com, inertia } => {
                 if !(mass.is_finite() && *mass >= 0.0) {
@@ -230,7 +238,13 @@ pub(super) fn joints(specs: &[JointSpec], bodies: &mut [Body]) -> Result<Joints,
                 ([0.0, 0.0, 1.0], false, [0.0, 0.0])
             }
             JointKind::Hinge => {
-                let axis = math::normalize(h.axis).filter(|a| a.iter().all(|x| x.is_finite()));
+                // Huge components (1e200) overflow the squared norm: such an axis is scaled
+                // by its largest component first. Ordinary axes take the direct path, so
+                // their bits are those of a plain normalisation.
+                let finite_unit = |a: Vec3| math::normalize(a).filter(|u| u.iter().all(|x| x.is_finite()));
+                let big = h.axis.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+                let axis = finite_unit(h.axis)
+                    .or_else(|| (big > 0.0 && big.is_finite()).then(|| math::scale(h.axis, 1.0 / big)).and_then(finite_unit));
                 let axis = axis.ok_or_else(|| ModelError::Degenerate { what: format!("joint {ji} axis") })?;
                 check_vec(&format!("joint {ji} anchor"), h.anchor)?;
                 check_finite(&format!("joint {ji} initial angle"), h.init)?;
@@ -543,9 +557,18 @@ fn unit_quat(what: &str, q: Quat) -> Result<Quat, ModelError> {
     for x in q {
         check_finite(what, x)?;
     }
-    let n = (q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]).sqrt();
-    if n < 1e-12 {
-        return Err(ModelError::Degenerate { what: what.to_string() });
+    let norm = |q: Quat| (q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]).sqrt();
+    let n = norm(q);
+    if n.is_finite() {
+        if n < 1e-12 {
+            return Err(ModelError::Degenerate { what: what.to_string() });
+        }
+        return Ok([q[0] / n, q[1] / n, q[2] / n, q[3] / n]);
     }
+    // The squares of huge components (1e200) overflow: scale by the largest component first
+    // (only then, so that ordinary quaternions keep the bits of the direct path).
+    let big = q.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    let q = q.map(|x| x / big);
+    let n = norm(q);
     Ok([q[0] / n, q[1] / n, q[2] / n, q[3] / n])
 }

@@ -15,7 +15,7 @@ use crate::brax::rotation::{add, quat_rotate};
 use crate::brax::tree::TreeShape;
 use crate::brax::{AgentTree, BraxPhysics, add_agent, brax_options, load_config_file, load_morphology};
 use crate::mjcf_agent::load_agent_file;
-use crate::model::{JointKind, Model};
+use crate::model::{JointKind, Model, ModelError};
 use crate::{BodyId, GeomSpec, ModelBuilder};
 
 /// Radius of the goal and centre balls (m).
@@ -155,7 +155,19 @@ impl Scene {
                 agents.push(layout);
             }
         }
-        let model = builder.build().map_err(|e| TaskError::Model { message: e.to_string() })?;
+        let model = builder.build().map_err(|e| {
+            // Name the morphology of the body the simulator blames (its name starts with the
+            // agent's prefix).
+            let owner = match &e {
+                ModelError::SingularMassMatrix { body, .. } => agents.iter().find(|a| body.starts_with(&a.prefix)),
+                _ => None,
+            };
+            let message = match owner {
+                Some(a) => format!("{e} (agent {}: morphology {:?})", a.prefix.trim_end_matches('/'), a.morphology),
+                None => e.to_string(),
+            };
+            TaskError::Model { message }
+        })?;
         for a in &mut agents {
             let root = &model.bodies[a.root_body];
             let free = &model.joints[root.jnt_adr];
