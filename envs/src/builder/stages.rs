@@ -241,10 +241,10 @@ pub(super) fn joints(specs: &[JointSpec], bodies: &mut [Body]) -> Result<Joints,
                 // Huge components (1e200) overflow the squared norm: such an axis is scaled
                 // by its largest component first. Ordinary axes take the direct path, so
                 // their bits are those of a plain normalisation.
-                let finite_unit = |a: Vec3| math::normalize(a).filter(|u| u.iter().all(|x| x.is_finite()));
                 let big = h.axis.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-                let axis = finite_unit(h.axis)
-                    .or_else(|| (big > 0.0 && big.is_finite()).then(|| math::scale(h.axis, 1.0 / big)).and_then(finite_unit));
+                let overflows = !math::dot(h.axis, h.axis).is_finite() && big.is_finite();
+                let axis = if overflows { math::scale(h.axis, 1.0 / big) } else { h.axis };
+                let axis = math::normalize(axis).filter(|a| a.iter().all(|x| x.is_finite()));
                 let axis = axis.ok_or_else(|| ModelError::Degenerate { what: format!("joint {ji} axis") })?;
                 check_vec(&format!("joint {ji} anchor"), h.anchor)?;
                 check_finite(&format!("joint {ji} initial angle"), h.init)?;
