@@ -15,7 +15,6 @@
 //! Message passing ([`ScalarMp`]): `h = [vec(Z_i), h_i] W + b`, then `steps` rounds of
 //! `m_ij = MLP_e([h_i, h_j, x_j - x_i])`, `m_i = mean_j m_ij`, `h_i += MLP_n([h_i, m_i])`.
 
-use envs::tasks::{N_SCALARS, ObsSpec};
 use nn::{Bound, EdgeList, Linear, Mlp, Scope};
 use tensor::{Activation, Float, Tensor, Var};
 
@@ -25,6 +24,7 @@ use crate::critic::critic_order;
 use crate::entity_graph::GraphBuilder;
 use crate::error::{ModelError, Result};
 use crate::input::{ENTITY_SCALARS, InputProcessor, NODE_VECTORS, ObsBatch, ObsElement};
+use crate::layout::{N_SCALARS, ObsSpec};
 use crate::policy::{AgentPolicy, PolicyOutput};
 
 /// The frame the HNN models express vectors in.

@@ -20,6 +20,7 @@ pub mod error;
 pub mod frame;
 pub mod hnn;
 pub mod input;
+pub mod layout;
 pub mod mlp;
 pub mod policy;
 pub mod shnn;
@@ -32,6 +33,9 @@ pub use critic::{SubeqCritic, ValueHead};
 pub use entity_graph::{EntityGraph, GraphBuilder, GraphTask, NO_AGENT};
 pub use entity_mp::{EntityFeatures, EntityMp, EntityMpConfig};
 pub use error::{ModelError, Result};
-pub use input::{AgentBody, EntityAbstraction, EntityInputs, InputProcessor, NeighbourRows, ObsBatch, Translation};
+pub use input::{AgentBody, EntityAbstraction, EntityInputs, InputProcessor, NeighbourRows, Translation};
+pub use layout::{
+    N_SCALARS, NODE_VECTOR_LEN, NODE_VECTORS, ObsBatch, ObsElement, ObsRows, ObsSpec, Observation, RowWidths,
+};
 pub use policy::{AgentPolicy, MODEL_NAMES, Model, ModelConfig, MpSizes, ParamCounts, PolicyOutput};
 pub use transformer_head::TransformerHead;

@@ -27,7 +27,6 @@
 //! components and the scalars per node; world frame for `mlp`, heading frame and positions
 //! relative to its root for `mlp_hn`), the critic 256 x 3 on every node of the scene.
 
-use envs::tasks::{N_SCALARS, ObsSpec};
 use nn::{Bound, Linear, Mlp, Scope};
 use tensor::{Activation, Float, Tensor, Var};
 
@@ -37,11 +36,12 @@ use crate::critic::critic_order;
 use crate::entity_graph::GraphBuilder;
 use crate::error::{ModelError, Result};
 use crate::input::{InputProcessor, ObsBatch, ObsElement, Translation};
+use crate::layout::{N_SCALARS, NODE_VECTOR_LEN, NODE_VECTORS, ObsSpec};
 use crate::policy::{AgentPolicy, PolicyOutput, split_head};
 use crate::transformer_head::TransformerHead;
 
-/// Per-node features: 9 vector components and the scalars.
-pub const NODE_FEATURES: usize = 9 + N_SCALARS;
+/// Per-node features: the [`NODE_VECTOR_LEN`] vector components and the scalars.
+pub const NODE_FEATURES: usize = NODE_VECTOR_LEN + N_SCALARS;
 /// Width of each of the release MLP's two node embeddings.
 pub const EMBED: usize = 64;
 
@@ -55,7 +55,7 @@ pub(crate) fn push_node<T: Float, S: ObsElement>(
     origin: [f64; 3],
     yaw: Option<(f64, f64)>,
 ) {
-    for k in 0..3 {
+    for k in 0..NODE_VECTORS {
         let mut v = obs.vec3(b, node, k);
         if k == 0 {
             (0..3).for_each(|r| v[r] -= origin[r]);
@@ -87,7 +87,7 @@ struct NodeEmbedding {
 impl NodeEmbedding {
     fn new<T: Float>(s: &mut Scope<'_, T>) -> Result<Self> {
         Ok(Self {
-            z: Linear::new(&mut s.sub("embed_z"), 9, EMBED)?,
+            z: Linear::new(&mut s.sub("embed_z"), NODE_VECTOR_LEN, EMBED)?,
             h: Linear::new(&mut s.sub("embed_h"), N_SCALARS, EMBED)?,
         })
     }
@@ -121,7 +121,9 @@ impl NodeEmbedding {
             Some(b) => p.get(b),
             None => tape.constant(Tensor::zeros(&[out])),
         };
-        for (k, (emb, lo, width)) in [(&self.z, 0, 9), (&self.h, 9, N_SCALARS)].into_iter().enumerate() {
+        for (k, (emb, lo, width)) in
+            [(&self.z, 0, NODE_VECTOR_LEN), (&self.h, NODE_VECTOR_LEN, N_SCALARS)].into_iter().enumerate()
+        {
             // W_r for every row: [R, 64, out]; E [1, width, 64]; E W_r: [R, width, out].
             let wr = w.narrow(0, k * EMBED * r, EMBED * r)?.reshape(&[r, EMBED, out])?;
             let e = p.get(emb.weight).reshape(&[1, width, EMBED])?;

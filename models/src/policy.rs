@@ -36,7 +36,6 @@
 //! columns of team 1's model are swapped to `[own, opponent, centre]`
 //! ([`ObsSpec::to_team_view`]; the raw observation is team 0's view).
 
-use envs::tasks::{ObsSpec, Observation};
 use nn::{Bound, Mlp, ParamStore, Scope, TransformerConfig};
 use tensor::{Activation, Float, Var};
 
@@ -50,7 +49,9 @@ use crate::entity_graph::GraphBuilder;
 use crate::entity_mp::{EntityMp, EntityMpConfig};
 use crate::error::{ModelError, Result};
 use crate::hnn::{Hnn, HnnFrame, ScalarMpSizes};
-use crate::input::{InputProcessor, ObsBatch, ObsElement, Translation};
+use crate::input::{InputProcessor, Translation};
+use crate::layout::{ObsBatch, ObsElement, ObsRows};
+use crate::layout::{ObsSpec, Observation};
 use crate::mlp::{FlatMlp, ReleaseMlp, no_assignment};
 use crate::shnn::{Critic, FrameKind, Heads, Shnn};
 use crate::transformer_head::TransformerHead;
@@ -201,7 +202,7 @@ impl Model {
                 };
                 // Rows of eq. (lrf): the agent's own nodes and its neighbours'.
                 let slots = if neighbour == NeighbourOffset::None { 0 } else { graph.slots() };
-                let row = 3 * channels + envs::tasks::N_SCALARS;
+                let row = 3 * channels + crate::layout::N_SCALARS;
                 let mut actor = s.sub("actor");
                 let heads = if gnn {
                     let cfg = BodyGnnConfig {
@@ -387,18 +388,16 @@ impl Model {
 
     /// Policy and value for a batch of environment observations.
     pub fn forward<'t, T: Float>(&mut self, p: &Bound<'t, T>, obs: &Observation) -> Result<PolicyOutput<'t, T>> {
-        self.forward_batch(p, &ObsBatch::from_observation(obs), &obs.heading)
+        self.forward_batch(p, &obs.rows())
     }
 
-    /// Policy and value for borrowed observation arrays (`f32` or `f64`) and the agents'
-    /// headings `[B, A]` ([`Observation::heading`]).
+    /// Policy and value for borrowed observation rows (`f32` or `f64`).
     pub fn forward_batch<'t, T: Float, S: ObsElement>(
         &mut self,
         p: &Bound<'t, T>,
-        obs: &ObsBatch<'_, S>,
-        heading: &[S],
+        obs: &ObsRows<'_, S>,
     ) -> Result<PolicyOutput<'t, T>> {
-        self.forward_batch_with(p, obs, heading, None)
+        self.forward_batch_with(p, obs, None)
     }
 
     /// [`Model::forward_batch`] with the task assignment of every scene given (`[B *
@@ -407,11 +406,10 @@ impl Model {
     pub fn forward_batch_with<'t, T: Float, S: ObsElement>(
         &mut self,
         p: &Bound<'t, T>,
-        obs: &ObsBatch<'_, S>,
-        heading: &[S],
+        obs: &ObsRows<'_, S>,
         assignment: Option<&[u32]>,
     ) -> Result<PolicyOutput<'t, T>> {
-        self.forward_parts(p, obs, heading, assignment, true)
+        self.forward_parts(p, obs, assignment, true)
     }
 
     /// [`Model::forward_batch`] without the value network (`PolicyOutput::value` is `None`):
@@ -421,40 +419,39 @@ impl Model {
     pub fn forward_policy_batch<'t, T: Float, S: ObsElement>(
         &mut self,
         p: &Bound<'t, T>,
-        obs: &ObsBatch<'_, S>,
-        heading: &[S],
+        obs: &ObsRows<'_, S>,
     ) -> Result<PolicyOutput<'t, T>> {
-        self.forward_parts(p, obs, heading, None, false)
+        self.forward_parts(p, obs, None, false)
     }
 
     fn forward_parts<'t, T: Float, S: ObsElement>(
         &mut self,
         p: &Bound<'t, T>,
-        obs: &ObsBatch<'_, S>,
-        heading: &[S],
+        rows: &ObsRows<'_, S>,
         assignment: Option<&[u32]>,
         with_value: bool,
     ) -> Result<PolicyOutput<'t, T>> {
-        let nb = obs.batch;
-        if obs.nodes != self.spec.n_nodes || nb == 0 || heading.len() != nb * self.spec.n_agents {
+        let (nb, heading) = (rows.len(), rows.heading);
+        if rows.nodes != self.spec.n_nodes || rows.agents != self.spec.n_agents || nb == 0 {
             return Err(ModelError::Input(format!(
                 "observations of {nb} x {} nodes with {} headings for a scene of {} nodes and {} agents",
-                obs.nodes,
+                rows.nodes,
                 heading.len(),
                 self.spec.n_nodes,
                 self.spec.n_agents
             )));
         }
+        let obs = rows.node_batch();
         // Team Sumo's team 1 reads the entity types from its own view (own team, opponent,
         // centre; the release's Sumo observer): the raw observation is team 0's.
         let viewed: Vec<S>;
         let obs = &if self.team > 0 {
             let mut s = obs.scalars.to_vec();
-            self.spec.to_team_view(self.team, &mut s).map_err(|e| ModelError::Input(e.to_string()))?;
+            self.spec.to_team_view(self.team, &mut s)?;
             viewed = s;
             ObsBatch::new(nb, obs.nodes, obs.vectors, &viewed)?
         } else {
-            *obs
+            obs
         };
         match &mut self.arch {
             Arch::Shnn(m) => m.forward(p, obs, &self.agents, &self.spec, assignment, with_value),

@@ -20,7 +20,6 @@
 //! `shnn_og3` reads the bodies in `O_i = Z'_i` (`m` channels, no orthogonalisation),
 //! `shnn_so3` has no gravity channel anywhere.
 
-use envs::tasks::{N_SCALARS, ObsSpec};
 use nn::{Bound, Mlp};
 use tensor::Float;
 
@@ -32,6 +31,7 @@ use crate::entity_mp::EntityMp;
 use crate::error::{ModelError, Result};
 use crate::frame::to_frame;
 use crate::input::{InputProcessor, ObsBatch, ObsElement};
+use crate::layout::{N_SCALARS, ObsSpec};
 use crate::policy::{AgentPolicy, PolicyOutput, split_head};
 use crate::transformer_head::TransformerHead;
 

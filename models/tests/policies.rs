@@ -11,6 +11,7 @@ use std::cell::RefCell;
 
 use envs::tasks::{BUILTIN_NAMES, ObsSpec, StartMode, VecEnv};
 use models::input::{InputProcessor, ObsBatch};
+use models::layout::{N_SCALARS, NODE_VECTOR_LEN, ObsRows};
 use models::policy::MODEL_NAMES;
 use models::{
     AssignmentMethod, EntityAbstraction, GraphBuilder, Model, ModelConfig, MpSizes, PolicyOutput, Translation,
@@ -74,8 +75,8 @@ fn flatten<T: tensor::Float>(out: &PolicyOutput<'_, T>) -> Vec<f64> {
 fn run(model: &mut Model, store: &ParamStore<f64>, spec: &ObsSpec, v: &[f64], s: &[f64], h: &[f64]) -> Vec<f64> {
     let tape = Tape::new();
     let p = store.bind(&tape);
-    let obs = ObsBatch::new(v.len() / (spec.n_nodes * 9), spec.n_nodes, v, s).unwrap();
-    flatten(&model.forward_batch(&p, &obs, h).unwrap())
+    let obs = ObsRows::new(spec.n_nodes, spec.n_agents, v, s, h).unwrap();
+    flatten(&model.forward_batch(&p, &obs).unwrap())
 }
 
 #[test]
@@ -223,7 +224,7 @@ fn forward_on_every_builtin_environment_for_every_model() {
                 assert!(out.team_value().unwrap().value().all_finite(), "{name} on {env}");
                 // Acting skips the value network and gets the same policy, to the bit.
                 let obs = venv.obs();
-                let acting = model.forward_policy_batch(&p, &ObsBatch::from_observation(obs), &obs.heading).unwrap();
+                let acting = model.forward_policy_batch(&p, &obs.rows()).unwrap();
                 assert!(acting.value.is_none() && acting.team_value().is_err(), "{name} on {env}");
                 assert_eq!(acting.assignment, out.assignment, "{name} on {env}");
                 for (x, y) in out.agents.iter().zip(&acting.agents) {
@@ -252,15 +253,10 @@ fn tiny(name: &str) -> ModelConfig {
 }
 
 /// Policy and value of `model` with the parameters `v` (store order) as tape inputs.
-fn whole<'t>(
-    model: &RefCell<Model>,
-    obs: &ObsBatch<'_, f64>,
-    heading: &[f64],
-    v: &[Var<'t, f64>],
-) -> tensor::Result<Var<'t, f64>> {
+fn whole<'t>(model: &RefCell<Model>, obs: &ObsRows<'_, f64>, v: &[Var<'t, f64>]) -> tensor::Result<Var<'t, f64>> {
     let tape = v[0].tape();
     let p = Bound::from_vars(v.to_vec());
-    let out = model.borrow_mut().forward_batch(&p, obs, heading).expect("forward");
+    let out = model.borrow_mut().forward_batch(&p, obs).expect("forward");
     let flat = |x: Var<'t, f64>| x.reshape(&[x.value().numel()]);
     let mut parts = Vec::new();
     for a in &out.agents {
@@ -282,14 +278,14 @@ fn gradients_through_whole_small_shnn_shgnn_and_hnn_dn() {
         let (spec, vectors, scalars, heading) = observations(env, 2, 21);
         let (store, model) = build(&tiny(name), &spec, team, 9);
         let model = RefCell::new(model);
-        let obs = ObsBatch::new(2, spec.n_nodes, &vectors[..], &scalars[..]).unwrap();
+        let obs = ObsRows::new(spec.n_nodes, spec.n_agents, &vectors[..], &scalars[..], &heading[..]).unwrap();
         let params: Vec<Tensor<f64>> = store.values().to_vec();
-        let report = check_gradients(|_, v| whole(&model, &obs, &heading, v), &params).unwrap();
+        let report = check_gradients(|_, v| whole(&model, &obs, v), &params).unwrap();
         assert_eq!(report.checked, store.num_elements(), "{env}");
         // The check can fail: a term the tape does not see is caught.
         let wrong = check_gradients(
             |_, v| {
-                let y = whole(&model, &obs, &heading, v)?;
+                let y = whole(&model, &obs, v)?;
                 y.add(v[0].detach().square().sum_all())
             },
             &params,
@@ -566,8 +562,8 @@ fn sumo_team_1_sees_the_scene_from_its_own_side() {
     };
     // Vectors and the physical scalars move with the agents; the entity-type columns are the
     // raw observation's (team 0's view) of the swapped scene.
-    let sv = swap_nodes(&vectors, 9, 0);
-    let ss = swap_nodes(&scalars, 10, 3);
+    let sv = swap_nodes(&vectors, NODE_VECTOR_LEN, 0);
+    let ss = swap_nodes(&scalars, N_SCALARS, 3);
     let sh: Vec<f64> = heading.chunks(4).flat_map(|h| [h[2], h[3], h[0], h[1]]).collect();
     for name in ["shnn", "mlp_hn", "shgnn"] {
         let (s0, mut m0) = build(&ModelConfig::new(name), &spec, 0, 6);

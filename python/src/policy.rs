@@ -93,7 +93,8 @@ impl PyPolicy {
         let mut actions = vec![0.0f32; b * self.n_actions];
         let (teams, models, noise, spec, scratch) =
             (&self.teams, &mut self.models, &mut self.noise, &self.spec, &mut self.scratch);
-        let raw = (vectors.as_slice(), scalars.as_slice(), head.as_slice());
+        let raw = models::ObsRows::new(n, a, vectors.as_slice(), scalars.as_slice(), head.as_slice())
+            .map_err(|e| bad_argument("obs", "arrays".to_string(), &e.to_string()))?;
         py.detach(|| {
             let (mut u, mut logp) = (vec![0.0f32; actions.len()], vec![0.0f32; b]);
             for (k, team) in teams.iter().enumerate() {

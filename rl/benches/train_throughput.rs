@@ -82,15 +82,15 @@ fn minibatch_flops(t: &Trainer, c: &TrainConfig, reps: usize) -> Result<(u64, f6
     t.rollout().gather(&ids, 0, &mut mb);
     let spec = &t.spec;
     let team = &t.teams[0];
-    let (mut v, mut s) = (Vec::new(), Vec::new());
-    team.norm.apply(&mb.vectors, &mb.scalars, &mut v, &mut s);
+    let mut obs = models::layout::Observation::empty(0, 0);
+    team.norm.apply_rows(mb.obs.rows(), &mut obs);
     let hp = PpoParams::from_config(c);
     // One forward-and-backward pass of the minibatch on `tape`.
     let pass = |tape: &Tape<f32>| -> Result<(), Box<dyn std::error::Error>> {
         let p = team.store.bind(tape);
         let mut model = team.model.clone();
         let mut noise = rl::seeding::minibatch_stream(c.seed, "entropy", 0, 0, 0, 0);
-        let (loss, _) = ppo_loss(&mut model, spec, &p, &mb.view(&v, &s), &hp, &mut noise)?;
+        let (loss, _) = ppo_loss(&mut model, spec, &p, &mb.view(obs.rows()), &hp, &mut noise)?;
         std::hint::black_box(tape.backward(loss)?);
         Ok(())
     };

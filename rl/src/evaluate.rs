@@ -122,7 +122,7 @@ pub fn evaluate(env: &str, teams: &[Team], options: &EvalOptions) -> Result<Eval
                 &team.store,
                 &team.norm,
                 &obs_spec,
-                (&o.vectors, &o.scalars, &o.heading),
+                o.rows(),
                 mode,
                 &mut noise[k],
                 &mut actions,

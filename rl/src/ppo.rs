@@ -25,7 +25,7 @@
 
 use envs::tasks::ObsSpec;
 use models::distribution::{normal_entropy, normal_log_prob, std_from_scale, tanh_normal_entropy};
-use models::{Model, ObsBatch};
+use models::{Model, ObsRows};
 use nn::Bound;
 use rand_chacha::ChaCha8Rng;
 use tensor::{Tensor, Var};
@@ -73,12 +73,8 @@ pub struct Minibatch<'a> {
     pub steps: usize,
     /// Unrolls `M`.
     pub unrolls: usize,
-    /// Observation rows `(T + 1) M + K` (K truncated transitions), `[R, N, 3, 3]`.
-    pub vectors: &'a [f32],
-    /// `[R, N, N_SCALARS]`.
-    pub scalars: &'a [f32],
-    /// `[R, A]` agent headings.
-    pub heading: &'a [f32],
+    /// Normalised observation rows `(T + 1) M + K` (K truncated transitions).
+    pub obs: ObsRows<'a, f32>,
     /// `[T M, n_actions]` pre-squash actions of every agent (the scene's action layout).
     pub actions: &'a [f32],
     /// `[T M]` the team's behaviour log-probabilities.
@@ -133,30 +129,24 @@ pub fn ppo_loss<'t>(
     let tape = p.tape();
     let (t_len, m) = (mb.steps, mb.unrolls);
     let n = t_len * m;
-    let rows = mb.heading.len() / spec.n_agents.max(1);
-    let all = ObsBatch::new(rows, spec.n_nodes, mb.vectors, mb.scalars)?;
-    if rows <= n {
-        return Err(
-            models::ModelError::Input(format!("{rows} observation rows for {n} transitions (needs more)")).into()
-        );
+    let rows = mb.obs.len();
+    if rows <= n || mb.obs.nodes != spec.n_nodes || mb.obs.agents != spec.n_agents {
+        return Err(models::ModelError::Input(format!(
+            "{rows} observation rows of {} nodes and {} agents for {n} transitions of a scene of {} nodes and {} \
+             agents (needs more rows)",
+            mb.obs.nodes, mb.obs.agents, spec.n_nodes, spec.n_agents
+        ))
+        .into());
     }
-    // Rows r0..r1 of the observations and headings.
-    let slice = |r0: usize, r1: usize| -> Result<(ObsBatch<'_, f32>, &[f32])> {
-        let (nv, ns, na) = (all.vectors.len() / rows, all.scalars.len() / rows, spec.n_agents);
-        let obs = ObsBatch::new(r1 - r0, spec.n_nodes, &all.vectors[r0 * nv..r1 * nv], &all.scalars[r0 * ns..r1 * ns])?;
-        Ok((obs, &mb.heading[r0 * na..r1 * na]))
-    };
     // The transitions on the tape; the rows that only bootstrap the returns (the state after
     // each unroll, final observations of truncated episodes) in a no-grad pass: their values
     // are constants of the loss, so their share of the backward pass would be products with
     // zero gradients.
-    let (obs, heading) = slice(0, n)?;
     let assigned = if mb.assignment.is_empty() { None } else { Some(mb.assignment) };
-    let out = model.forward_batch_with(p, &obs, heading, assigned)?;
+    let out = model.forward_batch_with(p, &mb.obs.slice(0..n), assigned)?;
     let bootstrap = {
         let _no_grad = tape.no_grad();
-        let (obs, heading) = slice(n, rows)?;
-        model.forward_batch(p, &obs, heading)?.team_value()?.value()
+        model.forward_batch(p, &mb.obs.slice(n..rows))?.team_value()?.value()
     };
 
     // GAE from the current critic, held constant.

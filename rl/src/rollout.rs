@@ -8,7 +8,8 @@
 //! assignment at random keeps the assignment each transition was acted on
 //! ([`Rollout::assignment`]), so that the update sees the same entity graph.
 
-use envs::tasks::{N_SCALARS, Observation, StepOutput};
+use envs::tasks::StepOutput;
+use models::layout::{ObsRows, Observation, RowWidths};
 
 use crate::ppo::Minibatch;
 
@@ -32,12 +33,8 @@ pub struct Rollout {
     pub n_actions: usize,
     /// Teams.
     pub teams: usize,
-    /// `[U (T + 1) E, N, 3, 3]`.
-    pub vectors: Vec<f32>,
-    /// `[U (T + 1) E, N, N_SCALARS]`.
-    pub scalars: Vec<f32>,
-    /// `[U (T + 1) E, A]`.
-    pub heading: Vec<f32>,
+    /// `U (T + 1) E` raw observation rows.
+    pub obs: Observation,
     /// `[U T E, n_actions]` pre-squash actions.
     pub actions: Vec<f32>,
     /// `[U T E, teams]` behaviour log-probabilities.
@@ -48,14 +45,10 @@ pub struct Rollout {
     pub terminated: Vec<bool>,
     /// `[U T E]`.
     pub truncated: Vec<bool>,
-    /// `[U T E]` index into the final observations, or [`NO_FINAL`].
+    /// `[U T E]` row of [`Rollout::finals`], or [`NO_FINAL`].
     pub final_index: Vec<u32>,
-    /// Final observations of truncated transitions.
-    pub final_vectors: Vec<f32>,
-    /// Their scalars.
-    pub final_scalars: Vec<f32>,
-    /// Their headings.
-    pub final_heading: Vec<f32>,
+    /// Final observations of truncated transitions, one row each.
+    pub finals: Observation,
     /// Per team, the assignment width (entries per transition; 0: not stored).
     pub assignment_width: Vec<usize>,
     /// Per team, `[U T E, width]` the task assignment each transition was acted on.
@@ -63,14 +56,10 @@ pub struct Rollout {
 }
 
 /// A gathered minibatch of one team (owned arrays behind a [`Minibatch`]).
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug)]
 pub struct MinibatchBuf {
     /// Raw observation rows `(T + 1) M + K`.
-    pub vectors: Vec<f32>,
-    /// Their scalars.
-    pub scalars: Vec<f32>,
-    /// Their headings.
-    pub heading: Vec<f32>,
+    pub obs: Observation,
     /// `[T M, n_actions]`.
     pub actions: Vec<f32>,
     /// `[T M]`.
@@ -91,15 +80,31 @@ pub struct MinibatchBuf {
     pub steps: usize,
 }
 
+impl Default for MinibatchBuf {
+    fn default() -> Self {
+        Self {
+            obs: Observation::empty(0, 0),
+            actions: Vec::new(),
+            logp_old: Vec::new(),
+            rewards: Vec::new(),
+            terminated: Vec::new(),
+            truncated: Vec::new(),
+            final_row: Vec::new(),
+            assignment: Vec::new(),
+            unrolls: 0,
+            steps: 0,
+        }
+    }
+}
+
 impl MinibatchBuf {
-    /// The minibatch with normalised observation arrays `vectors`, `scalars` (same rows).
-    pub fn view<'a>(&'a self, vectors: &'a [f32], scalars: &'a [f32]) -> Minibatch<'a> {
+    /// The minibatch with normalised observation rows `obs` (the same rows as
+    /// [`MinibatchBuf::obs`]).
+    pub fn view<'a>(&'a self, obs: ObsRows<'a, f32>) -> Minibatch<'a> {
         Minibatch {
             steps: self.steps,
             unrolls: self.unrolls,
-            vectors,
-            scalars,
-            heading: &self.heading,
+            obs,
             actions: &self.actions,
             logp_old: &self.logp_old,
             rewards: &self.rewards,
@@ -124,7 +129,8 @@ impl Rollout {
         let (blocks, steps, envs) = (blocks as u128, steps as u128, envs as u128);
         let rows = blocks.checked_mul(steps + 1)?.checked_mul(envs)?;
         let tr = blocks.checked_mul(steps)?.checked_mul(envs)?;
-        let per_row = 4 * (obs.nodes as u128 * (9 + N_SCALARS as u128) + obs.agents as u128);
+        let w = obs.row_widths();
+        let per_row = 4 * (w.vectors as u128 + w.scalars as u128 + w.heading as u128);
         let per_tr = 4 * (n_actions as u128 + 2 * teams as u128) + 2 + 4 + 8 * teams as u128;
         rows.checked_mul(per_row)?.checked_add(tr.checked_mul(per_tr)?)
     }
@@ -151,18 +157,21 @@ impl Rollout {
             agents,
             n_actions,
             teams,
-            vectors: vec![0.0; rows * nodes * 9],
-            scalars: vec![0.0; rows * nodes * N_SCALARS],
-            heading: vec![0.0; rows * agents],
+            obs: Observation {
+                batch: rows,
+                nodes,
+                agents,
+                vectors: vec![0.0; rows * RowWidths::new(nodes, agents).vectors],
+                scalars: vec![0.0; rows * RowWidths::new(nodes, agents).scalars],
+                heading: vec![0.0; rows * agents],
+            },
             actions: vec![0.0; tr * n_actions],
             logp: vec![0.0; tr * teams],
             rewards: vec![0.0; tr * teams],
             terminated: vec![false; tr],
             truncated: vec![false; tr],
             final_index: vec![NO_FINAL; tr],
-            final_vectors: Vec::new(),
-            final_scalars: Vec::new(),
-            final_heading: Vec::new(),
+            finals: Observation::empty(nodes, agents),
             assignment: assignment_width.iter().map(|&w| vec![0; tr * w]).collect(),
             assignment_width: assignment_width.to_vec(),
         }
@@ -181,9 +190,7 @@ impl Rollout {
 
     /// Forgets the final observations of the previous iteration.
     pub fn clear_finals(&mut self) {
-        self.final_vectors.clear();
-        self.final_scalars.clear();
-        self.final_heading.clear();
+        self.finals.clear();
         self.final_index.iter_mut().for_each(|x| *x = NO_FINAL);
     }
 
@@ -200,25 +207,19 @@ impl Rollout {
     /// Copies all environments' observations into rows `(b, t, *)`.
     pub fn store_obs(&mut self, b: usize, t: usize, obs: &Observation) {
         let r = self.obs_row(b, t);
-        let (nv, ns, na) = (self.nodes * 9, self.nodes * N_SCALARS, self.agents);
-        let e = self.envs;
-        self.vectors[r * nv..(r + e) * nv].copy_from_slice(&obs.vectors);
-        self.scalars[r * ns..(r + e) * ns].copy_from_slice(&obs.scalars);
-        self.heading[r * na..(r + e) * na].copy_from_slice(&obs.heading);
+        self.obs.write_rows(r, obs.rows());
     }
 
-    /// The raw observation arrays of rows `(b, t, *)`.
-    pub fn obs(&self, b: usize, t: usize) -> (&[f32], &[f32], &[f32]) {
+    /// The raw observation rows `(b, t, *)`.
+    pub fn obs(&self, b: usize, t: usize) -> ObsRows<'_, f32> {
         let r = self.obs_row(b, t);
-        let (nv, ns, na) = (self.nodes * 9, self.nodes * N_SCALARS, self.agents);
-        let e = self.envs;
-        (&self.vectors[r * nv..(r + e) * nv], &self.scalars[r * ns..(r + e) * ns], &self.heading[r * na..(r + e) * na])
+        self.obs.rows().slice(r..r + self.envs)
     }
 
     /// Records the outcome of step `(b, t)`: scaled rewards, ends, final observations.
     pub fn store_step(&mut self, b: usize, t: usize, out: &StepOutput, reward_scaling: f32) {
         let tr = self.transition(b, t);
-        let (nv, ns, na, nt) = (self.nodes * 9, self.nodes * N_SCALARS, self.agents, self.teams);
+        let nt = self.teams;
         for e in 0..self.envs {
             let i = tr + e;
             for k in 0..nt {
@@ -227,11 +228,8 @@ impl Rollout {
             self.terminated[i] = out.terminated[e];
             self.truncated[i] = out.truncated[e];
             if out.truncated[e] && !out.terminated[e] {
-                self.final_index[i] = (self.final_heading.len() / na.max(1)) as u32;
-                let f = &out.final_obs;
-                self.final_vectors.extend_from_slice(&f.vectors[e * nv..(e + 1) * nv]);
-                self.final_scalars.extend_from_slice(&f.scalars[e * ns..(e + 1) * ns]);
-                self.final_heading.extend_from_slice(&f.heading[e * na..(e + 1) * na]);
+                self.final_index[i] = self.finals.batch as u32;
+                self.finals.push_rows(out.final_obs.rows().slice(e..e + 1));
             } else {
                 self.final_index[i] = NO_FINAL;
             }
@@ -239,26 +237,21 @@ impl Rollout {
     }
 
     /// Observation rows of the iteration without the rows after each block: what the
-    /// normaliser is updated with. Returns (vectors, scalars) slices per block.
-    pub fn visited_obs(&self) -> Vec<(&[f32], &[f32])> {
-        let (nv, ns) = (self.nodes * 9, self.nodes * N_SCALARS);
-        (0..self.blocks)
-            .map(|b| {
-                let (r0, r1) = (self.obs_row(b, 0), self.obs_row(b, self.steps));
-                (&self.vectors[r0 * nv..r1 * nv], &self.scalars[r0 * ns..r1 * ns])
-            })
-            .collect()
+    /// normaliser is updated with, one slice of rows per block.
+    pub fn visited_obs(&self) -> Vec<ObsRows<'_, f32>> {
+        (0..self.blocks).map(|b| self.obs.rows().slice(self.obs_row(b, 0)..self.obs_row(b, self.steps))).collect()
     }
 
     /// Gathers team `team`'s minibatch of unrolls `ids` (unroll `q` is block `q / E`,
     /// environment `q % E`) into `mb`, time-major (module docs of [`crate::ppo`]).
     pub fn gather(&self, ids: &[usize], team: usize, mb: &mut MinibatchBuf) {
         let (t_len, m, e_n) = (self.steps, ids.len(), self.envs);
-        let (nv, ns, na, nt, nact) = (self.nodes * 9, self.nodes * N_SCALARS, self.agents, self.teams, self.n_actions);
+        let (nt, nact) = (self.teams, self.n_actions);
         mb.unrolls = m;
         mb.steps = t_len;
-        for v in [&mut mb.vectors, &mut mb.scalars, &mut mb.heading, &mut mb.actions, &mut mb.logp_old, &mut mb.rewards]
-        {
+        mb.obs.clear();
+        (mb.obs.nodes, mb.obs.agents) = (self.nodes, self.agents);
+        for v in [&mut mb.actions, &mut mb.logp_old, &mut mb.rewards] {
             v.clear();
         }
         mb.terminated.clear();
@@ -269,9 +262,7 @@ impl Rollout {
         for t in 0..=t_len {
             for &q in ids {
                 let r = self.obs_row(q / e_n, t) + q % e_n;
-                mb.vectors.extend_from_slice(&self.vectors[r * nv..(r + 1) * nv]);
-                mb.scalars.extend_from_slice(&self.scalars[r * ns..(r + 1) * ns]);
-                mb.heading.extend_from_slice(&self.heading[r * na..(r + 1) * na]);
+                mb.obs.push_rows(self.obs.rows().slice(r..r + 1));
             }
         }
         let mut next_row = ((t_len + 1) * m) as u32;
@@ -289,9 +280,7 @@ impl Rollout {
                     mb.final_row.push(NO_FINAL);
                 } else {
                     let f = f as usize;
-                    mb.vectors.extend_from_slice(&self.final_vectors[f * nv..(f + 1) * nv]);
-                    mb.scalars.extend_from_slice(&self.final_scalars[f * ns..(f + 1) * ns]);
-                    mb.heading.extend_from_slice(&self.final_heading[f * na..(f + 1) * na]);
+                    mb.obs.push_rows(self.finals.rows().slice(f..f + 1));
                     mb.final_row.push(next_row);
                     next_row += 1;
                 }

@@ -2,9 +2,9 @@
 //! normaliser and random streams (MEBEN.md section 8: every agent and team has its own
 //! action-noise stream), and the act step shared by collection, evaluation and rendering.
 
-use envs::tasks::ObsSpec;
 use models::distribution::{normal_log_prob, std_from_scale};
-use models::{Model, ModelConfig, ObsBatch};
+use models::layout::{ObsRows, ObsSpec, Observation};
+use models::{Model, ModelConfig};
 use nn::{Adam, AdamConfig, LrSchedule, ParamStore};
 use rand_chacha::ChaCha8Rng;
 use tensor::{Tape, Tensor};
@@ -77,10 +77,15 @@ pub fn lr_schedule(config: &TrainConfig) -> LrSchedule {
 }
 
 /// Reusable buffers of [`act`].
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug)]
 pub struct ActScratch {
-    vectors: Vec<f32>,
-    scalars: Vec<f32>,
+    normalised: Observation,
+}
+
+impl Default for ActScratch {
+    fn default() -> Self {
+        Self { normalised: Observation::empty(0, 0) }
+    }
 }
 
 /// Chooses the actions of one team's agents for a batch of raw observations: normalises
@@ -96,7 +101,7 @@ pub fn act(
     store: &ParamStore<f32>,
     norm: &ObsNormalizer,
     spec: &ObsSpec,
-    raw: (&[f32], &[f32], &[f32]),
+    raw: ObsRows<'_, f32>,
     mode: ActMode,
     noise: &mut [ChaCha8Rng],
     actions: &mut [f32],
@@ -104,17 +109,15 @@ pub fn act(
     logp: &mut [f32],
     scratch: &mut ActScratch,
 ) -> Result<Vec<u32>> {
-    let (vectors, scalars, heading) = raw;
-    let b = heading.len() / spec.n_agents.max(1);
+    let b = raw.len();
     let na = actions.len() / b.max(1);
-    norm.apply(vectors, scalars, &mut scratch.vectors, &mut scratch.scalars);
+    norm.apply_rows(raw, &mut scratch.normalised);
     let tape = Tape::<f32>::new();
     let _no_grad = tape.no_grad();
     let p = store.bind(&tape);
-    let obs = ObsBatch::new(b, spec.n_nodes, &scratch.vectors, &scratch.scalars)?;
     // Acting reads the policy only (the update recomputes values from the stored
     // observations): the value network is skipped.
-    let out = model.forward_policy_batch(&p, &obs, heading)?;
+    let out = model.forward_policy_batch(&p, &scratch.normalised.rows())?;
     logp.iter_mut().for_each(|x| *x = 0.0);
     for (ai, pol) in out.agents.iter().enumerate() {
         let (off, dof) = (spec.agent_action_offset[pol.agent], spec.agent_dof[pol.agent]);
@@ -184,7 +187,7 @@ pub fn record_episode(
                 &t.store,
                 &t.norm,
                 &spec,
-                (&obs.vectors, &obs.scalars, &obs.heading),
+                obs.rows(),
                 mode,
                 &mut noise[k],
                 actions,

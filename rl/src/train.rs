@@ -23,7 +23,8 @@
 use std::io::Write;
 use std::time::Instant;
 
-use envs::tasks::{ObsSpec, Outcome, TaskKind, TaskSpec, VecEnv};
+use envs::tasks::{Outcome, TaskKind, TaskSpec, VecEnv};
+use models::layout::{ObsSpec, Observation};
 use serde::{Deserialize, Serialize};
 use tensor::Tape;
 
@@ -145,8 +146,7 @@ pub struct Trainer {
     logp: Vec<f32>,
     scratch: ActScratch,
     mb: MinibatchBuf,
-    norm_v: Vec<f32>,
-    norm_s: Vec<f32>,
+    normalised: Observation,
 }
 
 impl Trainer {
@@ -213,8 +213,7 @@ impl Trainer {
             logp: vec![0.0; config.num_envs],
             scratch: ActScratch::default(),
             mb: MinibatchBuf::default(),
-            norm_v: Vec::new(),
-            norm_s: Vec::new(),
+            normalised: Observation::empty(0, 0),
             env,
         })
     }
@@ -327,8 +326,8 @@ impl Trainer {
         let episodes = self.collect()?;
         let collect_s = t0.elapsed().as_secs_f64();
         for t in &mut self.teams {
-            for (v, s) in self.rollout.visited_obs() {
-                t.norm.update(v, s);
+            for rows in self.rollout.visited_obs() {
+                t.norm.update(rows.vectors, rows.scalars);
             }
         }
         let losses = self.update()?;
@@ -417,10 +416,10 @@ impl Trainer {
                 let perm = permutation(n_unrolls, &mut team.shuffle);
                 for (k, ids) in perm.chunks_exact(c.batch_size).enumerate() {
                     self.rollout.gather(ids, team.index, &mut self.mb);
-                    team.norm.apply(&self.mb.vectors, &self.mb.scalars, &mut self.norm_v, &mut self.norm_s);
+                    team.norm.apply_rows(self.mb.obs.rows(), &mut self.normalised);
                     let tape = Tape::<f32>::new();
                     let p = team.store.bind(&tape);
-                    let mb = self.mb.view(&self.norm_v, &self.norm_s);
+                    let mb = self.mb.view(self.normalised.rows());
                     let mut noise =
                         minibatch_stream(c.seed, "entropy", team.index as u64, self.iteration, epoch as u64, k as u64);
                     let (loss, stats) = ppo_loss(&mut team.model, &self.spec, &p, &mb, &hp, &mut noise)?;

@@ -85,7 +85,7 @@ fn an_invariant_policy_plays_the_moved_scene_as_the_unmoved_one() {
     let (mut scratch, mut noise) = (ActScratch::default(), Vec::new());
     let mut actions = |team: &mut Team, o: &Observation| {
         let (mut act_out, mut u, mut logp) = (vec![0.0f32; 2 * na], vec![0.0f32; 2 * na], vec![0.0f32; 2]);
-        let raw = (&o.vectors[..], &o.scalars[..], &o.heading[..]);
+        let raw = o.rows();
         act(
             &mut team.model,
             &team.store,
