@@ -31,11 +31,12 @@ use nn::{Bound, Linear, Mlp, Scope};
 use tensor::{Activation, Float, Tensor, Var};
 
 use crate::assignment::{AssignmentMethod, UNASSIGNED};
-use crate::config::layer_sizes;
+use crate::config::{ModelConfig, hidden_widths, layer_sizes};
 use crate::critic::critic_order;
 use crate::entity_graph::GraphBuilder;
 use crate::error::{ModelError, Result};
 use crate::input::{InputProcessor, ObsBatch, ObsElement, Translation};
+use crate::kind::{Frame, Head, ModelKind};
 use crate::layout::{N_SCALARS, NODE_VECTOR_LEN, NODE_VECTORS, ObsSpec};
 use crate::policy::{AgentPolicy, PolicyOutput, split_head};
 use crate::transformer_head::TransformerHead;
@@ -160,6 +161,24 @@ pub struct ReleaseMlp {
 }
 
 impl ReleaseMlp {
+    /// Builds `kind` (`mlp` or `mlp_hn`, the release variant) for `agents` of `team` under
+    /// scope `s`, after checking `config`'s options.
+    pub(crate) fn build<T: Float>(
+        s: &mut Scope<'_, T>,
+        kind: ModelKind,
+        config: &ModelConfig,
+        spec: &ObsSpec,
+        team: usize,
+        agents: &[usize],
+    ) -> Result<Self> {
+        config.check_options(&["assignment", "variant", "head", "critic_hidden"])?;
+        let head_hidden = hidden_widths(&config.head_hidden, &[256, 256], false)?;
+        let critic_hidden = hidden_widths(&config.critic_hidden, &[256, 256], false)?;
+        let graph = config.graph_builder(spec, team)?;
+        let heading = kind.frame() == Frame::Heading;
+        Self::new(s, spec, agents, graph, heading, &head_hidden, &critic_hidden)
+    }
+
     /// The model for `agents` (scope `s` holds `actor` and `critic`).
     pub(crate) fn new<T: Float>(
         s: &mut Scope<'_, T>,
@@ -298,6 +317,26 @@ enum FlatCritic {
 }
 
 impl FlatMlp {
+    /// Builds `kind` for `agents` under scope `s`, after checking `config`'s options:
+    /// `transformer_hn`, or `mlp`, `mlp_hn` with `variant=flat`.
+    pub(crate) fn build<T: Float>(
+        s: &mut Scope<'_, T>,
+        kind: ModelKind,
+        config: &ModelConfig,
+        spec: &ObsSpec,
+        agents: &[usize],
+    ) -> Result<Self> {
+        let heading = kind.frame() == Frame::Heading;
+        if kind.head() == Head::Transformer {
+            config.check_options(&[])?;
+            return Self::new(s, spec, agents, heading, true, &[], &[]);
+        }
+        config.check_options(&["variant", "head", "critic_hidden"])?;
+        let head_hidden = hidden_widths(&config.head_hidden, &[256, 256, 256], false)?;
+        let critic_hidden = hidden_widths(&config.critic_hidden, &head_hidden, false)?;
+        Self::new(s, spec, agents, heading, false, &head_hidden, &critic_hidden)
+    }
+
     /// The model for `agents`: MLP heads (`head_hidden`) or a shared Transformer head.
     pub(crate) fn new<T: Float>(
         s: &mut Scope<'_, T>,

@@ -1,5 +1,6 @@
 //! The policy/critic interface the trainer uses (paper section 3 "Body-level Control",
-//! eqs. (pi) and (value); appendix "Baselines"), and the models built by name.
+//! eqs. (pi) and (value); appendix "Baselines"): [`Model`], built for a [`ModelKind`] by its
+//! family's module.
 //!
 //! A [`Model`] is built from a [`ModelConfig`] for one scene layout ([`ObsSpec`]) and one
 //! team: it creates its parameters in a [`Scope`] (so the trainer keeps every team's
@@ -36,25 +37,21 @@
 //! columns of team 1's model are swapped to `[own, opponent, centre]`
 //! ([`ObsSpec::to_team_view`]; the raw observation is team 0's view).
 
-use nn::{Bound, Mlp, ParamStore, Scope, TransformerConfig};
-use tensor::{Activation, Float, Var};
+use nn::{Bound, Mlp, ParamStore, Scope};
+use tensor::{Float, Var};
 
 use crate::assignment::AssignmentMethod;
-use crate::body_gnn::{BodyGnn, BodyGnnConfig};
-use crate::config::{CriticKind, GravityMode, MlpVariant, NeighbourOffset, check_name, layer_sizes};
-pub use crate::config::{MODEL_NAMES, ModelConfig, MpSizes};
-use crate::critic::{SubeqCritic, ValueHead, critic_order};
+use crate::config::MlpVariant;
+pub use crate::config::{ModelConfig, MpSizes};
 use crate::distribution::std_from_scale;
 use crate::entity_graph::GraphBuilder;
-use crate::entity_mp::{EntityMp, EntityMpConfig};
+use crate::entity_mp::EntityMp;
 use crate::error::{ModelError, Result};
-use crate::hnn::{Hnn, HnnFrame, ScalarMpSizes};
-use crate::input::{InputProcessor, Translation};
-use crate::layout::{ObsBatch, ObsElement, ObsRows};
-use crate::layout::{ObsSpec, Observation};
+use crate::hnn::Hnn;
+use crate::kind::{Family, ModelKind};
+use crate::layout::{ObsBatch, ObsElement, ObsRows, ObsSpec, Observation};
 use crate::mlp::{FlatMlp, ReleaseMlp, no_assignment};
-use crate::shnn::{Critic, FrameKind, Heads, Shnn};
-use crate::transformer_head::TransformerHead;
+use crate::shnn::Shnn;
 
 /// One agent's action-distribution parameters.
 #[derive(Clone, Copy, Debug)]
@@ -117,6 +114,7 @@ enum Arch {
 #[derive(Clone, Debug)]
 pub struct Model {
     name: String,
+    kind: ModelKind,
     team: usize,
     agents: Vec<usize>,
     spec: ObsSpec,
@@ -124,22 +122,12 @@ pub struct Model {
     arch: Arch,
 }
 
-/// Hidden widths of an option, or the default; non-empty and positive.
-fn widths(h: &Option<Vec<usize>>, default: &[usize], allow_empty: bool) -> Result<Vec<usize>> {
-    let h = h.clone().unwrap_or_else(|| default.to_vec());
-    if (h.is_empty() && !allow_empty) || h.contains(&0) {
-        return Err(ModelError::Option(format!("hidden widths {h:?} must be non-empty and positive")));
-    }
-    Ok(h)
-}
-
 impl Model {
-    /// Builds `config.name` for `team` of scenes laid out by `spec`, with parameters under
+    /// Builds `config`'s model for `team` of scenes laid out by `spec`, with parameters under
     /// scope `s` (module docs). Unknown names and options that do not apply are errors
     /// listing the accepted ones.
     pub fn new<T: Float>(s: &mut Scope<'_, T>, config: &ModelConfig, spec: &ObsSpec, team: usize) -> Result<Self> {
-        let name = config.name.as_str();
-        check_name(name)?;
+        let kind = config.kind()?;
         if team >= spec.n_teams {
             return Err(ModelError::Option(format!("team {team} in a scene of {} teams", spec.n_teams)));
         }
@@ -148,168 +136,26 @@ impl Model {
             return Err(ModelError::Input(format!("team {team} has no agent")));
         }
         let prefix = s.full_name("");
-        let method = config.assignment.unwrap_or(AssignmentMethod::Greedy);
-        let translation = config.translation.unwrap_or(if method == AssignmentMethod::None {
-            Translation::RootMean
-        } else {
-            Translation::Assigned
-        });
-        let neighbour = config.neighbour.unwrap_or_default();
-        let m = config.mp.unwrap_or_default();
-        let actor_steps = config.actor_steps.unwrap_or(1);
-        let arch = match name {
-            "shnn" | "shnn_og3" | "shnn_so3" | "shtransformer" | "shgnn" => {
-                let transformer = name == "shtransformer";
-                let gnn = name == "shgnn";
-                let mut allowed =
-                    vec!["assignment", "translation", "abstraction", "neighbour", "critic", "gravity", "actor_steps"];
-                if !transformer {
-                    allowed.extend(["head", "critic_hidden"]);
-                }
-                if name == "shnn_so3" {
-                    allowed.retain(|&k| k != "gravity");
-                }
-                config.check_options(&allowed)?;
-                let gravity = if name == "shnn_so3" { None } else { Some(config.gravity.unwrap_or_default()) };
-                let head_hidden = widths(&config.head_hidden, if gnn { &[] } else { &[256, 256] }, gnn)?;
-                let critic_hidden = widths(&config.critic_hidden, &[256, 256], false)?;
-                let proc =
-                    InputProcessor::new(spec, translation)?.with_abstraction(config.abstraction.unwrap_or_default());
-                let graph = GraphBuilder::new(spec, method, team, config.seed)?;
-                let g = spec.gravity_dir.map(f64::from);
-                let mp = EntityMp::new(
-                    &mut s.sub("entity"),
-                    EntityMpConfig {
-                        vectors: m.vectors,
-                        scalars: m.scalars,
-                        hidden: m.hidden,
-                        layers: m.layers,
-                        steps: actor_steps,
-                        distance: if neighbour == NeighbourOffset::Unit && translation == Translation::Assigned {
-                            nn::EdgeDistance::None
-                        } else {
-                            nn::EdgeDistance::Raw
-                        },
-                        gravity: gravity.map(|_| g),
-                        gravity_in_layers: gravity == Some(GravityMode::EveryLayer),
-                        ..EntityMpConfig::paper(spec)
-                    },
-                )?;
-                let frame = if name == "shnn_og3" { FrameKind::Channels } else { FrameKind::Orthogonal };
-                let channels = match frame {
-                    FrameKind::Orthogonal => 3,
-                    FrameKind::Channels => m.vectors,
-                };
-                // Rows of eq. (lrf): the agent's own nodes and its neighbours'.
-                let slots = if neighbour == NeighbourOffset::None { 0 } else { graph.slots() };
-                let row = 3 * channels + crate::layout::N_SCALARS;
-                let mut actor = s.sub("actor");
-                let heads = if gnn {
-                    let cfg = BodyGnnConfig {
-                        vectors: m.vectors,
-                        scalars: m.scalars,
-                        hidden: m.hidden,
-                        layers: m.layers,
-                        steps: m.steps,
-                        entity_scalars: m.scalars,
-                        decoder_hidden: head_hidden,
-                        gravity: g,
-                        gravity_in_layers: gravity == Some(GravityMode::EveryLayer),
-                    };
-                    Heads::Gnn(Box::new(BodyGnn::new(&mut actor, cfg, spec, &agents)?))
-                } else if transformer {
-                    let head = TransformerHead::new(&mut actor, row + m.scalars, 2, TransformerConfig::default())?;
-                    Heads::Transformer(Box::new(head))
-                } else {
-                    Heads::Mlp(
-                        agents
-                            .iter()
-                            .map(|&a| {
-                                let input = (1 + spec.agent_dof[a] + slots) * row + m.scalars;
-                                let sz = layer_sizes(input, &head_hidden, 2 * spec.agent_dof[a]);
-                                Mlp::new(&mut actor.sub(a), &sz, Activation::Relu)
-                            })
-                            .collect::<nn::Result<Vec<_>>>()?,
-                    )
-                };
-                let mut c = s.sub("critic");
-                let critic = match config.critic.unwrap_or_default() {
-                    CriticKind::Separate => Critic::Separate(Box::new(SubeqCritic::new(
-                        &mut c,
-                        spec,
-                        team,
-                        &agents,
-                        m,
-                        gravity,
-                        &critic_hidden,
-                        transformer,
-                    )?)),
-                    CriticKind::Shared => {
-                        let ne = spec.entity_root_node.len();
-                        let head = ValueHead::new(&mut c, ne, m.scalars, &critic_hidden, transformer)?;
-                        Critic::Shared(head, critic_order(spec, &agents))
-                    }
-                };
-                Arch::Shnn(Box::new(Shnn { proc, graph, mp, frame, neighbour, heads, critic }))
-            }
-            "hnn" | "hnn_hn" | "hnn_dn" => {
-                config.check_options(&[
-                    "assignment",
-                    "translation",
-                    "abstraction",
-                    "neighbour",
-                    "actor_steps",
-                    "head",
-                    "critic_hidden",
-                ])?;
-                let head_hidden = widths(&config.head_hidden, &[256, 256], false)?;
-                let critic_hidden = widths(&config.critic_hidden, &[256, 256], false)?;
-                let proc =
-                    InputProcessor::new(spec, translation)?.with_abstraction(config.abstraction.unwrap_or_default());
-                let graph = GraphBuilder::new(spec, method, team, config.seed)?;
-                let sizes =
-                    ScalarMpSizes { scalars: m.scalars, hidden: m.hidden, layers: m.layers, steps: actor_steps };
-                let frame = match name {
-                    "hnn_hn" => HnnFrame::Heading,
-                    "hnn_dn" => HnnFrame::Goal,
-                    _ => HnnFrame::World,
-                };
-                let hnn =
-                    Hnn::new(s, proc, graph, frame, neighbour, sizes, &head_hidden, &critic_hidden, spec, &agents)?;
-                Arch::Hnn(Box::new(hnn))
-            }
-            "mlp" | "mlp_hn" => {
-                let heading = name == "mlp_hn";
-                match config.variant.unwrap_or_default() {
-                    MlpVariant::Release => {
-                        config.check_options(&["assignment", "variant", "head", "critic_hidden"])?;
-                        let head_hidden = widths(&config.head_hidden, &[256, 256], false)?;
-                        let critic_hidden = widths(&config.critic_hidden, &[256, 256], false)?;
-                        let graph = GraphBuilder::new(spec, method, team, config.seed)?;
-                        let mlp = ReleaseMlp::new(s, spec, &agents, graph, heading, &head_hidden, &critic_hidden)?;
-                        Arch::Mlp(Box::new(mlp))
-                    }
-                    MlpVariant::Flat => {
-                        config.check_options(&["variant", "head", "critic_hidden"])?;
-                        let head_hidden = widths(&config.head_hidden, &[256, 256, 256], false)?;
-                        let critic_hidden = widths(&config.critic_hidden, &head_hidden, false)?;
-                        let flat = FlatMlp::new(s, spec, &agents, heading, false, &head_hidden, &critic_hidden)?;
-                        Arch::Flat(Box::new(flat))
-                    }
-                }
-            }
-            "transformer_hn" => {
-                config.check_options(&[])?;
-                Arch::Flat(Box::new(FlatMlp::new(s, spec, &agents, true, true, &[], &[])?))
-            }
-            _ => return Err(ModelError::Option(format!("model `{name}` has no builder"))),
+        let arch = match kind.family() {
+            Family::Shnn => Arch::Shnn(Box::new(Shnn::new(s, kind, config, spec, team, &agents)?)),
+            Family::Hnn => Arch::Hnn(Box::new(Hnn::new(s, kind, config, spec, team, &agents)?)),
+            Family::Mlp => match config.variant.unwrap_or_default() {
+                MlpVariant::Release => Arch::Mlp(Box::new(ReleaseMlp::build(s, kind, config, spec, team, &agents)?)),
+                MlpVariant::Flat => Arch::Flat(Box::new(FlatMlp::build(s, kind, config, spec, &agents)?)),
+            },
+            Family::FlatTransformer => Arch::Flat(Box::new(FlatMlp::build(s, kind, config, spec, &agents)?)),
         };
-        Ok(Self { name: config.name.clone(), team, agents, spec: spec.clone(), prefix, arch })
+        Ok(Self { name: config.name.clone(), kind, team, agents, spec: spec.clone(), prefix, arch })
     }
 
     /// The model's name.
     pub fn name(&self) -> &str {
         &self.name
+    }
+
+    /// Which model of the paper it is.
+    pub fn kind(&self) -> ModelKind {
+        self.kind
     }
 
     /// The team the model acts for.

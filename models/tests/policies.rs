@@ -11,10 +11,11 @@ use std::cell::RefCell;
 
 use envs::tasks::{BUILTIN_NAMES, ObsSpec, StartMode, VecEnv};
 use models::input::{InputProcessor, ObsBatch};
+use models::kind::Head;
 use models::layout::{N_SCALARS, NODE_VECTOR_LEN, ObsRows};
-use models::policy::MODEL_NAMES;
 use models::{
-    AssignmentMethod, EntityAbstraction, GraphBuilder, Model, ModelConfig, MpSizes, PolicyOutput, Translation,
+    AssignmentMethod, EntityAbstraction, GraphBuilder, Model, ModelConfig, ModelKind, MpSizes, PolicyOutput,
+    Translation,
 };
 use nn::{Bound, ParamStore};
 use rand::RngExt;
@@ -187,6 +188,25 @@ fn hnn_hn_and_hnn_dn_are_invariant_under_yaw_and_hnn_only_under_translation() {
     }
 }
 
+/// `ModelKind::is_equivariant` is what the models do: the equivariant kinds give the same
+/// policy and value for a scene rotated about the vertical and translated, the others
+/// (`mlp`, `hnn`: the world frame) change.
+#[test]
+fn every_kind_is_invariant_exactly_when_it_says_so() {
+    let (spec, vectors, scalars, heading) = observations("team_reach/2_ants", B, 15);
+    let (v, h) = transform(&vectors, &heading, 1.3, [2.0, -3.5]);
+    for kind in ModelKind::ALL {
+        let (store, mut model) = build(&ModelConfig::new(kind.name()), &spec, 0, 8);
+        let base = run(&mut model, &store, &spec, &vectors, &scalars, &heading);
+        let d = max_diff(&run(&mut model, &store, &spec, &v, &scalars, &h), &base);
+        if kind.is_equivariant() {
+            assert!(d < 1e-9, "{kind}: {d}");
+        } else {
+            assert!(d > 1e-3, "{kind} should change under a rotation: {d}");
+        }
+    }
+}
+
 #[test]
 fn forward_on_every_builtin_environment_for_every_model() {
     for env in BUILTIN_NAMES {
@@ -194,7 +214,8 @@ fn forward_on_every_builtin_environment_for_every_model() {
         let na = venv.n_actions();
         venv.step(&vec![0.5; 2 * na]).unwrap();
         let spec = venv.scene().obs_spec.clone();
-        for name in MODEL_NAMES {
+        for kind in ModelKind::ALL {
+            let name = kind.name();
             for team in 0..spec.n_teams {
                 let mut store = ParamStore::<f32>::new();
                 let mut init = nn::init_rng(0);
@@ -218,7 +239,7 @@ fn forward_on_every_builtin_environment_for_every_model() {
                     assert!(pol.std().value().data().iter().all(|&s| s >= 0.001));
                     // One MLP head per agent, or one Transformer or GNN head for the team.
                     let own_head = store.num_elements_under(&format!("{prefix}.actor.{a}."));
-                    assert_eq!(own_head > 0, !name.contains("transformer") && name != "shgnn", "{name}");
+                    assert_eq!(own_head > 0, kind.head() == Head::Mlp, "{name}");
                 }
                 assert_eq!(out.team_value().unwrap().shape(), [2], "{name} on {env}");
                 assert!(out.team_value().unwrap().value().all_finite(), "{name} on {env}");
@@ -231,13 +252,16 @@ fn forward_on_every_builtin_environment_for_every_model() {
                     assert_eq!(x.loc.value().data(), y.loc.value().data(), "{name} on {env}");
                     assert_eq!(x.scale.value().data(), y.scale.value().data(), "{name} on {env}");
                 }
-                // The entity stage (and a Transformer head) exist once per team.
+                // What the kind says of the model is what was built: the entity stage (and a
+                // Transformer or GNN head) exist once per team.
+                assert_eq!(model.kind(), kind);
                 let shared = store.num_elements_under(&format!("{prefix}.entity."));
-                assert_eq!(shared > 0, name.starts_with("sh") || name.starts_with("hnn"), "{name}");
+                assert_eq!(shared > 0, kind.has_entity_stage(), "{name}");
+                assert_eq!(model.entity_stage().is_some(), kind.family() == models::kind::Family::Shnn, "{name}");
                 let head = store.num_elements_under(&format!("{prefix}.actor.encoder."));
-                assert_eq!(head > 0, name.contains("transformer"), "{name}");
+                assert_eq!(head > 0, kind.head() == Head::Transformer, "{name}");
                 let gnn = store.num_elements_under(&format!("{prefix}.actor.mp."));
-                assert_eq!(gnn > 0, name == "shgnn", "{name}");
+                assert_eq!(gnn > 0, kind.head() == Head::Gnn, "{name}");
             }
         }
     }
@@ -303,8 +327,8 @@ fn unknown_names_and_options_are_errors_listing_the_known_ones() {
         Model::new(&mut store.scope("m", &mut init), c, &spec, team).unwrap_err().to_string()
     };
     let e = err(&ModelConfig::new("resnet"), 0);
-    for name in MODEL_NAMES.iter() {
-        assert!(e.contains(name), "{e}");
+    for kind in ModelKind::ALL {
+        assert!(e.contains(kind.name()), "{e}");
     }
     let e =
         err(&ModelConfig { assignment: Some(AssignmentMethod::Hungarian), ..ModelConfig::new("transformer_hn") }, 0);

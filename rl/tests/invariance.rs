@@ -11,7 +11,7 @@
 //! velocity per node; `[B, N, N_SCALARS]` scalars; `[B, A]` headings).
 
 use envs::tasks::{ObsSpec, StartMode, VecEnv};
-use models::{Model, ModelConfig, ObsRows};
+use models::{Model, ModelConfig, ModelKind, ObsRows};
 use nn::ParamStore;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -155,12 +155,10 @@ fn max_diff(a: &[f64], b: &[f64]) -> f64 {
     a.iter().zip(b).map(|(x, y)| (x - y).abs() / x.abs().max(1.0)).fold(0.0, f64::max)
 }
 
-const INVARIANT: [&str; 8] =
-    ["shnn", "shnn_og3", "shtransformer", "shgnn", "mlp_hn", "transformer_hn", "hnn_hn", "hnn_dn"];
-
 #[test]
 fn normaliser_and_invariant_models_commute_with_rotations_about_gravity_and_translations() {
-    let mut cases: Vec<(&str, &str, usize)> = INVARIANT.iter().map(|&m| ("team_reach/2_ants", m, 0)).collect();
+    let mut cases: Vec<(&str, &str, usize)> =
+        ModelKind::ALL.iter().filter(|k| k.is_equivariant()).map(|k| ("team_reach/2_ants", k.name(), 0)).collect();
     for team in 0..2 {
         cases.push(("team_sumo/2_ants", "shnn", team));
         cases.push(("team_sumo/2_ants", "mlp_hn", team));
