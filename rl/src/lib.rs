@@ -9,13 +9,15 @@
 //! ```
 //!
 //! One module per job: [`config`] (hyper-parameters and their layers), [`seeding`] (random
-//! streams), [`normalizer`] (observation statistics), [`team`] (one team's learner and its
-//! act step), [`rollout`] (an iteration's data and minibatches), [`gae`], [`ppo`] (the loss),
+//! streams), [`normalizer`] (observation statistics), [`actor`] (a team's act step),
+//! [`team`] (one team's learner), [`rollout`] (an iteration's data and minibatches), [`gae`],
+//! [`ppo`] (the loss),
 //! [`train`](mod@train) (the loop and the run directory), [`evaluate`](mod@evaluate), [`checkpoint`], [`metrics`],
 //! [`run_dir`], [`progress`], [`curve`], [`plot`] (SVG line plots), [`sweep`] (`meben ablate`),
 //! [`report`](mod@report) (`meben report`), [`export`](mod@export) (`meben export`: a run tree's
 //! evidence without checkpoints), [`info`] (`meben info`: parameter counts).
 
+pub mod actor;
 pub mod checkpoint;
 pub mod checksum;
 pub mod config;

@@ -4,13 +4,20 @@
 //! Observation rows (raw, not normalised) are stored block by block, `T + 1` per block:
 //! row `(b, t, e)` at `(b (T + 1) + t) E + e`, row `t = T` being the state after the block.
 //! Transitions `(b, t, e)` are at `(b T + t) E + e`. A transition truncated by the time limit
-//! keeps its final observation in the `final_*` arrays. A team whose model draws its task
-//! assignment at random keeps the assignment each transition was acted on
-//! ([`Rollout::assignment`]), so that the update sees the same entity graph.
+//! keeps its final observation (a row of `finals`). A team whose model draws its task
+//! assignment at random keeps the assignment each transition was acted on, so that the
+//! update sees the same entity graph.
+//!
+//! The collection writes it through two methods only: [`Rollout::begin`] with the first
+//! observations of the iteration, then [`Rollout::push`] once per control step (the joint
+//! action and the environments' outcome), until [`Rollout::is_full`]; the update reads it
+//! through [`Rollout::gather`] and [`Rollout::visited_obs`]. Nothing else indexes its
+//! arrays.
 
 use envs::tasks::StepOutput;
 use models::layout::{ObsRows, Observation, RowWidths};
 
+use crate::actor::JointAction;
 use crate::ppo::Minibatch;
 
 /// Marks a transition without a final observation.
@@ -20,39 +27,37 @@ pub const NO_FINAL: u32 = u32::MAX;
 #[derive(Clone, Debug)]
 pub struct Rollout {
     /// Blocks `U`.
-    pub blocks: usize,
+    blocks: usize,
     /// Steps per unroll `T`.
-    pub steps: usize,
+    steps: usize,
     /// Environments `E`.
-    pub envs: usize,
-    /// Nodes per observation.
-    pub nodes: usize,
-    /// Agents per scene.
-    pub agents: usize,
+    envs: usize,
     /// Actions per environment.
-    pub n_actions: usize,
+    n_actions: usize,
     /// Teams.
-    pub teams: usize,
+    teams: usize,
+    /// Steps pushed since [`Rollout::begin`] (block `cursor / T`, step `cursor % T`).
+    cursor: usize,
     /// `U (T + 1) E` raw observation rows.
-    pub obs: Observation,
+    obs: Observation,
     /// `[U T E, n_actions]` pre-squash actions.
-    pub actions: Vec<f32>,
+    actions: Vec<f32>,
     /// `[U T E, teams]` behaviour log-probabilities.
-    pub logp: Vec<f32>,
+    logp: Vec<f32>,
     /// `[U T E, teams]` scaled rewards.
-    pub rewards: Vec<f32>,
+    rewards: Vec<f32>,
     /// `[U T E]`.
-    pub terminated: Vec<bool>,
+    terminated: Vec<bool>,
     /// `[U T E]`.
-    pub truncated: Vec<bool>,
-    /// `[U T E]` row of [`Rollout::finals`], or [`NO_FINAL`].
-    pub final_index: Vec<u32>,
+    truncated: Vec<bool>,
+    /// `[U T E]` row of `finals`, or [`NO_FINAL`].
+    final_index: Vec<u32>,
     /// Final observations of truncated transitions, one row each.
-    pub finals: Observation,
+    finals: Observation,
     /// Per team, the assignment width (entries per transition; 0: not stored).
-    pub assignment_width: Vec<usize>,
+    assignment_width: Vec<usize>,
     /// Per team, `[U T E, width]` the task assignment each transition was acted on.
-    pub assignment: Vec<Vec<u32>>,
+    assignment: Vec<Vec<u32>>,
 }
 
 /// A gathered minibatch of one team (owned arrays behind a [`Minibatch`]).
@@ -153,10 +158,9 @@ impl Rollout {
             blocks,
             steps,
             envs,
-            nodes,
-            agents,
             n_actions,
             teams,
+            cursor: 0,
             obs: Observation {
                 batch: rows,
                 nodes,
@@ -177,50 +181,46 @@ impl Rollout {
         }
     }
 
-    /// Stores team `team`'s assignment of the transitions `(b, t, *)` (`[E, width]`; nothing
-    /// for a team that stores none).
-    pub fn store_assignment(&mut self, b: usize, t: usize, team: usize, assignment: &[u32]) {
-        let w = self.assignment_width[team];
-        if w == 0 {
-            return;
-        }
-        let tr = self.transition(b, t);
-        self.assignment[team][tr * w..(tr + self.envs) * w].copy_from_slice(assignment);
+    /// Unrolls of the iteration (`U E`; unroll `q` is block `q / E`, environment `q % E`).
+    pub fn unrolls(&self) -> usize {
+        self.blocks * self.envs
     }
 
-    /// Forgets the final observations of the previous iteration.
-    pub fn clear_finals(&mut self) {
+    /// Whether every step of the iteration has been pushed.
+    pub fn is_full(&self) -> bool {
+        self.cursor == self.blocks * self.steps
+    }
+
+    /// Starts an iteration's collection from the environments' current observations `obs`
+    /// (the previous iteration's data is forgotten).
+    pub fn begin(&mut self, obs: &Observation) {
+        self.cursor = 0;
         self.finals.clear();
         self.final_index.iter_mut().for_each(|x| *x = NO_FINAL);
+        self.obs.write_rows(self.obs_row(0, 0), obs.rows());
     }
 
-    /// First observation row of block `b`, step `t`.
-    pub fn obs_row(&self, b: usize, t: usize) -> usize {
-        (b * (self.steps + 1) + t) * self.envs
-    }
-
-    /// First transition of block `b`, step `t`.
-    pub fn transition(&self, b: usize, t: usize) -> usize {
-        (b * self.steps + t) * self.envs
-    }
-
-    /// Copies all environments' observations into rows `(b, t, *)`.
-    pub fn store_obs(&mut self, b: usize, t: usize, obs: &Observation) {
-        let r = self.obs_row(b, t);
-        self.obs.write_rows(r, obs.rows());
-    }
-
-    /// The raw observation rows `(b, t, *)`.
-    pub fn obs(&self, b: usize, t: usize) -> ObsRows<'_, f32> {
-        let r = self.obs_row(b, t);
-        self.obs.rows().slice(r..r + self.envs)
-    }
-
-    /// Records the outcome of step `(b, t)`: scaled rewards, ends, final observations.
-    pub fn store_step(&mut self, b: usize, t: usize, out: &StepOutput, reward_scaling: f32) {
+    /// Records the next step: the teams' `joint` action (pre-squash actions, log-probabilities
+    /// and the assignments of the teams that store theirs) on the current observations, and
+    /// what the environments did with it (`out`: rewards, scaled by `reward_scaling`,
+    /// ends, final observations of truncated episodes, the next observations). Panics when the
+    /// rollout is full or the shapes differ (the trainer's internal writer).
+    pub fn push(&mut self, joint: &JointAction, out: &StepOutput, reward_scaling: f32) {
+        assert!(!self.is_full(), "a full rollout takes no step");
+        let (b, t) = (self.cursor / self.steps, self.cursor % self.steps);
+        let (e_n, nt, na) = (self.envs, self.teams, self.n_actions);
         let tr = self.transition(b, t);
-        let nt = self.teams;
-        for e in 0..self.envs {
+        self.actions[tr * na..(tr + e_n) * na].copy_from_slice(&joint.pre_squash);
+        for (k, (logp, assignment)) in joint.logp.iter().zip(&joint.assignment).enumerate() {
+            for (e, &l) in logp.iter().enumerate() {
+                self.logp[(tr + e) * nt + k] = l;
+            }
+            let w = self.assignment_width[k];
+            if w > 0 {
+                self.assignment[k][tr * w..(tr + e_n) * w].copy_from_slice(assignment);
+            }
+        }
+        for e in 0..e_n {
             let i = tr + e;
             for k in 0..nt {
                 self.rewards[i * nt + k] = out.reward[e * nt + k] * reward_scaling;
@@ -234,6 +234,22 @@ impl Rollout {
                 self.final_index[i] = NO_FINAL;
             }
         }
+        // The next observations end this block's unroll at t + 1 = T and begin the next one.
+        self.obs.write_rows(self.obs_row(b, t + 1), out.obs.rows());
+        if t + 1 == self.steps && b + 1 < self.blocks {
+            self.obs.write_rows(self.obs_row(b + 1, 0), out.obs.rows());
+        }
+        self.cursor += 1;
+    }
+
+    /// First observation row of block `b`, step `t`.
+    fn obs_row(&self, b: usize, t: usize) -> usize {
+        (b * (self.steps + 1) + t) * self.envs
+    }
+
+    /// First transition of block `b`, step `t`.
+    fn transition(&self, b: usize, t: usize) -> usize {
+        (b * self.steps + t) * self.envs
     }
 
     /// Observation rows of the iteration without the rows after each block: what the
@@ -250,7 +266,7 @@ impl Rollout {
         mb.unrolls = m;
         mb.steps = t_len;
         mb.obs.clear();
-        (mb.obs.nodes, mb.obs.agents) = (self.nodes, self.agents);
+        (mb.obs.nodes, mb.obs.agents) = (self.obs.nodes, self.obs.agents);
         for v in [&mut mb.actions, &mut mb.logp_old, &mut mb.rewards] {
             v.clear();
         }

@@ -1,18 +1,17 @@
 //! One team's learner: its model (policy and critic), parameters, optimiser, observation
-//! normaliser and random streams (MEBEN.md section 8: every agent and team has its own
-//! action-noise stream), and the act step shared by collection, evaluation and rendering.
+//! normaliser, its [`Actor`] (the act step with the team's action-noise streams: MEBEN.md
+//! section 8, every agent and team has its own) and its minibatch-shuffling stream.
 
-use models::distribution::{normal_log_prob, std_from_scale};
-use models::layout::{ObsRows, ObsSpec, Observation};
+use models::layout::{ObsRows, ObsSpec};
 use models::{Model, ModelConfig};
 use nn::{Adam, AdamConfig, LrSchedule, ParamStore};
 use rand_chacha::ChaCha8Rng;
-use tensor::{Tape, Tensor};
 
+use crate::actor::{ActMode, Actor, JointAction};
 use crate::config::TrainConfig;
 use crate::error::{Result, RlError};
 use crate::normalizer::ObsNormalizer;
-use crate::seeding::{derive_seed, standard_normal, stream};
+use crate::seeding::{derive_seed, stream};
 
 /// One team's learner (module docs).
 #[derive(Clone, Debug)]
@@ -27,19 +26,11 @@ pub struct Team {
     pub adam: Adam,
     /// Its observation normaliser.
     pub norm: ObsNormalizer,
-    /// Action noise, one stream per agent of the team (in [`Model::agents`] order).
-    pub noise: Vec<ChaCha8Rng>,
+    /// The act step of collection, with the team's action noise (one stream per agent, in
+    /// [`Model::agents`] order).
+    pub actor: Actor,
     /// Minibatch shuffling.
     pub shuffle: ChaCha8Rng,
-}
-
-/// How actions are chosen.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum ActMode {
-    /// `u ~ Normal(loc, std)`, action `tanh(u)`.
-    Sample,
-    /// `u = loc`, action `tanh(loc)`.
-    Mean,
 }
 
 impl Team {
@@ -62,7 +53,13 @@ impl Team {
         let norm = ObsNormalizer::new(config.obs_norm.resolve(), spec);
         let noise = model.agents().iter().map(|&a| stream(config.seed, "noise", team as u64, a as u64)).collect();
         let shuffle = stream(config.seed, "shuffle", team as u64, 0);
-        Ok(Team { index: team, model, store, adam, norm, noise, shuffle })
+        Ok(Team { index: team, model, store, adam, norm, actor: Actor::new(ActMode::Sample, noise), shuffle })
+    }
+
+    /// The team's actions for raw observation rows `obs`, with its own model, parameters,
+    /// normaliser and noise ([`Actor::act`]).
+    pub fn act(&mut self, obs: ObsRows<'_, f32>, joint: &mut JointAction) -> Result<()> {
+        self.actor.act(&mut self.model, &self.store, &self.norm, obs, joint)
     }
 }
 
@@ -76,87 +73,6 @@ pub fn lr_schedule(config: &TrainConfig) -> LrSchedule {
     }
 }
 
-/// Reusable buffers of [`act`].
-#[derive(Clone, Debug)]
-pub struct ActScratch {
-    normalised: Observation,
-}
-
-impl Default for ActScratch {
-    fn default() -> Self {
-        Self { normalised: Observation::empty(0, 0) }
-    }
-}
-
-/// Chooses the actions of one team's agents for a batch of raw observations: normalises
-/// them, runs the policy (no gradient), and writes for every environment row `e` and agent
-/// `a` of the team the action `tanh(u)` at `actions[e * n_actions + offset_a ..]` and the
-/// pre-squash `u` at the same place of `pre_squash`; `logp[e]` gets the team's log-probability
-/// of `u` under the Normal (summed over its agents). `noise` (one stream per agent) is used
-/// in [`ActMode::Sample`]. Returns the task assignment the policy acted on
-/// ([`models::PolicyOutput::assignment`], `[B * Model::assignment_width]`).
-#[allow(clippy::too_many_arguments)]
-pub fn act(
-    model: &mut Model,
-    store: &ParamStore<f32>,
-    norm: &ObsNormalizer,
-    spec: &ObsSpec,
-    raw: ObsRows<'_, f32>,
-    mode: ActMode,
-    noise: &mut [ChaCha8Rng],
-    actions: &mut [f32],
-    pre_squash: &mut [f32],
-    logp: &mut [f32],
-    scratch: &mut ActScratch,
-) -> Result<Vec<u32>> {
-    let b = raw.len();
-    let na = actions.len() / b.max(1);
-    norm.apply_rows(raw, &mut scratch.normalised);
-    let tape = Tape::<f32>::new();
-    let _no_grad = tape.no_grad();
-    let p = store.bind(&tape);
-    // Acting reads the policy only (the update recomputes values from the stored
-    // observations): the value network is skipped.
-    let out = model.forward_policy_batch(&p, &scratch.normalised.rows())?;
-    logp.iter_mut().for_each(|x| *x = 0.0);
-    for (ai, pol) in out.agents.iter().enumerate() {
-        let (off, dof) = (spec.agent_action_offset[pol.agent], spec.agent_dof[pol.agent]);
-        let loc = pol.loc.value();
-        let std = std_from_scale(pol.scale).value();
-        let (loc, std) = (loc.data(), std.data());
-        if let Some(i) = loc.iter().chain(std).position(|x| !x.is_finite()) {
-            return Err(RlError::NonFinite {
-                message: format!("policy output of agent {} (entry {i}) is not finite", pol.agent),
-            });
-        }
-        let mut u = vec![0.0f32; b * dof];
-        match mode {
-            ActMode::Mean => u.copy_from_slice(loc),
-            ActMode::Sample => {
-                let rng = &mut noise[ai];
-                for (k, x) in u.iter_mut().enumerate() {
-                    *x = loc[k] + std[k] * standard_normal(rng) as f32;
-                }
-            }
-        }
-        for e in 0..b {
-            for k in 0..dof {
-                let x = u[e * dof + k];
-                pre_squash[e * na + off + k] = x;
-                actions[e * na + off + k] = x.tanh();
-            }
-        }
-        if mode == ActMode::Sample {
-            let ut = tape.constant(Tensor::new(u, &[b, dof])?);
-            let lp = normal_log_prob(ut, pol.loc, std_from_scale(pol.scale))?.value();
-            for (l, x) in logp.iter_mut().zip(lp.data()) {
-                *l += x;
-            }
-        }
-    }
-    Ok(out.assignment)
-}
-
 /// Records one episode of `env` from the fixed start of `seed` played by `teams` (mean
 /// actions if `deterministic`), for rendering. A failure of the policy ends the episode and
 /// is stored in `failure`.
@@ -168,39 +84,28 @@ pub fn record_episode(
     deterministic: bool,
     failure: &mut Option<RlError>,
 ) -> Result<envs::tasks::render::Trajectory> {
-    let spec = envs::tasks::Scene::from_name(env)?.obs_spec;
+    let scene = envs::tasks::Scene::from_name(env)?;
     let mode = if deterministic { ActMode::Mean } else { ActMode::Sample };
-    let mut scratch = ActScratch::default();
-    let mut noise: Vec<Vec<ChaCha8Rng>> = teams
+    let mut actors: Vec<Actor> = teams
         .iter()
-        .map(|t| t.model.agents().iter().map(|&a| stream(seed, "rendnois", t.index as u64, a as u64)).collect())
+        .map(|t| {
+            let noise = t.model.agents().iter().map(|&a| stream(seed, "rendnois", t.index as u64, a as u64)).collect();
+            Actor::new(mode, noise)
+        })
         .collect();
+    let mut joint = JointAction::new(1, scene.n_actions, teams.len());
     let traj = envs::tasks::render::record_episode(env, seed, steps, |obs, actions| {
         if failure.is_some() {
             return;
         }
-        let mut u = vec![0.0f32; actions.len()];
-        let mut logp = vec![0.0f32; obs.batch];
-        for (k, t) in teams.iter_mut().enumerate() {
-            let r = act(
-                &mut t.model,
-                &t.store,
-                &t.norm,
-                &spec,
-                obs.rows(),
-                mode,
-                &mut noise[k],
-                actions,
-                &mut u,
-                &mut logp,
-                &mut scratch,
-            );
-            if let Err(e) = r {
+        for (actor, t) in actors.iter_mut().zip(teams.iter_mut()) {
+            if let Err(e) = actor.act(&mut t.model, &t.store, &t.norm, obs.rows(), &mut joint) {
                 *failure = Some(e);
                 actions.iter_mut().for_each(|a| *a = 0.0);
                 return;
             }
         }
+        actions.copy_from_slice(&joint.actions);
     })?;
     Ok(traj)
 }

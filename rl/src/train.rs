@@ -1,21 +1,23 @@
 //! MAPPO training (paper section 5; MEBEN.md section 6: Brax PPO per team), read top to
 //! bottom in [`Trainer::iterate`]:
 //!
-//! 1. **Collect** `U = batch_size * num_minibatches / num_envs` blocks of `unroll_length`
-//!    steps of all environments. Every team acts on the raw observations through its own
-//!    normaliser and policy with its own per-agent noise streams; the environments step
-//!    together; rewards (scaled), terminations, truncations and the final observations of
-//!    truncated episodes are stored (MEBEN.md section 8: bootstrap from the true final
-//!    observation). Team Sumo: the curriculum factor goes from 1 to 0 over the first
-//!    `curriculum_fraction` of the run.
+//! 1. **Collect** ([`Trainer::collect`]) `U = batch_size * num_minibatches / num_envs`
+//!    blocks of `unroll_length` steps of all environments. Every team acts on the raw
+//!    observations through its [`crate::actor::Actor`] (its own normaliser and policy, its
+//!    own per-agent noise streams); the environments step together; the rollout records each
+//!    step ([`Rollout::push`]: actions, log-probabilities, rewards scaled, terminations,
+//!    truncations and the final observations of truncated episodes, MEBEN.md section 8:
+//!    bootstrap from the true final observation). Team Sumo: the curriculum factor goes from
+//!    1 to 0 over the first `curriculum_fraction` of the run.
 //! 2. **Normalise**: every team's observation statistics absorb the iteration's
 //!    observations (then stay frozen for the update, as in the reference).
 //! 3. **Update** every team: `epochs` passes, each over a fresh permutation of the
 //!    iteration's unrolls cut into `num_minibatches` minibatches of `batch_size` whole unrolls;
-//!    per minibatch the PPO loss ([`crate::ppo`]; GAE under the current critic; the entropy
-//!    estimate's noise from the minibatch's own stream), backward,
-//!    every gradient element clipped to `+-grad_clip`, one Adam step. A non-finite loss or
-//!    gradient stops the run ([`RlError::NonFinite`]); the last checkpoint is kept.
+//!    per minibatch (`Trainer::update`, top to bottom): gather -> normalise -> forward ->
+//!    GAE from the values and bootstrap values -> the PPO loss ([`crate::ppo`]; the entropy
+//!    estimate's noise from the minibatch's own stream) -> backward -> every gradient element
+//!    clipped to `+-grad_clip` -> one Adam step. A non-finite loss or gradient stops the run
+//!    ([`RlError::NonFinite`]); the last checkpoint is kept.
 //!
 //! [`train`] drives a [`Trainer`] in a run directory ([`crate::run_dir`]): metrics rows,
 //! evaluations, checkpoints, the learning curve, and exact resumption.
@@ -23,22 +25,23 @@
 use std::io::Write;
 use std::time::Instant;
 
-use envs::tasks::{Outcome, TaskKind, TaskSpec, VecEnv};
+use envs::tasks::{Outcome, StepOutput, TaskKind, TaskSpec, VecEnv};
 use models::layout::{ObsSpec, Observation};
 use serde::{Deserialize, Serialize};
 use tensor::Tape;
 
+use crate::actor::JointAction;
 use crate::checkpoint::{Checkpoint, TeamState, VERSION};
 use crate::config::{NormStart, TrainConfig};
 use crate::error::{Result, RlError};
 use crate::evaluate::{EvalOptions, evaluate};
 use crate::lock::{RunLock, remove_stale_temporaries};
 use crate::metrics::{MetricsLayout, MetricsRow, eval_column};
-use crate::ppo::{LossStats, PpoParams, ppo_loss};
+use crate::ppo::{self, LossStats, LossTerms, PpoParams, loss_stats, ppo_loss};
 use crate::rollout::{MinibatchBuf, Rollout};
 use crate::run_dir::RunDir;
 use crate::seeding::{RngState, derive_seed, minibatch_stream};
-use crate::team::{ActMode, ActScratch, Team, act};
+use crate::team::Team;
 
 /// How [`train`] runs, beyond the configuration.
 #[derive(Clone, Debug, Default)]
@@ -108,6 +111,38 @@ pub struct EpisodeStats {
     pub length_sum: u64,
 }
 
+impl EpisodeStats {
+    /// Nothing ended yet, for `teams` teams.
+    pub fn new(teams: usize) -> Self {
+        Self { return_sum: vec![0.0; teams], ..Default::default() }
+    }
+
+    /// Adds one step's rewards to the running episodes' returns (`[E, teams]`) and counts the
+    /// episodes that ended at it (their returns then restart from 0).
+    pub fn record(&mut self, out: &StepOutput, returns: &mut [f64]) {
+        let nt = self.return_sum.len();
+        for e in 0..out.terminated.len() {
+            for k in 0..nt {
+                returns[e * nt + k] += out.reward[e * nt + k] as f64;
+            }
+            if out.terminated[e] || out.truncated[e] {
+                self.episodes += 1;
+                self.length_sum += out.episode_len[e] as u64;
+                for k in 0..nt {
+                    self.return_sum[k] += returns[e * nt + k];
+                    returns[e * nt + k] = 0.0;
+                }
+                match out.outcome[e] {
+                    Outcome::Success => self.successes += 1,
+                    Outcome::Win(k) if k < 2 => self.wins[k] += 1,
+                    Outcome::Draw | Outcome::TimeLimit if nt > 1 => self.draws += 1,
+                    _ => {}
+                }
+            }
+        }
+    }
+}
+
 /// One iteration's figures.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct IterationStats {
@@ -142,9 +177,7 @@ pub struct Trainer {
     /// `[E, teams]` returns of running episodes.
     pub episode_returns: Vec<f64>,
     rollout: Rollout,
-    actions: Vec<f32>,
-    logp: Vec<f32>,
-    scratch: ActScratch,
+    joint: JointAction,
     mb: MinibatchBuf,
     normalised: Observation,
 }
@@ -209,9 +242,7 @@ impl Trainer {
             evals_done: 0,
             episode_returns: vec![0.0; config.num_envs * nt],
             rollout,
-            actions: vec![0.0; config.num_envs * na],
-            logp: vec![0.0; config.num_envs],
-            scratch: ActScratch::default(),
+            joint: JointAction::new(config.num_envs, na, nt),
             mb: MinibatchBuf::default(),
             normalised: Observation::empty(0, 0),
             env,
@@ -263,10 +294,10 @@ impl Trainer {
                 ))
             })?;
             team.norm = s.normalizer.clone();
-            if s.noise.len() != team.noise.len() {
-                return Err(bad(format!("{} noise streams for {} agents", s.noise.len(), team.noise.len())));
+            if s.noise.len() != team.actor.noise.len() {
+                return Err(bad(format!("{} noise streams for {} agents", s.noise.len(), team.actor.noise.len())));
             }
-            team.noise = s.noise.iter().map(|r| r.restore()).collect::<Result<Vec<_>>>()?;
+            team.actor.noise = s.noise.iter().map(|r| r.restore()).collect::<Result<Vec<_>>>()?;
             team.shuffle = s.shuffle.restore()?;
         }
         t.env.restore(&c.env).map_err(|e| bad(e.to_string()))?;
@@ -294,7 +325,7 @@ impl Trainer {
                     params: nn::StateDict::from_store(&t.store),
                     adam: t.adam.clone(),
                     normalizer: t.norm.clone(),
-                    noise: t.noise.iter().map(RngState::of).collect(),
+                    noise: t.actor.noise.iter().map(RngState::of).collect(),
                     shuffle: RngState::of(&t.shuffle),
                 })
                 .collect(),
@@ -345,99 +376,58 @@ impl Trainer {
     /// Step 1 of [`Trainer::iterate`]: plays one iteration's unrolls with the current
     /// policies and normalisers, storing them in [`Trainer::rollout`].
     pub fn collect(&mut self) -> Result<EpisodeStats> {
-        let (t_len, e_n, nt) = (self.config.unroll_length, self.config.num_envs, self.spec.n_teams);
         let scale = self.config.reward_scaling as f32;
-        let na = self.env.n_actions();
-        let mut stats = EpisodeStats { return_sum: vec![0.0; nt], ..Default::default() };
-        self.rollout.clear_finals();
-        let mut pre = vec![0.0f32; e_n * na];
-        for b in 0..self.rollout.blocks {
-            self.rollout.store_obs(b, 0, self.env.obs());
-            for t in 0..t_len {
-                for team in &mut self.teams {
-                    let raw = self.rollout.obs(b, t);
-                    let assignment = act(
-                        &mut team.model,
-                        &team.store,
-                        &team.norm,
-                        &self.spec,
-                        raw,
-                        ActMode::Sample,
-                        &mut team.noise,
-                        &mut self.actions,
-                        &mut pre,
-                        &mut self.logp,
-                        &mut self.scratch,
-                    )?;
-                    self.rollout.store_assignment(b, t, team.index, &assignment);
-                    let tr = self.rollout.transition(b, t);
-                    for e in 0..e_n {
-                        self.rollout.logp[(tr + e) * nt + team.index] = self.logp[e];
-                    }
-                }
-                let tr = self.rollout.transition(b, t);
-                self.rollout.actions[tr * na..(tr + e_n) * na].copy_from_slice(&pre);
-                let out = self.env.step(&self.actions)?;
-                self.rollout.store_step(b, t, out, scale);
-                for e in 0..e_n {
-                    for k in 0..nt {
-                        self.episode_returns[e * nt + k] += out.reward[e * nt + k] as f64;
-                    }
-                    if out.terminated[e] || out.truncated[e] {
-                        stats.episodes += 1;
-                        stats.length_sum += out.episode_len[e] as u64;
-                        for k in 0..nt {
-                            stats.return_sum[k] += self.episode_returns[e * nt + k];
-                            self.episode_returns[e * nt + k] = 0.0;
-                        }
-                        match out.outcome[e] {
-                            Outcome::Success => stats.successes += 1,
-                            Outcome::Win(k) if k < 2 => stats.wins[k] += 1,
-                            Outcome::Draw | Outcome::TimeLimit if nt > 1 => stats.draws += 1,
-                            _ => {}
-                        }
-                    }
-                }
-                self.rollout.store_obs(b, t + 1, self.env.obs());
+        let mut stats = EpisodeStats::new(self.spec.n_teams);
+        self.rollout.begin(self.env.obs());
+        while !self.rollout.is_full() {
+            for team in &mut self.teams {
+                team.act(self.env.obs().rows(), &mut self.joint)?;
             }
+            let out = self.env.step(&self.joint.actions)?;
+            self.rollout.push(&self.joint, out, scale);
+            stats.record(out, &mut self.episode_returns);
         }
         Ok(stats)
     }
 
+    /// Step 3 of [`Trainer::iterate`]: `epochs` passes of minibatch updates of every team.
     fn update(&mut self) -> Result<Vec<LossStats>> {
         let c = &self.config;
         let hp = PpoParams::from_config(c);
-        let n_unrolls = self.rollout.blocks * self.rollout.envs;
         let mut all = Vec::with_capacity(self.teams.len());
         for team in &mut self.teams {
             let mut sum = LossStats::default();
             let mut count = 0.0;
             for epoch in 0..c.epochs {
-                let perm = permutation(n_unrolls, &mut team.shuffle);
+                let perm = permutation(self.rollout.unrolls(), &mut team.shuffle);
                 for (k, ids) in perm.chunks_exact(c.batch_size).enumerate() {
+                    let at = Where { team: team.index, iteration: self.iteration, epoch, minibatch: k };
+                    // Gather the minibatch's unrolls (time-major) and normalise them.
                     self.rollout.gather(ids, team.index, &mut self.mb);
                     team.norm.apply_rows(self.mb.obs.rows(), &mut self.normalised);
+                    let mb = self.mb.view(self.normalised.rows());
+                    // Forward: the transitions on the tape, the bootstrap rows without it.
                     let tape = Tape::<f32>::new();
                     let p = team.store.bind(&tape);
-                    let mb = self.mb.view(self.normalised.rows());
+                    let fwd = ppo::forward(&mut team.model, &p, &mb)?;
+                    // GAE from the values and the bootstrap values (Brax's, per minibatch).
+                    let adv_targets = ppo::advantages(&mb, &fwd, &hp);
+                    // The PPO loss; the entropy estimate draws from the minibatch's stream.
                     let mut noise =
-                        minibatch_stream(c.seed, "entropy", team.index as u64, self.iteration, epoch as u64, k as u64);
-                    let (loss, stats) = ppo_loss(&mut team.model, &self.spec, &p, &mb, &hp, &mut noise)?;
-                    let where_ = || {
-                        format!(
-                            "team {} at iteration {}, epoch {epoch}, minibatch {k} (policy loss {}, value loss {}, \
-                             entropy {})",
-                            team.index, self.iteration, stats.policy_loss, stats.value_loss, stats.entropy
-                        )
-                    };
+                        minibatch_stream(c.seed, "entropy", at.team as u64, at.iteration, epoch as u64, k as u64);
+                    let terms = LossTerms::new(&fwd, &mb, &self.spec, adv_targets, hp.entropy, &mut noise)?;
+                    let loss = ppo_loss(&terms, &hp)?;
+                    let stats = loss_stats(&loss, &terms, &hp)?;
                     if !stats.loss.is_finite() {
-                        return Err(RlError::NonFinite { message: format!("loss {} of {}", stats.loss, where_()) });
+                        return Err(RlError::NonFinite {
+                            message: format!("loss {} of {}", stats.loss, at.describe(&stats)),
+                        });
                     }
-                    let g = tape.backward(loss)?;
-                    let mut grads = p.grads(&g);
+                    // Backward, every gradient element clipped, one Adam step.
+                    let mut grads = p.grads(&tape.backward(loss.total)?);
                     if let Some((i, _)) = grads.iter().enumerate().find(|(_, g)| !g.all_finite()) {
                         return Err(RlError::NonFinite {
-                            message: format!("gradient of {} of {}", team.store.names()[i], where_()),
+                            message: format!("gradient of {} of {}", team.store.names()[i], at.describe(&stats)),
                         });
                     }
                     if c.grad_clip > 0.0 {
@@ -465,6 +455,24 @@ impl Trainer {
         let base =
             EvalOptions::new(c.eval_episodes, c.eval_deterministic, derive_seed(c.seed, "eval", k, 0), c.start_mode());
         c.eval_rotations.iter().map(|&rotation_deg| EvalOptions { rotation_deg, ..base }).collect()
+    }
+}
+
+/// Where a minibatch update is, for error messages.
+struct Where {
+    team: usize,
+    iteration: u64,
+    epoch: usize,
+    minibatch: usize,
+}
+
+impl Where {
+    /// `team t at iteration i, epoch e, minibatch k (policy loss .., value loss .., entropy ..)`.
+    fn describe(&self, stats: &LossStats) -> String {
+        format!(
+            "team {} at iteration {}, epoch {}, minibatch {} (policy loss {}, value loss {}, entropy {})",
+            self.team, self.iteration, self.epoch, self.minibatch, stats.policy_loss, stats.value_loss, stats.entropy
+        )
     }
 }
 

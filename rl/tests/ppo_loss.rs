@@ -6,12 +6,31 @@ mod common;
 
 use models::distribution::std_from_scale;
 use models::layout::Observation;
+use nn::Bound;
 use rl::gae::{Unrolls, gae};
-use rl::ppo::{PpoParams, ppo_loss};
+use rl::ppo::{self, LossStats, LossTerms, Minibatch, PpoParams};
 use rl::rollout::{MinibatchBuf, NO_FINAL};
 use rl::seeding::{minibatch_stream, standard_normal};
 use rl::{EntropyKind, TrainConfig, Trainer};
 use tensor::Tape;
+use tensor::Var;
+
+/// The loss of one minibatch as the trainer takes it: forward, GAE, the loss terms, the
+/// PPO loss and its diagnostics.
+fn minibatch_loss<'t>(
+    model: &mut models::Model,
+    p: &Bound<'t, f32>,
+    mb: &Minibatch<'_>,
+    hp: &PpoParams,
+    noise: &mut rand_chacha::ChaCha8Rng,
+) -> (Var<'t, f32>, LossStats) {
+    let fwd = ppo::forward(model, p, mb).unwrap();
+    let adv_targets = ppo::advantages(mb, &fwd, hp);
+    let terms = LossTerms::new(&fwd, mb, model.spec(), adv_targets, hp.entropy, noise).unwrap();
+    let loss = ppo::ppo_loss(&terms, hp).unwrap();
+    let stats = ppo::loss_stats(&loss, &terms, hp).unwrap();
+    (loss.total, stats)
+}
 
 fn params(c: &TrainConfig) -> PpoParams {
     PpoParams::from_config(c)
@@ -36,7 +55,7 @@ fn loss_stats(t: &mut Trainer, mb: &MinibatchBuf, config: &TrainConfig) -> rl::p
     let tape = Tape::<f32>::new();
     let p = team.store.bind(&tape);
     let mut noise = minibatch_stream(config.seed, "entropy", 0, 0, 0, 0);
-    ppo_loss(&mut team.model, &t.spec, &p, &mb.view(obs.rows()), &params(config), &mut noise).unwrap().1
+    minibatch_loss(&mut team.model, &p, &mb.view(obs.rows()), &params(config), &mut noise).1
 }
 
 #[test]
@@ -102,8 +121,7 @@ fn loss_matches_a_hand_computation(kind: EntropyKind) {
     let tape = Tape::<f32>::new();
     let p = team.store.bind(&tape);
     let noise = minibatch_stream(config.seed, "entropy", 0, 3, 1, 2);
-    let (loss, st) =
-        ppo_loss(&mut team.model.clone(), &t.spec, &p, &mb.view(obs.rows()), &hp, &mut noise.clone()).unwrap();
+    let (loss, st) = minibatch_loss(&mut team.model.clone(), &p, &mb.view(obs.rows()), &hp, &mut noise.clone());
     // The noise the Tanh-Normal estimate draws: per agent a [T M, dof] block in row order.
     let mut draws = noise;
 
@@ -203,7 +221,7 @@ fn the_entropy_estimate_is_reproducible_from_the_minibatch_stream() {
         let p = team.store.bind(&tape);
         let hp = PpoParams { entropy: kind, ..params(&config) };
         let mut noise = minibatch_stream(config.seed, "entropy", 0, 0, 0, minibatch);
-        let (loss, st) = ppo_loss(&mut team.model, &t.spec, &p, &mb.view(obs.rows()), &hp, &mut noise).unwrap();
+        let (loss, st) = minibatch_loss(&mut team.model, &p, &mb.view(obs.rows()), &hp, &mut noise);
         (loss.value().item().unwrap().to_bits(), st.entropy.to_bits())
     };
     let a = run(EntropyKind::TanhNormal, 0);
