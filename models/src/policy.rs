@@ -25,7 +25,7 @@
 //! - `mlp`, `mlp_hn`: the MLP baselines, module [`crate::mlp`] (the release's MLP by
 //!   default; `variant=flat` the earlier 256 x 3);
 //! - `transformer_hn` (Transformer+HN): the nodes of `mlp_hn`'s flat agent view, each in the
-//!   agent's heading frame, are the tokens of one shared [`TransformerHead`] (128/256/3/2, no
+//!   agent's heading frame, are the tokens of one shared [`crate::TransformerHead`] (128/256/3/2, no
 //!   positional encoding, decoder conditioned on the token); each DoF node's output gives that
 //!   DoF's `loc`, `scale`; its critic is a Transformer over every entity's root (the paper:
 //!   "the same backbone ... for σ_π in eq. (pi) and σ_V in eq. (value)");

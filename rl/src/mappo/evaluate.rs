@@ -15,12 +15,38 @@ use envs::tasks::placement::sample_start;
 use envs::tasks::vec_env::env_rng;
 use envs::tasks::{Outcome, Scene, Start, StartMode, TaskSpec, VecEnv};
 use models::Model;
+use serde::{Deserialize, Serialize};
 
-use crate::actor::{ActMode, Actor, JointAction};
 use crate::error::Result;
-use crate::seeding::stream;
-use crate::team::Team;
-use crate::train::EvalSummary;
+use crate::mappo::actor::{ActMode, Actor, JointAction};
+use crate::mappo::seeding::stream;
+use crate::mappo::team::Team;
+
+/// Results of one evaluation.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct EvalSummary {
+    /// Episodes played.
+    pub episodes: usize,
+    /// Team Reach: fraction of episodes where every ball was covered.
+    pub success_rate: f64,
+    /// Team Sumo: fraction of episodes won by team 0 and by team 1.
+    pub win_rate: Vec<f64>,
+    /// Team Sumo: fraction of draws (both out at once, or the time limit).
+    pub draw_rate: f64,
+    /// Mean undiscounted episode return per team.
+    pub mean_return: Vec<f64>,
+    /// Mean episode length in control steps.
+    pub mean_length: f64,
+    /// Whether actions were sampled (else the mean action was taken).
+    #[serde(default)]
+    pub sampled: bool,
+    /// Rotation of every start about the vertical through the origin, in degrees.
+    #[serde(default)]
+    pub rotation_deg: f64,
+    /// Horizontal translation of every start (x, y) in m.
+    #[serde(default)]
+    pub translation: [f64; 2],
+}
 
 /// What to evaluate.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -144,7 +170,7 @@ pub fn evaluation_actors(teams: &[Team], seed: u64, mode: ActMode) -> Vec<(Model
         .enumerate()
         .map(|(k, t)| {
             let mut model = t.model.clone();
-            model.reseed(crate::seeding::derive_seed(seed, "evalasgn", k as u64, 0));
+            model.reseed(crate::mappo::seeding::derive_seed(seed, "evalasgn", k as u64, 0));
             let noise = t.model.agents().iter().map(|&a| stream(seed, "evalnois", t.index as u64, a as u64)).collect();
             (model, Actor::new(mode, noise))
         })

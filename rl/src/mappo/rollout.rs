@@ -17,8 +17,8 @@
 use envs::tasks::StepOutput;
 use models::layout::{ObsRows, Observation, RowWidths};
 
-use crate::actor::JointAction;
-use crate::ppo::Minibatch;
+use crate::mappo::actor::JointAction;
+use crate::mappo::ppo::Minibatch;
 
 /// Marks a transition without a final observation.
 pub const NO_FINAL: u32 = u32::MAX;
@@ -259,7 +259,7 @@ impl Rollout {
     }
 
     /// Gathers team `team`'s minibatch of unrolls `ids` (unroll `q` is block `q / E`,
-    /// environment `q % E`) into `mb`, time-major (module docs of [`crate::ppo`]).
+    /// environment `q % E`) into `mb`, time-major (module docs of [`crate::mappo::ppo`]).
     pub fn gather(&self, ids: &[usize], team: usize, mb: &mut MinibatchBuf) {
         let (t_len, m, e_n) = (self.steps, ids.len(), self.envs);
         let (nt, nact) = (self.teams, self.n_actions);

@@ -2,7 +2,7 @@
 //! reference release's Brax PPO loss), in the steps the trainer takes in order:
 //! [`forward`] (values of every state of the unrolls under the current critic, the policy of
 //! the transitions), [`advantages`] (advantages and value targets by GAE from those values,
-//! [`crate::gae`], held constant), [`LossTerms::new`] (log-probabilities and entropy of the
+//! [`crate::mappo::gae`], held constant), [`LossTerms::new`] (log-probabilities and entropy of the
 //! taken actions), [`ppo_loss`] (a short function of those tensors) and [`loss_stats`]:
 //!
 //! `L = -mean(min(rho A, clip(rho, 1 - eps, 1 + eps) A)) + c_v mean((V - v_target)^2)
@@ -31,11 +31,11 @@ use nn::Bound;
 use rand_chacha::ChaCha8Rng;
 use tensor::{Tensor, Var};
 
-use crate::config::EntropyKind;
 use crate::error::Result;
-use crate::gae::{Unrolls, gae};
-use crate::rollout::NO_FINAL;
-use crate::seeding::standard_normal;
+use crate::mappo::config::EntropyKind;
+use crate::mappo::gae::{Unrolls, gae};
+use crate::mappo::rollout::NO_FINAL;
+use crate::mappo::seeding::standard_normal;
 
 /// The loss weights and return parameters.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -154,7 +154,7 @@ pub fn forward<'t>(model: &mut Model, p: &Bound<'t, f32>, mb: &Minibatch<'_>) ->
     Ok(Forward { value: out.team_value()?, policy: out.agents, bootstrap })
 }
 
-/// GAE per minibatch under the current critic, as Brax's PPO computes it ([`crate::gae`]):
+/// GAE per minibatch under the current critic, as Brax's PPO computes it ([`crate::mappo::gae`]):
 /// `V(s_t)` of the transitions, `V(s_T)` after each unroll and `V(s_final)` of truncated
 /// transitions from [`forward`]. Returns the advantages and value targets, `[T M]` each,
 /// constants of the loss.

@@ -14,8 +14,8 @@ use rand_chacha::ChaCha8Rng;
 use tensor::{Tape, Tensor};
 
 use crate::error::{Result, RlError};
-use crate::normalizer::ObsNormalizer;
-use crate::seeding::standard_normal;
+use crate::mappo::normalizer::ObsNormalizer;
+use crate::mappo::seeding::standard_normal;
 
 /// How actions are chosen.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
