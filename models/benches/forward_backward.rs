@@ -15,7 +15,7 @@ use std::time::Instant;
 static ALLOC: mimalloc::MiMalloc = mimalloc::MiMalloc;
 
 use envs::tasks::{StartMode, VecEnv};
-use models::{Model, ModelConfig, ObsBatch};
+use models::{Model, ModelConfig, ObsRows};
 use nn::ParamStore;
 use tensor::Tape;
 
@@ -40,7 +40,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let vectors = o.vectors.repeat(rep);
         let scalars = o.scalars.repeat(rep);
         let heading = o.heading.repeat(rep);
-        let obs = ObsBatch::new(MINIBATCH, spec.n_nodes, &vectors[..], &scalars[..])?;
+        let obs = ObsRows::new(spec.n_nodes, spec.n_agents, &vectors[..], &scalars[..], &heading[..])?;
         for name in ["shnn", "mlp_hn", "shtransformer", "shgnn"] {
             let label = format!("{env_name} {name}");
             if filter.as_ref().is_some_and(|f| !label.contains(f.as_str())) {
@@ -57,7 +57,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     tape.enable_profiling();
                 }
                 let p = store.bind(&tape);
-                let out = model.forward_batch(&p, &obs, &heading)?;
+                let out = model.forward_batch(&p, &obs)?;
                 let mut loss = out.team_value()?.mean_all()?;
                 for a in &out.agents {
                     loss = loss.add(a.loc.mean_all()?)?.add(a.std().mean_all()?)?;

@@ -21,7 +21,6 @@
 //! Every step is subequivariant (or invariant) under rotations about `g` and translations,
 //! so the head's outputs are invariant.
 
-use envs::tasks::{N_SCALARS, ObsSpec};
 use nn::{
     Aggregation, Bound, EdgeDistance, EdgeList, Linear, MessagePassingConfig, Mlp, Scope, SubeqMessagePassing,
     VectorLinear,
@@ -31,6 +30,7 @@ use tensor::{Activation, Float, Tensor, Var};
 use crate::error::{ModelError, Result};
 use crate::frame::to_frame;
 use crate::input::{AgentBody, NODE_VECTORS};
+use crate::layout::{N_SCALARS, ObsSpec};
 
 /// Sizes of a [`BodyGnn`].
 #[derive(Clone, Debug)]

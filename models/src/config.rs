@@ -1,28 +1,17 @@
-//! Which model to build and its options ([`ModelConfig`]): the model names of the paper and
-//! the named options that keep every ablation runnable (`name:key=value;key=value`).
+//! Which model to build and its options ([`ModelConfig`]): a model of the paper
+//! ([`ModelKind`]) and the named options that keep every ablation runnable
+//! (`name:key=value;key=value`), resolved to the settings the builders use.
 //!
 //! Every option's default is the paper's model as its reference release builds it (the
 //! paper's equations and Algorithm 1 decide the structure; where the paper is silent the
 //! release decides); the other values are the ablations and this project's earlier variants.
 
 use crate::assignment::AssignmentMethod;
+use crate::entity_graph::GraphBuilder;
 use crate::error::{ModelError, Result};
-use crate::input::{EntityAbstraction, Translation};
-
-/// The models [`crate::Model::new`] builds.
-pub const MODEL_NAMES: [&str; 11] = [
-    "shnn",
-    "shnn_og3",
-    "shnn_so3",
-    "mlp",
-    "mlp_hn",
-    "transformer_hn",
-    "shtransformer",
-    "shgnn",
-    "hnn",
-    "hnn_hn",
-    "hnn_dn",
-];
+use crate::input::{EntityAbstraction, InputProcessor, Translation};
+use crate::kind::ModelKind;
+use crate::layout::ObsSpec;
 
 /// The option keys [`ModelConfig::parse`] accepts.
 pub const OPTION_KEYS: [&str; 11] = [
@@ -164,7 +153,7 @@ impl MlpVariant {
 /// Which model to build and its options; `None` fields take the model's defaults.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct ModelConfig {
-    /// One of [`MODEL_NAMES`].
+    /// The name of one of [`ModelKind::ALL`].
     pub name: String,
     /// Task assignment (SHNN, HNN and MLP models; default greedy, Algorithm 1).
     pub assignment: Option<AssignmentMethod>,
@@ -228,7 +217,7 @@ impl ModelConfig {
     /// applies to the model is checked when it is built.
     pub fn parse(s: &str) -> Result<Self> {
         let (name, opts) = s.split_once(':').unwrap_or((s, ""));
-        check_name(name)?;
+        ModelKind::parse(name)?;
         let mut c = Self::new(name);
         let mut seen: Vec<&str> = Vec::new();
         for item in opts.split(';').filter(|_| !opts.is_empty()) {
@@ -293,6 +282,37 @@ impl ModelConfig {
         ]
     }
 
+    /// The model to build; an unknown name is an error listing the known ones.
+    pub fn kind(&self) -> Result<ModelKind> {
+        ModelKind::parse(&self.name)
+    }
+
+    /// The task assignment: the option, else greedy (Algorithm 1).
+    pub(crate) fn assignment_method(&self) -> AssignmentMethod {
+        self.assignment.unwrap_or(AssignmentMethod::Greedy)
+    }
+
+    /// The translation mode: the option, else [`Translation::Assigned`], or
+    /// [`Translation::RootMean`] with `assignment=none` (the paper's "w/o assignment").
+    pub(crate) fn translation_mode(&self) -> Translation {
+        self.translation.unwrap_or(if self.assignment_method() == AssignmentMethod::None {
+            Translation::RootMean
+        } else {
+            Translation::Assigned
+        })
+    }
+
+    /// The input processing of the hierarchical models (translation and abstraction
+    /// options) for scenes laid out by `spec`.
+    pub(crate) fn input_processor(&self, spec: &ObsSpec) -> Result<InputProcessor> {
+        Ok(InputProcessor::new(spec, self.translation_mode())?.with_abstraction(self.abstraction.unwrap_or_default()))
+    }
+
+    /// The task-assignment graph builder of `team` (assignment and seed options).
+    pub(crate) fn graph_builder(&self, spec: &ObsSpec, team: usize) -> Result<GraphBuilder> {
+        GraphBuilder::new(spec, self.assignment_method(), team, self.seed)
+    }
+
     /// Errors naming the first option set here that is not in `allowed`.
     pub(crate) fn check_options(&self, allowed: &[&str]) -> Result<()> {
         if let Some((key, _)) = self.set_options().iter().find(|(k, set)| *set && !allowed.contains(k)) {
@@ -330,12 +350,14 @@ fn parse_widths(key: &str, v: &str) -> Result<Vec<usize>> {
     Ok(w)
 }
 
-/// Checks a model name against [`MODEL_NAMES`].
-pub(crate) fn check_name(name: &str) -> Result<()> {
-    if MODEL_NAMES.contains(&name) {
-        return Ok(());
+/// The hidden widths of option `h`, else `default`; positive and, unless `allow_empty`,
+/// at least one.
+pub(crate) fn hidden_widths(h: &Option<Vec<usize>>, default: &[usize], allow_empty: bool) -> Result<Vec<usize>> {
+    let h = h.clone().unwrap_or_else(|| default.to_vec());
+    if (h.is_empty() && !allow_empty) || h.contains(&0) {
+        return Err(ModelError::Option(format!("hidden widths {h:?} must be non-empty and positive")));
     }
-    Err(ModelError::Option(format!("model `{name}` is unknown (known models: {})", MODEL_NAMES.join(", "))))
+    Ok(h)
 }
 
 /// `[input, hidden.., output]`.

@@ -20,8 +20,6 @@
 //! the loss). Every input is invariant under rotations about `g` and translations, and the
 //! message passing is subequivariant, so the value is invariant.
 
-use envs::tasks::ObsSpec;
-use envs::tasks::observation::{ENTITY_CENTRE, N_SCALARS};
 use nn::{Aggregation, Bound, EdgeDistance, EdgeList, Mlp, Scope, TransformerConfig};
 use tensor::{Activation, Float, Tensor, Var};
 
@@ -29,6 +27,7 @@ use crate::config::{GravityMode, MpSizes, layer_sizes};
 use crate::entity_mp::{EntityMp, EntityMpConfig};
 use crate::error::{ModelError, Result};
 use crate::input::{EntityAbstraction, EntityInputs, InputProcessor, ObsBatch, ObsElement, Translation};
+use crate::layout::{ENTITY_CENTRE, N_SCALARS, ObsSpec};
 use crate::transformer_head::TransformerHead;
 
 /// Radial-basis features of the release's `DistanceRBF(num_channels=64)`.

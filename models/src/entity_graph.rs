@@ -27,8 +27,6 @@
 //! back ([`GraphBuilder::build_with`]), so that the update of a stochastic assignment sees
 //! the graph the behaviour policy acted on.
 
-use envs::tasks::ObsSpec;
-use envs::tasks::observation::{ENTITY_CENTRE, ENTITY_GOAL};
 use nn::EdgeList;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -37,6 +35,7 @@ use tensor::Float;
 use crate::assignment::{Assigner, AssignmentMethod, UNASSIGNED};
 use crate::error::{ModelError, Result};
 use crate::input::EntityInputs;
+use crate::layout::{ENTITY_CENTRE, ENTITY_GOAL, ObsSpec};
 
 /// The task of a scene, as far as the graph is concerned.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -123,7 +122,7 @@ impl GraphBuilder {
         }
         let ball_type = |j: usize| {
             let node = spec.entity_root_node[na + j];
-            let s = &spec.static_scalars[node * envs::tasks::N_SCALARS..];
+            let s = &spec.static_scalars[node * crate::layout::N_SCALARS..];
             (s[ENTITY_GOAL] == 1.0, s[ENTITY_CENTRE] == 1.0)
         };
         let sumo = spec.n_teams == 2 && nm == 1 && ball_type(0).1;

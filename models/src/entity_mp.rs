@@ -20,7 +20,6 @@
 //! `Z'_i` and `u_i` rotate with the scene about `g` and `O_i` with them; `h'_i` is
 //! invariant. With `gravity: None` (the `SO(3)` ablation) `g` enters nowhere.
 
-use envs::tasks::ObsSpec;
 use nn::{
     Aggregation, Bound, EdgeDistance, EdgeList, Linear, MessagePassingConfig, Scope, SubeqMessagePassing, VectorLinear,
 };
@@ -30,6 +29,7 @@ use crate::entity_graph::EntityGraph;
 use crate::error::{ModelError, Result};
 use crate::frame::local_frame;
 use crate::input::{ENTITY_SCALARS, EntityInputs, NODE_VECTORS};
+use crate::layout::ObsSpec;
 
 /// `eps` under the root of the horizontal norm in `OP` (keeps a vertical `u` finite).
 pub const FRAME_EPS: f64 = 1e-12;

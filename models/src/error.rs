@@ -1,5 +1,5 @@
 //! The error type of the model stages: bad options, observations that do not match their
-//! [`envs::tasks::ObsSpec`], and failures of the layers underneath.
+//! [`crate::layout::ObsSpec`], and failures of the layers underneath.
 
 use std::fmt;
 

@@ -15,16 +15,17 @@
 //! Message passing ([`ScalarMp`]): `h = [vec(Z_i), h_i] W + b`, then `steps` rounds of
 //! `m_ij = MLP_e([h_i, h_j, x_j - x_i])`, `m_i = mean_j m_ij`, `h_i += MLP_n([h_i, m_i])`.
 
-use envs::tasks::{N_SCALARS, ObsSpec};
 use nn::{Bound, EdgeList, Linear, Mlp, Scope};
 use tensor::{Activation, Float, Tensor, Var};
 
 use crate::assignment::UNASSIGNED;
-use crate::config::{NeighbourOffset, layer_sizes};
+use crate::config::{ModelConfig, NeighbourOffset, hidden_widths, layer_sizes};
 use crate::critic::critic_order;
 use crate::entity_graph::GraphBuilder;
 use crate::error::{ModelError, Result};
-use crate::input::{ENTITY_SCALARS, InputProcessor, NODE_VECTORS, ObsBatch, ObsElement};
+use crate::input::{ENTITY_SCALARS, InputProcessor, NODE_VECTOR_LEN, NODE_VECTORS, ObsBatch, ObsElement};
+use crate::kind::{Frame, ModelKind};
+use crate::layout::{N_SCALARS, ObsSpec};
 use crate::policy::{AgentPolicy, PolicyOutput};
 
 /// The frame the HNN models express vectors in.
@@ -155,22 +156,44 @@ impl Hnn {
         &self.graph
     }
 
-    /// Builds the entity stage under `entity`, one head per agent under `actor.<a>` and the
-    /// critic under `critic` of scope `s`.
-    #[allow(clippy::too_many_arguments)]
+    /// Builds `kind` (of the HNN family) for `agents` of `team`: the entity stage under
+    /// `entity`, one head per agent under `actor.<a>` and the critic under `critic` of scope
+    /// `s`.
     pub(crate) fn new<T: Float>(
         s: &mut Scope<'_, T>,
-        proc: InputProcessor,
-        graph: GraphBuilder,
-        frame: HnnFrame,
-        neighbour: NeighbourOffset,
-        sizes: ScalarMpSizes,
-        head_hidden: &[usize],
-        critic_hidden: &[usize],
+        kind: ModelKind,
+        config: &ModelConfig,
         spec: &ObsSpec,
+        team: usize,
         agents: &[usize],
     ) -> Result<Self> {
-        let mp = ScalarMp::new(&mut s.sub("entity"), 3 * NODE_VECTORS + ENTITY_SCALARS, sizes)?;
+        config.check_options(&[
+            "assignment",
+            "translation",
+            "abstraction",
+            "neighbour",
+            "actor_steps",
+            "head",
+            "critic_hidden",
+        ])?;
+        let head_hidden = hidden_widths(&config.head_hidden, &[256, 256], false)?;
+        let critic_hidden = hidden_widths(&config.critic_hidden, &[256, 256], false)?;
+        let proc = config.input_processor(spec)?;
+        let graph = config.graph_builder(spec, team)?;
+        let m = config.mp.unwrap_or_default();
+        let sizes = ScalarMpSizes {
+            scalars: m.scalars,
+            hidden: m.hidden,
+            layers: m.layers,
+            steps: config.actor_steps.unwrap_or(1),
+        };
+        let frame = match kind.frame() {
+            Frame::Heading => HnnFrame::Heading,
+            Frame::Goal => HnnFrame::Goal,
+            _ => HnnFrame::World,
+        };
+        let neighbour = config.neighbour.unwrap_or_default();
+        let mp = ScalarMp::new(&mut s.sub("entity"), NODE_VECTOR_LEN + ENTITY_SCALARS, sizes)?;
         let mut actor = s.sub("actor");
         let slots = if neighbour == NeighbourOffset::None { 0 } else { graph.slots() };
         let heads = agents
@@ -178,13 +201,13 @@ impl Hnn {
             .map(|&a| {
                 let k = 1 + spec.agent_dof[a] + slots;
                 let sz =
-                    layer_sizes(k * (3 * NODE_VECTORS + N_SCALARS) + sizes.scalars, head_hidden, 2 * spec.agent_dof[a]);
+                    layer_sizes(k * (NODE_VECTOR_LEN + N_SCALARS) + sizes.scalars, &head_hidden, 2 * spec.agent_dof[a]);
                 Mlp::new(&mut actor.sub(a), &sz, Activation::Relu)
             })
             .collect::<nn::Result<Vec<_>>>()?;
         let ne = spec.entity_root_node.len();
         let critic =
-            Mlp::new(&mut s.sub("critic"), &layer_sizes(ne * sizes.scalars, critic_hidden, 1), Activation::Relu)?;
+            Mlp::new(&mut s.sub("critic"), &layer_sizes(ne * sizes.scalars, &critic_hidden, 1), Activation::Relu)?;
         let critic_entities = critic_order(spec, agents);
         Ok(Self { proc, graph, frame, neighbour, mp, heads, critic, critic_entities })
     }

@@ -1,6 +1,7 @@
 //! Input processing (paper section 3, "Input Processing" and the node features of "Local
-//! Entity-level Subequivariant Message Passing"): batches of MeBen observations
-//! ([`envs::tasks::Observation`] + [`ObsSpec`]) become the tensors the networks read.
+//! Entity-level Subequivariant Message Passing"): batches of MeBen observations ([`ObsBatch`]
+//! rows laid out by [`ObsSpec`], module [`crate::layout`]) become the tensors the networks
+//! read.
 //!
 //! # Entities
 //! The entities `Ω` are the agents (their root nodes) then the balls, in the order of
@@ -47,90 +48,20 @@
 //! produce) and `f64` (exact equivariance tests); all arithmetic is in `f64` and the outputs
 //! are converted to the tensor type once. Only the output buffers are allocated.
 
-use envs::tasks::{N_SCALARS, ObsSpec, Observation};
 use tensor::{Float, Tensor};
 
 use crate::assignment::UNASSIGNED;
 use crate::config::NeighbourOffset;
 use crate::entity_graph::{EntityGraph, GraphTask};
 use crate::error::{ModelError, Result};
+use crate::layout::{N_SCALARS, ObsSpec};
+pub use crate::layout::{NODE_VECTOR_LEN, NODE_VECTORS, ObsBatch, ObsElement};
 
 /// `eps` of the unit direction `d / (|d| + eps)` (the reference release's `normalize_vector`).
 pub const UNIT_EPS: f64 = 1e-6;
 
 /// Scalars per entity: the root's [`N_SCALARS`] plus its height.
 pub const ENTITY_SCALARS: usize = N_SCALARS + 1;
-
-/// Vector channels per node: position, linear velocity, angular velocity.
-pub const NODE_VECTORS: usize = 3;
-
-/// Element types observations can be read from (`f32`, `f64`).
-pub trait ObsElement: Copy + Into<f64> {}
-impl ObsElement for f32 {}
-impl ObsElement for f64 {}
-
-/// A borrowed batch of observation arrays in the layout of [`Observation`]:
-/// `vectors` `[B, N, 3, 3]` (per node the position, velocity and angular velocity, each a
-/// 3-vector) and `scalars` `[B, N, N_SCALARS]`.
-#[derive(Clone, Copy, Debug)]
-pub struct ObsBatch<'a, S> {
-    /// Environments `B`.
-    pub batch: usize,
-    /// Nodes per environment `N`.
-    pub nodes: usize,
-    /// `[B, N, 3, 3]`.
-    pub vectors: &'a [S],
-    /// `[B, N, N_SCALARS]`.
-    pub scalars: &'a [S],
-}
-
-impl<'a> ObsBatch<'a, f32> {
-    /// Borrows the arrays of an environment observation.
-    pub fn from_observation(o: &'a Observation) -> Self {
-        Self { batch: o.batch, nodes: o.nodes, vectors: &o.vectors, scalars: &o.scalars }
-    }
-}
-
-impl<'a, S: ObsElement> ObsBatch<'a, S> {
-    /// Checks that the arrays hold `batch` environments of `nodes` nodes.
-    pub fn new(batch: usize, nodes: usize, vectors: &'a [S], scalars: &'a [S]) -> Result<Self> {
-        if vectors.len() != batch * nodes * 9 || scalars.len() != batch * nodes * N_SCALARS {
-            return Err(ModelError::Input(format!(
-                "observation arrays of {} vectors and {} scalars do not hold {batch} x {nodes} nodes \
-                 (expected {} and {})",
-                vectors.len(),
-                scalars.len(),
-                batch * nodes * 9,
-                batch * nodes * N_SCALARS
-            )));
-        }
-        Ok(Self { batch, nodes, vectors, scalars })
-    }
-
-    /// Vector `k` (0 position, 1 velocity, 2 angular velocity) of `node` in `env`.
-    #[inline]
-    pub fn vec3(&self, env: usize, node: usize, k: usize) -> [f64; 3] {
-        let i = ((env * self.nodes + node) * 3 + k) * 3;
-        [self.vectors[i].into(), self.vectors[i + 1].into(), self.vectors[i + 2].into()]
-    }
-
-    /// Scalar `s` of `node` in `env`.
-    #[inline]
-    pub fn scalar(&self, env: usize, node: usize, s: usize) -> f64 {
-        self.scalars[(env * self.nodes + node) * N_SCALARS + s].into()
-    }
-
-    fn check(&self, spec: &ObsSpec) -> Result<()> {
-        Self::new(self.batch, self.nodes, self.vectors, self.scalars)?;
-        if self.nodes != spec.n_nodes || self.batch == 0 {
-            return Err(ModelError::Input(format!(
-                "observations of {} environments x {} nodes for a scene of {} nodes",
-                self.batch, self.nodes, spec.n_nodes
-            )));
-        }
-        Ok(())
-    }
-}
 
 /// Which point positions are measured from (the paper's translation ablation).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -382,7 +313,7 @@ impl InputProcessor {
     pub fn entities<T: Float, S: ObsElement>(&self, obs: &ObsBatch<'_, S>) -> Result<EntityInputs<T>> {
         obs.check(&self.spec)?;
         let (nb, ne) = (obs.batch, self.n_entities());
-        let mut z = tensor::pool::with_capacity(nb * ne * 9);
+        let mut z = tensor::pool::with_capacity(nb * ne * NODE_VECTOR_LEN);
         let mut h = tensor::pool::with_capacity(nb * ne * ENTITY_SCALARS);
         let mut positions = Vec::with_capacity(nb * ne);
         let mut origin = Vec::with_capacity(nb);
@@ -451,7 +382,7 @@ impl InputProcessor {
             let (root, k) = (self.spec.agent_root_node[a], 1 + self.spec.agent_dof[a]);
             // Pooled storage: these arrays are as large as an activation and are rebuilt for
             // every minibatch.
-            let mut z = tensor::pool::with_capacity(nb * k * 9);
+            let mut z = tensor::pool::with_capacity(nb * k * NODE_VECTOR_LEN);
             let mut h = tensor::pool::with_capacity(nb * k * N_SCALARS);
             let mut origin = Vec::with_capacity(nb);
             for b in 0..nb {
@@ -464,11 +395,8 @@ impl InputProcessor {
                     _ => entities.origin[b],
                 };
                 origin.push(o);
-                let first = (b * obs.nodes + root) * 9;
-                let vectors = &obs.vectors[first..first + k * 9];
-                let first = (b * obs.nodes + root) * N_SCALARS;
-                let scalars = &obs.scalars[first..first + k * N_SCALARS];
-                for (v, sc) in vectors.chunks_exact(9).zip(scalars.chunks_exact(N_SCALARS)) {
+                for node in root..root + k {
+                    let (v, sc) = (obs.node_vectors(b, node), obs.node_scalars(b, node));
                     // v = [p, v, w] (3 each); Z rows r = [p_r - o_r, v_r, w_r].
                     for r in 0..3 {
                         let rel = v[r].into() - o[r];
@@ -549,13 +477,13 @@ impl InputProcessor {
                     graph.batch
                 )));
             }
-            let mut z = tensor::pool::with_capacity(nb * ns * 9);
+            let mut z = tensor::pool::with_capacity(nb * ns * NODE_VECTOR_LEN);
             let mut h = tensor::pool::with_capacity(nb * ns * N_SCALARS);
             for b in 0..nb {
                 for slot in 0..ns {
                     let j = graph.neighbour(b, body.agent, slot);
                     if j == UNASSIGNED {
-                        z.extend(std::iter::repeat_n(T::ZERO, 9));
+                        z.extend(std::iter::repeat_n(T::ZERO, NODE_VECTOR_LEN));
                         h.extend(std::iter::repeat_n(T::ZERO, N_SCALARS));
                         continue;
                     }

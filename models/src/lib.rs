@@ -1,13 +1,16 @@
-//! `models`: SHNN and its baselines (paper section 3, appendix A). So far:
-//! - model-independent components: task assignment (Algorithm 1 and the Hungarian
-//!   alternative), the local reference frame (eqs. (ortho)-(lrf)) and the Tanh-Normal action
-//!   distribution;
-//! - SHNN's entity stage: input processing ([`input`]), the task-assignment entity graph
-//!   ([`entity_graph`]) and the entity-level subequivariant message passing with the LRF
-//!   vector ([`entity_mp`]);
-//! - the policy/critic interface and the models built by name ([`policy`]: `shnn`,
-//!   `shnn_og3`, `shnn_so3`, `mlp`, `mlp_hn`, `transformer_hn`, `shtransformer`, `shgnn`, `hnn`, `hnn_hn`, `hnn_dn`; the Transformer
-//!   body head in [`transformer_head`], the body GNN in [`body_gnn`]).
+//! `models`: SHNN and its baselines (paper section 3, appendices "Baselines" and
+//! "Ablations"), one module per job:
+//! - the observation layout the models read and the environments fill ([`layout`]);
+//! - which model and its options ([`kind`]: the eleven models of the paper, [`config`]);
+//! - the policy/critic interface [`Model`] ([`policy`]), built by its family's module:
+//!   [`shnn`] (`shnn`, `shnn_og3`, `shnn_so3`, `shtransformer`, `shgnn`), [`hnn`] (`hnn`,
+//!   `hnn_hn`, `hnn_dn`), [`mlp`] (`mlp`, `mlp_hn`, `transformer_hn`);
+//! - their stages: input processing ([`input`]), the task assignment (Algorithm 1 and the
+//!   Hungarian alternative, [`assignment`]) and its entity graph ([`entity_graph`]), the
+//!   entity-level subequivariant message passing with the LRF vector ([`entity_mp`]), the
+//!   local reference frame (eqs. (ortho)-(lrf), [`frame`]), the body heads
+//!   ([`transformer_head`], [`body_gnn`]), the value networks ([`critic`]) and the
+//!   Tanh-Normal action distribution ([`distribution`]).
 
 pub mod assignment;
 pub mod body_gnn;
@@ -20,6 +23,8 @@ pub mod error;
 pub mod frame;
 pub mod hnn;
 pub mod input;
+pub mod kind;
+pub mod layout;
 pub mod mlp;
 pub mod policy;
 pub mod shnn;
@@ -32,6 +37,10 @@ pub use critic::{SubeqCritic, ValueHead};
 pub use entity_graph::{EntityGraph, GraphBuilder, GraphTask, NO_AGENT};
 pub use entity_mp::{EntityFeatures, EntityMp, EntityMpConfig};
 pub use error::{ModelError, Result};
-pub use input::{AgentBody, EntityAbstraction, EntityInputs, InputProcessor, NeighbourRows, ObsBatch, Translation};
-pub use policy::{AgentPolicy, MODEL_NAMES, Model, ModelConfig, MpSizes, ParamCounts, PolicyOutput};
+pub use input::{AgentBody, EntityAbstraction, EntityInputs, InputProcessor, NeighbourRows, Translation};
+pub use kind::ModelKind;
+pub use layout::{
+    N_SCALARS, NODE_VECTOR_LEN, NODE_VECTORS, ObsBatch, ObsElement, ObsRows, ObsSpec, Observation, RowWidths,
+};
+pub use policy::{AgentPolicy, Model, ModelConfig, MpSizes, ParamCounts, PolicyOutput};
 pub use transformer_head::TransformerHead;

@@ -27,21 +27,22 @@
 //! components and the scalars per node; world frame for `mlp`, heading frame and positions
 //! relative to its root for `mlp_hn`), the critic 256 x 3 on every node of the scene.
 
-use envs::tasks::{N_SCALARS, ObsSpec};
 use nn::{Bound, Linear, Mlp, Scope};
 use tensor::{Activation, Float, Tensor, Var};
 
 use crate::assignment::{AssignmentMethod, UNASSIGNED};
-use crate::config::layer_sizes;
+use crate::config::{ModelConfig, hidden_widths, layer_sizes};
 use crate::critic::critic_order;
 use crate::entity_graph::GraphBuilder;
 use crate::error::{ModelError, Result};
 use crate::input::{InputProcessor, ObsBatch, ObsElement, Translation};
+use crate::kind::{Frame, Head, ModelKind};
+use crate::layout::{N_SCALARS, NODE_VECTOR_LEN, NODE_VECTORS, ObsSpec};
 use crate::policy::{AgentPolicy, PolicyOutput, split_head};
 use crate::transformer_head::TransformerHead;
 
-/// Per-node features: 9 vector components and the scalars.
-pub const NODE_FEATURES: usize = 9 + N_SCALARS;
+/// Per-node features: the [`NODE_VECTOR_LEN`] vector components and the scalars.
+pub const NODE_FEATURES: usize = NODE_VECTOR_LEN + N_SCALARS;
 /// Width of each of the release MLP's two node embeddings.
 pub const EMBED: usize = 64;
 
@@ -55,7 +56,7 @@ pub(crate) fn push_node<T: Float, S: ObsElement>(
     origin: [f64; 3],
     yaw: Option<(f64, f64)>,
 ) {
-    for k in 0..3 {
+    for k in 0..NODE_VECTORS {
         let mut v = obs.vec3(b, node, k);
         if k == 0 {
             (0..3).for_each(|r| v[r] -= origin[r]);
@@ -87,7 +88,7 @@ struct NodeEmbedding {
 impl NodeEmbedding {
     fn new<T: Float>(s: &mut Scope<'_, T>) -> Result<Self> {
         Ok(Self {
-            z: Linear::new(&mut s.sub("embed_z"), 9, EMBED)?,
+            z: Linear::new(&mut s.sub("embed_z"), NODE_VECTOR_LEN, EMBED)?,
             h: Linear::new(&mut s.sub("embed_h"), N_SCALARS, EMBED)?,
         })
     }
@@ -121,7 +122,9 @@ impl NodeEmbedding {
             Some(b) => p.get(b),
             None => tape.constant(Tensor::zeros(&[out])),
         };
-        for (k, (emb, lo, width)) in [(&self.z, 0, 9), (&self.h, 9, N_SCALARS)].into_iter().enumerate() {
+        for (k, (emb, lo, width)) in
+            [(&self.z, 0, NODE_VECTOR_LEN), (&self.h, NODE_VECTOR_LEN, N_SCALARS)].into_iter().enumerate()
+        {
             // W_r for every row: [R, 64, out]; E [1, width, 64]; E W_r: [R, width, out].
             let wr = w.narrow(0, k * EMBED * r, EMBED * r)?.reshape(&[r, EMBED, out])?;
             let e = p.get(emb.weight).reshape(&[1, width, EMBED])?;
@@ -158,6 +161,24 @@ pub struct ReleaseMlp {
 }
 
 impl ReleaseMlp {
+    /// Builds `kind` (`mlp` or `mlp_hn`, the release variant) for `agents` of `team` under
+    /// scope `s`, after checking `config`'s options.
+    pub(crate) fn build<T: Float>(
+        s: &mut Scope<'_, T>,
+        kind: ModelKind,
+        config: &ModelConfig,
+        spec: &ObsSpec,
+        team: usize,
+        agents: &[usize],
+    ) -> Result<Self> {
+        config.check_options(&["assignment", "variant", "head", "critic_hidden"])?;
+        let head_hidden = hidden_widths(&config.head_hidden, &[256, 256], false)?;
+        let critic_hidden = hidden_widths(&config.critic_hidden, &[256, 256], false)?;
+        let graph = config.graph_builder(spec, team)?;
+        let heading = kind.frame() == Frame::Heading;
+        Self::new(s, spec, agents, graph, heading, &head_hidden, &critic_hidden)
+    }
+
     /// The model for `agents` (scope `s` holds `actor` and `critic`).
     pub(crate) fn new<T: Float>(
         s: &mut Scope<'_, T>,
@@ -296,6 +317,26 @@ enum FlatCritic {
 }
 
 impl FlatMlp {
+    /// Builds `kind` for `agents` under scope `s`, after checking `config`'s options:
+    /// `transformer_hn`, or `mlp`, `mlp_hn` with `variant=flat`.
+    pub(crate) fn build<T: Float>(
+        s: &mut Scope<'_, T>,
+        kind: ModelKind,
+        config: &ModelConfig,
+        spec: &ObsSpec,
+        agents: &[usize],
+    ) -> Result<Self> {
+        let heading = kind.frame() == Frame::Heading;
+        if kind.head() == Head::Transformer {
+            config.check_options(&[])?;
+            return Self::new(s, spec, agents, heading, true, &[], &[]);
+        }
+        config.check_options(&["variant", "head", "critic_hidden"])?;
+        let head_hidden = hidden_widths(&config.head_hidden, &[256, 256, 256], false)?;
+        let critic_hidden = hidden_widths(&config.critic_hidden, &head_hidden, false)?;
+        Self::new(s, spec, agents, heading, false, &head_hidden, &critic_hidden)
+    }
+
     /// The model for `agents`: MLP heads (`head_hidden`) or a shared Transformer head.
     pub(crate) fn new<T: Float>(
         s: &mut Scope<'_, T>,

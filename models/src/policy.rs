@@ -1,5 +1,6 @@
 //! The policy/critic interface the trainer uses (paper section 3 "Body-level Control",
-//! eqs. (pi) and (value); appendix "Baselines"), and the models built by name.
+//! eqs. (pi) and (value); appendix "Baselines"): [`Model`], built for a [`ModelKind`] by its
+//! family's module.
 //!
 //! A [`Model`] is built from a [`ModelConfig`] for one scene layout ([`ObsSpec`]) and one
 //! team: it creates its parameters in a [`Scope`] (so the trainer keeps every team's
@@ -24,7 +25,7 @@
 //! - `mlp`, `mlp_hn`: the MLP baselines, module [`crate::mlp`] (the release's MLP by
 //!   default; `variant=flat` the earlier 256 x 3);
 //! - `transformer_hn` (Transformer+HN): the nodes of `mlp_hn`'s flat agent view, each in the
-//!   agent's heading frame, are the tokens of one shared [`TransformerHead`] (128/256/3/2, no
+//!   agent's heading frame, are the tokens of one shared [`crate::TransformerHead`] (128/256/3/2, no
 //!   positional encoding, decoder conditioned on the token); each DoF node's output gives that
 //!   DoF's `loc`, `scale`; its critic is a Transformer over every entity's root (the paper:
 //!   "the same backbone ... for σ_π in eq. (pi) and σ_V in eq. (value)");
@@ -36,24 +37,21 @@
 //! columns of team 1's model are swapped to `[own, opponent, centre]`
 //! ([`ObsSpec::to_team_view`]; the raw observation is team 0's view).
 
-use envs::tasks::{ObsSpec, Observation};
-use nn::{Bound, Mlp, ParamStore, Scope, TransformerConfig};
-use tensor::{Activation, Float, Var};
+use nn::{Bound, Mlp, ParamStore, Scope};
+use tensor::{Float, Var};
 
 use crate::assignment::AssignmentMethod;
-use crate::body_gnn::{BodyGnn, BodyGnnConfig};
-use crate::config::{CriticKind, GravityMode, MlpVariant, NeighbourOffset, check_name, layer_sizes};
-pub use crate::config::{MODEL_NAMES, ModelConfig, MpSizes};
-use crate::critic::{SubeqCritic, ValueHead, critic_order};
+use crate::config::MlpVariant;
+pub use crate::config::{ModelConfig, MpSizes};
 use crate::distribution::std_from_scale;
 use crate::entity_graph::GraphBuilder;
-use crate::entity_mp::{EntityMp, EntityMpConfig};
+use crate::entity_mp::EntityMp;
 use crate::error::{ModelError, Result};
-use crate::hnn::{Hnn, HnnFrame, ScalarMpSizes};
-use crate::input::{InputProcessor, ObsBatch, ObsElement, Translation};
+use crate::hnn::Hnn;
+use crate::kind::{Family, ModelKind};
+use crate::layout::{ObsBatch, ObsElement, ObsRows, ObsSpec, Observation};
 use crate::mlp::{FlatMlp, ReleaseMlp, no_assignment};
-use crate::shnn::{Critic, FrameKind, Heads, Shnn};
-use crate::transformer_head::TransformerHead;
+use crate::shnn::Shnn;
 
 /// One agent's action-distribution parameters.
 #[derive(Clone, Copy, Debug)]
@@ -116,6 +114,7 @@ enum Arch {
 #[derive(Clone, Debug)]
 pub struct Model {
     name: String,
+    kind: ModelKind,
     team: usize,
     agents: Vec<usize>,
     spec: ObsSpec,
@@ -123,22 +122,12 @@ pub struct Model {
     arch: Arch,
 }
 
-/// Hidden widths of an option, or the default; non-empty and positive.
-fn widths(h: &Option<Vec<usize>>, default: &[usize], allow_empty: bool) -> Result<Vec<usize>> {
-    let h = h.clone().unwrap_or_else(|| default.to_vec());
-    if (h.is_empty() && !allow_empty) || h.contains(&0) {
-        return Err(ModelError::Option(format!("hidden widths {h:?} must be non-empty and positive")));
-    }
-    Ok(h)
-}
-
 impl Model {
-    /// Builds `config.name` for `team` of scenes laid out by `spec`, with parameters under
+    /// Builds `config`'s model for `team` of scenes laid out by `spec`, with parameters under
     /// scope `s` (module docs). Unknown names and options that do not apply are errors
     /// listing the accepted ones.
     pub fn new<T: Float>(s: &mut Scope<'_, T>, config: &ModelConfig, spec: &ObsSpec, team: usize) -> Result<Self> {
-        let name = config.name.as_str();
-        check_name(name)?;
+        let kind = config.kind()?;
         if team >= spec.n_teams {
             return Err(ModelError::Option(format!("team {team} in a scene of {} teams", spec.n_teams)));
         }
@@ -147,168 +136,26 @@ impl Model {
             return Err(ModelError::Input(format!("team {team} has no agent")));
         }
         let prefix = s.full_name("");
-        let method = config.assignment.unwrap_or(AssignmentMethod::Greedy);
-        let translation = config.translation.unwrap_or(if method == AssignmentMethod::None {
-            Translation::RootMean
-        } else {
-            Translation::Assigned
-        });
-        let neighbour = config.neighbour.unwrap_or_default();
-        let m = config.mp.unwrap_or_default();
-        let actor_steps = config.actor_steps.unwrap_or(1);
-        let arch = match name {
-            "shnn" | "shnn_og3" | "shnn_so3" | "shtransformer" | "shgnn" => {
-                let transformer = name == "shtransformer";
-                let gnn = name == "shgnn";
-                let mut allowed =
-                    vec!["assignment", "translation", "abstraction", "neighbour", "critic", "gravity", "actor_steps"];
-                if !transformer {
-                    allowed.extend(["head", "critic_hidden"]);
-                }
-                if name == "shnn_so3" {
-                    allowed.retain(|&k| k != "gravity");
-                }
-                config.check_options(&allowed)?;
-                let gravity = if name == "shnn_so3" { None } else { Some(config.gravity.unwrap_or_default()) };
-                let head_hidden = widths(&config.head_hidden, if gnn { &[] } else { &[256, 256] }, gnn)?;
-                let critic_hidden = widths(&config.critic_hidden, &[256, 256], false)?;
-                let proc =
-                    InputProcessor::new(spec, translation)?.with_abstraction(config.abstraction.unwrap_or_default());
-                let graph = GraphBuilder::new(spec, method, team, config.seed)?;
-                let g = spec.gravity_dir.map(f64::from);
-                let mp = EntityMp::new(
-                    &mut s.sub("entity"),
-                    EntityMpConfig {
-                        vectors: m.vectors,
-                        scalars: m.scalars,
-                        hidden: m.hidden,
-                        layers: m.layers,
-                        steps: actor_steps,
-                        distance: if neighbour == NeighbourOffset::Unit && translation == Translation::Assigned {
-                            nn::EdgeDistance::None
-                        } else {
-                            nn::EdgeDistance::Raw
-                        },
-                        gravity: gravity.map(|_| g),
-                        gravity_in_layers: gravity == Some(GravityMode::EveryLayer),
-                        ..EntityMpConfig::paper(spec)
-                    },
-                )?;
-                let frame = if name == "shnn_og3" { FrameKind::Channels } else { FrameKind::Orthogonal };
-                let channels = match frame {
-                    FrameKind::Orthogonal => 3,
-                    FrameKind::Channels => m.vectors,
-                };
-                // Rows of eq. (lrf): the agent's own nodes and its neighbours'.
-                let slots = if neighbour == NeighbourOffset::None { 0 } else { graph.slots() };
-                let row = 3 * channels + envs::tasks::N_SCALARS;
-                let mut actor = s.sub("actor");
-                let heads = if gnn {
-                    let cfg = BodyGnnConfig {
-                        vectors: m.vectors,
-                        scalars: m.scalars,
-                        hidden: m.hidden,
-                        layers: m.layers,
-                        steps: m.steps,
-                        entity_scalars: m.scalars,
-                        decoder_hidden: head_hidden,
-                        gravity: g,
-                        gravity_in_layers: gravity == Some(GravityMode::EveryLayer),
-                    };
-                    Heads::Gnn(Box::new(BodyGnn::new(&mut actor, cfg, spec, &agents)?))
-                } else if transformer {
-                    let head = TransformerHead::new(&mut actor, row + m.scalars, 2, TransformerConfig::default())?;
-                    Heads::Transformer(Box::new(head))
-                } else {
-                    Heads::Mlp(
-                        agents
-                            .iter()
-                            .map(|&a| {
-                                let input = (1 + spec.agent_dof[a] + slots) * row + m.scalars;
-                                let sz = layer_sizes(input, &head_hidden, 2 * spec.agent_dof[a]);
-                                Mlp::new(&mut actor.sub(a), &sz, Activation::Relu)
-                            })
-                            .collect::<nn::Result<Vec<_>>>()?,
-                    )
-                };
-                let mut c = s.sub("critic");
-                let critic = match config.critic.unwrap_or_default() {
-                    CriticKind::Separate => Critic::Separate(Box::new(SubeqCritic::new(
-                        &mut c,
-                        spec,
-                        team,
-                        &agents,
-                        m,
-                        gravity,
-                        &critic_hidden,
-                        transformer,
-                    )?)),
-                    CriticKind::Shared => {
-                        let ne = spec.entity_root_node.len();
-                        let head = ValueHead::new(&mut c, ne, m.scalars, &critic_hidden, transformer)?;
-                        Critic::Shared(head, critic_order(spec, &agents))
-                    }
-                };
-                Arch::Shnn(Box::new(Shnn { proc, graph, mp, frame, neighbour, heads, critic }))
-            }
-            "hnn" | "hnn_hn" | "hnn_dn" => {
-                config.check_options(&[
-                    "assignment",
-                    "translation",
-                    "abstraction",
-                    "neighbour",
-                    "actor_steps",
-                    "head",
-                    "critic_hidden",
-                ])?;
-                let head_hidden = widths(&config.head_hidden, &[256, 256], false)?;
-                let critic_hidden = widths(&config.critic_hidden, &[256, 256], false)?;
-                let proc =
-                    InputProcessor::new(spec, translation)?.with_abstraction(config.abstraction.unwrap_or_default());
-                let graph = GraphBuilder::new(spec, method, team, config.seed)?;
-                let sizes =
-                    ScalarMpSizes { scalars: m.scalars, hidden: m.hidden, layers: m.layers, steps: actor_steps };
-                let frame = match name {
-                    "hnn_hn" => HnnFrame::Heading,
-                    "hnn_dn" => HnnFrame::Goal,
-                    _ => HnnFrame::World,
-                };
-                let hnn =
-                    Hnn::new(s, proc, graph, frame, neighbour, sizes, &head_hidden, &critic_hidden, spec, &agents)?;
-                Arch::Hnn(Box::new(hnn))
-            }
-            "mlp" | "mlp_hn" => {
-                let heading = name == "mlp_hn";
-                match config.variant.unwrap_or_default() {
-                    MlpVariant::Release => {
-                        config.check_options(&["assignment", "variant", "head", "critic_hidden"])?;
-                        let head_hidden = widths(&config.head_hidden, &[256, 256], false)?;
-                        let critic_hidden = widths(&config.critic_hidden, &[256, 256], false)?;
-                        let graph = GraphBuilder::new(spec, method, team, config.seed)?;
-                        let mlp = ReleaseMlp::new(s, spec, &agents, graph, heading, &head_hidden, &critic_hidden)?;
-                        Arch::Mlp(Box::new(mlp))
-                    }
-                    MlpVariant::Flat => {
-                        config.check_options(&["variant", "head", "critic_hidden"])?;
-                        let head_hidden = widths(&config.head_hidden, &[256, 256, 256], false)?;
-                        let critic_hidden = widths(&config.critic_hidden, &head_hidden, false)?;
-                        let flat = FlatMlp::new(s, spec, &agents, heading, false, &head_hidden, &critic_hidden)?;
-                        Arch::Flat(Box::new(flat))
-                    }
-                }
-            }
-            "transformer_hn" => {
-                config.check_options(&[])?;
-                Arch::Flat(Box::new(FlatMlp::new(s, spec, &agents, true, true, &[], &[])?))
-            }
-            _ => return Err(ModelError::Option(format!("model `{name}` has no builder"))),
+        let arch = match kind.family() {
+            Family::Shnn => Arch::Shnn(Box::new(Shnn::new(s, kind, config, spec, team, &agents)?)),
+            Family::Hnn => Arch::Hnn(Box::new(Hnn::new(s, kind, config, spec, team, &agents)?)),
+            Family::Mlp => match config.variant.unwrap_or_default() {
+                MlpVariant::Release => Arch::Mlp(Box::new(ReleaseMlp::build(s, kind, config, spec, team, &agents)?)),
+                MlpVariant::Flat => Arch::Flat(Box::new(FlatMlp::build(s, kind, config, spec, &agents)?)),
+            },
+            Family::FlatTransformer => Arch::Flat(Box::new(FlatMlp::build(s, kind, config, spec, &agents)?)),
         };
-        Ok(Self { name: config.name.clone(), team, agents, spec: spec.clone(), prefix, arch })
+        Ok(Self { name: config.name.clone(), kind, team, agents, spec: spec.clone(), prefix, arch })
     }
 
     /// The model's name.
     pub fn name(&self) -> &str {
         &self.name
+    }
+
+    /// Which model of the paper it is.
+    pub fn kind(&self) -> ModelKind {
+        self.kind
     }
 
     /// The team the model acts for.
@@ -387,18 +234,16 @@ impl Model {
 
     /// Policy and value for a batch of environment observations.
     pub fn forward<'t, T: Float>(&mut self, p: &Bound<'t, T>, obs: &Observation) -> Result<PolicyOutput<'t, T>> {
-        self.forward_batch(p, &ObsBatch::from_observation(obs), &obs.heading)
+        self.forward_batch(p, &obs.rows())
     }
 
-    /// Policy and value for borrowed observation arrays (`f32` or `f64`) and the agents'
-    /// headings `[B, A]` ([`Observation::heading`]).
+    /// Policy and value for borrowed observation rows (`f32` or `f64`).
     pub fn forward_batch<'t, T: Float, S: ObsElement>(
         &mut self,
         p: &Bound<'t, T>,
-        obs: &ObsBatch<'_, S>,
-        heading: &[S],
+        obs: &ObsRows<'_, S>,
     ) -> Result<PolicyOutput<'t, T>> {
-        self.forward_batch_with(p, obs, heading, None)
+        self.forward_batch_with(p, obs, None)
     }
 
     /// [`Model::forward_batch`] with the task assignment of every scene given (`[B *
@@ -407,11 +252,10 @@ impl Model {
     pub fn forward_batch_with<'t, T: Float, S: ObsElement>(
         &mut self,
         p: &Bound<'t, T>,
-        obs: &ObsBatch<'_, S>,
-        heading: &[S],
+        obs: &ObsRows<'_, S>,
         assignment: Option<&[u32]>,
     ) -> Result<PolicyOutput<'t, T>> {
-        self.forward_parts(p, obs, heading, assignment, true)
+        self.forward_parts(p, obs, assignment, true)
     }
 
     /// [`Model::forward_batch`] without the value network (`PolicyOutput::value` is `None`):
@@ -421,40 +265,39 @@ impl Model {
     pub fn forward_policy_batch<'t, T: Float, S: ObsElement>(
         &mut self,
         p: &Bound<'t, T>,
-        obs: &ObsBatch<'_, S>,
-        heading: &[S],
+        obs: &ObsRows<'_, S>,
     ) -> Result<PolicyOutput<'t, T>> {
-        self.forward_parts(p, obs, heading, None, false)
+        self.forward_parts(p, obs, None, false)
     }
 
     fn forward_parts<'t, T: Float, S: ObsElement>(
         &mut self,
         p: &Bound<'t, T>,
-        obs: &ObsBatch<'_, S>,
-        heading: &[S],
+        rows: &ObsRows<'_, S>,
         assignment: Option<&[u32]>,
         with_value: bool,
     ) -> Result<PolicyOutput<'t, T>> {
-        let nb = obs.batch;
-        if obs.nodes != self.spec.n_nodes || nb == 0 || heading.len() != nb * self.spec.n_agents {
+        let (nb, heading) = (rows.len(), rows.heading);
+        if rows.nodes != self.spec.n_nodes || rows.agents != self.spec.n_agents || nb == 0 {
             return Err(ModelError::Input(format!(
                 "observations of {nb} x {} nodes with {} headings for a scene of {} nodes and {} agents",
-                obs.nodes,
+                rows.nodes,
                 heading.len(),
                 self.spec.n_nodes,
                 self.spec.n_agents
             )));
         }
+        let obs = rows.node_batch();
         // Team Sumo's team 1 reads the entity types from its own view (own team, opponent,
         // centre; the release's Sumo observer): the raw observation is team 0's.
         let viewed: Vec<S>;
         let obs = &if self.team > 0 {
             let mut s = obs.scalars.to_vec();
-            self.spec.to_team_view(self.team, &mut s).map_err(|e| ModelError::Input(e.to_string()))?;
+            self.spec.to_team_view(self.team, &mut s)?;
             viewed = s;
             ObsBatch::new(nb, obs.nodes, obs.vectors, &viewed)?
         } else {
-            *obs
+            obs
         };
         match &mut self.arch {
             Arch::Shnn(m) => m.forward(p, obs, &self.agents, &self.spec, assignment, with_value),

@@ -20,18 +20,19 @@
 //! `shnn_og3` reads the bodies in `O_i = Z'_i` (`m` channels, no orthogonalisation),
 //! `shnn_so3` has no gravity channel anywhere.
 
-use envs::tasks::{N_SCALARS, ObsSpec};
-use nn::{Bound, Mlp};
-use tensor::Float;
+use nn::{Bound, Mlp, Scope, TransformerConfig};
+use tensor::{Activation, Float};
 
-use crate::body_gnn::BodyGnn;
-use crate::config::NeighbourOffset;
-use crate::critic::{SubeqCritic, ValueHead};
+use crate::body_gnn::{BodyGnn, BodyGnnConfig};
+use crate::config::{CriticKind, GravityMode, ModelConfig, NeighbourOffset, hidden_widths, layer_sizes};
+use crate::critic::{SubeqCritic, ValueHead, critic_order};
 use crate::entity_graph::GraphBuilder;
-use crate::entity_mp::EntityMp;
+use crate::entity_mp::{EntityMp, EntityMpConfig};
 use crate::error::{ModelError, Result};
 use crate::frame::to_frame;
-use crate::input::{InputProcessor, ObsBatch, ObsElement};
+use crate::input::{InputProcessor, ObsBatch, ObsElement, Translation};
+use crate::kind::{Critic as KindCritic, Frame, Head, ModelKind};
+use crate::layout::{N_SCALARS, ObsSpec};
 use crate::policy::{AgentPolicy, PolicyOutput, split_head};
 use crate::transformer_head::TransformerHead;
 
@@ -74,6 +75,116 @@ pub(crate) struct Shnn {
 }
 
 impl Shnn {
+    /// Builds `kind` (of the SHNN family) for `agents` of `team` under scope `s`: the
+    /// actor's entity stage (`entity`), the body-level heads (`actor`), the critic
+    /// (`critic`), in that order.
+    pub(crate) fn new<T: Float>(
+        s: &mut Scope<'_, T>,
+        kind: ModelKind,
+        config: &ModelConfig,
+        spec: &ObsSpec,
+        team: usize,
+        agents: &[usize],
+    ) -> Result<Self> {
+        let head = kind.head();
+        let mut allowed =
+            vec!["assignment", "translation", "abstraction", "neighbour", "critic", "gravity", "actor_steps"];
+        if head != Head::Transformer {
+            allowed.extend(["head", "critic_hidden"]);
+        }
+        if !kind.uses_gravity() {
+            allowed.retain(|&k| k != "gravity");
+        }
+        config.check_options(&allowed)?;
+        let translation = config.translation_mode();
+        let neighbour = config.neighbour.unwrap_or_default();
+        let m = config.mp.unwrap_or_default();
+        let gravity = kind.uses_gravity().then(|| config.gravity.unwrap_or_default());
+        let gnn = head == Head::Gnn;
+        let head_hidden = hidden_widths(&config.head_hidden, if gnn { &[] } else { &[256, 256] }, gnn)?;
+        let critic_hidden = hidden_widths(&config.critic_hidden, &[256, 256], false)?;
+        let proc = config.input_processor(spec)?;
+        let graph = config.graph_builder(spec, team)?;
+        let g = spec.gravity_dir.map(f64::from);
+        let mp = EntityMp::new(
+            &mut s.sub("entity"),
+            EntityMpConfig {
+                vectors: m.vectors,
+                scalars: m.scalars,
+                hidden: m.hidden,
+                layers: m.layers,
+                steps: config.actor_steps.unwrap_or(1),
+                distance: if neighbour == NeighbourOffset::Unit && translation == Translation::Assigned {
+                    nn::EdgeDistance::None
+                } else {
+                    nn::EdgeDistance::Raw
+                },
+                gravity: gravity.map(|_| g),
+                gravity_in_layers: gravity == Some(GravityMode::EveryLayer),
+                ..EntityMpConfig::paper(spec)
+            },
+        )?;
+        let frame = if kind.frame() == Frame::Channels { FrameKind::Channels } else { FrameKind::Orthogonal };
+        let channels = match frame {
+            FrameKind::Orthogonal => 3,
+            FrameKind::Channels => m.vectors,
+        };
+        // Rows of eq. (lrf): the agent's own nodes and its neighbours'.
+        let slots = if neighbour == NeighbourOffset::None { 0 } else { graph.slots() };
+        let row = 3 * channels + N_SCALARS;
+        let mut actor = s.sub("actor");
+        let heads = match head {
+            Head::Gnn => {
+                let cfg = BodyGnnConfig {
+                    vectors: m.vectors,
+                    scalars: m.scalars,
+                    hidden: m.hidden,
+                    layers: m.layers,
+                    steps: m.steps,
+                    entity_scalars: m.scalars,
+                    decoder_hidden: head_hidden,
+                    gravity: g,
+                    gravity_in_layers: gravity == Some(GravityMode::EveryLayer),
+                };
+                Heads::Gnn(Box::new(BodyGnn::new(&mut actor, cfg, spec, agents)?))
+            }
+            Head::Transformer => {
+                let head = TransformerHead::new(&mut actor, row + m.scalars, 2, TransformerConfig::default())?;
+                Heads::Transformer(Box::new(head))
+            }
+            Head::Mlp => Heads::Mlp(
+                agents
+                    .iter()
+                    .map(|&a| {
+                        let input = (1 + spec.agent_dof[a] + slots) * row + m.scalars;
+                        let sz = layer_sizes(input, &head_hidden, 2 * spec.agent_dof[a]);
+                        Mlp::new(&mut actor.sub(a), &sz, Activation::Relu)
+                    })
+                    .collect::<nn::Result<Vec<_>>>()?,
+            ),
+        };
+        let transformer = kind.critic() == KindCritic::SubequivariantTransformer;
+        let mut c = s.sub("critic");
+        let critic = match config.critic.unwrap_or_default() {
+            CriticKind::Separate => Critic::Separate(Box::new(SubeqCritic::new(
+                &mut c,
+                spec,
+                team,
+                agents,
+                m,
+                gravity,
+                &critic_hidden,
+                transformer,
+            )?)),
+            CriticKind::Shared => {
+                let ne = spec.entity_root_node.len();
+                let head = ValueHead::new(&mut c, ne, m.scalars, &critic_hidden, transformer)?;
+                Critic::Shared(head, critic_order(spec, agents))
+            }
+        };
+        Ok(Shnn { proc, graph, mp, frame, neighbour, heads, critic })
+    }
+
     /// Policy and (if `with_value`) value; `fixed` replaces the batch's task assignment
     /// (module [`crate::entity_graph`]).
     pub(crate) fn forward<'t, T: Float, S: ObsElement>(

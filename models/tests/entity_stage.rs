@@ -8,6 +8,7 @@ use envs::tasks::{ObsSpec, StartMode, VecEnv};
 use models::entity_graph::GraphTask;
 use models::frame::to_frame;
 use models::input::ObsBatch;
+use models::layout::NODE_VECTOR_LEN;
 use models::{
     AssignmentMethod, EntityAbstraction, EntityGraph, EntityInputs, EntityMp, EntityMpConfig, GraphBuilder,
     InputProcessor, Translation, UNASSIGNED,
@@ -217,16 +218,16 @@ fn translation_modes() {
                 let k = body.z.shape()[1];
                 for r in 0..3 {
                     let expected = if mode == Translation::Assigned { 0.0 } else { root[r] - centre[r] };
-                    assert!((z[(b * k) * 9 + r * 3] - expected).abs() < 1e-12, "{mode:?}");
+                    assert!((z[(b * k) * NODE_VECTOR_LEN + r * 3] - expected).abs() < 1e-12, "{mode:?}");
                     if mode == Translation::Assigned {
                         assert_eq!(actor[((b * ne + a) * 3 + r) * 3], 0.0);
                         let dir = d[r] / (len + models::input::UNIT_EPS);
                         assert!((actor[((b * ne + ball) * 3 + r) * 3] - dir).abs() < 1e-12);
-                        assert!((unit[a].z.to_vec()[b * 9 + r * 3] - dir).abs() < 1e-12);
-                        assert!((raw[a].z.to_vec()[b * 9 + r * 3] - d[r]).abs() < 1e-12);
+                        assert!((unit[a].z.to_vec()[b * NODE_VECTOR_LEN + r * 3] - dir).abs() < 1e-12);
+                        assert!((raw[a].z.to_vec()[b * NODE_VECTOR_LEN + r * 3] - d[r]).abs() < 1e-12);
                         // Velocities unchanged.
                         assert_eq!(
-                            unit[a].z.to_vec()[b * 9 + r * 3 + 1],
+                            unit[a].z.to_vec()[b * NODE_VECTOR_LEN + r * 3 + 1],
                             obs.vec3(b, spec.entity_root_node[ball], 1)[r]
                         );
                     }
@@ -259,9 +260,9 @@ fn inputs_follow_the_observation_layout() {
         for (i, &node) in spec.entity_root_node.iter().enumerate() {
             let row = b * ne + i;
             for r in 0..3 {
-                assert!((z[row * 9 + r * 3] - (roots[i][r] - c[r])).abs() < 1e-12);
-                assert_eq!(z[row * 9 + r * 3 + 1], obs.vec3(b, node, 1)[r]);
-                assert_eq!(z[row * 9 + r * 3 + 2], obs.vec3(b, node, 2)[r]);
+                assert!((z[row * NODE_VECTOR_LEN + r * 3] - (roots[i][r] - c[r])).abs() < 1e-12);
+                assert_eq!(z[row * NODE_VECTOR_LEN + r * 3 + 1], obs.vec3(b, node, 1)[r]);
+                assert_eq!(z[row * NODE_VECTOR_LEN + r * 3 + 2], obs.vec3(b, node, 2)[r]);
             }
             for s in 0..10 {
                 assert_eq!(h[row * 11 + s], obs.scalar(b, node, s));
@@ -281,11 +282,11 @@ fn inputs_follow_the_observation_layout() {
             let (root, k) = (spec.agent_root_node[a], 1 + spec.agent_dof[a]);
             for (ch, r) in (0..3).flat_map(|ch| (0..3).map(move |r| (ch, r))) {
                 let mean = (root..root + k).map(|n| obs.vec3(b, n, ch)[r]).sum::<f64>() / k as f64;
-                assert!((zm[(b * ne + a) * 9 + r * 3 + ch] - mean).abs() < 1e-12);
+                assert!((zm[(b * ne + a) * NODE_VECTOR_LEN + r * 3 + ch] - mean).abs() < 1e-12);
             }
         }
         // The centre ball is its own node.
-        assert_eq!(zm[(b * ne + ne - 1) * 9 + 2 * 3], obs.vec3(b, spec.entity_root_node[ne - 1], 0)[2]);
+        assert_eq!(zm[(b * ne + ne - 1) * NODE_VECTOR_LEN + 2 * 3], obs.vec3(b, spec.entity_root_node[ne - 1], 0)[2]);
     }
     assert!(EntityAbstraction::parse("all").unwrap_err().to_string().contains("root or mean"));
     // Mismatched arrays are errors that say what was expected.
@@ -326,7 +327,7 @@ fn algorithm_1(pos_agents: &[[f64; 3]], pos_objects: &[[f64; 3]]) -> Vec<usize> 
 /// Writes root positions (agents then balls) into environment `b` of the arrays.
 fn place(spec: &ObsSpec, vectors: &mut [f64], b: usize, roots: &[[f64; 3]]) {
     for (&node, p) in spec.entity_root_node.iter().zip(roots) {
-        let i = (b * spec.n_nodes + node) * 9;
+        let i = (b * spec.n_nodes + node) * NODE_VECTOR_LEN;
         vectors[i..i + 3].copy_from_slice(p);
     }
 }
@@ -486,7 +487,7 @@ fn entity_stage_gradients() {
         ne,
     )
     .unwrap();
-    let z0 = Tensor::new(inputs.z.to_vec()[..ne * 9].to_vec(), &[ne, 3, 3]).unwrap();
+    let z0 = Tensor::new(inputs.z.to_vec()[..ne * NODE_VECTOR_LEN].to_vec(), &[ne, 3, 3]).unwrap();
     let h0 = Tensor::new(inputs.h.to_vec()[..ne * 11].to_vec(), &[ne, 11]).unwrap();
     let config = EntityMpConfig {
         vectors: 3,

@@ -4,8 +4,7 @@
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
-use envs::tasks::{N_SCALARS, StartMode, VecEnv};
-use models::input::ObsBatch;
+use envs::tasks::{StartMode, VecEnv};
 use models::{AssignmentMethod, GraphBuilder, InputProcessor, Translation};
 
 struct Counting;
@@ -46,13 +45,12 @@ fn allocations_do_not_grow_with_the_batch() {
         let env = VecEnv::from_name(name, 40, 3, StartMode::Random).unwrap();
         let spec = env.scene().obs_spec.clone();
         let o = env.obs();
-        let n = spec.n_nodes;
         let proc = InputProcessor::new(&spec, Translation::Assigned).unwrap();
         // Warm-up: one-time lazy initialisations (the thread pool's workers, thread-locals)
         // allocate on first use, possibly on other threads while a later call is counted
         // (the counter sees every thread); they must not be attributed to a batch size.
         {
-            let obs = ObsBatch::new(40, n, &o.vectors[..40 * n * 9], &o.scalars[..40 * n * N_SCALARS]).unwrap();
+            let obs = o.rows().slice(0..40).node_batch();
             let mut builder = GraphBuilder::new(&spec, AssignmentMethod::Greedy, 0, 0).unwrap();
             let e = proc.entities::<f32, f32>(&obs).unwrap();
             let g = builder.build(&e).unwrap();
@@ -61,8 +59,7 @@ fn allocations_do_not_grow_with_the_batch() {
         }
         let mut counts = Vec::new();
         for batch in [2, 40] {
-            let obs =
-                ObsBatch::new(batch, n, &o.vectors[..batch * n * 9], &o.scalars[..batch * n * N_SCALARS]).unwrap();
+            let obs = o.rows().slice(0..batch).node_batch();
             for method in [AssignmentMethod::Greedy, AssignmentMethod::Hungarian, AssignmentMethod::None] {
                 let mut builder = GraphBuilder::new(&spec, method, 0, 0).unwrap();
                 let (ce, e) = count(|| proc.entities::<f32, f32>(&obs).unwrap());

@@ -11,9 +11,11 @@ use std::cell::RefCell;
 
 use envs::tasks::{BUILTIN_NAMES, ObsSpec, StartMode, VecEnv};
 use models::input::{InputProcessor, ObsBatch};
-use models::policy::MODEL_NAMES;
+use models::kind::Head;
+use models::layout::{N_SCALARS, NODE_VECTOR_LEN, ObsRows};
 use models::{
-    AssignmentMethod, EntityAbstraction, GraphBuilder, Model, ModelConfig, MpSizes, PolicyOutput, Translation,
+    AssignmentMethod, EntityAbstraction, GraphBuilder, Model, ModelConfig, ModelKind, MpSizes, PolicyOutput,
+    Translation,
 };
 use nn::{Bound, ParamStore};
 use rand::RngExt;
@@ -74,8 +76,8 @@ fn flatten<T: tensor::Float>(out: &PolicyOutput<'_, T>) -> Vec<f64> {
 fn run(model: &mut Model, store: &ParamStore<f64>, spec: &ObsSpec, v: &[f64], s: &[f64], h: &[f64]) -> Vec<f64> {
     let tape = Tape::new();
     let p = store.bind(&tape);
-    let obs = ObsBatch::new(v.len() / (spec.n_nodes * 9), spec.n_nodes, v, s).unwrap();
-    flatten(&model.forward_batch(&p, &obs, h).unwrap())
+    let obs = ObsRows::new(spec.n_nodes, spec.n_agents, v, s, h).unwrap();
+    flatten(&model.forward_batch(&p, &obs).unwrap())
 }
 
 #[test]
@@ -186,6 +188,25 @@ fn hnn_hn_and_hnn_dn_are_invariant_under_yaw_and_hnn_only_under_translation() {
     }
 }
 
+/// `ModelKind::is_equivariant` is what the models do: the equivariant kinds give the same
+/// policy and value for a scene rotated about the vertical and translated, the others
+/// (`mlp`, `hnn`: the world frame) change.
+#[test]
+fn every_kind_is_invariant_exactly_when_it_says_so() {
+    let (spec, vectors, scalars, heading) = observations("team_reach/2_ants", B, 15);
+    let (v, h) = transform(&vectors, &heading, 1.3, [2.0, -3.5]);
+    for kind in ModelKind::ALL {
+        let (store, mut model) = build(&ModelConfig::new(kind.name()), &spec, 0, 8);
+        let base = run(&mut model, &store, &spec, &vectors, &scalars, &heading);
+        let d = max_diff(&run(&mut model, &store, &spec, &v, &scalars, &h), &base);
+        if kind.is_equivariant() {
+            assert!(d < 1e-9, "{kind}: {d}");
+        } else {
+            assert!(d > 1e-3, "{kind} should change under a rotation: {d}");
+        }
+    }
+}
+
 #[test]
 fn forward_on_every_builtin_environment_for_every_model() {
     for env in BUILTIN_NAMES {
@@ -193,7 +214,8 @@ fn forward_on_every_builtin_environment_for_every_model() {
         let na = venv.n_actions();
         venv.step(&vec![0.5; 2 * na]).unwrap();
         let spec = venv.scene().obs_spec.clone();
-        for name in MODEL_NAMES {
+        for kind in ModelKind::ALL {
+            let name = kind.name();
             for team in 0..spec.n_teams {
                 let mut store = ParamStore::<f32>::new();
                 let mut init = nn::init_rng(0);
@@ -217,26 +239,29 @@ fn forward_on_every_builtin_environment_for_every_model() {
                     assert!(pol.std().value().data().iter().all(|&s| s >= 0.001));
                     // One MLP head per agent, or one Transformer or GNN head for the team.
                     let own_head = store.num_elements_under(&format!("{prefix}.actor.{a}."));
-                    assert_eq!(own_head > 0, !name.contains("transformer") && name != "shgnn", "{name}");
+                    assert_eq!(own_head > 0, kind.head() == Head::Mlp, "{name}");
                 }
                 assert_eq!(out.team_value().unwrap().shape(), [2], "{name} on {env}");
                 assert!(out.team_value().unwrap().value().all_finite(), "{name} on {env}");
                 // Acting skips the value network and gets the same policy, to the bit.
                 let obs = venv.obs();
-                let acting = model.forward_policy_batch(&p, &ObsBatch::from_observation(obs), &obs.heading).unwrap();
+                let acting = model.forward_policy_batch(&p, &obs.rows()).unwrap();
                 assert!(acting.value.is_none() && acting.team_value().is_err(), "{name} on {env}");
                 assert_eq!(acting.assignment, out.assignment, "{name} on {env}");
                 for (x, y) in out.agents.iter().zip(&acting.agents) {
                     assert_eq!(x.loc.value().data(), y.loc.value().data(), "{name} on {env}");
                     assert_eq!(x.scale.value().data(), y.scale.value().data(), "{name} on {env}");
                 }
-                // The entity stage (and a Transformer head) exist once per team.
+                // What the kind says of the model is what was built: the entity stage (and a
+                // Transformer or GNN head) exist once per team.
+                assert_eq!(model.kind(), kind);
                 let shared = store.num_elements_under(&format!("{prefix}.entity."));
-                assert_eq!(shared > 0, name.starts_with("sh") || name.starts_with("hnn"), "{name}");
+                assert_eq!(shared > 0, kind.has_entity_stage(), "{name}");
+                assert_eq!(model.entity_stage().is_some(), kind.family() == models::kind::Family::Shnn, "{name}");
                 let head = store.num_elements_under(&format!("{prefix}.actor.encoder."));
-                assert_eq!(head > 0, name.contains("transformer"), "{name}");
+                assert_eq!(head > 0, kind.head() == Head::Transformer, "{name}");
                 let gnn = store.num_elements_under(&format!("{prefix}.actor.mp."));
-                assert_eq!(gnn > 0, name == "shgnn", "{name}");
+                assert_eq!(gnn > 0, kind.head() == Head::Gnn, "{name}");
             }
         }
     }
@@ -252,15 +277,10 @@ fn tiny(name: &str) -> ModelConfig {
 }
 
 /// Policy and value of `model` with the parameters `v` (store order) as tape inputs.
-fn whole<'t>(
-    model: &RefCell<Model>,
-    obs: &ObsBatch<'_, f64>,
-    heading: &[f64],
-    v: &[Var<'t, f64>],
-) -> tensor::Result<Var<'t, f64>> {
+fn whole<'t>(model: &RefCell<Model>, obs: &ObsRows<'_, f64>, v: &[Var<'t, f64>]) -> tensor::Result<Var<'t, f64>> {
     let tape = v[0].tape();
     let p = Bound::from_vars(v.to_vec());
-    let out = model.borrow_mut().forward_batch(&p, obs, heading).expect("forward");
+    let out = model.borrow_mut().forward_batch(&p, obs).expect("forward");
     let flat = |x: Var<'t, f64>| x.reshape(&[x.value().numel()]);
     let mut parts = Vec::new();
     for a in &out.agents {
@@ -282,14 +302,14 @@ fn gradients_through_whole_small_shnn_shgnn_and_hnn_dn() {
         let (spec, vectors, scalars, heading) = observations(env, 2, 21);
         let (store, model) = build(&tiny(name), &spec, team, 9);
         let model = RefCell::new(model);
-        let obs = ObsBatch::new(2, spec.n_nodes, &vectors[..], &scalars[..]).unwrap();
+        let obs = ObsRows::new(spec.n_nodes, spec.n_agents, &vectors[..], &scalars[..], &heading[..]).unwrap();
         let params: Vec<Tensor<f64>> = store.values().to_vec();
-        let report = check_gradients(|_, v| whole(&model, &obs, &heading, v), &params).unwrap();
+        let report = check_gradients(|_, v| whole(&model, &obs, v), &params).unwrap();
         assert_eq!(report.checked, store.num_elements(), "{env}");
         // The check can fail: a term the tape does not see is caught.
         let wrong = check_gradients(
             |_, v| {
-                let y = whole(&model, &obs, &heading, v)?;
+                let y = whole(&model, &obs, v)?;
                 y.add(v[0].detach().square().sum_all())
             },
             &params,
@@ -307,8 +327,8 @@ fn unknown_names_and_options_are_errors_listing_the_known_ones() {
         Model::new(&mut store.scope("m", &mut init), c, &spec, team).unwrap_err().to_string()
     };
     let e = err(&ModelConfig::new("resnet"), 0);
-    for name in MODEL_NAMES.iter() {
-        assert!(e.contains(name), "{e}");
+    for kind in ModelKind::ALL {
+        assert!(e.contains(kind.name()), "{e}");
     }
     let e =
         err(&ModelConfig { assignment: Some(AssignmentMethod::Hungarian), ..ModelConfig::new("transformer_hn") }, 0);
@@ -566,8 +586,8 @@ fn sumo_team_1_sees_the_scene_from_its_own_side() {
     };
     // Vectors and the physical scalars move with the agents; the entity-type columns are the
     // raw observation's (team 0's view) of the swapped scene.
-    let sv = swap_nodes(&vectors, 9, 0);
-    let ss = swap_nodes(&scalars, 10, 3);
+    let sv = swap_nodes(&vectors, NODE_VECTOR_LEN, 0);
+    let ss = swap_nodes(&scalars, N_SCALARS, 3);
     let sh: Vec<f64> = heading.chunks(4).flat_map(|h| [h[2], h[3], h[0], h[1]]).collect();
     for name in ["shnn", "mlp_hn", "shgnn"] {
         let (s0, mut m0) = build(&ModelConfig::new(name), &spec, 0, 6);

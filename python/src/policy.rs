@@ -6,9 +6,8 @@ use envs::tasks::{N_SCALARS, ObsSpec};
 use numpy::PyUntypedArrayMethods;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
-use rand_chacha::ChaCha8Rng;
-use rl::seeding::{derive_seed, stream};
-use rl::team::{ActMode, ActScratch, act};
+use rl::actor::{ActMode, Actor, JointAction};
+use rl::evaluate::evaluation_actors;
 use rl::{RunDir, Team, TrainConfig};
 
 use crate::arrays::{array, read_f32};
@@ -19,11 +18,10 @@ use crate::errors::{bad_argument, rl_error};
 pub struct PyPolicy {
     config: TrainConfig,
     teams: Vec<Team>,
-    models: Vec<models::Model>,
-    noise: Vec<Vec<ChaCha8Rng>>,
+    /// Per team a copy of its model and its actor, in sampling mode; `act` sets the mode.
+    players: Vec<(models::Model, Actor)>,
     spec: ObsSpec,
     n_actions: usize,
-    scratch: ActScratch,
     obs: [Vec<f32>; 3],
 }
 
@@ -44,22 +42,13 @@ impl PyPolicy {
     fn load(py: Python<'_>, run: std::path::PathBuf, seed: u64) -> PyResult<PyPolicy> {
         let (config, teams) = py.detach(|| rl::checkpoint::load_policies(&RunDir::new(run))).map_err(rl_error)?;
         let scene = py.detach(|| envs::tasks::Scene::from_name(&config.env)).map_err(crate::errors::task_error)?;
-        let mut models: Vec<_> = teams.iter().map(|t| t.model.clone()).collect();
-        for (k, m) in models.iter_mut().enumerate() {
-            m.reseed(derive_seed(seed, "evalasgn", k as u64, 0));
-        }
-        let noise = teams
-            .iter()
-            .map(|t| t.model.agents().iter().map(|&a| stream(seed, "evalnois", t.index as u64, a as u64)).collect())
-            .collect();
+        let players = evaluation_actors(&teams, seed, ActMode::Sample);
         Ok(PyPolicy {
             config,
             teams,
-            models,
-            noise,
+            players,
             spec: scene.obs_spec,
             n_actions: scene.n_actions,
-            scratch: ActScratch::default(),
             obs: Default::default(),
         })
     }
@@ -90,30 +79,19 @@ impl PyPolicy {
         read_f32(&item(obs, "scalars")?, "obs[\"scalars\"]", &[b, n, N_SCALARS], scalars)?;
         read_f32(&heading, "obs[\"heading\"]", &[b, a], head)?;
         let mode = if deterministic { ActMode::Mean } else { ActMode::Sample };
-        let mut actions = vec![0.0f32; b * self.n_actions];
-        let (teams, models, noise, spec, scratch) =
-            (&self.teams, &mut self.models, &mut self.noise, &self.spec, &mut self.scratch);
-        let raw = (vectors.as_slice(), scalars.as_slice(), head.as_slice());
+        let raw = models::ObsRows::new(n, a, vectors.as_slice(), scalars.as_slice(), head.as_slice())
+            .map_err(|e| bad_argument("obs", "arrays".to_string(), &e.to_string()))?;
+        let mut joint = JointAction::new(b, self.n_actions, self.teams.len());
+        let (teams, players) = (&self.teams, &mut self.players);
         py.detach(|| {
-            let (mut u, mut logp) = (vec![0.0f32; actions.len()], vec![0.0f32; b]);
-            for (k, team) in teams.iter().enumerate() {
-                act(
-                    &mut models[k],
-                    &team.store,
-                    &team.norm,
-                    spec,
-                    raw,
-                    mode,
-                    &mut noise[k],
-                    &mut actions,
-                    &mut u,
-                    &mut logp,
-                    scratch,
-                )?;
+            for (team, (model, actor)) in teams.iter().zip(players.iter_mut()) {
+                actor.mode = mode;
+                actor.act(model, &team.store, &team.norm, raw, &mut joint)?;
             }
             Ok(())
         })
         .map_err(rl_error)?;
+        let actions = joint.actions;
         array(py, &actions, &[b, self.n_actions])
     }
 

@@ -29,7 +29,7 @@ use std::time::Instant;
 #[global_allocator]
 static ALLOC: mimalloc::MiMalloc = mimalloc::MiMalloc;
 
-use rl::ppo::{PpoParams, ppo_loss};
+use rl::ppo::{self, LossTerms, PpoParams};
 use rl::rollout::MinibatchBuf;
 use rl::{Preset, TrainConfig, Trainer};
 use tensor::{Tape, Tensor};
@@ -82,16 +82,20 @@ fn minibatch_flops(t: &Trainer, c: &TrainConfig, reps: usize) -> Result<(u64, f6
     t.rollout().gather(&ids, 0, &mut mb);
     let spec = &t.spec;
     let team = &t.teams[0];
-    let (mut v, mut s) = (Vec::new(), Vec::new());
-    team.norm.apply(&mb.vectors, &mb.scalars, &mut v, &mut s);
+    let mut obs = models::layout::Observation::empty(0, 0);
+    team.norm.apply_rows(mb.obs.rows(), &mut obs);
     let hp = PpoParams::from_config(c);
     // One forward-and-backward pass of the minibatch on `tape`.
     let pass = |tape: &Tape<f32>| -> Result<(), Box<dyn std::error::Error>> {
         let p = team.store.bind(tape);
         let mut model = team.model.clone();
         let mut noise = rl::seeding::minibatch_stream(c.seed, "entropy", 0, 0, 0, 0);
-        let (loss, _) = ppo_loss(&mut model, spec, &p, &mb.view(&v, &s), &hp, &mut noise)?;
-        std::hint::black_box(tape.backward(loss)?);
+        let mb = mb.view(obs.rows());
+        let fwd = ppo::forward(&mut model, &p, &mb)?;
+        let adv_targets = ppo::advantages(&mb, &fwd, &hp);
+        let terms = LossTerms::new(&fwd, &mb, spec, adv_targets, hp.entropy, &mut noise)?;
+        let loss = ppo::ppo_loss(&terms, &hp)?;
+        std::hint::black_box(tape.backward(loss.total)?);
         Ok(())
     };
     let mut times = Vec::new();

@@ -8,47 +8,53 @@
 //! println!("{summary:?}");
 //! ```
 //!
-//! One module per job: [`config`] (hyper-parameters and their layers), [`seeding`] (random
-//! streams), [`normalizer`] (observation statistics), [`team`] (one team's learner and its
-//! act step), [`rollout`] (an iteration's data and minibatches), [`gae`], [`ppo`] (the loss),
-//! [`train`](mod@train) (the loop and the run directory), [`evaluate`](mod@evaluate), [`checkpoint`], [`metrics`],
-//! [`run_dir`], [`progress`], [`curve`], [`plot`] (SVG line plots), [`sweep`] (`meben ablate`),
-//! [`report`](mod@report) (`meben report`), [`export`](mod@export) (`meben export`: a run tree's
-//! evidence without checkpoints), [`info`] (`meben info`: parameter counts).
+//! Two parts: [`mappo`], the algorithm (configuration, trainer, actor, rollout, GAE, PPO,
+//! normaliser, evaluation, checkpoints), and [`app`], the application around it (presets,
+//! the run directory, metrics, progress, curves and plots, sweeps, reports, export, render,
+//! the command line); [`error`] is shared. `app` uses `mappo`, never the other way.
+//!
+//! The modules are also reachable under their paths from before this split (`rl::config`,
+//! `rl::checkpoint`, `rl::train`, `rl::normalizer`, `rl::sweep`, ...), so that code written
+//! against them keeps building.
 
-pub mod checkpoint;
-pub mod checksum;
-pub mod config;
-pub mod curve;
+pub mod app;
 pub mod error;
-pub mod evaluate;
-pub mod export;
-pub mod gae;
-pub mod info;
-pub mod lock;
-pub mod memory;
-pub mod metrics;
-pub mod normalizer;
-pub mod plot;
-pub mod ppo;
-pub mod progress;
-pub mod report;
-pub mod rollout;
-pub mod run_dir;
-pub mod seeding;
-pub mod sweep;
-pub mod team;
-#[cfg(test)]
-mod test_util;
-pub mod train;
+pub mod mappo;
 
-pub use config::{EntropyKind, NormStart, ObsNormKind, Preset, TrainConfig};
+pub use app::presets::Preset;
+pub use app::report::{Report, report};
+pub use app::run::{RunSummary, TrainOptions, train};
+pub use app::run_dir::{RunDir, RunStatus};
+pub use app::sweep::{RunSelection, Shard, Sweep, SweepOutcome, SweepRun, run_sweep};
+pub use app::{lock::RunLock, plot::LinePlot};
 pub use error::{Result, RlError};
-pub use evaluate::{EvalOptions, evaluate};
-pub use lock::RunLock;
-pub use plot::LinePlot;
-pub use report::{Report, report};
-pub use run_dir::{RunDir, RunStatus};
-pub use sweep::{RunSelection, Shard, Sweep, SweepOutcome, SweepRun, run_sweep};
-pub use team::Team;
-pub use train::{EvalSummary, RunSummary, TrainOptions, Trainer, train};
+pub use mappo::config::{EntropyKind, NormStart, ObsNormKind, TrainConfig};
+pub use mappo::evaluate::{EvalOptions, EvalSummary, evaluate};
+pub use mappo::team::Team;
+pub use mappo::trainer::Trainer;
+
+// The paths from before the split into `mappo` and `app`.
+pub use app::{curve, export, info, lock, metrics, plot, progress, report, run_dir, sweep};
+pub use mappo::{actor, checksum, evaluate, gae, memory, normalizer, ppo, rollout, seeding, team};
+
+/// The configuration (path from before the split): [`mappo::config`] and the presets of
+/// [`app::presets`].
+pub mod config {
+    pub use crate::app::presets::Preset;
+    pub use crate::mappo::config::*;
+}
+
+/// Checkpoints (path from before the split): [`mappo::checkpoint`] and
+/// [`app::run_dir::load_policies`].
+pub mod checkpoint {
+    pub use crate::app::run_dir::load_policies;
+    pub use crate::mappo::checkpoint::*;
+}
+
+/// Training (path from before the split): [`mappo::trainer`], [`app::run`] and
+/// [`mappo::evaluate::EvalSummary`].
+pub mod train {
+    pub use crate::app::run::*;
+    pub use crate::mappo::evaluate::EvalSummary;
+    pub use crate::mappo::trainer::*;
+}

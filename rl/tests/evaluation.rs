@@ -7,8 +7,9 @@
 mod common;
 
 use envs::tasks::{Observation, StartMode};
+use rl::Team;
+use rl::actor::{ActMode, Actor, JointAction};
 use rl::evaluate::{EvalOptions, episode_start, eval_envs};
-use rl::team::{ActMode, ActScratch, Team, act};
 use rl::{RunDir, TrainOptions, train};
 
 /// Largest deviation of `moved` from `base` rotated by `deg` about the vertical through the
@@ -82,25 +83,11 @@ fn an_invariant_policy_plays_the_moved_scene_as_the_unmoved_one() {
         team.norm.update(&warm.obs().vectors, &warm.obs().scalars);
         warm.step(&vec![if k % 2 == 0 { 0.7 } else { -0.4 }; 2 * na]).unwrap();
     }
-    let (mut scratch, mut noise) = (ActScratch::default(), Vec::new());
+    let mut actor = Actor::new(ActMode::Mean, Vec::new());
     let mut actions = |team: &mut Team, o: &Observation| {
-        let (mut act_out, mut u, mut logp) = (vec![0.0f32; 2 * na], vec![0.0f32; 2 * na], vec![0.0f32; 2]);
-        let raw = (&o.vectors[..], &o.scalars[..], &o.heading[..]);
-        act(
-            &mut team.model,
-            &team.store,
-            &team.norm,
-            &spec,
-            raw,
-            ActMode::Mean,
-            &mut noise,
-            &mut act_out,
-            &mut u,
-            &mut logp,
-            &mut scratch,
-        )
-        .unwrap();
-        act_out
+        let mut joint = JointAction::new(2, na, 1);
+        actor.act(&mut team.model, &team.store, &team.norm, o.rows(), &mut joint).unwrap();
+        joint.actions
     };
     // f32 observations and policy: the two scenes differ by round-off (about 1e-7 of a few
     // metres, radians or metres per second), which contacts amplify a little; measured over 40

@@ -6,12 +6,12 @@
 //! `mlp` (not invariant) changes.
 //!
 //! Only the public model interface is used (`ModelConfig::parse`, `Model::new`,
-//! `Model::forward_batch` on an `ObsBatch`, `PolicyOutput`), with the raw observation arrays
+//! `Model::forward_batch` on `ObsRows`, `PolicyOutput`), with the raw observation arrays
 //! of a `VecEnv` in its layout (`[B, N, 3, 3]` vectors: position, velocity, angular
 //! velocity per node; `[B, N, N_SCALARS]` scalars; `[B, A]` headings).
 
-use envs::tasks::{N_SCALARS, ObsSpec, StartMode, VecEnv};
-use models::{Model, ModelConfig, ObsBatch};
+use envs::tasks::{ObsSpec, StartMode, VecEnv};
+use models::{Model, ModelConfig, ModelKind, ObsRows};
 use nn::ParamStore;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -45,14 +45,9 @@ fn scene(name: &str, seed: u64) -> Scene {
     }
     let spec = env.scene().obs_spec.clone();
     let o = env.obs();
-    let rows = |x: &[f32], per: usize| x[..B * per].iter().map(|&v| v as f64).collect::<Vec<_>>();
-    Scene {
-        vectors: rows(&o.vectors, spec.n_nodes * 9),
-        scalars: rows(&o.scalars, spec.n_nodes * N_SCALARS),
-        heading: rows(&o.heading, spec.n_agents),
-        spec,
-        visited,
-    }
+    let first = o.rows().slice(0..B);
+    let f64s = |x: &[f32]| x.iter().map(|&v| v as f64).collect::<Vec<_>>();
+    Scene { vectors: f64s(first.vectors), scalars: f64s(first.scalars), heading: f64s(first.heading), spec, visited }
 }
 
 /// The normaliser a default configuration builds for `env`, after the visited observations.
@@ -142,8 +137,9 @@ fn build(name: &str, spec: &ObsSpec, team: usize) -> (ParamStore<f64>, Model) {
 fn outputs(model: &mut Model, store: &ParamStore<f64>, spec: &ObsSpec, v: &[f64], s: &[f64], h: &[f64]) -> Vec<f64> {
     let tape = Tape::<f64>::new();
     let p = store.bind(&tape);
-    let obs = ObsBatch::new(B, spec.n_nodes, v, s).unwrap();
-    let out = model.forward_batch(&p, &obs, h).unwrap();
+    let obs = ObsRows::new(spec.n_nodes, spec.n_agents, v, s, h).unwrap();
+    assert_eq!(obs.len(), B);
+    let out = model.forward_batch(&p, &obs).unwrap();
     let mut all = Vec::new();
     for a in &out.agents {
         all.extend(a.loc.value().data());
@@ -159,12 +155,10 @@ fn max_diff(a: &[f64], b: &[f64]) -> f64 {
     a.iter().zip(b).map(|(x, y)| (x - y).abs() / x.abs().max(1.0)).fold(0.0, f64::max)
 }
 
-const INVARIANT: [&str; 8] =
-    ["shnn", "shnn_og3", "shtransformer", "shgnn", "mlp_hn", "transformer_hn", "hnn_hn", "hnn_dn"];
-
 #[test]
 fn normaliser_and_invariant_models_commute_with_rotations_about_gravity_and_translations() {
-    let mut cases: Vec<(&str, &str, usize)> = INVARIANT.iter().map(|&m| ("team_reach/2_ants", m, 0)).collect();
+    let mut cases: Vec<(&str, &str, usize)> =
+        ModelKind::ALL.iter().filter(|k| k.is_equivariant()).map(|k| ("team_reach/2_ants", k.name(), 0)).collect();
     for team in 0..2 {
         cases.push(("team_sumo/2_ants", "shnn", team));
         cases.push(("team_sumo/2_ants", "mlp_hn", team));

@@ -5,12 +5,32 @@
 mod common;
 
 use models::distribution::std_from_scale;
+use models::layout::Observation;
+use nn::Bound;
 use rl::gae::{Unrolls, gae};
-use rl::ppo::{PpoParams, ppo_loss};
+use rl::ppo::{self, LossStats, LossTerms, Minibatch, PpoParams};
 use rl::rollout::{MinibatchBuf, NO_FINAL};
 use rl::seeding::{minibatch_stream, standard_normal};
 use rl::{EntropyKind, TrainConfig, Trainer};
 use tensor::Tape;
+use tensor::Var;
+
+/// The loss of one minibatch as the trainer takes it: forward, GAE, the loss terms, the
+/// PPO loss and its diagnostics.
+fn minibatch_loss<'t>(
+    model: &mut models::Model,
+    p: &Bound<'t, f32>,
+    mb: &Minibatch<'_>,
+    hp: &PpoParams,
+    noise: &mut rand_chacha::ChaCha8Rng,
+) -> (Var<'t, f32>, LossStats) {
+    let fwd = ppo::forward(model, p, mb).unwrap();
+    let adv_targets = ppo::advantages(mb, &fwd, hp);
+    let terms = LossTerms::new(&fwd, mb, model.spec(), adv_targets, hp.entropy, noise).unwrap();
+    let loss = ppo::ppo_loss(&terms, hp).unwrap();
+    let stats = ppo::loss_stats(&loss, &terms, hp).unwrap();
+    (loss.total, stats)
+}
 
 fn params(c: &TrainConfig) -> PpoParams {
     PpoParams::from_config(c)
@@ -30,12 +50,12 @@ fn first_minibatch(config: &TrainConfig) -> (Trainer, MinibatchBuf) {
 /// The loss statistics of team 0 on `mb` under the trainer's current parameters.
 fn loss_stats(t: &mut Trainer, mb: &MinibatchBuf, config: &TrainConfig) -> rl::ppo::LossStats {
     let team = &mut t.teams[0];
-    let (mut v, mut s) = (Vec::new(), Vec::new());
-    team.norm.apply(&mb.vectors, &mb.scalars, &mut v, &mut s);
+    let mut obs = Observation::empty(0, 0);
+    team.norm.apply_rows(mb.obs.rows(), &mut obs);
     let tape = Tape::<f32>::new();
     let p = team.store.bind(&tape);
     let mut noise = minibatch_stream(config.seed, "entropy", 0, 0, 0, 0);
-    ppo_loss(&mut team.model, &t.spec, &p, &mb.view(&v, &s), &params(config), &mut noise).unwrap().1
+    minibatch_loss(&mut team.model, &p, &mb.view(obs.rows()), &params(config), &mut noise).1
 }
 
 #[test]
@@ -95,21 +115,20 @@ fn loss_matches_a_hand_computation(kind: EntropyKind) {
         *l += [0.5f32, -0.5, 0.05, 0.0][i % 4];
     }
     let team = &mut t.teams[0];
-    let (mut v, mut s) = (Vec::new(), Vec::new());
-    team.norm.apply(&mb.vectors, &mb.scalars, &mut v, &mut s);
+    let mut obs = Observation::empty(0, 0);
+    team.norm.apply_rows(mb.obs.rows(), &mut obs);
     let hp = params(&config);
     let tape = Tape::<f32>::new();
     let p = team.store.bind(&tape);
     let noise = minibatch_stream(config.seed, "entropy", 0, 3, 1, 2);
-    let (loss, st) = ppo_loss(&mut team.model.clone(), &t.spec, &p, &mb.view(&v, &s), &hp, &mut noise.clone()).unwrap();
+    let (loss, st) = minibatch_loss(&mut team.model.clone(), &p, &mb.view(obs.rows()), &hp, &mut noise.clone());
     // The noise the Tanh-Normal estimate draws: per agent a [T M, dof] block in row order.
     let mut draws = noise;
 
     // The same model outputs, then every term by hand in f64.
     let tape2 = Tape::<f32>::new();
     let p2 = team.store.bind(&tape2);
-    let obs = models::ObsBatch::new(mb.heading.len() / t.spec.n_agents, t.spec.n_nodes, &v[..], &s[..]).unwrap();
-    let out = team.model.forward_batch(&p2, &obs, &mb.heading).unwrap();
+    let out = team.model.forward_batch(&p2, &obs.rows()).unwrap();
     let (tl, m) = (mb.steps, mb.unrolls);
     let n = tl * m;
     let values = out.team_value().unwrap().value().to_vec();
@@ -195,14 +214,14 @@ fn the_entropy_estimate_is_reproducible_from_the_minibatch_stream() {
     let config = common::tiny("team_reach/1_ant", "mlp_hn", 1, &[]);
     let (mut t, mb) = first_minibatch(&config);
     let team = &mut t.teams[0];
-    let (mut v, mut s) = (Vec::new(), Vec::new());
-    team.norm.apply(&mb.vectors, &mb.scalars, &mut v, &mut s);
+    let mut obs = Observation::empty(0, 0);
+    team.norm.apply_rows(mb.obs.rows(), &mut obs);
     let mut run = |kind: EntropyKind, minibatch: u64| {
         let tape = Tape::<f32>::new();
         let p = team.store.bind(&tape);
         let hp = PpoParams { entropy: kind, ..params(&config) };
         let mut noise = minibatch_stream(config.seed, "entropy", 0, 0, 0, minibatch);
-        let (loss, st) = ppo_loss(&mut team.model, &t.spec, &p, &mb.view(&v, &s), &hp, &mut noise).unwrap();
+        let (loss, st) = minibatch_loss(&mut team.model, &p, &mb.view(obs.rows()), &hp, &mut noise);
         (loss.value().item().unwrap().to_bits(), st.entropy.to_bits())
     };
     let a = run(EntropyKind::TanhNormal, 0);

@@ -1,69 +1,53 @@
 //! Cross-crate smoke test: MeBen environments (`envs`) driven by policies (`models`, on the
-//! `tensor`/`nn` autodiff), with actions sampled from the Tanh-Normal heads: the pieces the
-//! trainer will connect.
+//! `tensor`/`nn` autodiff) through the trainer's act step (`rl::actor::Actor`: sampled
+//! Tanh-Normal actions and their log-probabilities), with every value finite.
 
 use envs::tasks::{StartMode, VecEnv};
-use models::distribution::tanh_normal_log_prob;
 use models::{Model, ModelConfig};
 use nn::ParamStore;
-use rand::SeedableRng;
-use rand_chacha::ChaCha8Rng;
-use tensor::{Tape, Tensor};
+use rl::actor::{ActMode, Actor, JointAction};
+use rl::normalizer::{NormKind, ObsNormalizer};
+use rl::seeding::stream;
+use tensor::Tape;
 
 /// Runs `steps` control steps of `env_name` with one `model` per team; returns the summed
 /// rewards per team and the number of ended episodes.
 fn run(env_name: &str, model: &str, batch: usize, steps: usize) -> (Vec<f64>, usize) {
     let mut env = VecEnv::from_name(env_name, batch, 11, StartMode::Random).unwrap();
     let spec = env.scene().obs_spec.clone();
-    let teams = 1 + spec.agent_team.iter().copied().max().unwrap_or(0);
+    let teams = spec.n_teams;
     let mut init = nn::init_rng(5);
-    let mut stores = Vec::new();
-    let mut models = Vec::new();
+    let mut players = Vec::new();
     for t in 0..teams {
         let mut store = ParamStore::<f32>::new();
         let m =
             Model::new(&mut store.scope(&format!("team{t}"), &mut init), &ModelConfig::new(model), &spec, t).unwrap();
         assert!(m.num_params(&store) > 0);
-        stores.push(store);
-        models.push(m);
+        let noise = m.agents().iter().map(|&a| stream(3, "noise", t as u64, a as u64)).collect();
+        players.push((m, store, Actor::new(ActMode::Sample, noise)));
     }
-    let mut rng = ChaCha8Rng::seed_from_u64(3);
+    let identity = ObsNormalizer::new(NormKind::Identity, &spec);
     let n_actions = env.n_actions();
+    let mut joint = JointAction::new(batch, n_actions, teams);
     let mut totals = vec![0.0; teams];
     let mut ended = 0;
     for _ in 0..steps {
-        let mut actions = vec![0f32; batch * n_actions];
-        for (t, m) in models.iter_mut().enumerate() {
+        joint.actions.iter_mut().for_each(|a| *a = f32::NAN);
+        for (t, (m, store, actor)) in players.iter_mut().enumerate() {
+            // The value too is finite (acting skips it).
             let tape = Tape::new();
             let _no_grad = tape.no_grad();
-            let p = stores[t].bind(&tape);
-            let out = m.forward(&p, env.obs()).unwrap();
+            let out = m.forward(&store.bind(&tape), env.obs()).unwrap();
             assert!(out.team_value().unwrap().value().all_finite(), "{model}: value");
-            for head in &out.agents {
-                let (loc, std) = (head.loc.value(), head.std().value());
-                let dof = spec.agent_dof[head.agent];
-                assert_eq!(loc.shape(), &[batch, dof]);
-                // u ~ Normal(loc, std), a = tanh(u); its log-probability must be finite.
-                let u: Vec<f32> = loc
-                    .data()
-                    .iter()
-                    .zip(std.data())
-                    .map(|(&l, &s)| l + s * nn::init::normal(&mut rng) as f32)
-                    .collect();
-                let uv = tape.constant(Tensor::new(u.clone(), &[batch, dof]).unwrap());
-                let lp = tanh_normal_log_prob(uv, head.loc, head.std()).unwrap().value();
-                assert!(lp.all_finite(), "{model}: log-prob");
-                let off = spec.agent_action_offset[head.agent];
-                for b in 0..batch {
-                    for k in 0..dof {
-                        let a = u[b * dof + k].tanh();
-                        assert!((-1.0..=1.0).contains(&a));
-                        actions[b * n_actions + off + k] = a;
-                    }
-                }
-            }
+            actor.act(m, store, &identity, env.obs().rows(), &mut joint).unwrap();
+            // u ~ Normal(loc, std), a = tanh(u); its log-probability is finite.
+            assert!(joint.logp[t].iter().all(|l| l.is_finite() && *l != 0.0), "{model}: log-prob");
         }
-        let out = env.step(&actions).unwrap();
+        // Every team wrote its agents' actions, each in [-1, 1], tanh of the pre-squash one.
+        for (a, u) in joint.actions.iter().zip(&joint.pre_squash) {
+            assert!((-1.0..=1.0).contains(a) && *a == u.tanh(), "{model}: action {a} of {u}");
+        }
+        let out = env.step(&joint.actions).unwrap();
         for b in 0..batch {
             for (t, total) in totals.iter_mut().enumerate() {
                 let r = out.reward[b * teams + t];

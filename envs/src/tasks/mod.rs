@@ -12,8 +12,8 @@
 //!
 //! One module per job: [`spec`] (names, compositions), [`scene`] (one model per
 //! composition), [`placement`] (random starts), [`eval_modes`] (fixed and rotated starts),
-//! [`reach`] and [`sumo`] (rewards, outcomes), [`outcome`], [`observation`] (layout and
-//! filling), [`vec_env`] (batched stepping), [`render`] (trajectories to CSV, HTML and GIF), [`error`].
+//! [`reach`] and [`sumo`] (rewards, outcomes), [`outcome`], [`observation`] (filling
+//! the observation layout of `models::layout`), [`vec_env`] (batched stepping), [`render`] (trajectories to CSV, HTML and GIF), [`error`].
 
 pub mod error;
 pub mod eval_modes;

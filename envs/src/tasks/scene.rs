@@ -186,7 +186,7 @@ impl Scene {
             a.nq = q_end - a.qpos_adr;
             a.nv = v_end - a.dof_adr;
         }
-        let obs_spec = ObsSpec::new(spec, &model, &agents)?;
+        let obs_spec = super::observation::obs_spec(spec, &model, &agents)?;
         Ok(Scene { spec: spec.clone(), model, agents, n_actions, obs_spec })
     }
 

@@ -22,7 +22,7 @@
 
 use super::error::TaskError;
 use super::eval_modes::{StartMode, fixed_start};
-use super::observation::{N_SCALARS, Observation};
+use super::observation::{N_SCALARS, NODE_VECTOR_LEN, Observation};
 use super::outcome::{Outcome, RootState};
 use super::placement::{Start, sample_start};
 use super::scene::Scene;
@@ -129,7 +129,7 @@ fn begin_episode(scene: &Scene, slot: &mut Slot, fixed: Option<&Start>) {
 }
 
 fn write_obs(scene: &Scene, slot: &Slot, vectors: &mut [f32], scalars: &mut [f32], heading: &mut [f32]) {
-    scene.obs_spec.write_row(&scene.model, &slot.data, &slot.balls, vectors, scalars, heading);
+    super::observation::write_row(&scene.obs_spec, &scene.model, &slot.data, &slot.balls, vectors, scalars, heading);
 }
 
 /// One control step of one environment.
@@ -254,7 +254,7 @@ impl VecEnv {
     pub fn reset(&mut self) -> &Observation {
         let (scene, fixed) = (&self.scene, self.fixed.as_ref());
         let o = &mut self.out.obs;
-        let (nv, ns, na) = (o.nodes * 9, o.nodes * N_SCALARS, o.agents);
+        let (nv, ns, na) = (o.nodes * NODE_VECTOR_LEN, o.nodes * N_SCALARS, o.agents);
         self.slots
             .par_iter_mut()
             .zip(o.vectors.par_chunks_mut(nv))
@@ -296,7 +296,8 @@ impl VecEnv {
         }
         let (scene, fixed, alpha, reset) = (&self.scene, self.fixed.as_ref(), self.alpha, self.auto_reset);
         let out = &mut self.out;
-        let (nv, ns, nh, nt) = (out.obs.nodes * 9, out.obs.nodes * N_SCALARS, out.obs.agents.max(1), scene.n_teams());
+        let (nv, ns, nh, nt) =
+            (out.obs.nodes * NODE_VECTOR_LEN, out.obs.nodes * N_SCALARS, out.obs.agents.max(1), scene.n_teams());
         let rows: Vec<Row<'_>> = out
             .obs
             .vectors
@@ -365,7 +366,7 @@ impl VecEnv {
         let slot = &mut self.slots[env];
         begin_episode(scene, slot, Some(start));
         let o = &mut self.out.obs;
-        let (nv, ns, nh) = (o.nodes * 9, o.nodes * N_SCALARS, o.agents);
+        let (nv, ns, nh) = (o.nodes * NODE_VECTOR_LEN, o.nodes * N_SCALARS, o.agents);
         write_obs(
             scene,
             slot,

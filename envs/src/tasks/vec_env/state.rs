@@ -28,7 +28,7 @@ use super::{VecEnv, refresh, write_obs};
 use crate::data::DataState;
 use crate::tasks::error::TaskError;
 use crate::tasks::eval_modes::{StartMode, fixed_start};
-use crate::tasks::observation::N_SCALARS;
+use crate::tasks::observation::{N_SCALARS, NODE_VECTOR_LEN};
 use crate::tasks::outcome::Outcome;
 use crate::tasks::spec::TaskSpec;
 use rand::SeedableRng;
@@ -213,7 +213,7 @@ impl VecEnv {
     /// batch size, continues exactly where this one is.
     pub fn snapshot(&self) -> VecEnvState {
         let o = &self.out;
-        let (nv, ns, nh) = (o.obs.nodes * 9, o.obs.nodes * N_SCALARS, o.obs.agents);
+        let (nv, ns, nh) = (o.obs.nodes * NODE_VECTOR_LEN, o.obs.nodes * N_SCALARS, o.obs.agents);
         let final_obs = (0..self.slots.len())
             .filter(|&e| o.terminated[e] || o.truncated[e])
             .map(|e| FinalObsRow {
@@ -276,7 +276,7 @@ impl VecEnv {
         self.alpha = state.alpha;
         self.auto_reset = state.auto_reset;
         let out = &mut self.out;
-        let (nv, ns, nh) = (out.obs.nodes * 9, out.obs.nodes * N_SCALARS, out.obs.agents);
+        let (nv, ns, nh) = (out.obs.nodes * NODE_VECTOR_LEN, out.obs.nodes * N_SCALARS, out.obs.agents);
         for (e, slot) in self.slots.iter_mut().enumerate() {
             refresh(scene, &mut slot.data);
             let o = &mut out.obs;
@@ -344,7 +344,7 @@ impl VecEnv {
                 return Err(bad("state last.final_obs env", r.env, format!("there are {b} environments")));
             }
             let e = r.env;
-            same_len(&format!("last.final_obs[env {e}].vectors"), r.vectors.len(), o.nodes * 9)?;
+            same_len(&format!("last.final_obs[env {e}].vectors"), r.vectors.len(), o.nodes * NODE_VECTOR_LEN)?;
             same_len(&format!("last.final_obs[env {e}].scalars"), r.scalars.len(), o.nodes * N_SCALARS)?;
             same_len(&format!("last.final_obs[env {e}].heading"), r.heading.len(), o.agents)?;
         }

@@ -34,12 +34,12 @@ use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-use crate::config::TrainConfig;
+use crate::app::metrics;
+use crate::app::plot::LinePlot;
+use crate::app::run_dir::RunDir;
+use crate::app::sweep::sanitize_component;
 use crate::error::{Result, RlError};
-use crate::metrics;
-use crate::plot::LinePlot;
-use crate::run_dir::RunDir;
-use crate::sweep::sanitize_component;
+use crate::mappo::config::TrainConfig;
 
 /// One point of a group's learning curve.
 #[derive(Clone, Copy, Debug, PartialEq)]

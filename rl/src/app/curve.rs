@@ -5,10 +5,10 @@
 //! endings, i.e. successes, are seen: those windows are left out), and one more evaluation
 //! series per further rotation of `eval_rotations` (`eval_success_rate_rot180`, ...).
 
+use crate::app::metrics::{eval_column, parse_csv, rotations_of};
+use crate::app::plot::LinePlot;
+use crate::app::run_dir::RunDir;
 use crate::error::{Result, RlError};
-use crate::metrics::{eval_column, parse_csv, rotations_of};
-use crate::plot::LinePlot;
-use crate::run_dir::RunDir;
 
 /// Redraws `run`'s learning curve from its `metrics.csv`.
 pub fn write_run_curve(run: &RunDir) -> Result<()> {

@@ -6,8 +6,8 @@ use std::io::IsTerminal;
 
 use indicatif::{ProgressBar, ProgressStyle};
 
-use crate::config::TrainConfig;
-use crate::metrics::MetricsRow;
+use crate::app::metrics::MetricsRow;
+use crate::mappo::config::TrainConfig;
 
 /// The progress display of one run.
 pub struct Progress {

@@ -1,7 +1,7 @@
 //! `meben export <runs> <results>`: the evidence of a tree of runs, without its checkpoints,
 //! for committing (`results/<experiment>/`, docs/RESULTS.md).
 //!
-//! For every run directory under `<runs>` ([`crate::report::find_run_dirs`]) the files
+//! For every run directory under `<runs>` ([`crate::app::report::find_run_dirs`]) the files
 //! [`EVIDENCE_FILES`] that exist are copied to the same relative path under `<results>`
 //! (each written atomically, so an interrupted export leaves whole files); a sweep's copy of
 //! its file (`sweep.toml` at the root) comes along. Checkpoints and anything else stay
@@ -11,8 +11,8 @@
 
 use std::path::{Path, PathBuf};
 
+use crate::app::report::find_run_dirs;
 use crate::error::{Result, RlError};
-use crate::report::find_run_dirs;
 
 /// The files of a run directory that are evidence: its configuration, its metrics, its
 /// final summary and its learning curve.
@@ -71,7 +71,7 @@ fn copy_file(src: &Path, dst: &Path) -> Result<u64> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::test_util::TempDir;
+    use crate::app::test_util::TempDir;
 
     fn write(path: &Path, text: &str) {
         std::fs::create_dir_all(path.parent().unwrap()).unwrap();

@@ -14,12 +14,39 @@ use envs::tasks::eval_modes::{SceneMotion, fixed_start};
 use envs::tasks::placement::sample_start;
 use envs::tasks::vec_env::env_rng;
 use envs::tasks::{Outcome, Scene, Start, StartMode, TaskSpec, VecEnv};
-use rand_chacha::ChaCha8Rng;
+use models::Model;
+use serde::{Deserialize, Serialize};
 
 use crate::error::Result;
-use crate::seeding::stream;
-use crate::team::{ActMode, ActScratch, Team, act};
-use crate::train::EvalSummary;
+use crate::mappo::actor::{ActMode, Actor, JointAction};
+use crate::mappo::seeding::stream;
+use crate::mappo::team::Team;
+
+/// Results of one evaluation.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct EvalSummary {
+    /// Episodes played.
+    pub episodes: usize,
+    /// Team Reach: fraction of episodes where every ball was covered.
+    pub success_rate: f64,
+    /// Team Sumo: fraction of episodes won by team 0 and by team 1.
+    pub win_rate: Vec<f64>,
+    /// Team Sumo: fraction of draws (both out at once, or the time limit).
+    pub draw_rate: f64,
+    /// Mean undiscounted episode return per team.
+    pub mean_return: Vec<f64>,
+    /// Mean episode length in control steps.
+    pub mean_length: f64,
+    /// Whether actions were sampled (else the mean action was taken).
+    #[serde(default)]
+    pub sampled: bool,
+    /// Rotation of every start about the vertical through the origin, in degrees.
+    #[serde(default)]
+    pub rotation_deg: f64,
+    /// Horizontal translation of every start (x, y) in m.
+    #[serde(default)]
+    pub translation: [f64; 2],
+}
 
 /// What to evaluate.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -92,19 +119,10 @@ pub fn eval_envs(env: &str, options: &EvalOptions) -> Result<VecEnv> {
 pub fn evaluate(env: &str, teams: &[Team], options: &EvalOptions) -> Result<EvalSummary> {
     let spec = TaskSpec::from_name(env)?;
     let mut venv = eval_envs(env, options)?;
-    let obs_spec = venv.scene().obs_spec.clone();
     let (b, na, nt) = (options.episodes, venv.n_actions(), venv.scene().n_teams());
-    let mut models: Vec<_> = teams.iter().map(|t| t.model.clone()).collect();
-    for (k, m) in models.iter_mut().enumerate() {
-        m.reseed(crate::seeding::derive_seed(options.seed, "evalasgn", k as u64, 0));
-    }
-    let mut noise: Vec<Vec<ChaCha8Rng>> = teams
-        .iter()
-        .map(|t| t.model.agents().iter().map(|&a| stream(options.seed, "evalnois", t.index as u64, a as u64)).collect())
-        .collect();
     let mode = if options.deterministic { ActMode::Mean } else { ActMode::Sample };
-    let (mut actions, mut u, mut logp) = (vec![0.0f32; b * na], vec![0.0f32; b * na], vec![0.0f32; b]);
-    let mut scratch = ActScratch::default();
+    let mut players = evaluation_actors(teams, options.seed, mode);
+    let mut joint = JointAction::new(b, na, nt);
     let mut alive = vec![true; b];
     let mut returns = vec![0.0f64; b * nt];
     let mut outcome = vec![Outcome::Running; b];
@@ -115,23 +133,10 @@ pub fn evaluate(env: &str, teams: &[Team], options: &EvalOptions) -> Result<Eval
         if remaining == 0 {
             break;
         }
-        for (k, team) in teams.iter().enumerate() {
-            let o = venv.obs();
-            act(
-                &mut models[k],
-                &team.store,
-                &team.norm,
-                &obs_spec,
-                (&o.vectors, &o.scalars, &o.heading),
-                mode,
-                &mut noise[k],
-                &mut actions,
-                &mut u,
-                &mut logp,
-                &mut scratch,
-            )?;
+        for (team, (model, actor)) in teams.iter().zip(&mut players) {
+            actor.act(model, &team.store, &team.norm, venv.obs().rows(), &mut joint)?;
         }
-        let out = venv.step(&actions)?;
+        let out = venv.step(&joint.actions)?;
         for e in 0..b {
             if !alive[e] {
                 continue;
@@ -153,6 +158,23 @@ pub fn evaluate(env: &str, teams: &[Team], options: &EvalOptions) -> Result<Eval
         translation: options.translation,
         ..summarise(&outcome, &returns, &length, nt)
     })
+}
+
+/// The players of an evaluation with seed `seed`: per team a copy of its model (so that the
+/// team's own random streams are untouched) with its stochastic assignment reseeded, and an
+/// actor with the evaluation's noise streams. The Python policy acts through the same, so
+/// that `meben.Policy.load(run, seed=s)` acts as `meben eval --seed s` does.
+pub fn evaluation_actors(teams: &[Team], seed: u64, mode: ActMode) -> Vec<(Model, Actor)> {
+    teams
+        .iter()
+        .enumerate()
+        .map(|(k, t)| {
+            let mut model = t.model.clone();
+            model.reseed(crate::mappo::seeding::derive_seed(seed, "evalasgn", k as u64, 0));
+            let noise = t.model.agents().iter().map(|&a| stream(seed, "evalnois", t.index as u64, a as u64)).collect();
+            (model, Actor::new(mode, noise))
+        })
+        .collect()
 }
 
 /// Rates, mean returns and lengths of ended episodes.

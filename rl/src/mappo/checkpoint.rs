@@ -6,7 +6,7 @@
 //!
 //! Nothing non-finite is written: [`Checkpoint::save`] checks every parameter, Adam moment,
 //! normaliser statistic and running return first and refuses (keeping the last good file).
-//! The payload is sealed with its SHA-256 digest ([`crate::checksum`]); [`Checkpoint::load`]
+//! The payload is sealed with its SHA-256 digest ([`crate::mappo::checksum`]); [`Checkpoint::load`]
 //! checks the digest, then that the counters agree with each other and with the
 //! configuration (`env_steps = iteration * steps_per_iteration`, at most the configuration's
 //! iterations, Adam's update count `iteration * epochs * num_minibatches`). Version 1 files,
@@ -18,14 +18,14 @@ use envs::tasks::VecEnvState;
 use nn::{Adam, StateDict};
 use serde::{Deserialize, Serialize};
 
-use crate::config::TrainConfig;
 use crate::error::{Result, RlError};
-use crate::normalizer::ObsNormalizer;
-use crate::seeding::RngState;
-use crate::train::EvalSummary;
+use crate::mappo::config::TrainConfig;
+use crate::mappo::evaluate::EvalSummary;
+use crate::mappo::normalizer::ObsNormalizer;
+use crate::mappo::seeding::RngState;
 
 /// Current checkpoint format version: 2, the payload sealed with its checksum
-/// ([`crate::checksum`]); version 1 files (no checksum) still load.
+/// ([`crate::mappo::checksum`]); version 1 files (no checksum) still load.
 pub const VERSION: u32 = 2;
 
 /// The last format version written without a checksum.
@@ -89,14 +89,14 @@ impl Checkpoint {
             });
         }
         let text = serde_json::to_vec(self).map_err(|e| RlError::file(path, format!("cannot serialise: {e}")))?;
-        nn::write_atomic(path, &crate::checksum::seal(&text))?;
+        nn::write_atomic(path, &crate::mappo::checksum::seal(&text))?;
         Ok(())
     }
 
     /// Reads a checkpoint and checks its checksum, version and counters (module docs);
     /// errors name the file and what is wrong.
     pub fn load(path: &Path) -> Result<Checkpoint> {
-        use crate::checksum::{Unsealed, unseal};
+        use crate::mappo::checksum::{Unsealed, unseal};
         let bad = |message: String| RlError::Checkpoint { path: path.to_path_buf(), message };
         let bytes = std::fs::read(path).map_err(|e| RlError::file(path, format!("cannot read: {e}")))?;
         let (payload, sealed) = match unseal(&bytes).map_err(bad)? {
@@ -181,40 +181,4 @@ impl Checkpoint {
         }
         Ok(())
     }
-}
-
-/// The trained teams of a run directory (its `config.toml` and `checkpoint.json`): the
-/// models with their parameters and normalisers, ready for [`crate::evaluate()`] or
-/// rendering.
-pub fn load_policies(run: &crate::RunDir) -> Result<(TrainConfig, Vec<crate::Team>)> {
-    if !run.config().is_file() {
-        return Err(RlError::file(
-            run.config(),
-            "no such file: not a run directory (expected config.toml and checkpoint.json)",
-        ));
-    }
-    let config = TrainConfig::load(&run.config())?;
-    let path = run.checkpoint();
-    let c = Checkpoint::load(&path)?;
-    let spec = envs::tasks::Scene::from_name(&config.env)?.obs_spec;
-    if c.teams.len() != spec.n_teams {
-        return Err(RlError::Checkpoint {
-            path,
-            message: format!("{} teams for a scene of {} teams", c.teams.len(), spec.n_teams),
-        });
-    }
-    let mut teams = Vec::new();
-    for (k, s) in c.teams.iter().enumerate() {
-        let mut t = crate::Team::build(&config, &spec, k)?;
-        s.params
-            .load_into(&mut t.store)
-            .map_err(|e| RlError::Checkpoint { path: path.clone(), message: e.to_string() })?;
-        s.normalizer.check_fits(&t.norm).map_err(|e| RlError::Checkpoint {
-            path: path.clone(),
-            message: format!("the observation normaliser of team {k} does not fit: {e}"),
-        })?;
-        t.norm = s.normalizer.clone();
-        teams.push(t);
-    }
-    Ok((config, teams))
 }

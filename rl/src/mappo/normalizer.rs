@@ -55,7 +55,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use tensor::Float;
 
-use envs::tasks::{N_SCALARS, ObsSpec};
+use models::layout::{N_SCALARS, NODE_VECTOR_LEN, ObsRows, ObsSpec, Observation};
 
 /// Normalised values (element-wise) or norms (velocities) are clipped to this bound.
 pub const CLIP: f32 = 10.0;
@@ -196,7 +196,7 @@ pub struct ObsNormalizer {
     /// the other kinds).
     #[serde(default)]
     pub positions: RunningStats,
-    /// Element-wise: the `N * 9` vector components; invariant: the `N * 2` squared norms of
+    /// Element-wise: the `N * NODE_VECTOR_LEN` vector components; invariant: the `N * 2` squared norms of
     /// every node's velocity and angular velocity; identity: no features.
     pub vectors: RunningStats,
     /// The `N * N_SCALARS` scalars (no features for the identity).
@@ -210,7 +210,7 @@ impl ObsNormalizer {
         let nodes = spec.n_nodes;
         let (roots, pdim, vdim, sdim) = match kind {
             NormKind::Invariant => (spec.entity_root_node.clone(), 1, nodes * 2, nodes * N_SCALARS),
-            NormKind::Elementwise => (Vec::new(), 0, nodes * 9, nodes * N_SCALARS),
+            NormKind::Elementwise => (Vec::new(), 0, nodes * NODE_VECTOR_LEN, nodes * N_SCALARS),
             NormKind::Identity => (Vec::new(), 0, 0, 0),
         };
         Self {
@@ -281,14 +281,14 @@ impl ObsNormalizer {
                 self.scalars.update(scalars);
             }
             NormKind::Invariant => {
-                let nv = self.nodes * 9;
+                let nv = self.nodes * NODE_VECTOR_LEN;
                 let roots = &self.roots;
                 // Per observation: (1/N) sum_n |p_n - c|^2, then the squared norms of the
                 // velocity and angular velocity of every node.
                 let per_row: Vec<(f64, Vec<f64>)> = vectors
                     .par_chunks(nv.max(1))
                     .map(|row| {
-                        let p = |n: usize, i: usize| row[n * 9 + i].to_f64();
+                        let p = |n: usize, i: usize| row[n * NODE_VECTOR_LEN + i].to_f64();
                         let mut c = [0.0f64; 3];
                         for &r in roots {
                             for (i, ci) in c.iter_mut().enumerate() {
@@ -296,11 +296,11 @@ impl ObsNormalizer {
                             }
                         }
                         c.iter_mut().for_each(|ci| *ci /= roots.len().max(1) as f64);
-                        let nodes = row.len() / 9;
+                        let nodes = row.len() / NODE_VECTOR_LEN;
                         let spread =
                             (0..nodes).map(|n| (0..3).map(|i| (p(n, i) - c[i]).powi(2)).sum::<f64>()).sum::<f64>();
                         let sq = row
-                            .chunks_exact(9)
+                            .chunks_exact(NODE_VECTOR_LEN)
                             .flat_map(|node| {
                                 [1, 2].map(|k| node[3 * k..3 * k + 3].iter().map(|x| x.to_f64().powi(2)).sum::<f64>())
                             })
@@ -341,7 +341,7 @@ impl ObsNormalizer {
                 *x = S::from_f64(((x.to_f64() - smean[j]) * sinv[j]).clamp(-clip, clip));
             }
         });
-        let nv = self.nodes * 9;
+        let nv = self.nodes * NODE_VECTOR_LEN;
         match self.kind {
             NormKind::Elementwise => {
                 let (vmean, vinv) = affine(&self.vectors);
@@ -355,7 +355,7 @@ impl ObsNormalizer {
                 let pinv = 1.0 / self.position_scale();
                 let inv: Vec<f64> = (0..self.nodes * 2).map(|j| 1.0 / self.vectors.rms(j)).collect();
                 out_vectors.par_chunks_mut(nv.max(1)).for_each(|row| {
-                    for (n, node) in row.chunks_exact_mut(9).enumerate() {
+                    for (n, node) in row.chunks_exact_mut(NODE_VECTOR_LEN).enumerate() {
                         for x in &mut node[..3] {
                             *x = S::from_f64(x.to_f64() * pinv);
                         }
@@ -373,6 +373,15 @@ impl ObsNormalizer {
             }
             NormKind::Identity => {}
         }
+    }
+
+    /// Normalises observation rows into `out` (resized to fit; the headings are copied
+    /// unchanged: no normaliser changes them).
+    pub fn apply_rows(&self, rows: ObsRows<'_, f32>, out: &mut Observation) {
+        self.apply(rows.vectors, rows.scalars, &mut out.vectors, &mut out.scalars);
+        out.heading.clear();
+        out.heading.extend_from_slice(rows.heading);
+        (out.batch, out.nodes, out.agents) = (rows.len(), rows.nodes, rows.agents);
     }
 }
 
@@ -396,7 +405,7 @@ mod tests {
     /// `b` random observations of `nodes` nodes: positions spread over a few metres around
     /// an offset, velocities of varied size per node, scalars.
     fn random_obs(rng: &mut ChaCha8Rng, b: usize, nodes: usize) -> (Vec<f64>, Vec<f64>) {
-        let mut v = Vec::with_capacity(b * nodes * 9);
+        let mut v = Vec::with_capacity(b * nodes * NODE_VECTOR_LEN);
         for _ in 0..b {
             for n in 0..nodes {
                 for k in 0..3 {
@@ -461,20 +470,22 @@ mod tests {
         let mut rng = ChaCha8Rng::seed_from_u64(4);
         let (v, s) = random_obs(&mut rng, b, nodes);
         let mut n = ObsNormalizer::new(NormKind::Invariant, &sp);
-        n.update(&v[..20 * nodes * 9], &s[..20 * nodes * N_SCALARS]);
-        n.update(&v[20 * nodes * 9..], &s[20 * nodes * N_SCALARS..]);
+        n.update(&v[..20 * nodes * NODE_VECTOR_LEN], &s[..20 * nodes * N_SCALARS]);
+        n.update(&v[20 * nodes * NODE_VECTOR_LEN..], &s[20 * nodes * N_SCALARS..]);
         // sigma_p^2 = mean over observations and nodes of |p_n - c|^2.
         let (mut spread, mut vel) = (0.0, vec![0.0; nodes * 2]);
-        for row in v.chunks_exact(nodes * 9) {
+        for row in v.chunks_exact(nodes * NODE_VECTOR_LEN) {
             let c: Vec<f64> = (0..3)
                 .map(|i| {
-                    sp.entity_root_node.iter().map(|&r| row[r * 9 + i]).sum::<f64>() / sp.entity_root_node.len() as f64
+                    sp.entity_root_node.iter().map(|&r| row[r * NODE_VECTOR_LEN + i]).sum::<f64>()
+                        / sp.entity_root_node.len() as f64
                 })
                 .collect();
             for node in 0..nodes {
-                spread += (0..3).map(|i| (row[node * 9 + i] - c[i]).powi(2)).sum::<f64>();
+                spread += (0..3).map(|i| (row[node * NODE_VECTOR_LEN + i] - c[i]).powi(2)).sum::<f64>();
                 for k in 1..3 {
-                    vel[node * 2 + k - 1] += (0..3).map(|i| row[node * 9 + 3 * k + i].powi(2)).sum::<f64>();
+                    vel[node * 2 + k - 1] +=
+                        (0..3).map(|i| row[node * NODE_VECTOR_LEN + 3 * k + i].powi(2)).sum::<f64>();
                 }
             }
         }
@@ -486,14 +497,14 @@ mod tests {
         }
         // The positions are divided by sigma_p, nothing else happens to them (no clipping,
         // no mean): one far-away node stays far away.
-        let mut far = v[..nodes * 9].to_vec();
-        far[9] += 1e4;
+        let mut far = v[..nodes * NODE_VECTOR_LEN].to_vec();
+        far[NODE_VECTOR_LEN] += 1e4; // node 1's position, x
         let (mut ov, mut os) = (vec![], vec![]);
         n.apply(&far, &s[..nodes * N_SCALARS], &mut ov, &mut os);
         for node in 0..nodes {
             for i in 0..3 {
-                let want = far[node * 9 + i] / sigma_p;
-                assert!((ov[node * 9 + i] - want).abs() < 1e-12 * want.abs().max(1.0));
+                let want = far[node * NODE_VECTOR_LEN + i] / sigma_p;
+                assert!((ov[node * NODE_VECTOR_LEN + i] - want).abs() < 1e-12 * want.abs().max(1.0));
             }
         }
     }
@@ -535,7 +546,7 @@ mod tests {
         let (v, s) = random_obs(&mut rng, 32, sp.n_nodes);
         let mut n = ObsNormalizer::new(NormKind::Invariant, &sp);
         n.update(&v, &s);
-        let mut big = v[..sp.n_nodes * 9].to_vec();
+        let mut big = v[..sp.n_nodes * NODE_VECTOR_LEN].to_vec();
         big[3..6].copy_from_slice(&[300.0, -400.0, 0.0]); // node 0's velocity, norm 500
         let (mut ov, mut os) = (vec![], vec![]);
         n.apply(&big, &s[..sp.n_nodes * N_SCALARS], &mut ov, &mut os);
@@ -561,15 +572,16 @@ mod tests {
         let nodes = sp.n_nodes;
         let mut rng = ChaCha8Rng::seed_from_u64(9);
         let b = 4000;
-        let vectors: Vec<f32> =
-            (0..b * nodes * 9).map(|i| rng.random_range(0.0..1.0f32) * 3.0 + (i % 9) as f32).collect();
+        let vectors: Vec<f32> = (0..b * nodes * NODE_VECTOR_LEN)
+            .map(|i| rng.random_range(0.0..1.0f32) * 3.0 + (i % NODE_VECTOR_LEN) as f32)
+            .collect();
         let scalars: Vec<f32> = (0..b * nodes * N_SCALARS).map(|_| rng.random_range(-5.0..5.0f32)).collect();
         let mut n = ObsNormalizer::new(NormKind::Elementwise, &sp);
         n.update(&vectors, &scalars);
         let (mut v, mut s) = (vec![], vec![]);
         n.apply(&vectors, &scalars, &mut v, &mut s);
-        let st = RunningStats::from_rows(&v, nodes * 9);
-        for j in 0..nodes * 9 {
+        let st = RunningStats::from_rows(&v, nodes * NODE_VECTOR_LEN);
+        for j in 0..nodes * NODE_VECTOR_LEN {
             assert!(st.mean[j].abs() < 1e-5 && (st.variance(j) - 1.0).abs() < 1e-4, "{j}: {st:?}");
         }
     }

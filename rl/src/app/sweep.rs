@@ -50,10 +50,11 @@ use std::fmt;
 use std::path::Path;
 use std::str::FromStr;
 
-use crate::config::{Preset, TrainConfig};
+use crate::app::presets::Preset;
+use crate::app::run::RunSummary;
+use crate::app::run_dir::{RunDir, RunStatus};
 use crate::error::{Result, RlError};
-use crate::run_dir::{RunDir, RunStatus};
-use crate::train::RunSummary;
+use crate::mappo::config::TrainConfig;
 
 /// The keys of a sweep file (module docs).
 pub const SWEEP_KEYS: [&str; 7] = ["envs", "models", "seeds", "preset", "include_base", "config", "variants"];
@@ -608,7 +609,7 @@ name = "no_entropy"
 config = { entropy_coef = 0.0 }
 "#;
 
-    use crate::test_util::TempDir;
+    use crate::app::test_util::TempDir;
 
     fn err_of(text: &str) -> String {
         Sweep::parse(text, "bad.toml").and_then(|s| s.runs()).unwrap_err().to_string()

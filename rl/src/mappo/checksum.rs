@@ -7,7 +7,7 @@
 //! The digest covers the payload's exact bytes, so any changed byte (a flipped digit, a
 //! truncated file, a hand edit) is found before the payload is trusted. The file stays valid
 //! JSON. Files written before the envelope existed (a bare payload) have no checksum to
-//! check; [`unseal`] says so and [`crate::checkpoint::Checkpoint::load`] accepts them by their
+//! check; [`unseal`] says so and [`crate::mappo::checkpoint::Checkpoint::load`] accepts them by their
 //! format version.
 
 use serde::{Deserialize, Serialize};

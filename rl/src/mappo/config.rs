@@ -1,21 +1,10 @@
 //! The training configuration: every hyper-parameter of MAPPO as the reference release sets
-//! it (`../shared/reference/MEBEN.md` section 6), overridable from a TOML file and from the
-//! command line.
-//!
-//! A configuration is resolved in layers, each overriding the one before:
-//! 1. a preset: `quick` (the built-in default of `meben train`: `shnn` on `team_reach/1_ant`
-//!    in about ten minutes on 2 cores: 256 environments, batch 128 unrolls x 8 minibatches,
-//!    1.5M steps, learning rate decayed linearly to 0, entropy bonus 1e-3 (both presets take
-//!    the bonus's entropy as the reference's Tanh-Normal estimate), evaluation with
-//!    mean actions) or `paper` (the reference schedule: 2048 environments, 50M steps for Team
-//!    Reach, 20M and batch 128 for Team Sumo, evaluation with sampled actions as the release's
-//!    `run_eval`);
-//! 2. a TOML file (`--config file.toml`), whose keys are the fields of [`TrainConfig`] (and
-//!    `preset`);
-//! 3. command-line options (`--env`, `--model`, `--set field=value`, ...).
-//!
-//! The resolved configuration is written to the run directory as `config.toml`; a run is
-//! resumed and evaluated from it.
+//! it (`../shared/reference/MEBEN.md` section 6), and the run's other settings (environment,
+//! models, evaluations, checkpoints), each checked by [`TrainConfig::validate`]. The presets
+//! and the layers a configuration is resolved from are the application's
+//! ([`crate::app::presets`]); the resolved configuration is written to the run directory as
+//! `config.toml` ([`TrainConfig::save`]), and a run is resumed and evaluated from it
+//! ([`TrainConfig::load`]).
 
 use std::path::Path;
 
@@ -27,7 +16,7 @@ use crate::error::{Result, RlError};
 /// 100 times the paper's 163 840, and small enough that the checked products never overflow.
 pub const MAX_STEPS_PER_ITERATION: u64 = 1 << 24;
 
-/// Which observation normaliser to use (module [`crate::normalizer`] has the maths). Every
+/// Which observation normaliser to use (module [`crate::mappo::normalizer`] has the maths). Every
 /// model of a comparison gets the same one unless a run says otherwise (the paper's "same
 /// input" rule).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
@@ -50,8 +39,8 @@ pub enum ObsNormKind {
 
 impl ObsNormKind {
     /// The normaliser this setting builds.
-    pub fn resolve(self) -> crate::normalizer::NormKind {
-        use crate::normalizer::NormKind;
+    pub fn resolve(self) -> crate::mappo::normalizer::NormKind {
+        use crate::mappo::normalizer::NormKind;
         match self {
             ObsNormKind::Auto | ObsNormKind::Invariant => NormKind::Invariant,
             ObsNormKind::Elementwise => NormKind::Elementwise,
@@ -60,20 +49,20 @@ impl ObsNormKind {
     }
 }
 
-/// Which entropy the loss's bonus uses (module [`crate::ppo`]).
+/// Which entropy the loss's bonus uses (module [`crate::mappo::ppo`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum EntropyKind {
     /// The presets' choice: the reference release's, Brax's `NormalTanhDistribution.entropy`,
     /// the Normal's entropy plus the tanh log-Jacobian at one reparameterised sample per
     /// action dimension ([`models::distribution::tanh_normal_entropy`]), its noise drawn
-    /// from a stream per minibatch ([`crate::seeding::minibatch_stream`]).
+    /// from a stream per minibatch ([`crate::mappo::seeding::minibatch_stream`]).
     TanhNormal,
     /// The Normal part's entropy alone (no sample).
     Normal,
 }
 
-/// Where the observation normaliser's statistics start (module [`crate::normalizer`]).
+/// Where the observation normaliser's statistics start (module [`crate::mappo::normalizer`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum NormStart {
@@ -88,28 +77,6 @@ pub enum NormStart {
     /// update (measured: approx-KL 22 on `team_reach/1_ant`, 68 on `1_centipede`, 97-100% of
     /// the samples clipped, against 0.03-0.14 from the second iteration on).
     FirstObservation,
-}
-
-/// The named starting points of a configuration (module docs).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
-#[serde(rename_all = "snake_case")]
-pub enum Preset {
-    /// About ten minutes on 2 cores: smaller batches, shorter schedule.
-    #[default]
-    Quick,
-    /// The reference release's schedule (MEBEN.md section 6).
-    Paper,
-}
-
-impl Preset {
-    /// Parses `quick` or `paper`.
-    pub fn parse(s: &str, source: &str) -> Result<Preset> {
-        match s {
-            "quick" => Ok(Preset::Quick),
-            "paper" => Ok(Preset::Paper),
-            _ => Err(RlError::config(source, "preset", s, "expected `quick` or `paper`")),
-        }
-    }
 }
 
 /// Everything that defines a training run.
@@ -190,7 +157,7 @@ pub struct TrainConfig {
     /// the origin: the centre of Team Reach's placement disc and Team Sumo's centre ball), on
     /// the same starts and noise streams: the first must be 0 (the plain `eval_*` metrics
     /// columns), each further one has its own columns (`eval_success_rate_rot180`, ...,
-    /// [`crate::metrics::eval_column`]). With random starts every drawn start is rotated.
+    /// [`crate::app::metrics::eval_column`]). With random starts every drawn start is rotated.
     /// `[0.0, 180.0]` is the paper's equivariance test (with `fixed_start = true`). Default
     /// `[0.0]` (also for files written before the field existed).
     #[serde(default = "default_eval_rotations")]
@@ -203,111 +170,6 @@ pub struct TrainConfig {
 }
 
 impl TrainConfig {
-    /// The preset's configuration for `env` (module docs).
-    pub fn preset(preset: Preset, env: &str) -> TrainConfig {
-        let sumo = env.starts_with("team_sumo");
-        let paper = TrainConfig {
-            env: env.to_string(),
-            model: "shnn".into(),
-            opponent: String::new(),
-            seed: 0,
-            fixed_start: false,
-            steps: if sumo { 20_000_000 } else { 50_000_000 },
-            num_envs: 2048,
-            unroll_length: 5,
-            batch_size: if sumo { 128 } else { 1024 },
-            num_minibatches: 32,
-            epochs: 4,
-            discount: 0.97,
-            gae_lambda: 0.95,
-            clip_epsilon: 0.3,
-            value_coef: 0.25,
-            entropy_coef: 1e-2,
-            entropy: EntropyKind::TanhNormal,
-            learning_rate: 3e-4,
-            lr_decay: false,
-            grad_clip: 0.1,
-            obs_norm: ObsNormKind::Auto,
-            obs_norm_start: NormStart::Empty,
-            reward_scaling: 1.0,
-            curriculum_fraction: 0.25,
-            num_evals: 50,
-            eval_episodes: 1024,
-            eval_deterministic: false,
-            eval_rotations: default_eval_rotations(),
-            checkpoint_every: 10,
-            threads: 0,
-        };
-        match preset {
-            Preset::Paper => paper,
-            Preset::Quick => TrainConfig {
-                steps: 1_500_000,
-                num_envs: 256,
-                batch_size: 128,
-                lr_decay: true,
-                // A tenth of the reference's entropy bonus: over 1.5M steps the mean action
-                // (what evaluation takes) lags the sampled policy less. Quick preset, final
-                // evaluation success over seeds 0-3 (128 episodes each, commit 794ad79):
-                // 57.0, 67.2, 92.2, 54.7% with 1e-3 against 10.2, 78.1, 81.2, 29.7% with 1e-2.
-                entropy_coef: 1e-3,
-                num_minibatches: 8,
-                num_evals: 10,
-                eval_episodes: 128,
-                // Mean actions: the entropy bonus above was tuned with them.
-                eval_deterministic: true,
-                checkpoint_every: 20,
-                ..paper
-            },
-        }
-    }
-
-    /// Resolves a configuration from its layers (module docs): `preset` (else the file's
-    /// `preset` key, else `quick`), the TOML `file`, then `overrides` (`field = value`
-    /// pairs, values in TOML syntax or bare strings), and validates it.
-    pub fn resolve(preset: Option<Preset>, file: Option<&Path>, overrides: &[(String, String)]) -> Result<TrainConfig> {
-        let mut table = toml::Table::new();
-        if let Some(path) = file {
-            let text = std::fs::read_to_string(path).map_err(|e| RlError::file(path, format!("cannot read: {e}")))?;
-            table = text.parse::<toml::Table>().map_err(|e| RlError::file(path, format!("invalid TOML: {e}")))?;
-        }
-        let file_source = file.map(|p| p.display().to_string()).unwrap_or_else(|| "built-in".into());
-        for (field, value) in overrides {
-            table.insert(field.clone(), parse_override(value));
-        }
-        let preset = match (preset, table.remove("preset")) {
-            (Some(p), _) => p,
-            (None, Some(toml::Value::String(s))) => Preset::parse(&s, &file_source)?,
-            (None, Some(v)) => return Err(RlError::config(&file_source, "preset", v, "expected `quick` or `paper`")),
-            (None, None) => Preset::Quick,
-        };
-        let env = match table.get("env") {
-            Some(toml::Value::String(s)) => s.clone(),
-            Some(v) => return Err(RlError::config(&file_source, "env", v, "expected a string")),
-            None => "team_reach/1_ant".to_string(),
-        };
-        let base = TrainConfig::preset(preset, &env);
-        let mut merged =
-            toml::Table::try_from(&base).map_err(|e| RlError::config("built-in", "*", "", e.to_string()))?;
-        let source = if overrides.is_empty() { file_source } else { format!("{file_source} + command line") };
-        for (k, v) in table {
-            if !merged.contains_key(&k) {
-                let known: Vec<&str> = merged.keys().map(|s| s.as_str()).collect();
-                return Err(RlError::config(
-                    &source,
-                    &k,
-                    v,
-                    format!("unknown field; known fields: preset, {}", known.join(", ")),
-                ));
-            }
-            merged.insert(k, v);
-        }
-        let config: TrainConfig = toml::Value::Table(merged)
-            .try_into()
-            .map_err(|e: toml::de::Error| RlError::config(&source, "*", "", e.to_string()))?;
-        config.validate(&source)?;
-        Ok(config)
-    }
-
     /// Reads a resolved configuration written by [`TrainConfig::save`] (a run's
     /// `config.toml`); every field must be present.
     pub fn load(path: &Path) -> Result<TrainConfig> {
@@ -417,11 +279,11 @@ impl TrainConfig {
                 ),
             );
         }
-        if self.eval_episodes > crate::evaluate::MAX_EPISODES {
+        if self.eval_episodes > crate::mappo::evaluate::MAX_EPISODES {
             return err(
                 "eval_episodes",
                 &self.eval_episodes,
-                &format!("at most {} (one environment per episode)", crate::evaluate::MAX_EPISODES),
+                &format!("at most {} (one environment per episode)", crate::mappo::evaluate::MAX_EPISODES),
             );
         }
         if !(self.batch_size * self.num_minibatches).is_multiple_of(self.num_envs) {
@@ -498,125 +360,6 @@ fn norm_start_before_the_field() -> NormStart {
 }
 
 /// `[0.0]`: evaluation without rotation.
-fn default_eval_rotations() -> Vec<f64> {
+pub(crate) fn default_eval_rotations() -> Vec<f64> {
     vec![0.0]
-}
-
-/// A command-line value as TOML: numbers, booleans, arrays as written, anything else as a
-/// string (so `--set model=shnn` needs no quotes).
-fn parse_override(value: &str) -> toml::Value {
-    let doc = format!("v = {value}");
-    match doc.parse::<toml::Table>() {
-        Ok(mut t) => t.remove("v").unwrap_or_else(|| toml::Value::String(value.into())),
-        Err(_) => toml::Value::String(value.into()),
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn presets_are_valid_and_paper_matches_the_reference() {
-        for env in ["team_reach/1_ant", "team_sumo/2_ants"] {
-            for p in [Preset::Quick, Preset::Paper] {
-                TrainConfig::preset(p, env).validate("test").unwrap();
-            }
-        }
-        let p = TrainConfig::preset(Preset::Paper, "team_reach/1_ant");
-        assert_eq!(p.steps_per_iteration(), 163_840);
-        assert_eq!(p.unrolls_per_iteration(), 16);
-        assert_eq!(TrainConfig::preset(Preset::Paper, "team_sumo/2_ants").batch_size, 128);
-    }
-
-    #[test]
-    fn overrides_and_round_trip() {
-        let ov = vec![("num_envs".to_string(), "128".to_string()), ("model".to_string(), "mlp_hn".to_string())];
-        let c = TrainConfig::resolve(Some(Preset::Paper), None, &ov).unwrap();
-        assert_eq!(c.num_envs, 128);
-        assert_eq!(c.model, "mlp_hn");
-        let back: TrainConfig = toml::from_str(&c.to_toml()).unwrap();
-        assert_eq!(back, c);
-    }
-
-    /// Found by the property test `a_configuration_survives_its_toml_file`: a configuration
-    /// built in Rust with a seed or step count above `i64::MAX` validated, was written to
-    /// config.toml, and could not be read back ("u64 value was too large"), so the run could
-    /// neither resume nor be evaluated. Validation now refuses it, naming the field.
-    #[test]
-    fn integers_beyond_toml_are_refused_before_anything_is_written() {
-        for field in ["seed", "steps", "epochs", "checkpoint_every"] {
-            let mut c = TrainConfig::preset(Preset::Quick, "team_reach/1_ant");
-            match field {
-                "seed" => c.seed = 1 << 63,
-                "steps" => c.steps = u64::MAX,
-                "epochs" => c.epochs = usize::MAX,
-                _ => c.checkpoint_every = usize::MAX,
-            }
-            let e = c.validate("test").unwrap_err().to_string();
-            assert!(e.contains(field) && e.contains("signed 64-bit"), "{e}");
-        }
-        let mut c = TrainConfig::preset(Preset::Quick, "team_reach/1_ant");
-        c.seed = i64::MAX as u64;
-        c.validate("test").unwrap();
-        let back: TrainConfig = toml::from_str(&c.to_toml()).unwrap();
-        assert_eq!(back.seed, i64::MAX as u64);
-    }
-
-    #[test]
-    fn bad_values_name_the_field() {
-        let cases = [
-            ("num_envs", "0", "num_envs"),
-            ("env", "team_reach/no_such", "env"),
-            ("model", "resnet", "model"),
-            ("discount", "1.5", "discount"),
-            ("num_envs", "\"many\"", "num_envs"),
-            ("colour", "3", "colour"),
-            ("num_envs", "100", "num_envs"),
-            ("eval_rotations", "[180.0]", "eval_rotations"),
-            ("eval_rotations", "[]", "eval_rotations"),
-            ("eval_rotations", "[0.0, 90.0, 90.0]", "90 appears twice"),
-            ("eval_rotations", "[0.0, nan]", "finite"),
-            ("batch_size", "4611686018427387904", "batch_size"),
-            ("batch_size", "1099511627776", "16777216"),
-            ("unroll_length", "18446744073709551615", "unroll_length"),
-            ("eval_episodes", "18446744073709551615", "eval_episodes"),
-            ("entropy", "gaussian", "entropy"),
-        ];
-        for (field, value, named) in cases {
-            let e = TrainConfig::resolve(None, None, &[(field.to_string(), value.to_string())]).unwrap_err();
-            let msg = e.to_string();
-            assert!(msg.contains(named), "{field}={value}: {msg}");
-        }
-    }
-
-    #[test]
-    fn files_written_before_the_later_fields_load_with_their_defaults() {
-        let c = TrainConfig::preset(Preset::Paper, "team_reach/1_ant");
-        assert!(!c.eval_deterministic, "the paper preset samples in evaluation, as the release");
-        assert!(TrainConfig::preset(Preset::Quick, "team_reach/1_ant").eval_deterministic);
-        assert_eq!(c.entropy, EntropyKind::TanhNormal);
-        assert_eq!(c.obs_norm_start, NormStart::Empty, "the release's normaliser starts empty");
-        let text: String = c
-            .to_toml()
-            .lines()
-            .filter(|l| {
-                !l.starts_with("eval_rotations") && !l.starts_with("entropy =") && !l.starts_with("obs_norm_start")
-            })
-            .map(|l| format!("{l}\n"))
-            .collect();
-        let dir = std::env::temp_dir().join(format!("meben-config-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        let path = dir.join("config.toml");
-        std::fs::write(&path, text).unwrap();
-        let back = TrainConfig::load(&path).unwrap();
-        let _ = std::fs::remove_dir_all(&dir);
-        assert_eq!(back.eval_rotations, [0.0]);
-        assert_eq!(back.entropy, EntropyKind::Normal, "old runs trained with the Normal entropy");
-        assert_eq!(back.obs_norm_start, NormStart::FirstObservation, "old runs started from the first observations");
-        assert_eq!(
-            back,
-            TrainConfig { entropy: EntropyKind::Normal, obs_norm_start: NormStart::FirstObservation, ..c }
-        );
-    }
 }

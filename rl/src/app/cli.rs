@@ -1,0 +1,488 @@
+//! The `meben` program's command line: train, evaluate, sweep, report and render MeBen
+//! agents, and drive the simulator.
+//! `meben <command> --help` explains each command; with no command, `meben` trains `shnn` on
+//! `team_reach/1_ant` with the built-in `quick` budget (as `meben train`).
+
+// The doc comments of the argument structs are the `--help` text, written for a terminal
+// (`runs/<env>-<model>-seed<seed>`), not HTML.
+#![allow(rustdoc::invalid_html_tags)]
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use crate::app::presets::Preset;
+use crate::app::run::TrainOptions;
+use crate::app::run_dir::RunDir;
+use crate::error::RlError;
+use crate::mappo::config::TrainConfig;
+use crate::mappo::evaluate::EvalOptions;
+use clap::{Args, Parser, Subcommand};
+
+#[derive(Parser)]
+#[command(
+    name = "meben",
+    version,
+    about = "Subequivariant multi-entity RL on MeBen: train, eval, ablate, report, render, sim"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Option<Command>,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Train a model (MAPPO). With no options: shnn on team_reach/1_ant, about ten minutes.
+    Train(Box<TrainArgs>),
+    /// Evaluate a trained run on N episodes.
+    Eval(EvalArgs),
+    /// Run a sweep of models x envs x seeds x variants (skips finished runs, resumes others).
+    Ablate(AblateArgs),
+    /// Tables (Markdown, CSV) and learning curves of a sweep or of runs under a directory
+    /// (also redraws each run's curve.svg).
+    Report(ReportArgs),
+    /// Copy the evidence of the runs under a directory (config.toml, metrics.csv, done.json,
+    /// curve.svg, the sweep file) to another, without checkpoints: for committing results.
+    Export(ExportArgs),
+    /// Record an episode of a trained run: .html (animation), .gif, or .csv (body poses).
+    Render(RenderArgs),
+    /// The simulator's rollout tool (random actions, timing, trajectories).
+    Sim(envs::rollout_tool::RolloutArgs),
+    /// Parameter counts by part, one line per model and team:
+    /// `<model> policy_params=N critic_params=M`.
+    Info(InfoArgs),
+}
+
+#[derive(Args)]
+struct InfoArgs {
+    /// Environment (e.g. team_reach/3_ant_claw_centipede, or a composition whose
+    /// morphologies may be Brax-config .txt or MJCF .xml files, as for train).
+    #[arg(long, default_value = "team_reach/1_ant")]
+    env: String,
+    /// Model specification, with options ("shnn:critic=shared"); repeatable.
+    #[arg(long, required = true)]
+    model: Vec<String>,
+    /// Team Sumo: model of team 1 (default: the same as --model).
+    #[arg(long)]
+    opponent: Option<String>,
+}
+
+#[derive(Args, Default)]
+struct TrainArgs {
+    /// Environment: a built-in name (e.g. team_reach/1_ant, team_sumo/2_ants) or a custom
+    /// composition ("team_reach:agents=ant+claw;R=5;balls=2",
+    /// "team_sumo:team1=ant;team2=claw;R=3"); a morphology is a built-in name (ant, claw,
+    /// centipede, unimal_1, ...), a Brax-config file (.txt) or an MJCF file (.xml: bodies with
+    /// sphere/capsule geoms, ranged hinges, motors, a free root; see envs::mjcf_agent).
+    #[arg(long)]
+    env: Option<String>,
+    /// Model of team 0 (shnn, shnn_og3, shnn_so3, mlp, mlp_hn, transformer_hn, shtransformer,
+    /// shgnn, hnn, hnn_hn, hnn_dn), optionally with options: "shnn:assignment=hungarian".
+    #[arg(long)]
+    model: Option<String>,
+    /// Team Sumo: model of team 1 (default: the same as --model).
+    #[arg(long)]
+    opponent: Option<String>,
+    /// Task assignment (ablation): greedy, hungarian, stochastic or none (appended to the
+    /// model options).
+    #[arg(long)]
+    assignment: Option<String>,
+    /// Translation of positions (ablation; see models::Translation).
+    #[arg(long)]
+    translation: Option<String>,
+    /// Entity abstraction (ablation; see models::EntityAbstraction).
+    #[arg(long)]
+    abstraction: Option<String>,
+    /// Seed of everything random.
+    #[arg(long)]
+    seed: Option<u64>,
+    /// Environment steps to train for.
+    #[arg(long)]
+    steps: Option<u64>,
+    /// Environments stepped together.
+    #[arg(long)]
+    num_envs: Option<usize>,
+    /// Worker threads (0: all cores; results do not depend on it).
+    #[arg(long)]
+    threads: Option<usize>,
+    /// Starting point: quick (default, ~10 minutes on 2 cores) or paper (the reference schedule).
+    #[arg(long)]
+    preset: Option<String>,
+    /// A TOML file of TrainConfig fields (see rl/configs/).
+    #[arg(long)]
+    config: Option<PathBuf>,
+    /// Any other field: --set entropy_coef=0.005 (repeatable).
+    #[arg(long = "set", value_name = "FIELD=VALUE")]
+    set: Vec<String>,
+    /// Run directory (default runs/<env>-<model>-seed<seed>). An existing run resumes.
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// No progress bar.
+    #[arg(long)]
+    quiet: bool,
+    /// Stop after this many iterations in total (with a checkpoint), as if interrupted.
+    #[arg(long, hide = true)]
+    stop_after: Option<u64>,
+}
+
+#[derive(Args)]
+struct EvalArgs {
+    /// Run directory (with config.toml and checkpoint.json).
+    #[arg(long)]
+    run: PathBuf,
+    /// Episodes.
+    #[arg(long, default_value_t = 1024)]
+    episodes: usize,
+    /// Sample actions (default: as the run's eval_deterministic says; the paper preset
+    /// samples, the quick preset takes the mean action).
+    #[arg(long, conflicts_with = "mean")]
+    stochastic: bool,
+    /// Take the mean action tanh(loc) instead of sampling.
+    #[arg(long)]
+    mean: bool,
+    /// Start every episode from the fixed start of the run's seed.
+    #[arg(long)]
+    fixed: bool,
+    /// Start every episode from the fixed start rotated by this many degrees about the
+    /// vertical through the origin (implies --fixed): the paper's equivariance test.
+    #[arg(long, allow_negative_numbers = true)]
+    rotate: Option<f64>,
+    /// Translate the whole scene (agents, goal balls, Sumo's centre ball) horizontally by
+    /// X,Y metres after the rotation (implies --fixed), e.g. --translate 2.5,-1.
+    #[arg(long, value_name = "X,Y", value_parser = parse_translation, allow_hyphen_values = true)]
+    translate: Option<[f64; 2]>,
+    /// Seed of the evaluation's starts and noise.
+    #[arg(long, default_value_t = 12345)]
+    seed: u64,
+}
+
+/// `X,Y` as two finite numbers.
+fn parse_translation(s: &str) -> Result<[f64; 2], String> {
+    let parts: Vec<&str> = s.split(',').map(str::trim).collect();
+    let xy: Vec<f64> = match parts.as_slice() {
+        [x, y] => [x, y]
+            .iter()
+            .map(|v| v.parse::<f64>())
+            .collect::<Result<_, _>>()
+            .map_err(|e| format!("expected two numbers X,Y in metres, e.g. 2.5,-1 ({e})"))?,
+        _ => return Err("expected two numbers X,Y in metres, e.g. 2.5,-1".into()),
+    };
+    if !xy.iter().all(|v| v.is_finite()) {
+        return Err("the translation must be finite".into());
+    }
+    Ok([xy[0], xy[1]])
+}
+
+#[derive(Args)]
+struct AblateArgs {
+    /// The sweep file (see rl/sweeps/).
+    #[arg(long)]
+    sweep: PathBuf,
+    /// Directory of the sweep's runs.
+    #[arg(long)]
+    out: PathBuf,
+    /// Only this shard, k/n (1-based): runs with index % n == k - 1.
+    #[arg(long)]
+    shard: Option<String>,
+    /// Only the runs whose name (`<env>/<model>/seed<N>`) contains this; repeatable.
+    #[arg(long)]
+    only: Vec<String>,
+    /// Worker threads of every run (0: every core), whatever the sweep says; results do not
+    /// depend on it.
+    #[arg(long)]
+    threads: Option<usize>,
+    /// No progress bar.
+    #[arg(long)]
+    quiet: bool,
+}
+
+#[derive(Args)]
+struct ExportArgs {
+    /// Directory holding run directories (a sweep's --out).
+    from: PathBuf,
+    /// Where the evidence goes (e.g. results/<experiment>).
+    to: PathBuf,
+}
+
+#[derive(Args)]
+struct ReportArgs {
+    /// Directory holding run directories (a sweep's --out).
+    root: PathBuf,
+}
+
+#[derive(Args)]
+struct RenderArgs {
+    /// Run directory.
+    #[arg(long)]
+    run: PathBuf,
+    /// Output file: .html (interactive animation), .gif (animated image) or .csv (body poses per frame).
+    #[arg(long)]
+    out: PathBuf,
+    /// Seed of the episode's start.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Control steps at most (default: the episode length).
+    #[arg(long)]
+    steps: Option<usize>,
+    /// Sample actions instead of the mean action.
+    #[arg(long)]
+    stochastic: bool,
+}
+
+/// Runs the `meben` program on the process's arguments (module docs); its exit code.
+pub fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        None => cmd_train(TrainArgs::default()),
+        Some(Command::Train(a)) => cmd_train(*a),
+        Some(Command::Eval(a)) => cmd_eval(a),
+        Some(Command::Ablate(a)) => cmd_ablate(a),
+        Some(Command::Report(a)) => cmd_report(a),
+        Some(Command::Export(a)) => cmd_export(a),
+        Some(Command::Render(a)) => cmd_render(a),
+        Some(Command::Sim(a)) => envs::rollout_tool::run(&a).map_err(|e| e.to_string()),
+        Some(Command::Info(a)) => cmd_info(a),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("meben: error: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn resolve_train_config(a: &TrainArgs) -> Result<TrainConfig, RlError> {
+    let preset = a.preset.as_deref().map(|p| Preset::parse(p, "command line")).transpose()?;
+    let mut ov: Vec<(String, String)> = Vec::new();
+    let quote = |s: &str| format!("{s:?}");
+    if let Some(v) = &a.env {
+        ov.push(("env".into(), quote(v)));
+    }
+    let mut model = a.model.clone();
+    let extra: Vec<String> =
+        [("assignment", &a.assignment), ("translation", &a.translation), ("abstraction", &a.abstraction)]
+            .iter()
+            .filter_map(|(k, v)| v.as_ref().map(|v| format!("{k}={v}")))
+            .collect();
+    if !extra.is_empty() {
+        let base = model.clone().unwrap_or_else(|| "shnn".into());
+        let sep = if base.contains(':') { ";" } else { ":" };
+        model = Some(format!("{base}{sep}{}", extra.join(";")));
+    }
+    if let Some(v) = &model {
+        ov.push(("model".into(), quote(v)));
+    }
+    if let Some(v) = &a.opponent {
+        ov.push(("opponent".into(), quote(v)));
+    }
+    for (k, v) in [("seed", a.seed), ("steps", a.steps)] {
+        if let Some(v) = v {
+            ov.push((k.into(), v.to_string()));
+        }
+    }
+    for (k, v) in [("num_envs", a.num_envs), ("threads", a.threads)] {
+        if let Some(v) = v {
+            ov.push((k.into(), v.to_string()));
+        }
+    }
+    for s in &a.set {
+        let (k, v) = s.split_once('=').ok_or_else(|| {
+            RlError::config("command line", "--set", s, "expected FIELD=VALUE, e.g. --set entropy_coef=0.005")
+        })?;
+        ov.push((k.trim().into(), v.trim().into()));
+    }
+    TrainConfig::resolve(preset, a.config.as_deref(), &ov)
+}
+
+fn cmd_train(a: TrainArgs) -> Result<(), String> {
+    let config = resolve_train_config(&a).map_err(|e| e.to_string())?;
+    let out = a.out.clone().unwrap_or_else(|| {
+        PathBuf::from("runs").join(format!(
+            "{}-{}-seed{}",
+            crate::app::sweep::sanitize_component(&config.env),
+            crate::app::sweep::sanitize_component(&config.model),
+            config.seed
+        ))
+    });
+    let run = RunDir::new(&out);
+    eprintln!(
+        "meben: training {} on {} for {} env steps ({} iterations of {}), seed {} -> {}",
+        config.model,
+        config.env,
+        config.steps,
+        config.iterations(),
+        config.steps_per_iteration(),
+        config.seed,
+        out.display()
+    );
+    let options = TrainOptions { progress: !a.quiet, stop_after: a.stop_after };
+    let s = crate::app::run::train(&config, &run, &options).map_err(|e| e.to_string())?;
+    print_summary(&config, &s);
+    eprintln!("meben: metrics in {}, learning curve in {}", run.metrics().display(), run.curve().display());
+    Ok(())
+}
+
+fn print_summary(config: &TrainConfig, s: &crate::app::run::RunSummary) {
+    println!("iterations {} env_steps {} wall_s {:.1}", s.iterations, s.env_steps, s.wall_s);
+    if let Some(e) = &s.final_eval {
+        print_eval(config.is_sumo(), e);
+    }
+    for e in &s.final_eval_rotated {
+        print!("rotated {} degrees: ", e.rotation_deg);
+        print_eval(config.is_sumo(), e);
+    }
+}
+
+fn print_eval(sumo: bool, e: &crate::mappo::evaluate::EvalSummary) {
+    if sumo {
+        println!(
+            "episodes {} win_rate_t0 {:.4} win_rate_t1 {:.4} draw_rate {:.4} mean_length {:.1} actions {}",
+            e.episodes,
+            e.win_rate[0],
+            e.win_rate[1],
+            e.draw_rate,
+            e.mean_length,
+            if e.sampled { "sampled" } else { "mean" }
+        );
+    } else {
+        println!(
+            "episodes {} success_rate {:.4} mean_return {:.1} mean_length {:.1} actions {}",
+            e.episodes,
+            e.success_rate,
+            e.mean_return[0],
+            e.mean_length,
+            if e.sampled { "sampled" } else { "mean" }
+        );
+    }
+}
+
+fn cmd_eval(a: EvalArgs) -> Result<(), String> {
+    let run = RunDir::new(&a.run);
+    let (config, teams) = crate::app::run_dir::load_policies(&run).map_err(|e| e.to_string())?;
+    if a.episodes == 0 {
+        return Err("--episodes must be at least 1".into());
+    }
+    if let Some(deg) = a.rotate
+        && !deg.is_finite()
+    {
+        return Err(format!("--rotate {deg}: the angle must be finite"));
+    }
+    let moved = a.rotate.is_some() || a.translate.is_some();
+    let mode =
+        if a.fixed || moved { envs::tasks::StartMode::fixed(config.seed) } else { envs::tasks::StartMode::Random };
+    let deterministic = if a.stochastic {
+        false
+    } else if a.mean {
+        true
+    } else {
+        config.eval_deterministic
+    };
+    let options = EvalOptions {
+        rotation_deg: a.rotate.unwrap_or(0.0),
+        translation: a.translate.unwrap_or([0.0, 0.0]),
+        ..EvalOptions::new(a.episodes, deterministic, a.seed, mode)
+    };
+    let e = crate::mappo::evaluate::evaluate(&config.env, &teams, &options).map_err(|e| e.to_string())?;
+    print_eval(config.is_sumo(), &e);
+    let name = eval_file_name(a.rotate, a.translate, a.fixed);
+    let path = a.run.join(name);
+    let text = serde_json::to_string_pretty(&e).map_err(|e| e.to_string())?;
+    nn::write_atomic(&path, text.as_bytes()).map_err(|e| e.to_string())?;
+    eprintln!("meben: wrote {}", path.display());
+    Ok(())
+}
+
+/// The file an evaluation is written to: `eval.json`, `eval_fixed.json`,
+/// `eval_rotate<deg>.json`, `eval[_rotate<deg>]_translate<x>_<y>.json`, every number in at
+/// most 24 characters (`1e308`, not 309 digits: a file name has a length limit).
+fn eval_file_name(rotate: Option<f64>, translate: Option<[f64; 2]>, fixed: bool) -> String {
+    let num = |x: f64| {
+        let plain = x.to_string();
+        if plain.len() <= 24 { plain } else { format!("{x:e}") }
+    };
+    let mut name = match rotate {
+        Some(d) => format!("eval_rotate{}", num(d)),
+        None if fixed || translate.is_some() => "eval_fixed".into(),
+        None => "eval".into(),
+    };
+    if let Some([x, y]) = translate {
+        let base = if rotate.is_some() { name.as_str() } else { "eval" };
+        name = format!("{base}_translate{}_{}", num(x), num(y));
+    }
+    format!("{name}.json")
+}
+
+fn cmd_ablate(a: AblateArgs) -> Result<(), String> {
+    let sweep = crate::app::sweep::Sweep::load(&a.sweep).map_err(|e| e.to_string())?;
+    let shard = a.shard.as_deref().map(crate::app::sweep::Shard::parse).transpose().map_err(|e| e.to_string())?;
+    let selection = crate::app::sweep::RunSelection { shard, only: a.only.clone() };
+    let options = TrainOptions { progress: !a.quiet, stop_after: None };
+    let outcome = crate::app::sweep::run_sweep(&sweep, &a.out, &selection, |c, r| {
+        eprintln!("meben: run {} ({} on {}, seed {})", r.root().display(), c.model, c.env, c.seed);
+        let c = TrainConfig { threads: a.threads.unwrap_or(c.threads), ..c.clone() };
+        crate::app::run::train(&c, r, &options)
+    })
+    .map_err(|e| e.to_string())?;
+    println!("{outcome:?}");
+    Ok(())
+}
+
+fn cmd_report(a: ReportArgs) -> Result<(), String> {
+    let r = crate::app::report::report(&a.root).map_err(|e| e.to_string())?;
+    // Every run's own learning curve is redrawn too (runs written by older versions).
+    for dir in crate::app::report::find_run_dirs(&a.root).map_err(|e| e.to_string())? {
+        crate::app::curve::write_run_curve(&RunDir::new(dir)).map_err(|e| e.to_string())?;
+    }
+    let text = std::fs::read_to_string(&r.markdown).map_err(|e| format!("{}: {e}", r.markdown.display()))?;
+    println!("{text}");
+    eprintln!("meben: wrote {}", r.markdown.display());
+    Ok(())
+}
+
+fn cmd_export(a: ExportArgs) -> Result<(), String> {
+    let s = crate::app::export::export(&a.from, &a.to).map_err(|e| e.to_string())?;
+    println!(
+        "meben: exported {} runs ({} unfinished, {} bytes) from {} to {}",
+        s.runs.len(),
+        s.unfinished.len(),
+        s.bytes,
+        a.from.display(),
+        a.to.display()
+    );
+    for u in &s.unfinished {
+        println!("  unfinished: {}", u.display());
+    }
+    Ok(())
+}
+
+fn cmd_info(a: InfoArgs) -> Result<(), String> {
+    for line in crate::app::info::info_lines(&a.env, &a.model, a.opponent.as_deref()).map_err(|e| e.to_string())? {
+        println!("{line}");
+    }
+    Ok(())
+}
+
+fn cmd_render(a: RenderArgs) -> Result<(), String> {
+    let run = RunDir::new(&a.run);
+    let (config, mut teams) = crate::app::run_dir::load_policies(&run).map_err(|e| e.to_string())?;
+    let ext = a.out.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
+    if !["html", "gif", "csv"].contains(&ext.as_str()) {
+        return Err(format!("{}: unsupported output format {ext:?}; use .html, .gif or .csv", a.out.display()));
+    }
+    let spec = envs::tasks::TaskSpec::from_name(&config.env).map_err(|e| e.to_string())?;
+    let steps = a.steps.unwrap_or(spec.episode_steps);
+    let mut failure = None;
+    let traj = crate::app::render::record_episode(&config.env, &mut teams, a.seed, steps, !a.stochastic, &mut failure)
+        .map_err(|e| e.to_string())?;
+    if let Some(e) = failure {
+        return Err(e.to_string());
+    }
+    let bytes = match ext.as_str() {
+        "html" => traj.to_html().into_bytes(),
+        "gif" => traj.to_gif(&envs::tasks::render::GifOptions::default()).map_err(|e| e.to_string())?,
+        _ => traj.to_csv().into_bytes(),
+    };
+    nn::write_atomic(&a.out, &bytes).map_err(|e| e.to_string())?;
+    eprintln!("meben: wrote {} ({} frames)", a.out.display(), traj.len());
+    Ok(())
+}

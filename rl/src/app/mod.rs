@@ -1,0 +1,23 @@
+//! The application around the algorithm ([`crate::mappo`]): configuration presets and
+//! layers ([`presets`]), training in a run directory ([`run`], [`run_dir`], [`lock`],
+//! [`metrics`], [`progress`], [`curve`], [`plot`]), sweeps ([`sweep`], `meben ablate`),
+//! reports ([`report`](mod@report), `meben report`), evidence export
+//! ([`export`](mod@export), `meben export`), parameter counts ([`info`], `meben info`),
+//! episode recordings ([`render`], `meben render`) and the command line ([`cli`]).
+
+pub mod cli;
+pub mod curve;
+pub mod export;
+pub mod info;
+pub mod lock;
+pub mod metrics;
+pub mod plot;
+pub mod presets;
+pub mod progress;
+pub mod render;
+pub mod report;
+pub mod run;
+pub mod run_dir;
+pub mod sweep;
+#[cfg(test)]
+mod test_util;

@@ -1,0 +1,291 @@
+//! Training in a run directory ([`crate::app::run_dir`]): [`train`] drives a
+//! [`Trainer`] (module [`crate::mappo::trainer`]) and writes the resolved configuration, a
+//! metrics row per iteration, the evaluations, checkpoints, the learning curve and the
+//! summary, and resumes a run exactly from its checkpoint.
+
+use std::io::Write;
+use std::time::Instant;
+
+use serde::{Deserialize, Serialize};
+
+use crate::app::lock::{RunLock, remove_stale_temporaries};
+use crate::app::metrics::{MetricsLayout, MetricsRow, eval_column};
+use crate::app::run_dir::RunDir;
+use crate::error::{Result, RlError};
+use crate::mappo::checkpoint::Checkpoint;
+use crate::mappo::config::TrainConfig;
+use crate::mappo::evaluate::EvalSummary;
+use crate::mappo::trainer::{IterationStats, Trainer};
+
+/// How [`train`] runs, beyond the configuration.
+#[derive(Clone, Debug, Default)]
+pub struct TrainOptions {
+    /// Show a progress bar on the terminal (and a line per evaluation otherwise).
+    pub progress: bool,
+    /// Stop (with a checkpoint) after this many iterations in total, as if interrupted.
+    pub stop_after: Option<u64>,
+}
+
+/// What a finished (or stopped) run reports, also written as `done.json`.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct RunSummary {
+    /// Iterations done.
+    pub iterations: u64,
+    /// Environment steps collected.
+    pub env_steps: u64,
+    /// Wall-clock seconds of training (summed over resumed sessions).
+    pub wall_s: f64,
+    /// The last evaluation (unrotated: the first of `eval_rotations`).
+    pub final_eval: Option<EvalSummary>,
+    /// The last evaluation at each further rotation of `eval_rotations`, in order.
+    #[serde(default)]
+    pub final_eval_rotated: Vec<EvalSummary>,
+}
+
+/// Whether evaluation `evals_done` (0-based) falls after iteration `i` (1-based) of `n`:
+/// `num_evals` evenly spaced, the last at the end.
+fn eval_due(i: u64, n: u64, num_evals: u64) -> bool {
+    num_evals > 0 && (i * num_evals / n) > ((i - 1) * num_evals / n)
+}
+
+/// Fills a metrics row from an iteration's figures and evaluations (one per rotation of
+/// `eval_rotations`, or none).
+fn metrics_row(t: &Trainer, s: &IterationStats, wall: f64, sps: f64, evals: &[EvalSummary]) -> MetricsRow {
+    const LOSS: [[&str; 6]; 2] = [
+        ["policy_loss_t0", "value_loss_t0", "entropy_t0", "approx_kl_t0", "clip_fraction_t0", "explained_variance_t0"],
+        ["policy_loss_t1", "value_loss_t1", "entropy_t1", "approx_kl_t1", "clip_fraction_t1", "explained_variance_t1"],
+    ];
+    let sumo = t.spec.n_teams > 1;
+    let mut r = MetricsRow::default();
+    r.set("iteration", t.iteration as f64);
+    r.set("env_steps", t.env_steps as f64);
+    r.set("wall_s", wall);
+    r.set("steps_per_s", sps);
+    r.set("curriculum_alpha", s.alpha);
+    let ep = &s.episodes;
+    r.set("train_episodes", ep.episodes as f64);
+    if ep.episodes > 0 {
+        let n = ep.episodes as f64;
+        r.set("train_return_t0", ep.return_sum[0] / n);
+        r.set("train_length", ep.length_sum as f64 / n);
+        if sumo {
+            r.set("train_return_t1", ep.return_sum[1] / n);
+            r.set("train_win_rate_t0", ep.wins[0] as f64 / n);
+            r.set("train_win_rate_t1", ep.wins[1] as f64 / n);
+            r.set("train_draw_rate", ep.draws as f64 / n);
+        } else {
+            r.set("train_success_rate", ep.successes as f64 / n);
+        }
+    }
+    if let Some(e) = evals.first() {
+        r.set("eval_sampled", if e.sampled { 1.0 } else { 0.0 });
+    }
+    for (e, &deg) in evals.iter().zip(&t.config.eval_rotations) {
+        let col = |base: &str| eval_column(base, deg);
+        r.set(col("eval_episodes"), e.episodes as f64);
+        r.set(col("eval_return_t0"), e.mean_return[0]);
+        r.set(col("eval_length"), e.mean_length);
+        if sumo {
+            r.set(col("eval_return_t1"), e.mean_return[1]);
+            r.set(col("eval_win_rate_t0"), e.win_rate[0]);
+            r.set(col("eval_win_rate_t1"), e.win_rate[1]);
+            r.set(col("eval_draw_rate"), e.draw_rate);
+        } else {
+            r.set(col("eval_success_rate"), e.success_rate);
+        }
+    }
+    for (k, l) in s.losses.iter().enumerate().take(2) {
+        let v = [l.policy_loss, l.value_loss, l.entropy, l.approx_kl, l.clip_fraction, l.explained_variance];
+        for (name, x) in LOSS[k].iter().zip(v) {
+            r.set(*name, x);
+        }
+    }
+    r
+}
+
+/// Keeps the metrics rows of iterations up to `iteration` (a resumed run drops rows written
+/// after its checkpoint), each iteration once and in increasing order (the first row of an
+/// iteration wins), and returns the file's text, with the header of `layout`. Damaged rows
+/// (incomplete, not numbered, or with bytes that are not UTF-8) are dropped one by one: the
+/// file is read as bytes, so one bad byte does not cost the other rows.
+fn metrics_upto(path: &std::path::Path, iteration: u64, layout: &MetricsLayout) -> String {
+    let mut out = layout.header();
+    out.push('\n');
+    let mut last: Option<u64> = None;
+    if let Ok(bytes) = std::fs::read(path) {
+        let text = String::from_utf8_lossy(&bytes);
+        for line in text.lines().skip(1) {
+            let complete = line.split(',').count() == layout.columns().len();
+            let clean = !line.contains(char::REPLACEMENT_CHARACTER);
+            match line.split(',').next().and_then(|c| c.parse::<u64>().ok()) {
+                Some(i) if complete && clean && i <= iteration && last.is_none_or(|l| i > l) => {
+                    last = Some(i);
+                    out.push_str(line);
+                    out.push('\n');
+                }
+                _ => {}
+            }
+        }
+    }
+    out
+}
+
+/// Trains `config` in `run`: from scratch, or from the run's checkpoint (module docs). The
+/// resolved configuration goes to `config.toml`, a row per iteration to `metrics.csv`, the
+/// state to `checkpoint.json` and the summary to `done.json` at the end. A run whose
+/// `done.json` exists and whose steps are reached returns its summary at once. The run
+/// directory is locked while training ([`RunLock`]: a second training of it fails at once,
+/// naming the holder); temporary files of interrupted writes are removed first.
+pub fn train(config: &TrainConfig, run: &RunDir, options: &TrainOptions) -> Result<RunSummary> {
+    let threads = config.threads;
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .map_err(|e| RlError::config("config", "threads", threads, e.to_string()))?;
+    pool.install(|| train_in_pool(config, run, options))
+}
+
+fn train_in_pool(config: &TrainConfig, run: &RunDir, options: &TrainOptions) -> Result<RunSummary> {
+    let ckpt_path = run.checkpoint();
+    // A new run is built before its directory is created: building checks what validation
+    // cannot (model options that do not apply to the model, the rollout's memory).
+    let fresh = if ckpt_path.is_file() { None } else { Some(Trainer::new(config)?) };
+    std::fs::create_dir_all(run.root()).map_err(|e| RlError::file(run.root(), format!("cannot create: {e}")))?;
+    // Held until training returns: a second training of this directory is refused.
+    let lock = RunLock::acquire(run.root())?;
+    remove_stale_temporaries(run.root(), &lock)?;
+    let (mut trainer, wall_before, mut last_evals) = if ckpt_path.is_file() {
+        let c = Checkpoint::load(&ckpt_path)?;
+        let t = Trainer::from_checkpoint(&c, config, &ckpt_path)?;
+        let evals: Vec<EvalSummary> = c.last_eval.iter().chain(&c.last_eval_rotated).cloned().collect();
+        (t, c.wall_s, evals)
+    } else {
+        let t = match fresh {
+            Some(t) => t,
+            None => Trainer::new(config)?,
+        };
+        (t, 0.0, Vec::new())
+    };
+    let total = config.iterations();
+    // Written before a finished run returns too: running the command again repairs a
+    // damaged config.toml, which evaluation and rendering read.
+    config.save(&run.config())?;
+    if trainer.iteration >= total
+        && let Ok(text) = std::fs::read_to_string(run.done())
+        && let Ok(s) = serde_json::from_str::<RunSummary>(&text)
+    {
+        return Ok(s);
+    }
+    let _ = std::fs::remove_file(run.done());
+    let metrics_path = run.metrics();
+    let layout = MetricsLayout::new(&config.eval_rotations);
+    nn::write_atomic(&metrics_path, metrics_upto(&metrics_path, trainer.iteration, &layout).as_bytes())?;
+    let mut metrics = std::fs::OpenOptions::new()
+        .append(true)
+        .open(&metrics_path)
+        .map_err(|e| RlError::file(&metrics_path, format!("cannot open: {e}")))?;
+    let bar = crate::app::progress::Progress::new(options.progress, config, trainer.env_steps);
+    let start = Instant::now();
+    let mut since_ckpt = 0u64;
+    while trainer.iteration < total {
+        if options.stop_after.is_some_and(|s| trainer.iteration >= s) {
+            break;
+        }
+        let t0 = Instant::now();
+        let stats = trainer.iterate()?;
+        let dt = t0.elapsed().as_secs_f64();
+        let sps = config.steps_per_iteration() as f64 / dt;
+        let mut evals = Vec::new();
+        if eval_due(trainer.iteration, total, config.num_evals as u64) {
+            for options in trainer.scheduled_evals(trainer.evals_done) {
+                evals.push(trainer.evaluate(&options)?);
+            }
+            trainer.evals_done += 1;
+            last_evals.clone_from(&evals);
+        }
+        let evaluated = !evals.is_empty();
+        let wall = wall_before + start.elapsed().as_secs_f64();
+        let row = metrics_row(&trainer, &stats, wall, sps, &evals);
+        writeln!(metrics, "{}", layout.to_csv(&row))
+            .map_err(|e| RlError::file(&metrics_path, format!("cannot write: {e}")))?;
+        bar.update(&row, trainer.env_steps);
+        since_ckpt += 1;
+        let last = trainer.iteration >= total || options.stop_after.is_some_and(|s| trainer.iteration >= s);
+        if evaluated || last || (config.checkpoint_every > 0 && since_ckpt >= config.checkpoint_every as u64) {
+            trainer.checkpoint(wall, &last_evals).save(&ckpt_path)?;
+            since_ckpt = 0;
+        }
+        if evaluated {
+            crate::app::curve::write_run_curve(run)?;
+        }
+    }
+    bar.finish();
+    let summary = RunSummary {
+        iterations: trainer.iteration,
+        env_steps: trainer.env_steps,
+        wall_s: wall_before + start.elapsed().as_secs_f64(),
+        final_eval: last_evals.first().cloned(),
+        final_eval_rotated: last_evals.iter().skip(1).cloned().collect(),
+    };
+    if trainer.iteration >= total {
+        let text = serde_json::to_string_pretty(&summary).unwrap_or_default();
+        nn::write_atomic(&run.done(), text.as_bytes())?;
+    }
+    Ok(summary)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn evaluations_are_evenly_spaced_and_end_at_the_end() {
+        let due: Vec<u64> = (1..=10).filter(|&i| eval_due(i, 10, 4)).collect();
+        assert_eq!(due, vec![3, 5, 8, 10]);
+        assert_eq!((1..=7).filter(|&i| eval_due(i, 7, 50)).count(), 7);
+        assert!(!(1..=7).any(|i| eval_due(i, 7, 0)));
+    }
+
+    #[test]
+    fn resumed_metrics_keep_each_iteration_once_in_order() {
+        let layout = MetricsLayout::new(&[0.0]);
+        let row = |i: u64| {
+            let mut r = MetricsRow::default();
+            r.set("iteration", i as f64);
+            layout.to_csv(&r)
+        };
+        let path = std::env::temp_dir().join(format!("meben-metrics-{}.csv", std::process::id()));
+        let rows = [1, 2, 2, 3, 1, 4, 5].map(row).join("\n");
+        std::fs::write(&path, format!("{}\n{rows}\n", layout.header())).unwrap();
+        let text = metrics_upto(&path, 4, &layout);
+        let _ = std::fs::remove_file(&path);
+        let kept: Vec<&str> = text.lines().skip(1).map(|l| l.split(',').next().unwrap()).collect();
+        assert_eq!(kept, ["1", "2", "3", "4"]);
+    }
+
+    /// Bytes that are not UTF-8 cost only the rows that hold them (before, the whole file
+    /// was unreadable and every row was dropped on resume).
+    #[test]
+    fn a_damaged_metrics_row_costs_only_itself() {
+        let layout = MetricsLayout::new(&[0.0]);
+        let row = |i: u64| {
+            let mut r = MetricsRow::default();
+            r.set("iteration", i as f64);
+            layout.to_csv(&r)
+        };
+        let path = std::env::temp_dir().join(format!("meben-metrics-damaged-{}.csv", std::process::id()));
+        let mut bytes = format!("{}\n{}\n", layout.header(), row(1)).into_bytes();
+        let mut damaged = row(2).into_bytes();
+        damaged[3] = 0xff;
+        bytes.extend_from_slice(&damaged);
+        bytes.extend_from_slice(format!("\n{}\n", row(2)).as_bytes());
+        bytes.extend_from_slice(b"\xfe garbage\n");
+        bytes.extend_from_slice(format!("{}\n", row(3)).as_bytes());
+        std::fs::write(&path, &bytes).unwrap();
+        let text = metrics_upto(&path, 3, &layout);
+        let _ = std::fs::remove_file(&path);
+        let kept: Vec<&str> = text.lines().skip(1).map(|l| l.split(',').next().unwrap()).collect();
+        assert_eq!(kept, ["1", "2", "3"]);
+        assert!(!text.contains(char::REPLACEMENT_CHARACTER));
+    }
+}

@@ -1,0 +1,155 @@
+//! A team's act step, the one place where a policy chooses actions: normalise the raw
+//! observation rows -> the policy forward without gradients ([`Model::forward_policy_batch`],
+//! the value network skipped) -> sample `u ~ Normal(loc, std)` (or take `u = loc`) ->
+//! the log-probability of `u`; the action sent to the environment is `tanh(u)`. Training
+//! (collection), evaluation, rendering, the Python policy and the closed-loop test all act
+//! through an [`Actor`], which holds the team's action-noise streams (one per agent,
+//! MEBEN.md section 8) and its scratch.
+
+use models::Model;
+use models::distribution::{normal_log_prob, std_from_scale};
+use models::layout::{ObsRows, Observation};
+use nn::ParamStore;
+use rand_chacha::ChaCha8Rng;
+use tensor::{Tape, Tensor};
+
+use crate::error::{Result, RlError};
+use crate::mappo::normalizer::ObsNormalizer;
+use crate::mappo::seeding::standard_normal;
+
+/// How actions are chosen.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ActMode {
+    /// `u ~ Normal(loc, std)`, action `tanh(u)`.
+    Sample,
+    /// `u = loc`, action `tanh(loc)`.
+    Mean,
+}
+
+/// What every team chose at one step for `B` environments: each team writes its own agents'
+/// columns of the joint action and its own log-probabilities and task assignment.
+#[derive(Clone, Debug)]
+pub struct JointAction {
+    /// Actions per environment (the scene's action layout).
+    pub n_actions: usize,
+    /// `[B, n_actions]` actions `tanh(u)`, what the environments step with.
+    pub actions: Vec<f32>,
+    /// `[B, n_actions]` pre-squash actions `u`, what the update evaluates.
+    pub pre_squash: Vec<f32>,
+    /// Per team, `[B]` its log-probability of `u` under the Normal, summed over its agents
+    /// (0 when acting with [`ActMode::Mean`]).
+    pub logp: Vec<Vec<f32>>,
+    /// Per team, the task assignment it acted on (`[B * Model::assignment_width]`).
+    pub assignment: Vec<Vec<u32>>,
+}
+
+impl JointAction {
+    /// Zeros for `envs` environments of `n_actions` actions and `teams` teams.
+    pub fn new(envs: usize, n_actions: usize, teams: usize) -> Self {
+        Self {
+            n_actions,
+            actions: vec![0.0; envs * n_actions],
+            pre_squash: vec![0.0; envs * n_actions],
+            logp: vec![vec![0.0; envs]; teams],
+            assignment: vec![Vec::new(); teams],
+        }
+    }
+
+    /// Environments `B`.
+    pub fn envs(&self) -> usize {
+        self.actions.len() / self.n_actions.max(1)
+    }
+}
+
+/// One team's act step with its noise streams and scratch (module docs).
+#[derive(Clone, Debug)]
+pub struct Actor {
+    /// Sampled or mean actions.
+    pub mode: ActMode,
+    /// Action noise, one stream per agent of the team (in [`Model::agents`] order).
+    pub noise: Vec<ChaCha8Rng>,
+    /// The normalised observation rows of the last step.
+    normalised: Observation,
+}
+
+impl Actor {
+    /// An actor choosing actions as `mode` says, with one noise stream per agent.
+    pub fn new(mode: ActMode, noise: Vec<ChaCha8Rng>) -> Self {
+        Self { mode, noise, normalised: Observation::empty(0, 0) }
+    }
+
+    /// Chooses the actions of `model`'s agents (its team `k = model.team()`) for raw
+    /// observation rows `obs`, through the observation normaliser `norm` and the parameters
+    /// `store`: writes their columns of `joint.actions` (`tanh(u)`) and `joint.pre_squash`
+    /// (`u`), `joint.logp[k]` and `joint.assignment[k]`. Errors on a non-finite policy
+    /// output and on a joint action of another shape.
+    pub fn act(
+        &mut self,
+        model: &mut Model,
+        store: &ParamStore<f32>,
+        norm: &ObsNormalizer,
+        obs: ObsRows<'_, f32>,
+        joint: &mut JointAction,
+    ) -> Result<()> {
+        let (b, na, team) = (obs.len(), joint.n_actions, model.team());
+        if joint.envs() != b || joint.pre_squash.len() != joint.actions.len() || team >= joint.logp.len() {
+            return Err(RlError::Model(models::ModelError::Input(format!(
+                "a joint action of {} environments and {} teams for {b} observation rows of team {team}",
+                joint.envs(),
+                joint.logp.len()
+            ))));
+        }
+        // Normalise.
+        norm.apply_rows(obs, &mut self.normalised);
+        // Forward without gradients; acting reads the policy only (the update recomputes the
+        // values from the stored observations).
+        let tape = Tape::<f32>::new();
+        let _no_grad = tape.no_grad();
+        let p = store.bind(&tape);
+        let out = model.forward_policy_batch(&p, &self.normalised.rows())?;
+        let spec = model.spec();
+        let logp = &mut joint.logp[team];
+        logp.clear();
+        logp.resize(b, 0.0);
+        for (ai, pol) in out.agents.iter().enumerate() {
+            let (off, dof) = (spec.agent_action_offset[pol.agent], spec.agent_dof[pol.agent]);
+            let loc = pol.loc.value();
+            let std = std_from_scale(pol.scale).value();
+            let (loc, std) = (loc.data(), std.data());
+            if let Some(i) = loc.iter().chain(std).position(|x| !x.is_finite()) {
+                return Err(RlError::NonFinite {
+                    message: format!("policy output of agent {} (entry {i}) is not finite", pol.agent),
+                });
+            }
+            // Sample.
+            let mut u = vec![0.0f32; b * dof];
+            match self.mode {
+                ActMode::Mean => u.copy_from_slice(loc),
+                ActMode::Sample => {
+                    let rng = &mut self.noise[ai];
+                    for (k, x) in u.iter_mut().enumerate() {
+                        *x = loc[k] + std[k] * standard_normal(rng) as f32;
+                    }
+                }
+            }
+            for e in 0..b {
+                for k in 0..dof {
+                    let x = u[e * dof + k];
+                    joint.pre_squash[e * na + off + k] = x;
+                    joint.actions[e * na + off + k] = x.tanh();
+                }
+            }
+            // Log-probability of the pre-squash action (the tanh Jacobian cancels in PPO's
+            // ratio).
+            if self.mode == ActMode::Sample {
+                let ut = tape.constant(Tensor::new(u, &[b, dof])?);
+                let lp = normal_log_prob(ut, pol.loc, std_from_scale(pol.scale))?.value();
+                for (l, x) in logp.iter_mut().zip(lp.data()) {
+                    *l += x;
+                }
+            }
+        }
+        joint.assignment[team] = out.assignment;
+        Ok(())
+    }
+}

@@ -1,0 +1,29 @@
+//! The algorithm: MAPPO on the MeBen tasks (paper section 5; MEBEN.md section 6: Brax PPO
+//! per team), one module per job:
+//! - [`config`]: the hyper-parameters and run settings ([`config::TrainConfig`]);
+//! - [`trainer`]: one training iteration, read top to bottom ([`trainer::Trainer::iterate`]:
+//!   collect, normalise, update);
+//! - [`actor`]: a team's act step (normalise, policy, sample, log-probability), used by
+//!   collection, evaluation, rendering and the Python policy;
+//! - [`team`]: one team's learner (model, parameters, Adam, normaliser, actor);
+//! - [`rollout`]: an iteration's data, written once per step, and its minibatches;
+//! - [`gae`]: generalised advantage estimation; [`ppo`]: the minibatch's forward pass, GAE
+//!   and the PPO loss;
+//! - [`normalizer`]: observation statistics; [`seeding`]: the random streams;
+//! - [`evaluate`](mod@evaluate): episodes of the trained teams;
+//! - [`checkpoint`] (the exact training state) with its [`checksum`], and [`memory`] (whether
+//!   an iteration's buffers fit).
+
+pub mod actor;
+pub mod checkpoint;
+pub mod checksum;
+pub mod config;
+pub mod evaluate;
+pub mod gae;
+pub mod memory;
+pub mod normalizer;
+pub mod ppo;
+pub mod rollout;
+pub mod seeding;
+pub mod team;
+pub mod trainer;

@@ -1,0 +1,306 @@
+//! The data of one iteration: `U` blocks, each one unroll of `T` control steps of all `E`
+//! environments, and the minibatches of whole unrolls cut from it.
+//!
+//! Observation rows (raw, not normalised) are stored block by block, `T + 1` per block:
+//! row `(b, t, e)` at `(b (T + 1) + t) E + e`, row `t = T` being the state after the block.
+//! Transitions `(b, t, e)` are at `(b T + t) E + e`. A transition truncated by the time limit
+//! keeps its final observation (a row of `finals`). A team whose model draws its task
+//! assignment at random keeps the assignment each transition was acted on, so that the
+//! update sees the same entity graph.
+//!
+//! The collection writes it through two methods only: [`Rollout::begin`] with the first
+//! observations of the iteration, then [`Rollout::push`] once per control step (the joint
+//! action and the environments' outcome), until [`Rollout::is_full`]; the update reads it
+//! through [`Rollout::gather`] and [`Rollout::visited_obs`]. Nothing else indexes its
+//! arrays.
+
+use envs::tasks::StepOutput;
+use models::layout::{ObsRows, Observation, RowWidths};
+
+use crate::mappo::actor::JointAction;
+use crate::mappo::ppo::Minibatch;
+
+/// Marks a transition without a final observation.
+pub const NO_FINAL: u32 = u32::MAX;
+
+/// One iteration's data (module docs).
+#[derive(Clone, Debug)]
+pub struct Rollout {
+    /// Blocks `U`.
+    blocks: usize,
+    /// Steps per unroll `T`.
+    steps: usize,
+    /// Environments `E`.
+    envs: usize,
+    /// Actions per environment.
+    n_actions: usize,
+    /// Teams.
+    teams: usize,
+    /// Steps pushed since [`Rollout::begin`] (block `cursor / T`, step `cursor % T`).
+    cursor: usize,
+    /// `U (T + 1) E` raw observation rows.
+    obs: Observation,
+    /// `[U T E, n_actions]` pre-squash actions.
+    actions: Vec<f32>,
+    /// `[U T E, teams]` behaviour log-probabilities.
+    logp: Vec<f32>,
+    /// `[U T E, teams]` scaled rewards.
+    rewards: Vec<f32>,
+    /// `[U T E]`.
+    terminated: Vec<bool>,
+    /// `[U T E]`.
+    truncated: Vec<bool>,
+    /// `[U T E]` row of `finals`, or [`NO_FINAL`].
+    final_index: Vec<u32>,
+    /// Final observations of truncated transitions, one row each.
+    finals: Observation,
+    /// Per team, the assignment width (entries per transition; 0: not stored).
+    assignment_width: Vec<usize>,
+    /// Per team, `[U T E, width]` the task assignment each transition was acted on.
+    assignment: Vec<Vec<u32>>,
+}
+
+/// A gathered minibatch of one team (owned arrays behind a [`Minibatch`]).
+#[derive(Clone, Debug)]
+pub struct MinibatchBuf {
+    /// Raw observation rows `(T + 1) M + K`.
+    pub obs: Observation,
+    /// `[T M, n_actions]`.
+    pub actions: Vec<f32>,
+    /// `[T M]`.
+    pub logp_old: Vec<f32>,
+    /// `[T M]`.
+    pub rewards: Vec<f32>,
+    /// `[T M]`.
+    pub terminated: Vec<bool>,
+    /// `[T M]`.
+    pub truncated: Vec<bool>,
+    /// `[T M]` rows of final observations.
+    pub final_row: Vec<u32>,
+    /// `[T M, width]` the transitions' task assignments (empty: not stored).
+    pub assignment: Vec<u32>,
+    /// Unrolls `M`.
+    pub unrolls: usize,
+    /// Steps `T`.
+    pub steps: usize,
+}
+
+impl Default for MinibatchBuf {
+    fn default() -> Self {
+        Self {
+            obs: Observation::empty(0, 0),
+            actions: Vec::new(),
+            logp_old: Vec::new(),
+            rewards: Vec::new(),
+            terminated: Vec::new(),
+            truncated: Vec::new(),
+            final_row: Vec::new(),
+            assignment: Vec::new(),
+            unrolls: 0,
+            steps: 0,
+        }
+    }
+}
+
+impl MinibatchBuf {
+    /// The minibatch with normalised observation rows `obs` (the same rows as
+    /// [`MinibatchBuf::obs`]).
+    pub fn view<'a>(&'a self, obs: ObsRows<'a, f32>) -> Minibatch<'a> {
+        Minibatch {
+            steps: self.steps,
+            unrolls: self.unrolls,
+            obs,
+            actions: &self.actions,
+            logp_old: &self.logp_old,
+            rewards: &self.rewards,
+            terminated: &self.terminated,
+            truncated: &self.truncated,
+            final_row: &self.final_row,
+            assignment: &self.assignment,
+        }
+    }
+}
+
+impl Rollout {
+    /// Bytes the buffers of [`Rollout::new`] take for these sizes (`None` past `u128`).
+    pub fn bytes(
+        blocks: usize,
+        steps: usize,
+        envs: usize,
+        obs: &Observation,
+        n_actions: usize,
+        teams: usize,
+    ) -> Option<u128> {
+        let (blocks, steps, envs) = (blocks as u128, steps as u128, envs as u128);
+        let rows = blocks.checked_mul(steps + 1)?.checked_mul(envs)?;
+        let tr = blocks.checked_mul(steps)?.checked_mul(envs)?;
+        let w = obs.row_widths();
+        let per_row = 4 * (w.vectors as u128 + w.scalars as u128 + w.heading as u128);
+        let per_tr = 4 * (n_actions as u128 + 2 * teams as u128) + 2 + 4 + 8 * teams as u128;
+        rows.checked_mul(per_row)?.checked_add(tr.checked_mul(per_tr)?)
+    }
+
+    /// Storage for `blocks` unrolls of `steps` steps of `envs` environments; team `k` stores
+    /// `assignment_width[k]` assignment entries per transition.
+    pub fn new(
+        blocks: usize,
+        steps: usize,
+        envs: usize,
+        obs: &Observation,
+        n_actions: usize,
+        assignment_width: &[usize],
+    ) -> Self {
+        let teams = assignment_width.len();
+        let (nodes, agents) = (obs.nodes, obs.agents);
+        let rows = blocks * (steps + 1) * envs;
+        let tr = blocks * steps * envs;
+        Self {
+            blocks,
+            steps,
+            envs,
+            n_actions,
+            teams,
+            cursor: 0,
+            obs: Observation {
+                batch: rows,
+                nodes,
+                agents,
+                vectors: vec![0.0; rows * RowWidths::new(nodes, agents).vectors],
+                scalars: vec![0.0; rows * RowWidths::new(nodes, agents).scalars],
+                heading: vec![0.0; rows * agents],
+            },
+            actions: vec![0.0; tr * n_actions],
+            logp: vec![0.0; tr * teams],
+            rewards: vec![0.0; tr * teams],
+            terminated: vec![false; tr],
+            truncated: vec![false; tr],
+            final_index: vec![NO_FINAL; tr],
+            finals: Observation::empty(nodes, agents),
+            assignment: assignment_width.iter().map(|&w| vec![0; tr * w]).collect(),
+            assignment_width: assignment_width.to_vec(),
+        }
+    }
+
+    /// Unrolls of the iteration (`U E`; unroll `q` is block `q / E`, environment `q % E`).
+    pub fn unrolls(&self) -> usize {
+        self.blocks * self.envs
+    }
+
+    /// Whether every step of the iteration has been pushed.
+    pub fn is_full(&self) -> bool {
+        self.cursor == self.blocks * self.steps
+    }
+
+    /// Starts an iteration's collection from the environments' current observations `obs`
+    /// (the previous iteration's data is forgotten).
+    pub fn begin(&mut self, obs: &Observation) {
+        self.cursor = 0;
+        self.finals.clear();
+        self.final_index.iter_mut().for_each(|x| *x = NO_FINAL);
+        self.obs.write_rows(self.obs_row(0, 0), obs.rows());
+    }
+
+    /// Records the next step: the teams' `joint` action (pre-squash actions, log-probabilities
+    /// and the assignments of the teams that store theirs) on the current observations, and
+    /// what the environments did with it (`out`: rewards, scaled by `reward_scaling`,
+    /// ends, final observations of truncated episodes, the next observations). Panics when the
+    /// rollout is full or the shapes differ (the trainer's internal writer).
+    pub fn push(&mut self, joint: &JointAction, out: &StepOutput, reward_scaling: f32) {
+        assert!(!self.is_full(), "a full rollout takes no step");
+        let (b, t) = (self.cursor / self.steps, self.cursor % self.steps);
+        let (e_n, nt, na) = (self.envs, self.teams, self.n_actions);
+        let tr = self.transition(b, t);
+        self.actions[tr * na..(tr + e_n) * na].copy_from_slice(&joint.pre_squash);
+        for (k, (logp, assignment)) in joint.logp.iter().zip(&joint.assignment).enumerate() {
+            for (e, &l) in logp.iter().enumerate() {
+                self.logp[(tr + e) * nt + k] = l;
+            }
+            let w = self.assignment_width[k];
+            if w > 0 {
+                self.assignment[k][tr * w..(tr + e_n) * w].copy_from_slice(assignment);
+            }
+        }
+        for e in 0..e_n {
+            let i = tr + e;
+            for k in 0..nt {
+                self.rewards[i * nt + k] = out.reward[e * nt + k] * reward_scaling;
+            }
+            self.terminated[i] = out.terminated[e];
+            self.truncated[i] = out.truncated[e];
+            if out.truncated[e] && !out.terminated[e] {
+                self.final_index[i] = self.finals.batch as u32;
+                self.finals.push_rows(out.final_obs.rows().slice(e..e + 1));
+            } else {
+                self.final_index[i] = NO_FINAL;
+            }
+        }
+        // The next observations end this block's unroll at t + 1 = T and begin the next one.
+        self.obs.write_rows(self.obs_row(b, t + 1), out.obs.rows());
+        if t + 1 == self.steps && b + 1 < self.blocks {
+            self.obs.write_rows(self.obs_row(b + 1, 0), out.obs.rows());
+        }
+        self.cursor += 1;
+    }
+
+    /// First observation row of block `b`, step `t`.
+    fn obs_row(&self, b: usize, t: usize) -> usize {
+        (b * (self.steps + 1) + t) * self.envs
+    }
+
+    /// First transition of block `b`, step `t`.
+    fn transition(&self, b: usize, t: usize) -> usize {
+        (b * self.steps + t) * self.envs
+    }
+
+    /// Observation rows of the iteration without the rows after each block: what the
+    /// normaliser is updated with, one slice of rows per block.
+    pub fn visited_obs(&self) -> Vec<ObsRows<'_, f32>> {
+        (0..self.blocks).map(|b| self.obs.rows().slice(self.obs_row(b, 0)..self.obs_row(b, self.steps))).collect()
+    }
+
+    /// Gathers team `team`'s minibatch of unrolls `ids` (unroll `q` is block `q / E`,
+    /// environment `q % E`) into `mb`, time-major (module docs of [`crate::mappo::ppo`]).
+    pub fn gather(&self, ids: &[usize], team: usize, mb: &mut MinibatchBuf) {
+        let (t_len, m, e_n) = (self.steps, ids.len(), self.envs);
+        let (nt, nact) = (self.teams, self.n_actions);
+        mb.unrolls = m;
+        mb.steps = t_len;
+        mb.obs.clear();
+        (mb.obs.nodes, mb.obs.agents) = (self.obs.nodes, self.obs.agents);
+        for v in [&mut mb.actions, &mut mb.logp_old, &mut mb.rewards] {
+            v.clear();
+        }
+        mb.terminated.clear();
+        mb.truncated.clear();
+        mb.final_row.clear();
+        mb.assignment.clear();
+        let w = self.assignment_width[team];
+        for t in 0..=t_len {
+            for &q in ids {
+                let r = self.obs_row(q / e_n, t) + q % e_n;
+                mb.obs.push_rows(self.obs.rows().slice(r..r + 1));
+            }
+        }
+        let mut next_row = ((t_len + 1) * m) as u32;
+        for t in 0..t_len {
+            for &q in ids {
+                let i = self.transition(q / e_n, t) + q % e_n;
+                mb.actions.extend_from_slice(&self.actions[i * nact..(i + 1) * nact]);
+                mb.logp_old.push(self.logp[i * nt + team]);
+                mb.rewards.push(self.rewards[i * nt + team]);
+                mb.terminated.push(self.terminated[i]);
+                mb.truncated.push(self.truncated[i]);
+                mb.assignment.extend_from_slice(&self.assignment[team][i * w..(i + 1) * w]);
+                let f = self.final_index[i];
+                if f == NO_FINAL {
+                    mb.final_row.push(NO_FINAL);
+                } else {
+                    let f = f as usize;
+                    mb.obs.push_rows(self.finals.rows().slice(f..f + 1));
+                    mb.final_row.push(next_row);
+                    next_row += 1;
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,92 @@
+//! One team's learner: its model (policy and critic), parameters, optimiser, observation
+//! normaliser, its [`Actor`] (the act step with the team's action-noise streams: MEBEN.md
+//! section 8, every agent and team has its own) and its minibatch-shuffling stream.
+
+use models::layout::{ObsRows, ObsSpec};
+use models::{Model, ModelConfig};
+use nn::{Adam, AdamConfig, LrSchedule, ParamStore};
+use rand_chacha::ChaCha8Rng;
+
+use crate::error::{Result, RlError};
+use crate::mappo::actor::{ActMode, Actor, JointAction};
+use crate::mappo::config::TrainConfig;
+use crate::mappo::normalizer::ObsNormalizer;
+use crate::mappo::seeding::{derive_seed, stream};
+
+/// One team's learner (module docs).
+#[derive(Clone, Debug)]
+pub struct Team {
+    /// Team index in the scene.
+    pub index: usize,
+    /// The policy and critic.
+    pub model: Model,
+    /// Its parameters (names under `team<k>.`).
+    pub store: ParamStore<f32>,
+    /// Its optimiser.
+    pub adam: Adam,
+    /// Its observation normaliser.
+    pub norm: ObsNormalizer,
+    /// The act step of collection, with the team's action noise (one stream per agent, in
+    /// [`Model::agents`] order).
+    pub actor: Actor,
+    /// Minibatch shuffling.
+    pub shuffle: ChaCha8Rng,
+}
+
+impl Team {
+    /// Builds team `team`'s learner for scenes laid out by `spec`, initialised from the run
+    /// seed.
+    pub fn build(config: &TrainConfig, spec: &ObsSpec, team: usize) -> Result<Team> {
+        let field = if team == 1 && !config.opponent.is_empty() { "opponent" } else { "model" };
+        let spec_str = config.team_model(team);
+        let mut mc =
+            ModelConfig::parse(spec_str).map_err(|e| RlError::config("config", field, spec_str, e.to_string()))?;
+        if !spec_str.contains("seed=") {
+            mc.seed = derive_seed(config.seed, "assign", team as u64, u64::MAX);
+        }
+        let mut store = ParamStore::<f32>::new();
+        let mut init = stream(config.seed, "init", team as u64, 0);
+        let model = Model::new(&mut store.scope(&format!("team{team}"), &mut init), &mc, spec, team)
+            .map_err(|e| RlError::config("config", field, spec_str, e.to_string()))?;
+        let adam_config = AdamConfig { lr: lr_schedule(config), ..AdamConfig::default() };
+        let adam = Adam::new(adam_config, &store);
+        let norm = ObsNormalizer::new(config.obs_norm.resolve(), spec);
+        let noise = model.agents().iter().map(|&a| stream(config.seed, "noise", team as u64, a as u64)).collect();
+        let shuffle = stream(config.seed, "shuffle", team as u64, 0);
+        Ok(Team { index: team, model, store, adam, norm, actor: Actor::new(ActMode::Sample, noise), shuffle })
+    }
+
+    /// The team's actions for raw observation rows `obs`, with its own model, parameters,
+    /// normaliser and noise ([`Actor::act`]).
+    pub fn act(&mut self, obs: ObsRows<'_, f32>, joint: &mut JointAction) -> Result<()> {
+        self.actor.act(&mut self.model, &self.store, &self.norm, obs, joint)
+    }
+}
+
+/// The learning-rate schedule of a run: constant, or linear to 0 over all its updates.
+pub fn lr_schedule(config: &TrainConfig) -> LrSchedule {
+    if config.lr_decay {
+        let updates = config.iterations() * (config.epochs * config.num_minibatches) as u64;
+        LrSchedule::Linear { start: config.learning_rate, end: 0.0, steps: updates }
+    } else {
+        LrSchedule::Constant(config.learning_rate)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::app::presets::Preset;
+
+    #[test]
+    fn learning_rate_decays_to_zero_over_the_run_or_stays() {
+        let mut c = TrainConfig::preset(Preset::Quick, "team_reach/1_ant");
+        let updates = c.iterations() * (c.epochs * c.num_minibatches) as u64;
+        let s = lr_schedule(&c);
+        assert_eq!(s.at(0), c.learning_rate);
+        assert!((s.at(updates / 2) - c.learning_rate / 2.0).abs() < 1e-9);
+        assert_eq!(s.at(updates), 0.0);
+        c.lr_decay = false;
+        assert_eq!(lr_schedule(&c).at(updates), c.learning_rate);
+    }
+}

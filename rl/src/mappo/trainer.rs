@@ -1,0 +1,470 @@
+//! MAPPO training (paper section 5; MEBEN.md section 6: Brax PPO per team), read top to
+//! bottom in [`Trainer::iterate`]:
+//!
+//! 1. **Collect** ([`Trainer::collect`]) `U = batch_size * num_minibatches / num_envs`
+//!    blocks of `unroll_length` steps of all environments. Every team acts on the raw
+//!    observations through its [`crate::mappo::actor::Actor`] (its own normaliser and policy, its
+//!    own per-agent noise streams); the environments step together; the rollout records each
+//!    step ([`Rollout::push`]: actions, log-probabilities, rewards scaled, terminations,
+//!    truncations and the final observations of truncated episodes, MEBEN.md section 8:
+//!    bootstrap from the true final observation). Team Sumo: the curriculum factor goes from
+//!    1 to 0 over the first `curriculum_fraction` of the run.
+//! 2. **Normalise**: every team's observation statistics absorb the iteration's
+//!    observations (then stay frozen for the update, as in the reference).
+//! 3. **Update** every team: `epochs` passes, each over a fresh permutation of the
+//!    iteration's unrolls cut into `num_minibatches` minibatches of `batch_size` whole unrolls;
+//!    per minibatch (`Trainer::update`, top to bottom): gather -> normalise -> forward ->
+//!    GAE from the values and bootstrap values -> the PPO loss ([`crate::mappo::ppo`]; the entropy
+//!    estimate's noise from the minibatch's own stream) -> backward -> every gradient element
+//!    clipped to `+-grad_clip` -> one Adam step. A non-finite loss or gradient stops the run
+//!    ([`RlError::NonFinite`]); the last checkpoint is kept.
+//!
+//! The application drives a [`Trainer`] in a run directory ([`crate::app::run`]).
+
+use std::time::Instant;
+
+use envs::tasks::{Outcome, StepOutput, TaskKind, TaskSpec, VecEnv};
+use models::layout::{ObsSpec, Observation};
+use tensor::Tape;
+
+use crate::error::{Result, RlError};
+use crate::mappo::actor::JointAction;
+use crate::mappo::checkpoint::{Checkpoint, TeamState, VERSION};
+use crate::mappo::config::{NormStart, TrainConfig};
+use crate::mappo::evaluate::{EvalOptions, EvalSummary, evaluate};
+use crate::mappo::ppo::{self, LossStats, LossTerms, PpoParams, loss_stats, ppo_loss};
+use crate::mappo::rollout::{MinibatchBuf, Rollout};
+use crate::mappo::seeding::{RngState, derive_seed, minibatch_stream};
+use crate::mappo::team::Team;
+
+/// Episodes that ended during one iteration's collection.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct EpisodeStats {
+    /// Episodes ended.
+    pub episodes: usize,
+    /// Sum of their returns per team.
+    pub return_sum: Vec<f64>,
+    /// Reach successes.
+    pub successes: usize,
+    /// Sumo wins per team.
+    pub wins: [usize; 2],
+    /// Sumo draws (including time limits).
+    pub draws: usize,
+    /// Sum of their lengths.
+    pub length_sum: u64,
+}
+
+impl EpisodeStats {
+    /// Nothing ended yet, for `teams` teams.
+    pub fn new(teams: usize) -> Self {
+        Self { return_sum: vec![0.0; teams], ..Default::default() }
+    }
+
+    /// Adds one step's rewards to the running episodes' returns (`[E, teams]`) and counts the
+    /// episodes that ended at it (their returns then restart from 0).
+    pub fn record(&mut self, out: &StepOutput, returns: &mut [f64]) {
+        let nt = self.return_sum.len();
+        for e in 0..out.terminated.len() {
+            for k in 0..nt {
+                returns[e * nt + k] += out.reward[e * nt + k] as f64;
+            }
+            if out.terminated[e] || out.truncated[e] {
+                self.episodes += 1;
+                self.length_sum += out.episode_len[e] as u64;
+                for k in 0..nt {
+                    self.return_sum[k] += returns[e * nt + k];
+                    returns[e * nt + k] = 0.0;
+                }
+                match out.outcome[e] {
+                    Outcome::Success => self.successes += 1,
+                    Outcome::Win(k) if k < 2 => self.wins[k] += 1,
+                    Outcome::Draw | Outcome::TimeLimit if nt > 1 => self.draws += 1,
+                    _ => {}
+                }
+            }
+        }
+    }
+}
+
+/// One iteration's figures.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct IterationStats {
+    /// Episodes ended while collecting.
+    pub episodes: EpisodeStats,
+    /// Per team, the mean of the minibatch loss statistics.
+    pub losses: Vec<LossStats>,
+    /// The curriculum factor used.
+    pub alpha: f64,
+    /// Seconds spent collecting (acting and stepping the environments).
+    pub collect_s: f64,
+    /// Seconds spent normalising and updating.
+    pub update_s: f64,
+}
+
+/// The whole training state (module docs).
+pub struct Trainer {
+    /// The configuration.
+    pub config: TrainConfig,
+    /// The training environments.
+    pub env: VecEnv,
+    /// Their observation layout.
+    pub spec: ObsSpec,
+    /// One learner per team.
+    pub teams: Vec<Team>,
+    /// Iterations done.
+    pub iteration: u64,
+    /// Environment steps collected.
+    pub env_steps: u64,
+    /// Evaluations done.
+    pub evals_done: u64,
+    /// `[E, teams]` returns of running episodes.
+    pub episode_returns: Vec<f64>,
+    rollout: Rollout,
+    joint: JointAction,
+    mb: MinibatchBuf,
+    normalised: Observation,
+}
+
+impl Trainer {
+    /// A fresh run of `config`.
+    pub fn new(config: &TrainConfig) -> Result<Trainer> {
+        config.validate("config")?;
+        let spec = TaskSpec::from_name(&config.env)?;
+        let env_seed = derive_seed(config.seed, "envs", 0, 0);
+        let mut env = VecEnv::new(&spec, config.num_envs, env_seed, config.start_mode())?;
+        env.reset();
+        let obs_spec = env.scene().obs_spec.clone();
+        let mut teams = (0..obs_spec.n_teams).map(|k| Team::build(config, &obs_spec, k)).collect::<Result<Vec<_>>>()?;
+        // `obs_norm_start`: empty statistics (the release), or those of the starts.
+        if config.obs_norm_start == NormStart::FirstObservation {
+            for t in &mut teams {
+                t.norm.update(&env.obs().vectors, &env.obs().scalars);
+            }
+        }
+        let nt = obs_spec.n_teams;
+        // A stochastic task assignment is stored with each transition (the update must see the
+        // graph the behaviour policy acted on); the deterministic ones are solved again.
+        let widths: Vec<usize> =
+            teams.iter().map(|t| if t.model.assignment_is_random() { t.model.assignment_width() } else { 0 }).collect();
+        let bytes = Rollout::bytes(
+            config.unrolls_per_iteration(),
+            config.unroll_length,
+            config.num_envs,
+            env.obs(),
+            env.n_actions(),
+            widths.len(),
+        );
+        crate::mappo::memory::check_fits_in_memory(bytes).map_err(|e| {
+            RlError::config(
+                "config",
+                "batch_size",
+                config.batch_size,
+                format!(
+                    "an iteration of batch_size x num_minibatches x unroll_length = {} env steps on {}: its rollout \
+                     {e}",
+                    config.steps_per_iteration(),
+                    config.env
+                ),
+            )
+        })?;
+        let rollout = Rollout::new(
+            config.unrolls_per_iteration(),
+            config.unroll_length,
+            config.num_envs,
+            env.obs(),
+            env.n_actions(),
+            &widths,
+        );
+        let na = env.n_actions();
+        Ok(Trainer {
+            config: config.clone(),
+            spec: obs_spec,
+            teams,
+            iteration: 0,
+            env_steps: 0,
+            evals_done: 0,
+            episode_returns: vec![0.0; config.num_envs * nt],
+            rollout,
+            joint: JointAction::new(config.num_envs, na, nt),
+            mb: MinibatchBuf::default(),
+            normalised: Observation::empty(0, 0),
+            env,
+        })
+    }
+
+    /// The run restored from a checkpoint (its configuration, except `steps`, `num_evals`,
+    /// `checkpoint_every` and `threads`, which may be changed to extend a run).
+    pub fn from_checkpoint(c: &Checkpoint, config: &TrainConfig, path: &std::path::Path) -> Result<Trainer> {
+        let bad = |m: String| RlError::Checkpoint { path: path.to_path_buf(), message: m };
+        let mut fixed = c.config.clone();
+        fixed.steps = config.steps;
+        fixed.num_evals = config.num_evals;
+        fixed.checkpoint_every = config.checkpoint_every;
+        fixed.threads = config.threads;
+        if &fixed != config {
+            let a = toml::Table::try_from(&fixed).unwrap_or_default();
+            let b = toml::Table::try_from(config).unwrap_or_default();
+            let diff: Vec<String> = a
+                .iter()
+                .filter(|(k, v)| b.get(*k) != Some(v))
+                .map(|(k, v)| {
+                    format!("{k} = {v} in the checkpoint, {} now", b.get(k).map(|x| x.to_string()).unwrap_or_default())
+                })
+                .collect();
+            return Err(bad(format!("was written by another configuration: {}", diff.join("; "))));
+        }
+        let mut t = Trainer::new(config)?;
+        if c.teams.len() != t.teams.len() || c.episode_returns.len() != t.episode_returns.len() {
+            return Err(bad(format!(
+                "{} teams and {} returns do not fit the scene",
+                c.teams.len(),
+                c.episode_returns.len()
+            )));
+        }
+        for (team, s) in t.teams.iter_mut().zip(&c.teams) {
+            s.params.load_into(&mut team.store).map_err(|e| bad(e.to_string()))?;
+            s.adam.check_fits(&team.store).map_err(|e| bad(e.to_string()))?;
+            // The moments and count from the checkpoint; the schedule of this configuration
+            // (its length follows `steps`, which may have been extended).
+            let schedule = team.adam.config.lr;
+            team.adam = s.adam.clone();
+            team.adam.config.lr = schedule;
+            s.normalizer.check_fits(&team.norm).map_err(|e| {
+                bad(format!(
+                    "the observation normaliser of team {} does not fit: {e} (obs_norm = {:?}; checkpoints written \
+                     before `auto` became the invariant normaliser cannot be resumed)",
+                    team.index, config.obs_norm
+                ))
+            })?;
+            team.norm = s.normalizer.clone();
+            if s.noise.len() != team.actor.noise.len() {
+                return Err(bad(format!("{} noise streams for {} agents", s.noise.len(), team.actor.noise.len())));
+            }
+            team.actor.noise = s.noise.iter().map(|r| r.restore()).collect::<Result<Vec<_>>>()?;
+            team.shuffle = s.shuffle.restore()?;
+        }
+        t.env.restore(&c.env).map_err(|e| bad(e.to_string()))?;
+        t.iteration = c.iteration;
+        t.env_steps = c.env_steps;
+        t.evals_done = c.evals_done;
+        t.episode_returns = c.episode_returns.clone();
+        Ok(t)
+    }
+
+    /// The state to save; `last_evals` is the last scheduled evaluation, one summary per
+    /// rotation of `eval_rotations` (empty before the first).
+    pub fn checkpoint(&self, wall_s: f64, last_evals: &[EvalSummary]) -> Checkpoint {
+        Checkpoint {
+            version: VERSION,
+            config: self.config.clone(),
+            iteration: self.iteration,
+            env_steps: self.env_steps,
+            wall_s,
+            evals_done: self.evals_done,
+            teams: self
+                .teams
+                .iter()
+                .map(|t| TeamState {
+                    params: nn::StateDict::from_store(&t.store),
+                    adam: t.adam.clone(),
+                    normalizer: t.norm.clone(),
+                    noise: t.actor.noise.iter().map(RngState::of).collect(),
+                    shuffle: RngState::of(&t.shuffle),
+                })
+                .collect(),
+            env: self.env.snapshot(),
+            episode_returns: self.episode_returns.clone(),
+            last_eval: last_evals.first().cloned(),
+            last_eval_rotated: last_evals.iter().skip(1).cloned().collect(),
+        }
+    }
+
+    /// The Team Sumo curriculum factor at the current step (1 for Reach).
+    pub fn curriculum_alpha(&self) -> f64 {
+        if self.env.scene().kind() != TaskKind::Sumo {
+            return 1.0;
+        }
+        // A zero fraction makes the span 0 and the factor 0 from the start (sparse only).
+        let span = self.config.curriculum_fraction * self.config.steps as f64;
+        if span == 0.0 { 0.0 } else { (1.0 - self.env_steps as f64 / span).clamp(0.0, 1.0) }
+    }
+
+    /// One iteration: collect, normalise, update (module docs).
+    pub fn iterate(&mut self) -> Result<IterationStats> {
+        let alpha = self.curriculum_alpha();
+        self.env.set_curriculum_alpha(alpha)?;
+        for t in &mut self.teams {
+            t.model.reseed(derive_seed(self.config.seed, "assign", t.index as u64, self.iteration));
+        }
+        let t0 = Instant::now();
+        let episodes = self.collect()?;
+        let collect_s = t0.elapsed().as_secs_f64();
+        for t in &mut self.teams {
+            for rows in self.rollout.visited_obs() {
+                t.norm.update(rows.vectors, rows.scalars);
+            }
+        }
+        let losses = self.update()?;
+        let update_s = t0.elapsed().as_secs_f64() - collect_s;
+        self.iteration += 1;
+        self.env_steps += self.config.steps_per_iteration();
+        Ok(IterationStats { episodes, losses, alpha, collect_s, update_s })
+    }
+
+    /// The current iteration's data (after [`Trainer::collect`]).
+    pub fn rollout(&self) -> &Rollout {
+        &self.rollout
+    }
+
+    /// Step 1 of [`Trainer::iterate`]: plays one iteration's unrolls with the current
+    /// policies and normalisers, storing them in [`Trainer::rollout`].
+    pub fn collect(&mut self) -> Result<EpisodeStats> {
+        let scale = self.config.reward_scaling as f32;
+        let mut stats = EpisodeStats::new(self.spec.n_teams);
+        self.rollout.begin(self.env.obs());
+        while !self.rollout.is_full() {
+            for team in &mut self.teams {
+                team.act(self.env.obs().rows(), &mut self.joint)?;
+            }
+            let out = self.env.step(&self.joint.actions)?;
+            self.rollout.push(&self.joint, out, scale);
+            stats.record(out, &mut self.episode_returns);
+        }
+        Ok(stats)
+    }
+
+    /// Step 3 of [`Trainer::iterate`]: `epochs` passes of minibatch updates of every team.
+    fn update(&mut self) -> Result<Vec<LossStats>> {
+        let c = &self.config;
+        let hp = PpoParams::from_config(c);
+        let mut all = Vec::with_capacity(self.teams.len());
+        for team in &mut self.teams {
+            let mut sum = LossStats::default();
+            let mut count = 0.0;
+            for epoch in 0..c.epochs {
+                let perm = permutation(self.rollout.unrolls(), &mut team.shuffle);
+                for (k, ids) in perm.chunks_exact(c.batch_size).enumerate() {
+                    let at = Where { team: team.index, iteration: self.iteration, epoch, minibatch: k };
+                    // Gather the minibatch's unrolls (time-major) and normalise them.
+                    self.rollout.gather(ids, team.index, &mut self.mb);
+                    team.norm.apply_rows(self.mb.obs.rows(), &mut self.normalised);
+                    let mb = self.mb.view(self.normalised.rows());
+                    // Forward: the transitions on the tape, the bootstrap rows without it.
+                    let tape = Tape::<f32>::new();
+                    let p = team.store.bind(&tape);
+                    let fwd = ppo::forward(&mut team.model, &p, &mb)?;
+                    // GAE from the values and the bootstrap values (Brax's, per minibatch).
+                    let adv_targets = ppo::advantages(&mb, &fwd, &hp);
+                    // The PPO loss; the entropy estimate draws from the minibatch's stream.
+                    let mut noise =
+                        minibatch_stream(c.seed, "entropy", at.team as u64, at.iteration, epoch as u64, k as u64);
+                    let terms = LossTerms::new(&fwd, &mb, &self.spec, adv_targets, hp.entropy, &mut noise)?;
+                    let loss = ppo_loss(&terms, &hp)?;
+                    let stats = loss_stats(&loss, &terms, &hp)?;
+                    if !stats.loss.is_finite() {
+                        return Err(RlError::NonFinite {
+                            message: format!("loss {} of {}", stats.loss, at.describe(&stats)),
+                        });
+                    }
+                    // Backward, every gradient element clipped, one Adam step.
+                    let mut grads = p.grads(&tape.backward(loss.total)?);
+                    if let Some((i, _)) = grads.iter().enumerate().find(|(_, g)| !g.all_finite()) {
+                        return Err(RlError::NonFinite {
+                            message: format!("gradient of {} of {}", team.store.names()[i], at.describe(&stats)),
+                        });
+                    }
+                    if c.grad_clip > 0.0 {
+                        nn::clip_elementwise(&mut grads, c.grad_clip);
+                    }
+                    team.adam.step(&mut team.store, &grads)?;
+                    add_stats(&mut sum, &stats);
+                    count += 1.0;
+                }
+            }
+            all.push(scale_stats(&sum, 1.0 / count));
+        }
+        Ok(all)
+    }
+
+    /// Evaluates the current policies (module [`crate::mappo::evaluate`](mod@crate::mappo::evaluate)).
+    pub fn evaluate(&self, options: &EvalOptions) -> Result<EvalSummary> {
+        evaluate(&self.config.env, &self.teams, options)
+    }
+
+    /// The evaluation options of the run's `k`-th scheduled evaluation, one per rotation of
+    /// `eval_rotations` (the same seed, so the same starts, rotated, and the same noise).
+    pub fn scheduled_evals(&self, k: u64) -> Vec<EvalOptions> {
+        let c = &self.config;
+        let base =
+            EvalOptions::new(c.eval_episodes, c.eval_deterministic, derive_seed(c.seed, "eval", k, 0), c.start_mode());
+        c.eval_rotations.iter().map(|&rotation_deg| EvalOptions { rotation_deg, ..base }).collect()
+    }
+}
+
+/// Where a minibatch update is, for error messages.
+struct Where {
+    team: usize,
+    iteration: u64,
+    epoch: usize,
+    minibatch: usize,
+}
+
+impl Where {
+    /// `team t at iteration i, epoch e, minibatch k (policy loss .., value loss .., entropy ..)`.
+    fn describe(&self, stats: &LossStats) -> String {
+        format!(
+            "team {} at iteration {}, epoch {}, minibatch {} (policy loss {}, value loss {}, entropy {})",
+            self.team, self.iteration, self.epoch, self.minibatch, stats.policy_loss, stats.value_loss, stats.entropy
+        )
+    }
+}
+
+/// A uniformly random permutation of `0..n` (Fisher-Yates, from the end).
+fn permutation(n: usize, rng: &mut rand_chacha::ChaCha8Rng) -> Vec<usize> {
+    use rand::RngExt;
+    let mut p: Vec<usize> = (0..n).collect();
+    for i in (1..n).rev() {
+        let j = rng.random_range(0..=i);
+        p.swap(i, j);
+    }
+    p
+}
+
+fn add_stats(a: &mut LossStats, b: &LossStats) {
+    a.loss += b.loss;
+    a.policy_loss += b.policy_loss;
+    a.value_loss += b.value_loss;
+    a.entropy += b.entropy;
+    a.approx_kl += b.approx_kl;
+    a.clip_fraction += b.clip_fraction;
+    a.explained_variance += b.explained_variance;
+    a.mean_ratio += b.mean_ratio;
+    a.mean_advantage += b.mean_advantage;
+}
+
+fn scale_stats(a: &LossStats, s: f64) -> LossStats {
+    LossStats {
+        loss: a.loss * s,
+        policy_loss: a.policy_loss * s,
+        value_loss: a.value_loss * s,
+        entropy: a.entropy * s,
+        approx_kl: a.approx_kl * s,
+        clip_fraction: a.clip_fraction * s,
+        explained_variance: a.explained_variance * s,
+        mean_ratio: a.mean_ratio * s,
+        mean_advantage: a.mean_advantage * s,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn permutations_are_permutations() {
+        let mut r = crate::mappo::seeding::stream(0, "t", 0, 0);
+        let mut p = permutation(100, &mut r);
+        p.sort();
+        assert_eq!(p, (0..100).collect::<Vec<_>>());
+    }
+}
