@@ -23,8 +23,8 @@
 use super::error::{BraxError, Location};
 use super::prototext::{Field, Message, Value};
 use super::rotation::Vec3;
-use std::collections::{HashMap, HashSet};
 use crate::limits::{self, Limit};
+use std::collections::{HashMap, HashSet};
 
 /// Top-level fields of Brax v1's `Config` that describe the scene or Brax's own solver
 /// (friction, gravity, time step, ...). The project's simulator sets these itself, so they
