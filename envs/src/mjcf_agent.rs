@@ -3,7 +3,7 @@
 //! (`team_reach:agents=ant+path/to/agent.xml`) as it names a Brax config (`.txt`).
 //!
 //! The file is loaded by [`crate::mjcf`] (which refuses what the simulator cannot represent),
-//! then [`subset`] refuses what an agent cannot be, then the model becomes a tree.
+//! then `subset` refuses what an agent cannot be, then the model becomes a tree.
 //!
 //! # The subset
 //! Read: `<compiler>` (`angle`, `eulerseq`, `inertiafromgeom` true/auto, `coordinate`
