@@ -230,8 +230,8 @@ fn wrong_counts_and_values_are_rejected() {
     assert!(config_error(&end, 3).contains("`end` must be -1, 0 or 1"));
 }
 
-/// Absurd physical values are refused at their field with the accepted range (issue 18
-/// item 8). Before, `mass: 1e300`, `parent_offset { x: 1e160 }`, `strength: 1e300` or a
+/// Absurd physical values are refused at their field with the accepted range.
+/// Before, `mass: 1e300`, `parent_offset { x: 1e160 }`, `strength: 1e300` or a
 /// collider at `x: 1e300` passed the loader and were reported by the simulator as a mass
 /// matrix that is not positive definite; `angle_limit { min: -1e300 max: 1e300 }` loaded and
 /// made training stop on a non-finite gradient; `radius: 1e-200` became "degenerate body

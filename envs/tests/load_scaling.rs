@@ -1,5 +1,5 @@
 //! Loading large models: the time grows about linearly with the number of bodies for wide
-//! models (many agents, or one agent with many limbs) through every loader (issue 18), and
+//! models (many agents, or one agent with many limbs) through every loader, and
 //! the linear-time paths give the same results as their definitions: every candidate contact
 //! pair, the diagonal of `M^-1` bit for bit, the Brax structure errors word for word.
 //!

@@ -265,7 +265,7 @@ fn actuator_errors() {
 }
 
 /// Absurd physical values are refused where they are written, with the accepted range
-/// (issue 18 item 8). Before, `mass="1e300"`, `size="1e160"`, `pos="1e300 .."`,
+/// Before, `mass="1e300"`, `size="1e160"`, `pos="1e300 .."`,
 /// `armature="1e300"` or `density="1e-300"` were reported as "mass matrix not positive
 /// definite" on some joint's line; `timestep="1e9"`, `gravity="0 0 -1e300"` and
 /// `gear="1e300"` loaded and the rollout stopped on a non-finite state; `fromto` with 1e300

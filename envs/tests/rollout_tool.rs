@@ -101,7 +101,7 @@ fn bad_inputs_name_the_flag_or_the_file_and_line() {
     std::fs::write(&controls, "0,0,0,0,0,nan,0,0\n").unwrap();
     let e = err(&[]);
     assert!(e.to_string().contains("controls.csv:1") && e.to_string().contains("column 6"), "{e}");
-    // An absurd control is refused with its line and column (issue 18 item 8): before, it
+    // An absurd control is refused with its line and column: before, it
     // was accepted (the ant's motors clamp it; a motor without a control range multiplied
     // 1e300 by its gear).
     std::fs::write(&controls, "0,0,0,0,0,0,0,0\n0,0,1e300,0,0,0,0,0\n").unwrap();

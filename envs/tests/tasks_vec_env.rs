@@ -283,7 +283,7 @@ fn every_builtin_stays_finite_under_bang_bang_actions() {
 
 /// Values inside the loaders' ranges can still make a body numerically massless (a 1e-6 kg,
 /// 0.1 mm limb without armature under a 1e6 kg torso): the simulator's refusal names the body
-/// and the morphology file (issue 18 item 8; before: "mass matrix not positive definite at
+/// and the morphology file (before: "mass matrix not positive definite at
 /// dof 7: a moving body lacks mass or inertia", nothing else).
 #[test]
 fn a_singular_body_is_named_with_its_morphology() {

@@ -1,5 +1,5 @@
-//! Forward + backward of policy and value on a 5120-transition minibatch (issue 6,
-//! "Benchmark"): for `team_reach/2_ants` and `team_reach/3_ant_claw_centipede`, team 0, the
+//! Forward + backward of policy and value on a 5120-transition minibatch: for
+//! `team_reach/2_ants` and `team_reach/3_ant_claw_centipede`, team 0, the
 //! models `shnn`, `mlp_hn`, `shtransformer` and `shgnn`, in f32. The minibatch is 512
 //! observations of the vectorised environment (after a few random steps) replicated 10
 //! times. The loss sums the means of every agent's `loc`, `std` and the value, so the

@@ -1,6 +1,6 @@
 //! What a checkpoint must be before it is written and before it is trusted: finite
 //! everywhere, sealed with a checksum that finds any changed byte, and with counters that
-//! agree with each other and the configuration (issue 18, items 2 and 4).
+//! agree with each other and the configuration.
 
 mod common;
 

@@ -109,7 +109,7 @@ fn bad_checkpoints_and_changed_configurations_are_refused() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
-/// Damaged files other than the checkpoint (issue 18, "a corrupted file"): `metrics.csv`
+/// Damaged files other than the checkpoint ("a corrupted file"): `metrics.csv`
 /// keeps its good rows when another line holds bytes that are not UTF-8 (before, one such
 /// byte made the whole file unreadable and every earlier row was dropped on resume); a
 /// damaged `config.toml` is refused by evaluation naming the file, and running the training

@@ -764,7 +764,7 @@ config = { entropy_coef = 0.0 }
         assert!(ablation.iter().any(|r| r.config.model == "shnn:assignment=stochastic"));
         assert!(ablation.iter().any(|r| r.config.model == "hnn_dn"));
 
-        // The reproduction (issue 15): the paper preset but for the budget and the number of
+        // The reproduction (docs/RESULTS.md): the paper preset but for the budget and the number of
         // evaluations, sampled-action evaluation on 1024 episodes.
         let repro = |name: &str, runs: usize, steps: u64| {
             let runs_of = Sweep::load(&dir.join(name)).unwrap().runs().unwrap();
