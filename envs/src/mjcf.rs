@@ -75,18 +75,30 @@ impl fmt::Display for MjcfError {
 
 impl std::error::Error for MjcfError {}
 
+impl MjcfError {
+    /// An error about the text as a whole, at `line` (0: no location) and not about one
+    /// element.
+    pub(crate) fn whole(file: &str, line: u32, message: String) -> MjcfError {
+        MjcfError { file: file.to_string(), line, element: String::new(), attribute: None, value: None, message }
+    }
+}
+
+/// The text of an MJCF file and the name its errors give it (the path as displayed).
+pub(crate) fn read_file(path: &Path) -> Result<(String, String), MjcfError> {
+    let name = path.display().to_string();
+    let text =
+        std::fs::read_to_string(path).map_err(|e| MjcfError::whole(&name, 0, format!("cannot read the file: {e}")))?;
+    Ok((text, name))
+}
+
+/// `text` as an XML document; malformed XML is an error at its line.
+pub(crate) fn parse_xml<'i>(text: &'i str, file: &str) -> Result<roxmltree::Document<'i>, MjcfError> {
+    roxmltree::Document::parse(text).map_err(|e| MjcfError::whole(file, e.pos().row, format!("malformed XML: {e}")))
+}
+
 /// Loads an MJCF file.
 pub fn load_file(path: impl AsRef<Path>) -> Result<Model, MjcfError> {
-    let path = path.as_ref();
-    let name = path.display().to_string();
-    let text = std::fs::read_to_string(path).map_err(|e| MjcfError {
-        file: name.clone(),
-        line: 0,
-        element: String::new(),
-        attribute: None,
-        value: None,
-        message: format!("cannot read the file: {e}"),
-    })?;
+    let (text, name) = read_file(path.as_ref())?;
     load_str(&text, &name)
 }
 
@@ -99,14 +111,7 @@ pub fn load_str(text: &str, file: &str) -> Result<Model, MjcfError> {
 /// came from (for checks a caller makes beyond the loader's, such as
 /// [`crate::mjcf_agent`]'s); `file` names it in error messages.
 pub fn load_str_with_sources(text: &str, file: &str) -> Result<(Model, MjcfSources), MjcfError> {
-    let doc = roxmltree::Document::parse(text).map_err(|e| MjcfError {
-        file: file.to_string(),
-        line: e.pos().row,
-        element: String::new(),
-        attribute: None,
-        value: None,
-        message: format!("malformed XML: {e}"),
-    })?;
+    let doc = parse_xml(text, file)?;
     let mut p = Parser {
         file: file.to_string(),
         doc: &doc,

@@ -61,16 +61,7 @@ use crate::model::{CapsuleEnds, JointKind, Model, Shape};
 
 /// Reads an MJCF file as one agent; errors name the path.
 pub fn load_agent_file(path: impl AsRef<Path>, physics: &BraxPhysics) -> Result<AgentTree, MjcfError> {
-    let path = path.as_ref();
-    let file = path.display().to_string();
-    let text = std::fs::read_to_string(path).map_err(|e| MjcfError {
-        file: file.clone(),
-        line: 0,
-        element: String::new(),
-        attribute: None,
-        value: None,
-        message: format!("cannot read the file: {e}"),
-    })?;
+    let (text, file) = mjcf::read_file(path.as_ref())?;
     load_agent_str(&text, &file, physics)
 }
 

@@ -8,7 +8,7 @@
 #![allow(clippy::result_large_err)] // errors carry file/line/element/attribute/value; cold path
 
 use crate::brax::BraxPhysics;
-use crate::mjcf::{ElementSource, MjcfError, MjcfSources};
+use crate::mjcf::{self, ElementSource, MjcfError, MjcfSources};
 use crate::model::Model;
 
 /// How an agent morphology treats the attributes of one element kind; any other attribute is
@@ -117,14 +117,7 @@ fn node_error(file: &str, doc: &roxmltree::Document, node: roxmltree::Node, mess
 /// physics (`contact`, `equality`, `tendon`, ...), and anything in `<worldbody>` or a
 /// `<body>` other than bodies, geoms, joints and decorations (`site`, `camera`, `light`).
 pub(super) fn check_elements(text: &str, file: &str) -> Result<(), MjcfError> {
-    let doc = roxmltree::Document::parse(text).map_err(|e| MjcfError {
-        file: file.to_string(),
-        line: e.pos().row,
-        element: String::new(),
-        attribute: None,
-        value: None,
-        message: format!("malformed XML: {e}"),
-    })?;
+    let doc = mjcf::parse_xml(text, file)?;
     for top in doc.root_element().children().filter(|n| n.is_element()) {
         let name = top.tag_name().name();
         if TOP_IGNORED.contains(&name) {
