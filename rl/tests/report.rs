@@ -43,14 +43,16 @@ fn report_of_synthetic_runs() {
     let tmp = TempDir::new("synthetic");
     let root = &tmp.0;
     // Team Reach, shnn, three seeds: final eval successes 0.5, 0.6, 0.9; seed 2 has an
-    // extra evaluation, and rows without an evaluation in between.
+    // extra evaluation, and rows without an evaluation in between. Their last rows' wall
+    // times add up to 2 hours (an earlier row's does not count).
     let finals = [0.5, 0.6, 0.9];
+    let walls = [3600.0, 1800.0, 1800.0];
     for (seed, f) in finals.iter().enumerate() {
         let dir = root.join(format!("team_reach_1_ant/shnn/seed{seed}"));
         let mut rows: Vec<Vec<(&'static str, f64)>> = vec![
-            vec![("env_steps", 1000.0), ("train_success_rate", 0.0), ("eval_success_rate", 0.1)],
+            vec![("env_steps", 1000.0), ("wall_s", 9999.0), ("train_success_rate", 0.0), ("eval_success_rate", 0.1)],
             vec![("env_steps", 2000.0), ("train_success_rate", 0.3)],
-            vec![("env_steps", 3000.0), ("eval_success_rate", *f)],
+            vec![("env_steps", 3000.0), ("wall_s", walls[seed]), ("eval_success_rate", *f)],
         ];
         if seed == 2 {
             rows.insert(2, vec![("env_steps", 2500.0), ("eval_success_rate", 0.2)]);
@@ -144,6 +146,8 @@ fn report_of_synthetic_runs() {
     assert_eq!(at(&sumo.curve_lose), [(2500.0, 100.0), (5000.0, 25.0)]);
     assert!(close(sumo.curve_draw[1].mean, 20.0));
     assert!(shnn.curve_lose.is_empty() && shnn.lose.is_none());
+    assert!(close(shnn.machine_hours, 2.0), "{}", shnn.machine_hours);
+    assert_eq!(sumo.machine_hours, 0.0);
 
     // Files.
     assert_eq!(r.markdown, root.join("report.md"));
@@ -151,9 +155,10 @@ fn report_of_synthetic_runs() {
     for want in [
         "## team_reach/1_ant",
         "## team_sumo/2_ants",
-        "| shnn | `shnn` | 3 | 66.67 ± 12.02 | 3k of 1.5M |",
+        "| shnn | `shnn` | 3 | 66.67 ± 12.02 | 3k of 1.5M | 2.0 |",
         "25.00 ± 0.00 †",
-        "| shnn | `shnn` | same | 2 | 55.00 ± 15.00 | 25.00 ± 25.00 | 20.00 ± 10.00 | 5k of 1.5M |",
+        "| shnn | `shnn` | same | 2 | 55.00 ± 15.00 | 25.00 ± 25.00 | 20.00 ± 10.00 | 5k of 1.5M | 0.0 |",
+        "Machine time: 2.0 h over the 7 runs above",
         "curves/team_reach_1_ant.svg",
         "team_reach_1_ant/shnn/seed9",
     ] {
@@ -164,7 +169,7 @@ fn report_of_synthetic_runs() {
     assert!(
         csv.lines()
             .any(|l| l.starts_with("team_sumo/2_ants,shnn,,team_sumo_2_ants/shnn,eval_win_rate_t0,2,0 1,55,15,20,10,")
-                && l.ends_with(",0,25,25"))
+                && l.ends_with(",0,25,25,0"))
     );
     assert_eq!(r.curves, [root.join("curves/team_reach_1_ant.svg"), root.join("curves/team_sumo_2_ants.svg")]);
     for path in &r.curves {
@@ -197,7 +202,12 @@ fn report_has_a_group_and_a_curve_per_evaluation_rotation() {
                 &c,
                 &[
                     &[("env_steps", 100.0), ("eval_success_rate", 0.1), ("eval_success_rate_rot180", 0.1)],
-                    &[("env_steps", 200.0), ("eval_success_rate", plain), ("eval_success_rate_rot180", rotated)],
+                    &[
+                        ("env_steps", 200.0),
+                        ("wall_s", 900.0),
+                        ("eval_success_rate", plain),
+                        ("eval_success_rate_rot180", rotated),
+                    ],
                 ],
             );
         }
@@ -229,14 +239,18 @@ fn report_has_a_group_and_a_curve_per_evaluation_rotation() {
     assert!(close(r.groups[1].mean, 1.0) && close(r.groups[3].mean, 45.0), "{:?}", r.groups);
     assert_eq!(r.groups[3].curve.len(), 2);
     let csv = std::fs::read_to_string(&r.csv).unwrap();
-    assert!(csv.lines().next().unwrap().ends_with(",rotation_deg,lose_mean_pct,lose_se_pct"));
-    // Team Reach has no loss rate: the last two fields are empty.
-    assert!(csv.lines().any(|l| l.contains("eval_success_rate_rot180") && l.ends_with(",180,,")), "{csv}");
+    assert!(csv.lines().next().unwrap().ends_with(",rotation_deg,lose_mean_pct,lose_se_pct,machine_hours"));
+    // Team Reach has no loss rate: the loss fields are empty. A rotated group is the same
+    // runs: its machine time is 0, so that summing the column counts each run once.
+    assert!(csv.lines().any(|l| l.contains("eval_success_rate_rot180") && l.ends_with(",180,,,0")), "{csv}");
+    assert!(close(r.groups[0].machine_hours, 0.5) && r.groups[1].machine_hours == 0.0);
     let svg = std::fs::read_to_string(&r.curves[0]).unwrap();
     assert!(svg.contains("shnn, rotated 180°") && svg.contains("mlp, rotated 180°"));
     // Runs that reached their budget show the steps alone.
     let md = std::fs::read_to_string(&r.markdown).unwrap();
-    assert!(md.contains("| 2 | 45.00 ± 3.00 | 200 |"), "{md}");
+    assert!(md.contains("| 2 | 45.00 ± 3.00 | 200 | (same runs) |"), "{md}");
+    assert!(md.contains("| 2 | 50.00 ± 10.00 | 200 | 0.5 |"), "{md}");
+    assert!(md.contains("Machine time: 1.0 h over the 4 runs above"), "{md}");
     assert!(md.lines().filter(|l| l.starts_with('|')).all(|l| !l.contains(" of ")), "{md}");
 }
 

@@ -21,7 +21,9 @@
 //!   unrotated group in the environment's plot.
 //! - Per group: the number of seeds, the mean and the standard error (sample standard
 //!   deviation / sqrt(n); 0 for one seed) of the final values, and the env steps reached
-//!   (the last row's `env_steps`, min–max over the seeds).
+//!   (the last row's `env_steps`, min–max over the seeds), and the machine time (the sum
+//!   over the runs of the last row's `wall_s`, which counts across resumes; shown once per
+//!   run, on the unrotated row) with the total over all groups.
 //! - Curves: per group, the mean over seeds with a shaded ± s.e. band (Team Sumo: one curve
 //!   each for the win, loss and draw rates of team 0). Seeds are aligned on
 //!   the env steps of the seed with the fewest points; every other seed contributes its
@@ -95,6 +97,11 @@ pub struct GroupReport {
     /// The runs' budget (the largest `steps` of their configurations): a group whose
     /// runs stopped short of it is still training (or was stopped), and the table says so.
     pub target_steps: u64,
+    /// Machine time of the runs in hours: the sum of each run's last `wall_s` (wall-clock
+    /// seconds of training and evaluation, counted across resumes). Rotated groups, which
+    /// are the same runs evaluated otherwise, hold 0 so that a sum over groups counts each
+    /// run once.
+    pub machine_hours: f64,
     /// The learning curve (mean and s.e. over seeds).
     pub curve: Vec<CurvePoint>,
     /// Team Sumo: the curves of the loss and draw rates (empty for Team Reach).
@@ -237,6 +244,8 @@ struct RunResult {
     final_draw: Option<f64>,
     final_lose: Option<f64>,
     env_steps: u64,
+    /// The last row's `wall_s` (0 if none).
+    wall_s: f64,
     /// `(env_steps, value)`, env steps strictly increasing.
     curve: Vec<(f64, f64)>,
     curve_lose: Vec<(f64, f64)>,
@@ -288,6 +297,7 @@ fn read_run(dir: &Path) -> Result<std::result::Result<Vec<RunResult>, String>> {
         return Ok(Err(format!("no {} or {} values yet", eval.0, train.0)));
     };
     let env_steps = rows.iter().rev().find_map(|r| r.get("env_steps").copied()).unwrap_or(0.0).max(0.0) as u64;
+    let wall_s = rows.iter().rev().find_map(|r| r.get("wall_s").copied()).filter(|w| w.is_finite()).unwrap_or(0.0);
     let result = |metric: String, others: Option<(String, String)>, rotation_deg: f64, from_train: bool| {
         let last = |col: &str| rows.iter().rev().find_map(|r| r.get(col).copied().filter(|v| v.is_finite()));
         let (lose, draw) = others.unzip();
@@ -304,6 +314,7 @@ fn read_run(dir: &Path) -> Result<std::result::Result<Vec<RunResult>, String>> {
             rotation_deg,
             from_train,
             env_steps,
+            wall_s,
         }
     };
     let owned = |o: Option<(&str, &str)>| o.map(|(l, d)| (l.to_string(), d.to_string()));
@@ -360,6 +371,8 @@ fn summarise(variant: String, mut runs: Vec<RunResult>) -> GroupReport {
     let steps = runs.iter().map(|r| r.env_steps);
     let env_steps = (steps.clone().min().unwrap_or(0), steps.max().unwrap_or(0));
     let target_steps = runs.iter().map(|r| r.config.steps).max().unwrap_or(0);
+    let machine_hours =
+        if rotation_deg == 0.0 { runs.iter().map(|r| r.wall_s.max(0.0)).sum::<f64>() / 3600.0 } else { 0.0 };
     let aligned = |of: fn(&RunResult) -> &[(f64, f64)]| {
         let curves: Vec<&[(f64, f64)]> = runs.iter().map(of).collect();
         align_curves(&curves)
@@ -382,6 +395,7 @@ fn summarise(variant: String, mut runs: Vec<RunResult>) -> GroupReport {
         lose,
         env_steps,
         target_steps,
+        machine_hours,
         curve: aligned(|r| &r.curve),
         curve_lose: aligned(|r| &r.curve_lose),
         curve_draw: aligned(|r| &r.curve_draw),
@@ -481,6 +495,11 @@ fn steps_range(g: &GroupReport) -> String {
     if lo < g.target_steps { format!("{reached} of {}", format_steps(g.target_steps)) } else { reached }
 }
 
+/// The machine-time cell: hours with one decimal, or "same runs" on a rotated row.
+fn machine_hours_cell(g: &GroupReport) -> String {
+    if g.rotation_deg == 0.0 { format!("{:.1}", g.machine_hours) } else { "(same runs)".into() }
+}
+
 fn md_cell(s: &str) -> String {
     s.replace('|', "\\|")
 }
@@ -506,18 +525,19 @@ fn render_markdown(root: &Path, groups: &[GroupReport], pending: &[(PathBuf, Str
             let _ = writeln!(
                 md,
                 "| run | model | opponent | seeds | win % team 0 (mean ± s.e.) | loss % team 0 (mean ± s.e.) | \
-                 draw % (mean ± s.e.) | env steps |"
+                 draw % (mean ± s.e.) | env steps | machine h |"
             );
-            let _ = writeln!(md, "|---|---|---|---:|---:|---:|---:|---:|");
+            let _ = writeln!(md, "|---|---|---|---:|---:|---:|---:|---:|---:|");
         } else {
-            let _ = writeln!(md, "| run | model | seeds | success % (mean ± s.e.) | env steps |");
-            let _ = writeln!(md, "|---|---|---:|---:|---:|");
+            let _ = writeln!(md, "| run | model | seeds | success % (mean ± s.e.) | env steps | machine h |");
+            let _ = writeln!(md, "|---|---|---:|---:|---:|---:|");
         }
         let mut any_train = false;
         for g in groups.iter().filter(|g| g.env == env) {
             let mark = if g.from_train { " †" } else { "" };
             any_train |= g.from_train;
             let value = format!("{:.2} ± {:.2}{mark}", g.mean, g.se);
+            let hours = machine_hours_cell(g);
             if sumo {
                 let cell = |v: Option<(f64, f64)>| {
                     v.map(|(m, s)| format!("{m:.2} ± {s:.2}{mark}")).unwrap_or_else(|| "–".into())
@@ -526,7 +546,7 @@ fn render_markdown(root: &Path, groups: &[GroupReport], pending: &[(PathBuf, Str
                 let opponent = if g.opponent.is_empty() { "same".to_string() } else { format!("`{}`", g.opponent) };
                 let _ = writeln!(
                     md,
-                    "| {} | `{}` | {} | {} | {value} | {lose} | {draw} | {} |",
+                    "| {} | `{}` | {} | {} | {value} | {lose} | {draw} | {} | {hours} |",
                     md_cell(&g.label),
                     md_cell(&g.model),
                     md_cell(&opponent),
@@ -536,7 +556,7 @@ fn render_markdown(root: &Path, groups: &[GroupReport], pending: &[(PathBuf, Str
             } else {
                 let _ = writeln!(
                     md,
-                    "| {} | `{}` | {} | {value} | {} |",
+                    "| {} | `{}` | {} | {value} | {} | {hours} |",
                     md_cell(&g.label),
                     md_cell(&g.model),
                     g.runs.len(),
@@ -554,6 +574,13 @@ fn render_markdown(root: &Path, groups: &[GroupReport], pending: &[(PathBuf, Str
         }
         let _ = writeln!(md, "\n![{env}](curves/{}.svg)\n", sanitize_component(env));
     }
+    let total: f64 = groups.iter().map(|g| g.machine_hours).sum();
+    let _ = writeln!(
+        md,
+        "Machine time: {total:.1} h over the {} runs above (each run's last `wall_s`, summed; the threads \
+         of each run are in its `config.toml`).\n",
+        groups.iter().filter(|g| g.rotation_deg == 0.0).map(|g| g.runs.len()).sum::<usize>()
+    );
     if !pending.is_empty() {
         let _ = writeln!(md, "## Runs without a result yet\n");
         for (dir, reason) in pending {
@@ -571,7 +598,7 @@ fn csv_field(s: &str) -> String {
 fn render_csv(groups: &[GroupReport]) -> String {
     let mut out = String::from(
         "env,model,opponent,variant,metric,seeds,seed_list,mean_pct,se_pct,draw_mean_pct,draw_se_pct,\
-         env_steps_min,env_steps_max,rotation_deg,lose_mean_pct,lose_se_pct\n",
+         env_steps_min,env_steps_max,rotation_deg,lose_mean_pct,lose_se_pct,machine_hours\n",
     );
     for g in groups {
         let seeds: Vec<String> = g.seed_list.iter().map(|s| s.to_string()).collect();
@@ -579,7 +606,7 @@ fn render_csv(groups: &[GroupReport]) -> String {
         let (lm, ls) = g.lose.map(|(m, s)| (m.to_string(), s.to_string())).unwrap_or_default();
         let _ = writeln!(
             out,
-            "{},{},{},{},{},{},{},{},{},{dm},{ds},{},{},{},{lm},{ls}",
+            "{},{},{},{},{},{},{},{},{},{dm},{ds},{},{},{},{lm},{ls},{}",
             csv_field(&g.env),
             csv_field(&g.model),
             csv_field(&g.opponent),
@@ -591,7 +618,8 @@ fn render_csv(groups: &[GroupReport]) -> String {
             g.se,
             g.env_steps.0,
             g.env_steps.1,
-            g.rotation_deg
+            g.rotation_deg,
+            g.machine_hours
         );
     }
     out
