@@ -24,17 +24,29 @@ run() { # <experiment> <pattern>...: the sweep's runs whose names contain a patt
   "$BIN" ablate --sweep "$SWEEPS/repro_$exp.toml" --out "$OUT/$exp" --threads 1 --quiet "${only[@]}"
 }
 
+# Each worker's own list, then the other's: a run being trained by the other worker is
+# refused by its directory lock (logged as "failed: ... locked", and the sweep goes on to
+# its next run), so a worker that finishes early takes the other's remaining runs.
+list_a() {
+  run equivariance /mlp/ /mlp_hn/
+  run reach_1_ant /mlp_hn/
+  run reach_2_ants /mlp_hn/
+  run reach_1_ant /shnn/
+  run sumo /shnn/
+}
+list_b() {
+  run equivariance /shnn/
+  run reach_2_ants /shnn/
+}
+
 case "${1:-}" in
   A)
-    run equivariance /mlp/ /mlp_hn/
-    run reach_1_ant /mlp_hn/
-    run reach_2_ants /mlp_hn/
-    run reach_1_ant /shnn/
-    run sumo /shnn/
+    list_a
+    list_b
     ;;
   B)
-    run equivariance /shnn/
-    run reach_2_ants /shnn/
+    list_b
+    list_a
     ;;
   export)
     for exp in $EXPERIMENTS; do
