@@ -34,39 +34,20 @@ fn repro_check_passes_on_a_run_and_fails_on_altered_rows() {
     let run = dir.join("run");
     // A tiny run with the equivariance test's evaluation (fixed start, 0 and 180 degrees,
     // sampled actions), as the reproduction's runs have.
-    let run_s = run.to_str().unwrap();
-    let args = [
-        "train",
-        "--model",
-        "mlp",
-        "--env",
+    let config = common::tiny(
         "team_reach/1_centipede",
-        "--out",
-        run_s,
-        "--threads",
-        "1",
-        "--set",
-        "fixed_start=true",
-        "--set",
-        "eval_rotations=[0.0, 180.0]",
-        "--set",
-        "eval_deterministic=false",
-        "--set",
-        "batch_size=4",
-        "--set",
-        "num_minibatches=4",
-        "--set",
-        "epochs=1",
-        "--set",
-        "num_evals=2",
-        "--set",
-        "eval_episodes=2",
-        "--num-envs",
-        "8",
-        "--steps",
-        "200",
-        "--quiet",
-    ];
+        "mlp",
+        3,
+        &[
+            ("fixed_start", "true"),
+            ("eval_rotations", "[0.0, 180.0]"),
+            ("eval_deterministic", "false"),
+            ("num_evals", "2"),
+        ],
+    );
+    let config_path = dir.join("config.toml");
+    config.save(&config_path).unwrap();
+    let args = ["train", "--config", config_path.to_str().unwrap(), "--out", run.to_str().unwrap(), "--quiet"];
     let out = Command::new(env!("CARGO_BIN_EXE_meben")).args(args).output().unwrap();
     assert!(out.status.success(), "train failed: {}", String::from_utf8_lossy(&out.stderr));
     let metrics = std::fs::read_to_string(run.join("metrics.csv")).unwrap();
