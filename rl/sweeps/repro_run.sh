@@ -6,6 +6,7 @@
 #
 #   rl/sweeps/repro_run.sh A &  rl/sweeps/repro_run.sh B &    # the two workers
 #   rl/sweeps/repro_run.sh export                             # evidence -> results/, reports
+#   rl/sweeps/repro_run.sh restore                            # finished runs <- results/ (A and B do it first)
 #
 # OUT (default /tmp/runs/repro) holds the runs; BIN (default target/release/meben) is the
 # program (build it first: cargo build --release).
@@ -24,8 +25,25 @@ run() { # <experiment> <pattern>...: the sweep's runs whose names contain a patt
   "$BIN" ablate --sweep "$SWEEPS/repro_$exp.toml" --out "$OUT/$exp" --threads 1 --quiet "${only[@]}"
 }
 
+# On a fresh machine (no run directories under OUT), the finished runs come back from their
+# committed evidence (a run with done.json is skipped, so they are not trained again); a run
+# that was still training starts over (its checkpoints are never committed).
+restore_finished() {
+  local done rel
+  for exp in $EXPERIMENTS; do
+    [ -d "$ROOT/results/$exp" ] || continue
+    while IFS= read -r done; do
+      rel=${done#"$ROOT/results/$exp/"}
+      rel=${rel%/done.json}
+      [ -e "$OUT/$exp/$rel" ] && continue
+      mkdir -p "$OUT/$exp/$rel" && cp "$ROOT/results/$exp/$rel"/* "$OUT/$exp/$rel/" \
+        && echo "== restored the finished run $exp/$rel from results/"
+    done < <(find "$ROOT/results/$exp" -name done.json)
+  done
+}
+
 # Each worker's own list, then the other's: a run being trained by the other worker is
-# refused by its directory lock (logged as "failed: ... locked", and the sweep goes on to
+# refused by its directory lock (logged as "failed: ... in use by process N"; the sweep goes on to
 # its next run), so a worker that finishes early takes the other's remaining runs.
 list_a() {
   run equivariance /mlp/ /mlp_hn/
@@ -41,12 +59,17 @@ list_b() {
 
 case "${1:-}" in
   A)
+    restore_finished
     list_a
     list_b
     ;;
   B)
+    restore_finished
     list_b
     list_a
+    ;;
+  restore)
+    restore_finished
     ;;
   export)
     for exp in $EXPERIMENTS; do
@@ -56,7 +79,7 @@ case "${1:-}" in
     du -sh "$ROOT/results"
     ;;
   *)
-    echo "usage: $0 A | B | export" >&2
+    echo "usage: $0 A | B | export | restore" >&2
     exit 2
     ;;
 esac
