@@ -116,6 +116,7 @@ fn report_of_synthetic_runs() {
     assert_eq!(mlp.metric, "train_success_rate");
     assert!(close(mlp.mean, 25.0) && mlp.se == 0.0);
     assert_eq!(mlp.env_steps, (3000, 3000));
+    assert_eq!(mlp.final_steps, [2000]);
 
     let shnn = &r.groups[1];
     assert_eq!(shnn.runs.len(), 3);
@@ -159,6 +160,10 @@ fn report_of_synthetic_runs() {
         "25.00 ± 0.00 †",
         "| shnn | `shnn` | same | 2 | 55.00 ± 15.00 | 25.00 ± 25.00 | 20.00 ± 10.00 | 5k of 1.5M | 0.0 |",
         "Machine time: 2.0 h over the 7 runs above",
+        "| 2.0 | seed 0: 50.00 (3k); seed 1: 60.00 (3k); seed 2: 90.00 (3k) |",
+        // The training-rate fallback: measured at the last row having it, not the last row.
+        "| 0.0 | seed 0: 25.00 (2k) |",
+        "| 0.0 | seed 0: 40.00 (5k); seed 1: 70.00 (5k) |",
         "curves/team_reach_1_ant.svg",
         "team_reach_1_ant/shnn/seed9",
     ] {

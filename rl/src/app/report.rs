@@ -23,7 +23,9 @@
 //!   deviation / sqrt(n); 0 for one seed) of the final values, and the env steps reached
 //!   (the last row's `env_steps`, min–max over the seeds), and the machine time (the sum
 //!   over the runs of the last row's `wall_s`, which counts across resumes; shown once per
-//!   run, on the unrotated row) with the total over all groups.
+//!   run, on the unrotated row) with the total over all groups; and each seed's final value
+//!   with the env steps it was measured at (a run still training may have trained past its
+//!   last evaluation).
 //! - Curves: per group, the mean over seeds with a shaded ± s.e. band (Team Sumo: one curve
 //!   each for the win, loss and draw rates of team 0). Seeds are aligned on
 //!   the env steps of the seed with the fewest points; every other seed contributes its
@@ -83,6 +85,9 @@ pub struct GroupReport {
     pub seed_list: Vec<u64>,
     /// Final values per run, in percent, in the order of `runs`.
     pub finals: Vec<f64>,
+    /// The env steps at which each run's final value was measured (its last evaluation,
+    /// or the last row with a training rate), in the order of `runs`.
+    pub final_steps: Vec<u64>,
     /// Mean final value, in percent.
     pub mean: f64,
     /// Standard error of the final value, in percent.
@@ -360,6 +365,7 @@ fn summarise(variant: String, mut runs: Vec<RunResult>) -> GroupReport {
     let rotation_deg = runs[0].rotation_deg;
     let label = if rotation_deg == 0.0 { label } else { format!("{label}, rotated {rotation_deg}°") };
     let finals: Vec<f64> = runs.iter().map(|r| 100.0 * r.final_value).collect();
+    let final_steps: Vec<u64> = runs.iter().map(|r| r.curve.last().map_or(0, |&(x, _)| x as u64)).collect();
     let (mean, se) = mean_and_se(&finals);
     let draws: Vec<f64> = runs.iter().filter_map(|r| r.final_draw.map(|d| 100.0 * d)).collect();
     let draw = (!draws.is_empty()).then(|| mean_and_se(&draws));
@@ -389,6 +395,7 @@ fn summarise(variant: String, mut runs: Vec<RunResult>) -> GroupReport {
         runs: runs.iter().map(|r| r.rel.clone()).collect(),
         seed_list: runs.iter().map(|r| r.config.seed).collect(),
         finals,
+        final_steps,
         mean,
         se,
         draw,
@@ -495,6 +502,18 @@ fn steps_range(g: &GroupReport) -> String {
     if lo < g.target_steps { format!("{reached} of {}", format_steps(g.target_steps)) } else { reached }
 }
 
+/// Each seed's final value and where it was measured: `seed 0: 12.50 (3M); seed 1: ...`.
+fn per_seed_cell(g: &GroupReport) -> String {
+    let cells: Vec<String> = g
+        .seed_list
+        .iter()
+        .zip(&g.finals)
+        .zip(&g.final_steps)
+        .map(|((seed, value), &steps)| format!("seed {seed}: {value:.2} ({})", format_steps(steps)))
+        .collect();
+    cells.join("; ")
+}
+
 /// The machine-time cell: hours with one decimal, or "same runs" on a rotated row.
 fn machine_hours_cell(g: &GroupReport) -> String {
     if g.rotation_deg == 0.0 { format!("{:.1}", g.machine_hours) } else { "(same runs)".into() }
@@ -525,12 +544,15 @@ fn render_markdown(root: &Path, groups: &[GroupReport], pending: &[(PathBuf, Str
             let _ = writeln!(
                 md,
                 "| run | model | opponent | seeds | win % team 0 (mean ± s.e.) | loss % team 0 (mean ± s.e.) | \
-                 draw % (mean ± s.e.) | env steps | machine h |"
+                 draw % (mean ± s.e.) | env steps | machine h | per seed: win % (at env steps) |"
             );
-            let _ = writeln!(md, "|---|---|---|---:|---:|---:|---:|---:|---:|");
+            let _ = writeln!(md, "|---|---|---|---:|---:|---:|---:|---:|---:|---|");
         } else {
-            let _ = writeln!(md, "| run | model | seeds | success % (mean ± s.e.) | env steps | machine h |");
-            let _ = writeln!(md, "|---|---|---:|---:|---:|---:|");
+            let _ = writeln!(
+                md,
+                "| run | model | seeds | success % (mean ± s.e.) | env steps | machine h | per seed: % (at env steps) |"
+            );
+            let _ = writeln!(md, "|---|---|---:|---:|---:|---:|---|");
         }
         let mut any_train = false;
         for g in groups.iter().filter(|g| g.env == env) {
@@ -538,6 +560,7 @@ fn render_markdown(root: &Path, groups: &[GroupReport], pending: &[(PathBuf, Str
             any_train |= g.from_train;
             let value = format!("{:.2} ± {:.2}{mark}", g.mean, g.se);
             let hours = machine_hours_cell(g);
+            let per_seed = per_seed_cell(g);
             if sumo {
                 let cell = |v: Option<(f64, f64)>| {
                     v.map(|(m, s)| format!("{m:.2} ± {s:.2}{mark}")).unwrap_or_else(|| "–".into())
@@ -546,7 +569,7 @@ fn render_markdown(root: &Path, groups: &[GroupReport], pending: &[(PathBuf, Str
                 let opponent = if g.opponent.is_empty() { "same".to_string() } else { format!("`{}`", g.opponent) };
                 let _ = writeln!(
                     md,
-                    "| {} | `{}` | {} | {} | {value} | {lose} | {draw} | {} | {hours} |",
+                    "| {} | `{}` | {} | {} | {value} | {lose} | {draw} | {} | {hours} | {per_seed} |",
                     md_cell(&g.label),
                     md_cell(&g.model),
                     md_cell(&opponent),
@@ -556,7 +579,7 @@ fn render_markdown(root: &Path, groups: &[GroupReport], pending: &[(PathBuf, Str
             } else {
                 let _ = writeln!(
                     md,
-                    "| {} | `{}` | {} | {value} | {} | {hours} |",
+                    "| {} | `{}` | {} | {value} | {} | {hours} | {per_seed} |",
                     md_cell(&g.label),
                     md_cell(&g.model),
                     g.runs.len(),
