@@ -246,14 +246,17 @@ mod tests {
         assert!(!(1..=7).any(|i| eval_due(i, 7, 0)));
     }
 
+    /// A metrics row holding only its iteration number.
+    fn iteration_row(layout: &MetricsLayout, i: u64) -> String {
+        let mut r = MetricsRow::default();
+        r.set("iteration", i as f64);
+        layout.to_csv(&r)
+    }
+
     #[test]
     fn resumed_metrics_keep_each_iteration_once_in_order() {
         let layout = MetricsLayout::new(&[0.0]);
-        let row = |i: u64| {
-            let mut r = MetricsRow::default();
-            r.set("iteration", i as f64);
-            layout.to_csv(&r)
-        };
+        let row = |i: u64| iteration_row(&layout, i);
         let path = std::env::temp_dir().join(format!("meben-metrics-{}.csv", std::process::id()));
         let rows = [1, 2, 2, 3, 1, 4, 5].map(row).join("\n");
         std::fs::write(&path, format!("{}\n{rows}\n", layout.header())).unwrap();
@@ -268,11 +271,7 @@ mod tests {
     #[test]
     fn a_damaged_metrics_row_costs_only_itself() {
         let layout = MetricsLayout::new(&[0.0]);
-        let row = |i: u64| {
-            let mut r = MetricsRow::default();
-            r.set("iteration", i as f64);
-            layout.to_csv(&r)
-        };
+        let row = |i: u64| iteration_row(&layout, i);
         let path = std::env::temp_dir().join(format!("meben-metrics-damaged-{}.csv", std::process::id()));
         let mut bytes = format!("{}\n{}\n", layout.header(), row(1)).into_bytes();
         let mut damaged = row(2).into_bytes();
