@@ -42,6 +42,8 @@ restore_finished() {
   done
 }
 
+# Team Sumo (one run, its own experiment) comes before `shnn` on 1_ant so that every
+# experiment has a finished run as early as the machine allows.
 # Each worker's own list, then the other's: a run being trained by the other worker is
 # refused by its directory lock (logged as "failed: ... in use by process N"; the sweep goes on to
 # its next run), so a worker that finishes early takes the other's remaining runs.
@@ -49,8 +51,8 @@ list_a() {
   run equivariance /mlp/ /mlp_hn/
   run reach_1_ant /mlp_hn/
   run reach_2_ants /mlp_hn/
-  run reach_1_ant /shnn/
   run sumo /shnn/
+  run reach_1_ant /shnn/
 }
 list_b() {
   run equivariance /shnn/
