@@ -67,10 +67,10 @@ fn report_of_synthetic_runs() {
         &variant,
         &[&[("env_steps", 1000.0), ("eval_success_rate", 0.25)]],
     );
-    // mlp_hn without evaluations: falls back to the training success rate (last row having it).
+    // mlp_hn set not to evaluate: valued by the training success rate (last row having it).
     write_run(
         &root.join("team_reach_1_ant/mlp_hn/seed0"),
-        &config("team_reach/1_ant", "mlp_hn", 0),
+        &TrainConfig { num_evals: 0, ..config("team_reach/1_ant", "mlp_hn", 0) },
         &[
             &[("env_steps", 1000.0), ("train_success_rate", 0.1)],
             &[("env_steps", 2000.0), ("train_success_rate", 0.25)],
@@ -93,8 +93,15 @@ fn report_of_synthetic_runs() {
             ],
         );
     }
-    // A run that has not written a row yet, and a directory that is no run.
+    // A run that has not written a row yet; one set to evaluate that has only training rows
+    // (its early training rate, 100%, counts only the episodes that succeeded early), alone in
+    // its group; and a directory that is no run.
     write_run(&root.join("team_reach_1_ant/shnn/seed9"), &config("team_reach/1_ant", "shnn", 9), &[]);
+    write_run(
+        &root.join("team_reach_1_ant/mlp/seed0"),
+        &config("team_reach/1_ant", "mlp", 0),
+        &[&[("env_steps", 1000.0), ("train_success_rate", 1.0)]],
+    );
     std::fs::create_dir_all(root.join("notes/empty")).unwrap();
 
     let r = report(root).unwrap();
@@ -108,8 +115,10 @@ fn report_of_synthetic_runs() {
             ("team_sumo/2_ants", "shnn"),
         ]
     );
-    assert_eq!(r.pending.len(), 1);
-    assert_eq!(r.pending[0].0, Path::new("team_reach_1_ant/shnn/seed9"));
+    assert_eq!(r.pending.len(), 2, "{:?}", r.pending);
+    assert_eq!(r.pending[0].0, Path::new("team_reach_1_ant/mlp/seed0"));
+    assert!(r.pending[0].1.starts_with("no evaluation yet"), "{}", r.pending[0].1);
+    assert_eq!(r.pending[1].0, Path::new("team_reach_1_ant/shnn/seed9"));
 
     let mlp = &r.groups[0];
     assert!(mlp.from_train);

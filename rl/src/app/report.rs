@@ -9,11 +9,15 @@
 //!   `team_reach_1_ant/shnn+no_entropy/seed{0,1,2}` of a sweep form one group.
 //! - A run's final value is its metric in the last row of `metrics.csv` that has it: Team
 //!   Reach `eval_success_rate`, Team Sumo `eval_win_rate_t0` (and its loss rate, team 1's
-//!   `eval_win_rate_t1`, and `eval_draw_rate`). A run without evaluation rows falls back to
-//!   the training rate (`train_success_rate`, `train_win_rate_t0`, `train_win_rate_t1`,
-//!   `train_draw_rate`: episodes that ended during collection); the table marks such groups.
-//!   In a group where some runs have evaluations, the runs without one yet are left out
-//!   (listed as without a result) rather than averaged in with a training rate. A run with neither is listed as having no result yet.
+//!   `eval_win_rate_t1`, and `eval_draw_rate`). A run set not to evaluate (`num_evals = 0`)
+//!   is valued by its training rate instead (`train_success_rate`, `train_win_rate_t0`,
+//!   `train_win_rate_t1`, `train_draw_rate`: episodes that ended during collection); the
+//!   table marks such groups. A run set to evaluate that has no evaluation yet is listed as
+//!   having no result yet, not valued by its training rate: until every environment has
+//!   played a whole episode only the episodes that ended early have ended (in Team Reach
+//!   all of them successes), so that rate starts far too high. In a group where some runs
+//!   have evaluations, the runs without one (set not to evaluate) are left out too, rather
+//!   than averaged in with a training rate. A run with neither is listed as having no result yet.
 //! - A run evaluated at further rotations (`eval_rotations`, e.g. `[0.0, 180.0]` for the
 //!   paper's equivariance test) adds one group per rotation with values
 //!   (`eval_success_rate_rot180`, `eval_win_rate_t0_rot180` and `eval_draw_rate_rot180`),
@@ -203,8 +207,8 @@ pub fn report(root: &Path) -> Result<Report> {
             Err(reason) => pending.push((rel, reason)),
         }
     }
-    // A group with evaluated runs leaves out its runs not evaluated yet: a training rate
-    // (episodes that ended, early ones all successes) is no value to average with them.
+    // A group with evaluated runs leaves out its runs set not to evaluate: a training rate is
+    // no value to average with evaluations.
     let groups: Vec<GroupReport> = groups
         .into_iter()
         .map(|((_, _, variant, _, _, _), runs)| {
@@ -212,7 +216,10 @@ pub fn report(root: &Path) -> Result<Report> {
             let (kept, waiting): (Vec<RunResult>, Vec<RunResult>) =
                 runs.into_iter().partition(|r| !(evaluated && r.from_train));
             for r in waiting {
-                pending.push((r.rel, "no evaluation yet (the other seeds of its group have one)".into()));
+                pending.push((
+                    r.rel,
+                    "set not to evaluate (num_evals = 0), while the other seeds of its group are".into(),
+                ));
             }
             summarise(variant, kept)
         })
@@ -294,10 +301,13 @@ fn read_run(dir: &Path) -> Result<std::result::Result<Vec<RunResult>, String>> {
     let has = |col: &str| rows.iter().any(|r| r.get(col).is_some_and(|v| v.is_finite()));
     let ((metric, others), from_train) = if has(eval.0) {
         (eval, false)
-    } else if has(train.0) {
-        (train, true)
     } else if rows.is_empty() {
         return Ok(Err("no rows yet".into()));
+    } else if config.num_evals > 0 {
+        // Its training rate would start far too high (module docs): no value until the first evaluation.
+        return Ok(Err(format!("no evaluation yet (it is set to {} over the run)", config.num_evals)));
+    } else if has(train.0) {
+        (train, true)
     } else {
         return Ok(Err(format!("no {} or {} values yet", eval.0, train.0)));
     };
