@@ -80,7 +80,8 @@ case "${1:-}" in
   export)
     for exp in $EXPERIMENTS; do
       [ -d "$OUT/$exp" ] || continue
-      "$BIN" export "$OUT/$exp" "$ROOT/results/$exp" && "$BIN" report "$ROOT/results/$exp" > /dev/null
+      # The report names the directory it was given: relative, as a reader would type it.
+      "$BIN" export "$OUT/$exp" "$ROOT/results/$exp" && (cd "$ROOT" && "$BIN" report "results/$exp" > /dev/null)
     done
     du -sh "$ROOT/results"
     ;;
