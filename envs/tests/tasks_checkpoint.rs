@@ -116,6 +116,14 @@ fn a_restored_env_draws_the_same_starts_when_episodes_end() {
         // Snapshot at the very step the episodes ended: final_obs rows are carried too.
         resume_case(&Case { name, episode_steps: 20, steps_before: 20, mode: StartMode::Random, alpha: 1.0 });
     }
+    // The release's reset: the restored streams give each environment its first start again.
+    resume_case(&Case {
+        name: "team_reach/2_ants",
+        episode_steps: 20,
+        steps_before: 30,
+        mode: StartMode::PerSlot,
+        alpha: 1.0,
+    });
     // A fixed start mode and a curriculum factor come with the state.
     resume_case(&Case {
         name: "team_sumo/2_ants",

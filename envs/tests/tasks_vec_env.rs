@@ -1,6 +1,6 @@
 //! Batched stepping: names and compositions, observation layout, determinism (same seed
-//! same bits, 1 vs 2 threads), fresh starts every episode, and the true final observation on
-//! auto-reset.
+//! same bits, 1 vs 2 threads), fresh starts every episode (or each environment's first start
+//! again, the release's reset), and the true final observation on auto-reset.
 
 #![allow(clippy::needless_range_loop)] // index loops mirror the array layouts
 
@@ -203,6 +203,40 @@ fn every_episode_gets_a_fresh_start_and_auto_reset_keeps_the_true_final_observat
     // The new episode's observation is that of its start: stepping on from it works.
     env.step(&vec![0.0; b * env.n_actions()]).unwrap();
     assert_eq!(env.episode_step(0), Some(1));
+}
+
+#[test]
+fn per_slot_starts_return_each_environment_to_its_first_start_as_the_release_resets() {
+    let spec = TaskSpec { episode_steps: 6, ..TaskSpec::from_name("team_reach/2_ants").unwrap() };
+    let (b, seed) = (4, 5);
+    let mut kept = VecEnv::new(&spec, b, seed, StartMode::PerSlot).unwrap();
+    let mut fresh = VecEnv::new(&spec, b, seed, StartMode::Random).unwrap();
+    assert_eq!(kept.start_mode(), StartMode::PerSlot);
+    // The first episode is the same draw as under Random: same observations and balls.
+    assert_eq!(kept.obs(), fresh.obs());
+    let first_balls: Vec<Vec<[f64; 2]>> = (0..b).map(|e| kept.balls(e).unwrap().to_vec()).collect();
+    let first_obs = kept.obs().clone();
+    for e in 1..b {
+        assert_ne!(first_balls[e], first_balls[0], "environments {e} and 0 drew the same start");
+    }
+    let mut rng = ChaCha8Rng::seed_from_u64(3);
+    for episode in 1..=3 {
+        for _ in 0..6 {
+            let a = random_actions(&mut rng, b * kept.n_actions());
+            kept.step(&a).unwrap();
+            fresh.step(&a).unwrap();
+        }
+        assert_eq!(kept.output().truncated, vec![true; b], "episode {episode} ends at the time limit");
+        // Every environment is back at its own first start; under Random it is not.
+        assert_eq!(kept.obs(), &first_obs, "episode {} did not begin at the first start", episode + 1);
+        for e in 0..b {
+            assert_eq!(kept.balls(e).unwrap(), first_balls[e].as_slice());
+            assert_ne!(fresh.balls(e).unwrap(), first_balls[e].as_slice(), "env {e}: Random repeated its start");
+        }
+    }
+    // reset() begins every environment at its first start too.
+    kept.reset();
+    assert_eq!(kept.obs(), &first_obs);
 }
 
 #[test]

@@ -15,7 +15,7 @@ ROOT=$(cd "$(dirname "$0")/../.." && pwd)
 BIN=${BIN:-$ROOT/target/release/meben}
 OUT=${OUT:-/tmp/runs/repro}
 SWEEPS=$ROOT/rl/sweeps
-EXPERIMENTS="reach_1_ant reach_2_ants equivariance sumo reach_2_ants_no_assignment"
+EXPERIMENTS="reach_1_ant reach_2_ants equivariance sumo reach_2_ants_no_assignment reach_2_ants_per_slot_starts"
 
 run() { # <experiment> <pattern>...: the sweep's runs whose names contain a pattern
   local exp=$1; shift
@@ -43,10 +43,11 @@ restore_finished() {
 }
 
 # Team Sumo (one run, its own experiment) comes before `shnn` on 1_ant so that every
-# experiment has a finished run as early as the machine allows. The diagnostic run (MLP+HN
-# without the assignment on 2_ants, repro_reach_2_ants_no_assignment.toml) comes before it:
-# it costs about what an `mlp_hn` run on 2_ants does (seed 0: 1.3 h) and tests one
-# explanation of a disagreement with the paper (docs/RESULTS.md).
+# experiment has a finished run as early as the machine allows. The two diagnostic runs
+# (MLP+HN on 2_ants without the assignment, repro_reach_2_ants_no_assignment.toml, and with
+# the release's reset, repro_reach_2_ants_per_slot_starts.toml) come before it: each costs
+# about what an `mlp_hn` run on 2_ants does (seed 0: 1.3 h) and tests one explanation of a
+# disagreement with the paper (docs/RESULTS.md).
 # Each worker's own list, then the other's: a run being trained by the other worker is
 # refused by its directory lock (logged as "failed: ... in use by process N"; the sweep goes on to
 # its next run), so a worker that finishes early takes the other's remaining runs.
@@ -55,6 +56,7 @@ list_a() {
   run reach_1_ant /mlp_hn/
   run reach_2_ants /mlp_hn/
   run reach_2_ants_no_assignment /mlp_hn_assignment-none/
+  run reach_2_ants_per_slot_starts /mlp_hn/
   run sumo /shnn/
   run reach_1_ant /shnn/
 }

@@ -31,6 +31,11 @@ pub enum StartMode {
     /// A fresh random start every episode, from the environment's own random stream.
     #[default]
     Random,
+    /// The reference release's auto-reset (Brax v1's `AutoResetWrapper`, which keeps the
+    /// state of the first reset and returns to it): every environment begins each episode
+    /// from the start it drew first, the same draw as its first episode under
+    /// [`StartMode::Random`], so a batch of `B` environments sees `B` starts in all.
+    PerSlot,
     /// The same start every episode.
     Fixed(FixedStart),
 }

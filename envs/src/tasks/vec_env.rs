@@ -2,7 +2,9 @@
 //!
 //! - Randomness: environment `e` owns a ChaCha8 stream seeded from `(run seed, e)`
 //!   ([`env_rng`]); each episode's start is drawn from it when the episode begins, so every
-//!   episode gets a fresh start and a run is reproducible from its seed.
+//!   episode gets a fresh start and a run is reproducible from its seed
+//!   ([`StartMode::PerSlot`]: the reference release's reset, every episode of environment `e`
+//!   from its first draw).
 //! - Each environment is stepped from start to end by one thread with the same sequential
 //!   code: results are bit-identical whatever the number of threads.
 //! - A control step applies the clipped actions for [`super::spec::PHYSICS_STEPS_PER_CONTROL`]
@@ -112,10 +114,35 @@ fn refresh(scene: &Scene, d: &mut Data) {
     com_vel(&scene.model, d);
 }
 
-fn begin_episode(scene: &Scene, slot: &mut Slot, fixed: Option<&Start>) {
-    let start = match fixed {
-        Some(s) => s.clone(),
-        None => sample_start(scene, &mut slot.rng),
+/// Where an environment's next episode starts ([`StartMode`]).
+#[derive(Clone, Copy)]
+enum NextStart<'a> {
+    /// The next draw of the environment's stream (`Random`).
+    Fresh,
+    /// The environment's first draw again (`PerSlot`): drawn from a copy of its stream, which
+    /// so never advances (it draws nothing else).
+    FirstDraw,
+    /// This start (`Fixed`, [`VecEnv::set_start`]).
+    Given(&'a Start),
+}
+
+impl<'a> NextStart<'a> {
+    /// The start of every episode under `mode` (`fixed`: the fixed mode's start).
+    fn of(mode: &StartMode, fixed: Option<&'a Start>) -> NextStart<'a> {
+        match (mode, fixed) {
+            (StartMode::Random, _) => NextStart::Fresh,
+            (StartMode::PerSlot, _) => NextStart::FirstDraw,
+            (StartMode::Fixed(_), Some(s)) => NextStart::Given(s),
+            (StartMode::Fixed(_), None) => unreachable!("a fixed mode's start is drawn with the mode"),
+        }
+    }
+}
+
+fn begin_episode(scene: &Scene, slot: &mut Slot, next: NextStart<'_>) {
+    let start = match next {
+        NextStart::Given(s) => s.clone(),
+        NextStart::Fresh => sample_start(scene, &mut slot.rng),
+        NextStart::FirstDraw => sample_start(scene, &mut slot.rng.clone()),
     };
     let qpos = start.to_qpos(scene);
     // The start is finite and sized from the scene's model (rotations are checked finite).
@@ -138,7 +165,7 @@ fn step_env(
     slot: &mut Slot,
     actions: &[f32],
     alpha: f64,
-    fixed: Option<&Start>,
+    next: NextStart<'_>,
     reset: bool,
     row: Row<'_>,
 ) {
@@ -195,7 +222,7 @@ fn step_env(
         row.final_scalars.copy_from_slice(row.scalars);
         row.final_heading.copy_from_slice(row.heading);
         if reset {
-            begin_episode(scene, slot, fixed);
+            begin_episode(scene, slot, next);
             write_obs(scene, slot, row.vectors, row.scalars, row.heading);
         }
     }
@@ -215,7 +242,7 @@ impl VecEnv {
         mode.validate()?;
         let scene = Scene::build(spec)?;
         let fixed = match &mode {
-            StartMode::Random => None,
+            StartMode::Random | StartMode::PerSlot => None,
             StartMode::Fixed(f) => Some(fixed_start(&scene, f)),
         };
         let na = scene.n_agents();
@@ -252,7 +279,7 @@ impl VecEnv {
     /// Begins a new episode in every environment (the next start of each one's stream) and
     /// returns the first observations.
     pub fn reset(&mut self) -> &Observation {
-        let (scene, fixed) = (&self.scene, self.fixed.as_ref());
+        let (scene, next) = (&self.scene, NextStart::of(&self.mode, self.fixed.as_ref()));
         let o = &mut self.out.obs;
         let (nv, ns, na) = (o.nodes * NODE_VECTOR_LEN, o.nodes * N_SCALARS, o.agents);
         self.slots
@@ -261,7 +288,7 @@ impl VecEnv {
             .zip(o.scalars.par_chunks_mut(ns))
             .zip(o.heading.par_chunks_mut(na.max(1)))
             .for_each(|(((slot, v), s), h)| {
-                begin_episode(scene, slot, fixed);
+                begin_episode(scene, slot, next);
                 write_obs(scene, slot, v, s, h);
             });
         self.out.terminated.iter_mut().for_each(|x| *x = false);
@@ -294,7 +321,8 @@ impl VecEnv {
                 ),
             });
         }
-        let (scene, fixed, alpha, reset) = (&self.scene, self.fixed.as_ref(), self.alpha, self.auto_reset);
+        let (scene, next, alpha, reset) =
+            (&self.scene, NextStart::of(&self.mode, self.fixed.as_ref()), self.alpha, self.auto_reset);
         let out = &mut self.out;
         let (nv, ns, nh, nt) =
             (out.obs.nodes * NODE_VECTOR_LEN, out.obs.nodes * N_SCALARS, out.obs.agents.max(1), scene.n_teams());
@@ -334,7 +362,7 @@ impl VecEnv {
             )
             .collect();
         self.slots.par_iter_mut().zip(rows).enumerate().for_each(|(e, (slot, row))| {
-            step_env(scene, slot, &actions[e * na..(e + 1) * na], alpha, fixed, reset, row);
+            step_env(scene, slot, &actions[e * na..(e + 1) * na], alpha, next, reset, row);
         });
         Ok(&self.out)
     }
@@ -364,7 +392,7 @@ impl VecEnv {
         }
         let scene = &self.scene;
         let slot = &mut self.slots[env];
-        begin_episode(scene, slot, Some(start));
+        begin_episode(scene, slot, NextStart::Given(start));
         let o = &mut self.out.obs;
         let (nv, ns, nh) = (o.nodes * NODE_VECTOR_LEN, o.nodes * N_SCALARS, o.agents);
         write_obs(

@@ -16,7 +16,7 @@ use std::path::Path;
 use serde::{Deserialize, Serialize};
 
 use crate::error::{Result, RlError};
-use crate::mappo::config::{EntropyKind, NormStart, ObsNormKind, TrainConfig, default_eval_rotations};
+use crate::mappo::config::{EntropyKind, NormStart, ObsNormKind, TrainConfig, TrainStarts, default_eval_rotations};
 
 /// The named starting points of a configuration (module docs).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
@@ -50,6 +50,7 @@ impl TrainConfig {
             opponent: String::new(),
             seed: 0,
             fixed_start: false,
+            train_starts: TrainStarts::Fresh,
             steps: if sumo { 20_000_000 } else { 50_000_000 },
             num_envs: 2048,
             unroll_length: 5,
@@ -124,8 +125,7 @@ impl TrainConfig {
             None => "team_reach/1_ant".to_string(),
         };
         let base = TrainConfig::preset(preset, &env);
-        let mut merged =
-            toml::Table::try_from(&base).map_err(|e| RlError::config("built-in", "*", "", e.to_string()))?;
+        let mut merged = base.to_full_table();
         let source = if overrides.is_empty() { file_source } else { format!("{file_source} + command line") };
         for (k, v) in table {
             if !merged.contains_key(&k) {
@@ -263,5 +263,31 @@ mod tests {
             back,
             TrainConfig { entropy: EntropyKind::Normal, obs_norm_start: NormStart::FirstObservation, ..c }
         );
+    }
+
+    #[test]
+    fn train_starts_per_slot_is_written_only_when_set_and_refused_with_a_fixed_start() {
+        use envs::tasks::StartMode;
+        let c = TrainConfig::preset(Preset::Paper, "team_reach/2_ants");
+        assert_eq!(c.train_starts, TrainStarts::Fresh);
+        assert!(!c.to_toml().contains("train_starts"), "the default is left out of config.toml");
+        assert_eq!((c.train_start_mode(), c.start_mode()), (StartMode::Random, StartMode::Random));
+
+        let set = |pairs: &[(&str, &str)]| {
+            let ov: Vec<(String, String)> = pairs.iter().map(|(k, v)| (k.to_string(), v.to_string())).collect();
+            TrainConfig::resolve(Some(Preset::Paper), None, &ov)
+        };
+        let kept = set(&[("env", "\"team_reach/2_ants\""), ("train_starts", "per_slot")]).unwrap();
+        assert_eq!(kept.train_starts, TrainStarts::PerSlot);
+        assert!(kept.to_toml().contains("train_starts = \"per_slot\""));
+        // Training keeps each slot's first start; evaluation draws fresh ones (the release).
+        assert_eq!((kept.train_start_mode(), kept.start_mode()), (StartMode::PerSlot, StartMode::Random));
+        let back: TrainConfig = toml::from_str(&kept.to_toml()).unwrap();
+        assert_eq!(back, kept);
+
+        let both = set(&[("fixed_start", "true"), ("train_starts", "per_slot")]).unwrap_err().to_string();
+        assert!(both.contains("train_starts") && both.contains("fixed_start"), "{both}");
+        let unknown = set(&[("train_starts", "cached")]).unwrap_err().to_string();
+        assert!(unknown.contains("train_starts") && unknown.contains("cached"), "{unknown}");
     }
 }

@@ -527,8 +527,7 @@ fn seed_list(table: &toml::Table, source: &str) -> Result<Vec<u64>> {
 /// (`config`, `variants.<name>.config`) in errors.
 fn overrides(v: &toml::Value, at: &str, source: &str) -> Result<Vec<(String, String)>> {
     let table = v.as_table().ok_or_else(|| RlError::config(source, at, v, "expected a table of TrainConfig fields"))?;
-    let known = toml::Table::try_from(TrainConfig::preset(Preset::Quick, "team_reach/1_ant"))
-        .map_err(|e| RlError::config("built-in", "*", "", e.to_string()))?;
+    let known = TrainConfig::preset(Preset::Quick, "team_reach/1_ant").to_full_table();
     let mut out = Vec::new();
     for (k, value) in table {
         let field = format!("{at}.{k}");
@@ -796,6 +795,19 @@ config = { entropy_coef = 0.0 }
         assert!(eq.iter().all(|r| r.config.fixed_start && r.config.eval_rotations == [0.0, 180.0]));
         let sumo = repro("repro_sumo.toml", 1, 10_000_000);
         assert_eq!((sumo[0].config.model.as_str(), sumo[0].config.opponent.as_str()), ("shnn", "mlp_hn"));
+
+        // The diagnostics beside experiment 1b: each changes one thing of `mlp_hn` on 2_ants.
+        let load = |name: &str| Sweep::load(&dir.join(name)).unwrap().runs().unwrap();
+        let base = &repro("repro_reach_2_ants.toml", 6, 20_000_000)[3].config;
+        assert_eq!((base.model.as_str(), base.seed), ("mlp_hn", 0));
+        let no_assignment = load("repro_reach_2_ants_no_assignment.toml");
+        assert_eq!(no_assignment.len(), 1);
+        let expected = TrainConfig { model: "mlp_hn:assignment=none".into(), ..base.clone() };
+        assert_eq!(no_assignment[0].config, expected);
+        let per_slot = load("repro_reach_2_ants_per_slot_starts.toml");
+        assert_eq!(per_slot.len(), 1);
+        let expected = TrainConfig { train_starts: crate::mappo::config::TrainStarts::PerSlot, ..base.clone() };
+        assert_eq!(per_slot[0].config, expected);
     }
 
     /// Writes what a trainer leaves behind: `config.toml`, then a checkpoint, then `done.json`.

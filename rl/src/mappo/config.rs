@@ -79,6 +79,29 @@ pub enum NormStart {
     FirstObservation,
 }
 
+/// Where training episodes begin when `fixed_start` is off.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum TrainStarts {
+    /// A fresh random start every episode (the presets; MEBEN.md section 8 counts the
+    /// release's reset among the weak points this library fixes).
+    #[default]
+    Fresh,
+    /// The reference release's reset (Brax v1's `AutoResetWrapper`): every environment slot
+    /// begins each episode from the start it drew first, so training sees `num_envs` starts
+    /// in all ([`envs::tasks::StartMode::PerSlot`]). Evaluations draw fresh starts either
+    /// way, as the release's evaluator does.
+    PerSlot,
+}
+
+impl TrainStarts {
+    /// Whether this is the default (the field is then left out of `config.toml`, so the
+    /// files of runs that do not use it read as before, also in earlier builds).
+    pub fn is_fresh(&self) -> bool {
+        *self == TrainStarts::Fresh
+    }
+}
+
 /// Everything that defines a training run.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -95,6 +118,11 @@ pub struct TrainConfig {
     /// Every episode starts from the same start (drawn from `seed`) instead of a fresh random
     /// one: the training of the paper's equivariance test (evaluate with `--rotate`).
     pub fixed_start: bool,
+    /// Where training episodes begin without `fixed_start`: `fresh` (default) or `per_slot`
+    /// (the reference release's reset, [`TrainStarts::PerSlot`]). Written to `config.toml`
+    /// only when not `fresh`.
+    #[serde(default, skip_serializing_if = "TrainStarts::is_fresh")]
+    pub train_starts: TrainStarts,
     /// Environment steps to train for (the run stops at the first iteration boundary at or
     /// past it).
     pub steps: u64,
@@ -180,6 +208,17 @@ impl TrainConfig {
         Ok(config)
     }
 
+    /// Every field as a TOML table, including those `config.toml` leaves out at their
+    /// default (`train_starts`): the fields a preset, a file or `--set` may name.
+    pub fn to_full_table(&self) -> toml::Table {
+        let mut table =
+            toml::Table::try_from(self).unwrap_or_else(|e| unreachable!("a TrainConfig always serialises: {e}"));
+        let starts = toml::Value::try_from(self.train_starts)
+            .unwrap_or_else(|e| unreachable!("a TrainStarts always serialises: {e}"));
+        table.entry("train_starts").or_insert(starts);
+        table
+    }
+
     /// The configuration as TOML.
     pub fn to_toml(&self) -> String {
         toml::to_string(self).unwrap_or_else(|e| unreachable!("a TrainConfig always serialises: {e}"))
@@ -191,9 +230,19 @@ impl TrainConfig {
         Ok(())
     }
 
-    /// How training episodes start: random, or the fixed start of `seed`.
+    /// How evaluation episodes start: the fixed start of `seed`, or fresh random starts.
     pub fn start_mode(&self) -> envs::tasks::StartMode {
         if self.fixed_start { envs::tasks::StartMode::fixed(self.seed) } else { envs::tasks::StartMode::Random }
+    }
+
+    /// How training episodes start: the fixed start of `seed`, fresh random starts, or
+    /// (`train_starts = "per_slot"`) each environment's first start again.
+    pub fn train_start_mode(&self) -> envs::tasks::StartMode {
+        match (self.fixed_start, self.train_starts) {
+            (true, _) => envs::tasks::StartMode::fixed(self.seed),
+            (false, TrainStarts::Fresh) => envs::tasks::StartMode::Random,
+            (false, TrainStarts::PerSlot) => envs::tasks::StartMode::PerSlot,
+        }
     }
 
     /// Whether the environment is a Team Sumo scene.
@@ -235,6 +284,13 @@ impl TrainConfig {
         }
         if !self.opponent.is_empty() && !self.is_sumo() {
             return err("opponent", &self.opponent, "only Team Sumo has a second team");
+        }
+        if self.fixed_start && self.train_starts != TrainStarts::Fresh {
+            return err(
+                "train_starts",
+                &"per_slot",
+                "with fixed_start = true every episode begins at the one fixed start: leave train_starts unset",
+            );
         }
         for (field, v) in [
             ("num_envs", self.num_envs),

@@ -85,7 +85,8 @@ pub const MAX_EPISODES: usize = 1 << 20;
 /// The start of evaluation episode `e` (module docs).
 pub fn episode_start(scene: &Scene, options: &EvalOptions, e: usize) -> Start {
     let base = match &options.mode {
-        StartMode::Random => sample_start(scene, &mut env_rng(options.seed, e)),
+        // One episode per environment: keeping each environment's first start changes nothing.
+        StartMode::Random | StartMode::PerSlot => sample_start(scene, &mut env_rng(options.seed, e)),
         StartMode::Fixed(f) => fixed_start(scene, f),
     };
     options.motion().apply(&base)

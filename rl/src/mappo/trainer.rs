@@ -131,7 +131,7 @@ impl Trainer {
         config.validate("config")?;
         let spec = TaskSpec::from_name(&config.env)?;
         let env_seed = derive_seed(config.seed, "envs", 0, 0);
-        let mut env = VecEnv::new(&spec, config.num_envs, env_seed, config.start_mode())?;
+        let mut env = VecEnv::new(&spec, config.num_envs, env_seed, config.train_start_mode())?;
         env.reset();
         let obs_spec = env.scene().obs_spec.clone();
         let mut teams = (0..obs_spec.n_teams).map(|k| Team::build(config, &obs_spec, k)).collect::<Result<Vec<_>>>()?;

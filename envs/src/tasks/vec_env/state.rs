@@ -269,7 +269,7 @@ impl VecEnv {
             slot.step = s.step;
         }
         self.fixed = match &state.mode {
-            StartMode::Random => None,
+            StartMode::Random | StartMode::PerSlot => None,
             StartMode::Fixed(f) => Some(fixed_start(scene, f)),
         };
         self.mode = state.mode;
