@@ -269,6 +269,25 @@ fn report_has_a_group_and_a_curve_per_evaluation_rotation() {
 }
 
 #[test]
+fn report_counts_in_words_and_never_writes_negative_zero() {
+    // The only run has no evaluation yet although it is set to evaluate: no result, so no
+    // group; the machine time of no runs is 0.0, not the -0.0 of Rust's empty float sum.
+    let tmp = TempDir::new("counts");
+    let pending = tmp.0.join("pending/team_reach_1_ant/shnn/seed0");
+    let cfg = TrainConfig { num_evals: 3, ..config("team_reach/1_ant", "shnn", 0) };
+    write_run(&pending, &cfg, &[&[("env_steps", 1000.0), ("wall_s", 60.0), ("train_success_rate", 1.0)]]);
+    let r = report(&tmp.0.join("pending")).unwrap();
+    let md = std::fs::read_to_string(&r.markdown).unwrap();
+    assert!(md.contains("0 runs in 0 groups.") && md.contains("Machine time: 0.0 h over the 0 runs above"), "{md}");
+    assert!(!md.contains("-0.0"), "{md}");
+    // One run, one group: singular.
+    let one = tmp.0.join("one/team_reach_1_ant/shnn/seed0");
+    write_run(&one, &cfg, &[&[("env_steps", 1000.0), ("wall_s", 3600.0), ("eval_success_rate", 0.5)]]);
+    let md = std::fs::read_to_string(report(&tmp.0.join("one")).unwrap().markdown).unwrap();
+    assert!(md.contains("1 run in 1 group.") && md.contains("Machine time: 1.0 h over the 1 run above"), "{md}");
+}
+
+#[test]
 fn report_errors() {
     let tmp = TempDir::new("errors");
     let msg = report(&tmp.0).unwrap_err().to_string();

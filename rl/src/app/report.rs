@@ -533,19 +533,25 @@ fn md_cell(s: &str) -> String {
     s.replace('|', "\\|")
 }
 
+/// `n` followed by `noun`, plural unless `n` is 1: "1 run", "3 runs".
+fn count(n: usize, noun: &str) -> String {
+    if n == 1 { format!("1 {noun}") } else { format!("{n} {noun}s") }
+}
+
 fn render_markdown(root: &Path, groups: &[GroupReport], pending: &[(PathBuf, String)]) -> String {
     let mut md = String::new();
     let runs: usize = groups.iter().map(|g| g.runs.len()).sum();
     let _ = writeln!(md, "# Report: `{}`\n", root.display());
     let _ = writeln!(
         md,
-        "{runs} runs in {} groups. Final value of a run: its metric in the last row of `metrics.csv` that has it \
+        "{} in {}. Final value of a run: its metric in the last row of `metrics.csv` that has it \
          (Team Reach `eval_success_rate`, Team Sumo `eval_win_rate_t0`, `eval_win_rate_t1` and `eval_draw_rate`), \
          in percent; \
          mean ± standard error over seeds (sample standard deviation / √n; 0 for one seed). Env steps: the last \
          row's, over the seeds (\"of N\": runs still short of their budget N). Curves: mean over seeds with a ± s.e. band. Rows \"rotated N°\" are \
          evaluations of the same runs with every start rotated by N degrees about the vertical (`eval_rotations`).\n",
-        groups.len()
+        count(runs, "run"),
+        count(groups.len(), "group")
     );
     for env in envs_in_order(groups) {
         let sumo = env.starts_with("team_sumo");
@@ -607,12 +613,13 @@ fn render_markdown(root: &Path, groups: &[GroupReport], pending: &[(PathBuf, Str
         }
         let _ = writeln!(md, "\n![{env}](curves/{}.svg)\n", sanitize_component(env));
     }
-    let total: f64 = groups.iter().map(|g| g.machine_hours).sum();
+    // Rust's float `sum` of nothing is -0.0; the report says 0.0.
+    let total: f64 = 0.0 + groups.iter().map(|g| g.machine_hours).sum::<f64>();
     let _ = writeln!(
         md,
-        "Machine time: {total:.1} h over the {} runs above (each run's last `wall_s`, summed; the threads \
+        "Machine time: {total:.1} h over the {} above (each run's last `wall_s`, summed; the threads \
          of each run are in its `config.toml`).\n",
-        groups.iter().filter(|g| g.rotation_deg == 0.0).map(|g| g.runs.len()).sum::<usize>()
+        count(groups.iter().filter(|g| g.rotation_deg == 0.0).map(|g| g.runs.len()).sum::<usize>(), "run")
     );
     if !pending.is_empty() {
         let _ = writeln!(md, "## Runs without a result yet\n");
