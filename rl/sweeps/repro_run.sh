@@ -4,12 +4,14 @@
 # reports. Run directories live outside the work tree; restarting a worker resumes where it
 # stopped (finished runs are skipped, interrupted ones resume bit-identically).
 #
-#   rl/sweeps/repro_run.sh A &  rl/sweeps/repro_run.sh B &    # the two workers
+#   nice -n 19 rl/sweeps/repro_run.sh A &  nice -n 19 rl/sweeps/repro_run.sh B &    # the two workers
 #   rl/sweeps/repro_run.sh export                             # evidence -> results/, reports
 #   rl/sweeps/repro_run.sh restore                            # finished runs <- results/ (A and B do it first)
 #
 # OUT (default /tmp/runs/repro) holds the runs; BIN (default target/release/meben) is the
-# program (build it first: cargo build --release).
+# program (build it first: cargo build --release). Start the workers under `nice` as shown,
+# so that builds and tests run beside them at full speed: every thread a worker creates
+# inherits its niceness, while `renice` of a running process id reaches only its main thread.
 set -uo pipefail
 ROOT=$(cd "$(dirname "$0")/../.." && pwd)
 BIN=${BIN:-$ROOT/target/release/meben}
