@@ -1,7 +1,7 @@
 //! Checkpoints: a run stopped and resumed gives the same bits as an uninterrupted run (Team
 //! Reach and Team Sumo with two teams, different models and the curriculum), whatever the
-//! thread count; damaged checkpoints and changed configurations are refused with the file
-//! named.
+//! thread count; each session is recorded in `builds.csv`; damaged checkpoints and changed
+//! configurations are refused with the file named.
 
 mod common;
 
@@ -19,6 +19,22 @@ fn metrics(run: &RunDir) -> Vec<Vec<(String, f64)>> {
 fn params(run: &RunDir) -> Vec<Vec<f64>> {
     let c = Checkpoint::load(&run.checkpoint()).unwrap();
     c.teams.iter().flat_map(|t| t.params.tensors.iter().map(|x| x.data.clone())).collect()
+}
+
+/// The `from_iteration` of each row of a run's `builds.csv`, after checking that every row
+/// names this build.
+fn build_rows(run: &RunDir) -> Vec<String> {
+    use rl::app::build_info::{BUILDS_HEADER, COMMIT, VERSION};
+    let text = std::fs::read_to_string(run.builds()).unwrap();
+    let mut lines = text.lines();
+    assert_eq!(lines.next(), Some(BUILDS_HEADER));
+    lines
+        .map(|l| {
+            let f: Vec<&str> = l.split(',').collect();
+            assert_eq!(f[1..3], [VERSION, COMMIT], "{l}");
+            f[0].to_string()
+        })
+        .collect()
 }
 
 #[test]
@@ -59,6 +75,10 @@ fn resumed_runs_are_bit_identical_to_uninterrupted_ones() {
         // A finished run returns its summary without training.
         let again = train(&config, &whole, &TrainOptions::default()).unwrap();
         assert_eq!(again, s1);
+        // builds.csv: a row per session that trained, naming the iteration it went on from
+        // and this build; returning a finished run's summary adds none.
+        assert_eq!(build_rows(&whole), ["0"]);
+        assert_eq!(build_rows(&parts), ["0", "1", "3"]);
     }
     let _ = std::fs::remove_dir_all(&dir);
 }

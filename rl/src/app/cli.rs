@@ -21,7 +21,7 @@ use clap::{Args, Parser, Subcommand};
 #[derive(Parser)]
 #[command(
     name = "meben",
-    version,
+    version = crate::app::build_info::LONG_VERSION,
     about = "Subequivariant multi-entity RL on MeBen: train, eval, ablate, report, render, sim"
 )]
 struct Cli {
@@ -41,7 +41,8 @@ enum Command {
     /// (also redraws each run's curve.svg).
     Report(ReportArgs),
     /// Copy the evidence of the runs under a directory (config.toml, metrics.csv, done.json,
-    /// curve.svg, the sweep file) to another, without checkpoints: for committing results.
+    /// curve.svg, builds.csv, the sweep file) to another, without checkpoints: for
+    /// committing results.
     Export(ExportArgs),
     /// Record an episode of a trained run: .html (animation), .gif, or .csv (body poses).
     Render(RenderArgs),

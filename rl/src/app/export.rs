@@ -15,8 +15,8 @@ use crate::app::report::find_run_dirs;
 use crate::error::{Result, RlError};
 
 /// The files of a run directory that are evidence: its configuration, its metrics, its
-/// final summary and its learning curve.
-pub const EVIDENCE_FILES: [&str; 4] = ["config.toml", "metrics.csv", "done.json", "curve.svg"];
+/// final summary, its learning curve and the builds that trained it.
+pub const EVIDENCE_FILES: [&str; 5] = ["config.toml", "metrics.csv", "done.json", "curve.svg", "builds.csv"];
 
 /// What [`export`] copied.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
@@ -91,6 +91,7 @@ mod tests {
             write(&d.join("checkpoint.json.tmp"), "partial");
             if done {
                 write(&d.join("done.json"), "{}");
+                write(&d.join("builds.csv"), "b\n");
             }
         }
         write(&runs.join("notes/scratch.txt"), "not a run");
@@ -100,6 +101,7 @@ mod tests {
         let d0 = results.join("team_reach_1_ant/shnn/seed0");
         assert_eq!(std::fs::read_to_string(d0.join("config.toml")).unwrap(), "team_reach_1_ant/shnn/seed0");
         assert!(d0.join("done.json").is_file() && d0.join("metrics.csv").is_file());
+        assert_eq!(std::fs::read_to_string(d0.join("builds.csv")).unwrap(), "b\n");
         assert!(!results.join("team_reach_1_ant/shnn/seed1/done.json").exists());
         assert_eq!(std::fs::read_to_string(results.join("sweep.toml")).unwrap(), "seeds = [0]");
         for stray in
@@ -107,8 +109,9 @@ mod tests {
         {
             assert!(!results.join(stray).exists(), "{stray} was exported");
         }
-        // sweep.toml 11 bytes; per run config.toml 27 and metrics.csv 12; one done.json 2.
-        assert_eq!(s.bytes, 11 + 2 * (27 + 12) + 2);
+        // sweep.toml 11 bytes; per run config.toml 27 and metrics.csv 12; one done.json 2
+        // and one builds.csv 2.
+        assert_eq!(s.bytes, 11 + 2 * (27 + 12) + 2 + 2);
     }
 
     #[test]

@@ -1,10 +1,11 @@
 //! The application around the algorithm ([`crate::mappo`]): configuration presets and
 //! layers ([`presets`]), training in a run directory ([`run`], [`run_dir`], [`lock`],
-//! [`metrics`], [`progress`], [`curve`], [`plot`]), sweeps ([`sweep`], `meben ablate`),
+//! [`metrics`], [`build_info`], [`progress`], [`curve`], [`plot`]), sweeps ([`sweep`], `meben ablate`),
 //! reports ([`report`](mod@report), `meben report`), evidence export
 //! ([`export`](mod@export), `meben export`), parameter counts ([`info`], `meben info`),
 //! episode recordings ([`render`], `meben render`) and the command line ([`cli`]).
 
+pub mod build_info;
 pub mod cli;
 pub mod curve;
 pub mod export;

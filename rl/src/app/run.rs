@@ -1,13 +1,15 @@
 //! Training in a run directory ([`crate::app::run_dir`]): [`train`] drives a
 //! [`Trainer`] (module [`crate::mappo::trainer`]) and writes the resolved configuration, a
-//! metrics row per iteration, the evaluations, checkpoints, the learning curve and the
-//! summary, and resumes a run exactly from its checkpoint.
+//! metrics row per iteration, the evaluations, checkpoints, the learning curve, the
+//! summary and the build of each session (`builds.csv`, [`crate::app::build_info`]), and
+//! resumes a run exactly from its checkpoint.
 
 use std::io::Write;
 use std::time::Instant;
 
 use serde::{Deserialize, Serialize};
 
+use crate::app::build_info::record_build;
 use crate::app::lock::{RunLock, remove_stale_temporaries};
 use crate::app::metrics::{MetricsLayout, MetricsRow, eval_column};
 use crate::app::run_dir::RunDir;
@@ -177,6 +179,7 @@ fn train_in_pool(config: &TrainConfig, run: &RunDir, options: &TrainOptions) -> 
         return Ok(s);
     }
     let _ = std::fs::remove_file(run.done());
+    record_build(&run.builds(), trainer.iteration)?;
     let metrics_path = run.metrics();
     let layout = MetricsLayout::new(&config.eval_rotations);
     nn::write_atomic(&metrics_path, metrics_upto(&metrics_path, trainer.iteration, &layout).as_bytes())?;

@@ -8,13 +8,15 @@
 //! | `checkpoint.json` | every `checkpoint_every` iterations, after evaluations, at the end | everything needed to resume exactly ([`crate::mappo::checkpoint`]) |
 //! | `curve.svg` | after every evaluation | the learning curve |
 //! | `done.json` | at the end | the [`crate::RunSummary`]; a run with it is finished |
+//! | `builds.csv` | at the start and at each resume | a row per training session: the iteration it went on from, the program's version and git commit ([`crate::app::build_info`]) |
 //! | `lock` | at the start | the process id and host of the training that holds the directory's lock ([`crate::app::lock`]) |
 //!
 //! [`load_policies`] reads the trained teams of a run directory back.
 //!
 //! Every file is written atomically (a temporary file, then a rename), so an interrupted run
 //! leaves either the old or the new version; the temporary files of a killed run are removed
-//! when training resumes.
+//! when training resumes. `metrics.csv` and `builds.csv` grow by appended rows, one write a
+//! row (a resumed run rewrites `metrics.csv` atomically up to its checkpoint first).
 
 use std::path::{Path, PathBuf};
 
@@ -74,6 +76,11 @@ impl RunDir {
     /// `done.json`.
     pub fn done(&self) -> PathBuf {
         self.root.join("done.json")
+    }
+
+    /// `builds.csv`.
+    pub fn builds(&self) -> PathBuf {
+        self.root.join(crate::app::build_info::BUILDS_FILE)
     }
 
     /// The run's status from the files present.
