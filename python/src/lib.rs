@@ -23,5 +23,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     let names: Vec<&str> = envs::tasks::BUILTIN_NAMES.to_vec();
     m.add("BUILTIN_NAMES", names)?;
     m.add("OUTCOMES", ("running", "success", "win_team0", "win_team1", "draw", "time_limit", "diverged"))?;
+    m.add("__version__", rl::app::build_info::VERSION)?;
+    m.add("BUILD_COMMIT", rl::app::build_info::COMMIT)?;
     Ok(())
 }

@@ -66,6 +66,18 @@ def test_loaded_policy_acts_as_the_rust_evaluation(run, meben_cli, deterministic
     assert python == {k: rust[k] for k in python}, (python, rust)
 
 
+def test_the_run_names_the_build_that_trained_it(run, meben_cli):
+    commit = meben.BUILD_COMMIT
+    sha = commit.split("+")[0]
+    assert commit == "unknown" or (len(sha) == 40 and all(c in "0123456789abcdef" for c in sha)), commit
+    header, *rows = (run / "builds.csv").read_text().splitlines()
+    assert header == "from_iteration,version,commit,unix_time_s"
+    assert [r.split(",")[:3] for r in rows] == [["0", meben.__version__, commit]]
+    # The command line built from the same checkout names the same commit.
+    out = subprocess.run([meben_cli, "--version"], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == f"meben {meben.__version__} (commit {commit})"
+
+
 def test_policy_actions_are_deterministic_and_bounded(run):
     policy = meben.Policy.load(run)
     obs = meben.make("team_reach/1_ant", num_envs=4, seed=0).reset()

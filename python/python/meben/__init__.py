@@ -10,12 +10,17 @@ training, backed by the Rust crates of meben-rs (the extension module ``meben._c
 Adapters: ``meben.gymnasium.GymVecEnv`` (Gymnasium's vector-env API) and
 ``meben.pettingzoo.ParallelEnv`` (PettingZoo's parallel API); they import their packages
 only when used.
+
+``meben.__version__`` is the package version and ``meben.BUILD_COMMIT`` the git commit the
+Rust core was built from (``+modified`` if its sources differed, ``unknown`` outside git);
+a run directory's ``builds.csv`` names it for every training session, as ``meben --version``
+does for the command line.
 """
 
-from ._core import BUILTIN_NAMES, OUTCOMES, Policy, VecEnv
+from ._core import BUILD_COMMIT, BUILTIN_NAMES, OUTCOMES, Policy, VecEnv, __version__
 from ._train import train
 
-__all__ = ["BUILTIN_NAMES", "OUTCOMES", "Policy", "VecEnv", "make", "make_eval", "train"]
+__all__ = ["BUILD_COMMIT", "BUILTIN_NAMES", "OUTCOMES", "Policy", "VecEnv", "make", "make_eval", "train"]
 
 
 def make(name, num_envs=1, seed=0, **options):
