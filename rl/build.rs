@@ -1,7 +1,8 @@
 //! Records which source the program is built from, for the run directories' `builds.csv`
 //! (`rl::app::build_info`): `MEBEN_COMMIT` is the git commit of the checkout, with
 //! `+modified` when the program's sources (the five crates, `Cargo.toml`, `Cargo.lock`)
-//! differ from it, or `unknown` outside a git checkout or without git.
+//! differ from it (`+unknown-status` when `git status` fails), or `unknown` outside a git
+//! checkout or without git.
 //!
 //! The script reruns when the commit can have changed (git's `HEAD`, the current branch's
 //! ref, `packed-refs`) or a source of the program did; only paths that exist are watched,

@@ -13,7 +13,8 @@ use std::path::Path;
 use crate::error::{Result, RlError};
 
 /// The git commit the program was built from (`rl/build.rs`): 40 hex digits, with
-/// `+modified` if its sources differed from it, or `unknown`.
+/// `+modified` if its sources differed from it (`+unknown-status` if git could not say),
+/// or `unknown`.
 pub const COMMIT: &str = env!("MEBEN_COMMIT");
 
 /// The package version.
@@ -60,10 +61,8 @@ mod tests {
 
     #[test]
     fn each_session_adds_a_row_under_one_header() {
-        let dir = std::env::temp_dir().join(format!("meben_builds_{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        let path = dir.join(BUILDS_FILE);
-        let _ = std::fs::remove_file(&path);
+        let dir = crate::app::test_util::TempDir::new("builds");
+        let path = dir.0.join(BUILDS_FILE);
         record_build(&path, 0).unwrap();
         record_build(&path, 7).unwrap();
         let text = std::fs::read_to_string(&path).unwrap();
@@ -72,6 +71,5 @@ mod tests {
         assert_eq!(lines[0], BUILDS_HEADER);
         assert!(lines[1].starts_with(&format!("0,{VERSION},{COMMIT},")), "{}", lines[1]);
         assert!(lines[2].starts_with(&format!("7,{VERSION},{COMMIT},")), "{}", lines[2]);
-        std::fs::remove_dir_all(&dir).unwrap();
     }
 }
