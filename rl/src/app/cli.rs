@@ -453,6 +453,14 @@ fn cmd_export(a: ExportArgs) -> Result<(), String> {
     for u in &s.unfinished {
         println!("  unfinished: {}", u.display());
     }
+    for k in &s.kept {
+        println!(
+            "  kept: {} (the exported metrics.csv has {} rows; this run's {} are equal to its first ones)",
+            k.run.display(),
+            k.kept_rows,
+            k.rows
+        );
+    }
     Ok(())
 }
 

@@ -8,9 +8,18 @@
 //! behind. A run still training is exported as far as it got (it has no `done.json`);
 //! exporting again later brings its newer rows. `meben report <results>` then works from the
 //! exported files alone.
+//!
+//! Export never loses evidence. Where `<results>` already holds a run's `metrics.csv`, the
+//! two files must agree, row for row, on every column but the wall-time ones
+//! ([`crate::app::metrics::training_lines`]) as far as both go; the run's evidence is
+//! replaced only if the run being exported is at least as far along. A run re-trained from
+//! the start (its machine lost, say) therefore leaves the committed, longer record in place
+//! until it passes it, and export checks on the way that the re-run is the same computation.
+//! Any disagreement is an error, found before anything is written.
 
 use std::path::{Path, PathBuf};
 
+use crate::app::metrics::training_lines;
 use crate::app::report::find_run_dirs;
 use crate::error::{Result, RlError};
 
@@ -25,8 +34,22 @@ pub struct ExportSummary {
     pub runs: Vec<PathBuf>,
     /// Of those, the runs without `done.json` (still training or stopped early).
     pub unfinished: Vec<PathBuf>,
+    /// Runs whose evidence under the destination was left as it was, being further along
+    /// than the run (which agrees with it on every row it has).
+    pub kept: Vec<KeptRun>,
     /// Bytes written.
     pub bytes: u64,
+}
+
+/// A run whose exported evidence is further along than the run itself ([`export`]).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct KeptRun {
+    /// The run (relative to the source root).
+    pub run: PathBuf,
+    /// Rows of the run's `metrics.csv`, every one equal to the kept file's.
+    pub rows: usize,
+    /// Rows of the kept `metrics.csv`.
+    pub kept_rows: usize,
 }
 
 /// Copies the evidence of every run under `from` to `to` (module docs).
@@ -35,26 +58,77 @@ pub fn export(from: &Path, to: &Path) -> Result<ExportSummary> {
     if dirs.is_empty() {
         return Err(RlError::file(from, "holds no run directory (config.toml and metrics.csv)"));
     }
+    // Every run is checked against what `to` holds before anything is written.
+    let mut plans = Vec::with_capacity(dirs.len());
+    for dir in dirs {
+        let rel = dir.strip_prefix(from).unwrap_or(&dir).to_path_buf();
+        let target = to.join(&rel);
+        let kept = compare_with_exported(&dir, &target)?;
+        plans.push((dir, rel, target, kept));
+    }
     let mut summary = ExportSummary::default();
     let sweep = from.join("sweep.toml");
     if sweep.is_file() {
         summary.bytes += copy_file(&sweep, &to.join("sweep.toml"))?;
     }
-    for dir in dirs {
-        let rel = dir.strip_prefix(from).unwrap_or(&dir).to_path_buf();
-        let target = to.join(&rel);
-        for name in EVIDENCE_FILES {
-            let src = dir.join(name);
-            if src.is_file() {
-                summary.bytes += copy_file(&src, &target.join(name))?;
-            }
-        }
+    for (dir, rel, target, kept) in plans {
         if !dir.join("done.json").is_file() {
             summary.unfinished.push(rel.clone());
+        }
+        if let Some((rows, kept_rows)) = kept {
+            summary.kept.push(KeptRun { run: rel.clone(), rows, kept_rows });
+        } else {
+            for name in EVIDENCE_FILES {
+                let src = dir.join(name);
+                if src.is_file() {
+                    summary.bytes += copy_file(&src, &target.join(name))?;
+                }
+            }
         }
         summary.runs.push(rel);
     }
     Ok(summary)
+}
+
+/// Compares run directory `run` with its exported evidence `exported`: `None` if there is
+/// none or the run is at least as far along (export copies it), `Some((rows, kept_rows))`
+/// if the exported file has more rows and the run's are all equal to its first ones (export
+/// keeps it), an error naming both files and the first differing row otherwise.
+fn compare_with_exported(run: &Path, exported: &Path) -> Result<Option<(usize, usize)>> {
+    let (ours, theirs) = (run.join("metrics.csv"), exported.join("metrics.csv"));
+    if !theirs.is_file() {
+        return Ok(None);
+    }
+    let lines = |path: &Path| -> Result<Vec<String>> {
+        let text = std::fs::read_to_string(path).map_err(|e| RlError::file(path, format!("cannot read: {e}")))?;
+        training_lines(&text).map_err(|e| RlError::file(path, e))
+    };
+    let (a, b) = (lines(&ours)?, lines(&theirs)?);
+    if a[0] != b[0] {
+        return Err(RlError::file(
+            &theirs,
+            format!(
+                "its columns differ from those of {}: not the same run; move it aside to export the run",
+                ours.display()
+            ),
+        ));
+    }
+    if let Some(i) = (1..a.len().min(b.len())).find(|&i| a[i] != b[i]) {
+        return Err(RlError::file(
+            &theirs,
+            format!(
+                "data row {i} differs from that of {}, wall-time columns aside ({:?} against {:?}): the exported run \
+                 and this one are not the same computation (another configuration or build); move it aside to \
+                 export the run",
+                ours.display(),
+                b[i],
+                a[i]
+            ),
+        ));
+    }
+    let (rows, kept_rows) = (a.len() - 1, b.len() - 1);
+    let exported_finished = exported.join("done.json").is_file() && !run.join("done.json").is_file();
+    Ok((kept_rows > rows || (kept_rows == rows && exported_finished)).then_some((rows, kept_rows)))
 }
 
 /// Copies `src` to `dst` atomically (creating `dst`'s directory); returns the bytes copied.
@@ -112,6 +186,68 @@ mod tests {
         // sweep.toml 11 bytes; per run config.toml 27 and metrics.csv 12; one done.json 2
         // and one builds.csv 2.
         assert_eq!(s.bytes, 11 + 2 * (27 + 12) + 2 + 2);
+    }
+
+    const HEADER: &str = "iteration,env_steps,wall_s,steps_per_s,loss";
+
+    /// A metrics file of `n` rows of one computation, timed by `wall`.
+    fn metrics(n: usize, wall: f64) -> String {
+        let rows: Vec<String> =
+            (1..=n).map(|i| format!("{i},{},{},{},0.{i}", 10 * i, wall * i as f64, 10.0 / wall)).collect();
+        format!("{HEADER}\n{}\n", rows.join("\n"))
+    }
+
+    /// A run directory under `root` with a config and the given metrics.
+    fn run_dir(root: &Path, run: &str, metrics_text: &str) -> PathBuf {
+        let d = root.join(run);
+        write(&d.join("config.toml"), "seed = 0");
+        write(&d.join("metrics.csv"), metrics_text);
+        d
+    }
+
+    #[test]
+    fn a_rerun_behind_the_exported_evidence_leaves_it_and_one_ahead_replaces_it() {
+        let tmp = TempDir::new("export-rerun");
+        let (runs, results) = (tmp.0.join("runs"), tmp.0.join("results"));
+        // The exported run got to 5 rows and has a build record; its re-run (other
+        // machine, other wall times) is at 2.
+        let exported = run_dir(&results, "e/shnn/seed0", &metrics(5, 3.0));
+        write(&exported.join("builds.csv"), "old build\n");
+        let rerun = run_dir(&runs, "e/shnn/seed0", &metrics(2, 7.5));
+        write(&rerun.join("builds.csv"), "new build\n");
+        let s = export(&runs, &results).unwrap();
+        assert_eq!(s.kept, [KeptRun { run: PathBuf::from("e/shnn/seed0"), rows: 2, kept_rows: 5 }]);
+        assert_eq!((s.runs.len(), s.bytes), (1, 0));
+        assert_eq!(std::fs::read_to_string(exported.join("metrics.csv")).unwrap(), metrics(5, 3.0));
+        assert_eq!(std::fs::read_to_string(exported.join("builds.csv")).unwrap(), "old build\n");
+        // Past the exported rows, the run's evidence replaces it.
+        write(&rerun.join("metrics.csv"), &metrics(6, 7.5));
+        let s = export(&runs, &results).unwrap();
+        assert!(s.kept.is_empty());
+        assert_eq!(std::fs::read_to_string(exported.join("metrics.csv")).unwrap(), metrics(6, 7.5));
+        assert_eq!(std::fs::read_to_string(exported.join("builds.csv")).unwrap(), "new build\n");
+        // A finished export is kept against an unfinished run of as many rows.
+        write(&exported.join("done.json"), "{}");
+        assert_eq!(export(&runs, &results).unwrap().kept.len(), 1);
+    }
+
+    #[test]
+    fn a_rerun_that_disagrees_with_the_exported_evidence_is_an_error_and_nothing_is_written() {
+        let tmp = TempDir::new("export-disagree");
+        let (runs, results) = (tmp.0.join("runs"), tmp.0.join("results"));
+        run_dir(&results, "e/shnn/seed0", &metrics(4, 3.0));
+        run_dir(&runs, "e/mlp/seed0", &metrics(3, 1.0));
+        run_dir(&runs, "e/shnn/seed0", &metrics(3, 1.0).replace("3,30,3,10,0.3", "3,30,3,10,0.30000001"));
+        let msg = export(&runs, &results).unwrap_err().to_string();
+        let exported = results.join("e/shnn/seed0/metrics.csv");
+        assert!(msg.contains(&exported.display().to_string()) && msg.contains("data row 3"), "{msg}");
+        assert!(msg.contains("0.30000001") && msg.contains("not the same computation"), "{msg}");
+        assert!(!results.join("e/mlp").exists(), "a run was exported before the check failed");
+        // Other columns are another run.
+        run_dir(&runs, "e/shnn/seed0", &metrics(3, 1.0).replace("loss", "entropy"));
+        let msg = export(&runs, &results).unwrap_err().to_string();
+        assert!(msg.contains(&exported.display().to_string()) && msg.contains("columns differ"), "{msg}");
+        assert_eq!(std::fs::read_to_string(&exported).unwrap(), metrics(4, 3.0));
     }
 
     #[test]

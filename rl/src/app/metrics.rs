@@ -191,6 +191,31 @@ pub fn parse_csv(text: &str) -> Result<Vec<BTreeMap<String, f64>>, String> {
     Ok(rows)
 }
 
+/// The columns of a metrics file that measure time rather than training: two runs of one
+/// configuration, on any machine and thread count, agree bit for bit on every other column.
+pub const WALL_TIME_COLUMNS: [&str; 2] = ["wall_s", "steps_per_s"];
+
+/// The lines of a metrics CSV (header first, blank lines dropped) with the
+/// [`WALL_TIME_COLUMNS`] cut out: the text two runs of one configuration must share. The
+/// cells stay as written (each float's shortest round-trip text), so equal text is equal
+/// bits.
+pub fn training_lines(text: &str) -> Result<Vec<String>, String> {
+    let mut lines = text.lines().filter(|l| !l.trim().is_empty());
+    let header: Vec<&str> = lines.next().ok_or("empty file (no header line)")?.split(',').collect();
+    let keep: Vec<bool> = header.iter().map(|c| !WALL_TIME_COLUMNS.contains(c)).collect();
+    let cut =
+        |cells: Vec<&str>| cells.iter().zip(&keep).filter(|(_, k)| **k).map(|(c, _)| *c).collect::<Vec<_>>().join(",");
+    let mut out = vec![cut(header.clone())];
+    for (i, line) in lines.enumerate() {
+        let cells: Vec<&str> = line.split(',').collect();
+        if cells.len() != header.len() {
+            return Err(format!("line {}: {} cells, the header has {}", i + 2, cells.len(), header.len()));
+        }
+        out.push(cut(cells));
+    }
+    Ok(out)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -214,6 +239,21 @@ mod tests {
         assert_eq!(rot, [0.0, -45.5, 180.0]);
         // Columns of other bases are not rotations of this one.
         assert_eq!(rotations_of("eval_win_rate_t0", ["eval_win_rate_t0_rot90", "eval_win_rate_t1_rot90"]), [90.0]);
+    }
+
+    #[test]
+    fn training_lines_cut_the_wall_time_columns_and_keep_the_text() {
+        let a =
+            "iteration,env_steps,wall_s,steps_per_s,loss\n1,10,3.5,2.857,0.1\n\n2,20,7.25,2.75,0.30000000000000004\n";
+        let b = "iteration,env_steps,wall_s,steps_per_s,loss\n1,10,9,1.1,0.1\n2,20,18,1.1,0.30000000000000004\n";
+        let lines = training_lines(a).unwrap();
+        assert_eq!(lines, ["iteration,env_steps,loss", "1,10,0.1", "2,20,0.30000000000000004"]);
+        assert_eq!(lines, training_lines(b).unwrap());
+        // One bit of difference in a training column is a difference.
+        assert_ne!(lines, training_lines(&b.replace("0.30000000000000004", "0.3")).unwrap());
+        let msg = training_lines("iteration,wall_s\n1\n").unwrap_err();
+        assert!(msg.contains("line 2") && msg.contains("1 cells"), "{msg}");
+        assert!(training_lines("").is_err());
     }
 
     #[test]
