@@ -24,6 +24,9 @@ if ! command -v chromium >/dev/null 2>&1 && ! command -v chromium-browser >/dev/
     fi
 fi
 export MEBEN_REQUIRE_BROWSER=1
+# The Python tests' optional dependencies (gymnasium, pettingzoo), installed above, are
+# required too: a missing one fails its tests instead of skipping them.
+export MEBEN_REQUIRE_TEST_DEPS=1
 cargo test --workspace --release
 # The Rust programs the Python tests compare with (already built by cargo test; cheap).
 cargo build --release -p rl --bin meben -p envs --example replay_actions
