@@ -1,12 +1,13 @@
 //! The Rust core of the `meben` Python package (`meben._core`): batched MeBen environments
-//! ([`env`](mod@env)), trained policies ([`policy`]) and training ([`train`](mod@train)) over the
-//! `envs` and `rl` crates, with numpy arrays across the boundary ([`arrays`]) and Rust
-//! errors as Python exceptions ([`errors`]). The plain-Python parts (`make`, the Gymnasium
+//! ([`env`](mod@env)), trained policies ([`policy`]), training ([`train`](mod@train)) and run
+//! metrics ([`metrics`](mod@metrics)) over the `envs` and `rl` crates, with numpy arrays
+//! across the boundary ([`arrays`]) and Rust errors as Python exceptions ([`errors`]). The plain-Python parts (`make`, the Gymnasium
 //! and PettingZoo adapters) are in `python/python/meben/`.
 
 pub mod arrays;
 pub mod env;
 pub mod errors;
+pub mod metrics;
 pub mod policy;
 pub mod recorder;
 pub mod spec;
@@ -20,6 +21,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<env::PyVecEnv>()?;
     m.add_class::<policy::PyPolicy>()?;
     m.add_function(wrap_pyfunction!(train::train, m)?)?;
+    m.add_function(wrap_pyfunction!(metrics::read_metrics, m)?)?;
     let names: Vec<&str> = envs::tasks::BUILTIN_NAMES.to_vec();
     m.add("BUILTIN_NAMES", names)?;
     m.add("OUTCOMES", ("running", "success", "win_team0", "win_team1", "draw", "time_limit", "diverged"))?;

@@ -8,7 +8,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use rl::actor::{ActMode, Actor, JointAction};
 use rl::evaluate::evaluation_actors;
-use rl::{RunDir, Team, TrainConfig};
+use rl::{EvalRequest, RunDir, Team, TrainConfig};
 
 use crate::arrays::{array, read_f32};
 use crate::errors::{bad_argument, rl_error};
@@ -93,6 +93,41 @@ impl PyPolicy {
         .map_err(rl_error)?;
         let actions = joint.actions;
         array(py, &actions, &[b, self.n_actions])
+    }
+
+    /// Plays `episodes` evaluation episodes of the run's teams, one per environment, each to
+    /// its end, exactly as `meben eval` does with the same options, and returns its summary
+    /// (the dict `meben eval` writes to `eval.json`: `success_rate`, `win_rate`,
+    /// `draw_rate`, `mean_return`, `mean_length`, ...). `deterministic=None` takes the run's
+    /// `eval_deterministic`; `fixed`, a `rotation_deg` or a `translation` `(x, y)` plays
+    /// the fixed start of the run's seed, moved (the paper's equivariance test). The
+    /// policy's own noise streams (`act`) are untouched. The GIL is released while playing.
+    #[pyo3(signature = (episodes=1024, seed=rl::evaluate::DEFAULT_EVAL_SEED, deterministic=None, fixed=false, rotation_deg=None, translation=None))]
+    #[allow(clippy::too_many_arguments)]
+    fn evaluate<'py>(
+        &self,
+        py: Python<'py>,
+        episodes: usize,
+        seed: u64,
+        deterministic: Option<bool>,
+        fixed: bool,
+        rotation_deg: Option<f64>,
+        translation: Option<(f64, f64)>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let request = EvalRequest {
+            episodes,
+            seed,
+            deterministic,
+            fixed,
+            rotation_deg,
+            translation: translation.map(|(x, y)| [x, y]),
+        };
+        let options = request.options(&self.config);
+        let (env, teams) = (&self.config.env, &self.teams);
+        let summary = py.detach(|| rl::evaluate(env, teams, &options)).map_err(rl_error)?;
+        let text =
+            serde_json::to_string(&summary).map_err(|e| pyo3::exceptions::PyRuntimeError::new_err(e.to_string()))?;
+        py.import("json")?.call_method1("loads", (text,))
     }
 
     /// The run's environment name.

@@ -98,3 +98,55 @@ def test_bad_runs_and_configurations(tmp_path):
         meben.train(out=tmp_path / "x", num_envz=8)
     with pytest.raises(ValueError, match=r"steps = nan: must be finite"):
         meben.train(out=tmp_path / "x", steps=float("nan"))
+
+
+@pytest.mark.parametrize(
+    "flags,kwargs,file",
+    [
+        (["--mean"], dict(deterministic=True), "eval.json"),
+        (["--stochastic"], dict(deterministic=False), "eval.json"),
+        (["--rotate", "90"], dict(rotation_deg=90.0), "eval_rotate90.json"),
+        (["--fixed"], dict(fixed=True), "eval_fixed.json"),
+    ],
+)
+def test_policy_evaluate_returns_what_meben_eval_writes(run, meben_cli, flags, kwargs, file):
+    episodes, seed = 3, 7
+    subprocess.run(
+        [meben_cli, "eval", "--run", run, "--episodes", str(episodes), "--seed", str(seed), *flags],
+        check=True,
+        capture_output=True,
+    )
+    rust = json.loads((run / file).read_text())
+    python = meben.Policy.load(run).evaluate(episodes=episodes, seed=seed, **kwargs)
+    assert python == rust
+    assert python["episodes"] == episodes and python["rotation_deg"] == kwargs.get("rotation_deg", 0.0)
+
+
+def test_policy_evaluate_rejects_bad_requests_by_name(run):
+    policy = meben.Policy.load(run)
+    with pytest.raises(ValueError, match="episodes"):
+        policy.evaluate(episodes=0)
+    with pytest.raises(ValueError, match="finite"):
+        policy.evaluate(episodes=1, rotation_deg=float("nan"))
+    with pytest.raises(ValueError, match="finite"):
+        policy.evaluate(episodes=1, translation=(0.0, float("inf")))
+
+
+def test_read_metrics_gives_the_runs_columns(run, tmp_path):
+    columns = meben.read_metrics(run)
+    header, *rows = (run / "metrics.csv").read_text().splitlines()
+    assert list(columns) == header.split(",")
+    assert all(len(v) == len(rows) and v.dtype == np.float64 for v in columns.values())
+    for i, row in enumerate(rows):
+        for name, cell in zip(header.split(","), row.split(",")):
+            value = columns[name][i]
+            assert (np.isnan(value) and cell == "") or value == float(cell), (name, i, cell, value)
+    # The one evaluation is at the last iteration; the rows before it have none.
+    assert not np.isnan(columns["eval_success_rate"][-1]) and np.isnan(columns["eval_success_rate"][:-1]).all()
+    assert meben.read_metrics(run / "metrics.csv").keys() == columns.keys()
+    bad = tmp_path / "bad.csv"
+    bad.write_text("iteration,loss\n1,0.5\n2,oops\n")
+    with pytest.raises(ValueError, match=r"bad\.csv: line 3: column loss"):
+        meben.read_metrics(bad)
+    with pytest.raises(OSError, match="missing"):
+        meben.read_metrics(tmp_path / "missing")

@@ -29,7 +29,7 @@ pub use app::sweep::{RunSelection, Shard, Sweep, SweepOutcome, SweepRun, run_swe
 pub use app::{lock::RunLock, plot::LinePlot};
 pub use error::{Result, RlError};
 pub use mappo::config::{EntropyKind, NormStart, ObsNormKind, TrainConfig, TrainStarts};
-pub use mappo::evaluate::{EvalOptions, EvalSummary, evaluate};
+pub use mappo::evaluate::{EvalOptions, EvalRequest, EvalSummary, evaluate};
 pub use mappo::team::Team;
 pub use mappo::trainer::Trainer;
 

@@ -7,6 +7,10 @@ training, backed by the Rust crates of meben-rs (the extension module ``meben._c
 >>> actions = np.zeros((env.num_envs, env.num_actions), np.float32)
 >>> obs, reward, terminated, truncated, info = env.step(actions)
 
+A trained run: ``meben.Policy.load(run)`` acts (``policy.act(obs)``) and evaluates
+(``policy.evaluate(episodes=1024, rotation_deg=180)``: the summary ``meben eval`` writes);
+``meben.read_metrics(run)`` gives its ``metrics.csv`` as float64 numpy columns.
+
 Adapters: ``meben.gymnasium.GymVecEnv`` (Gymnasium's vector-env API) and
 ``meben.pettingzoo.ParallelEnv`` (PettingZoo's parallel API); they import their packages
 only when used.
@@ -17,10 +21,20 @@ a run directory's ``builds.csv`` names it for every training session, as ``meben
 does for the command line.
 """
 
-from ._core import BUILD_COMMIT, BUILTIN_NAMES, OUTCOMES, Policy, VecEnv, __version__
+from ._core import BUILD_COMMIT, BUILTIN_NAMES, OUTCOMES, Policy, VecEnv, __version__, read_metrics
 from ._train import train
 
-__all__ = ["BUILD_COMMIT", "BUILTIN_NAMES", "OUTCOMES", "Policy", "VecEnv", "make", "make_eval", "train"]
+__all__ = [
+    "BUILD_COMMIT",
+    "BUILTIN_NAMES",
+    "OUTCOMES",
+    "Policy",
+    "VecEnv",
+    "make",
+    "make_eval",
+    "read_metrics",
+    "train",
+]
 
 
 def make(name, num_envs=1, seed=0, **options):

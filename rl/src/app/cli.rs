@@ -15,7 +15,7 @@ use crate::app::run::TrainOptions;
 use crate::app::run_dir::RunDir;
 use crate::error::RlError;
 use crate::mappo::config::TrainConfig;
-use crate::mappo::evaluate::EvalOptions;
+use crate::mappo::evaluate::EvalRequest;
 use clap::{Args, Parser, Subcommand};
 
 #[derive(Parser)]
@@ -152,7 +152,7 @@ struct EvalArgs {
     #[arg(long, value_name = "X,Y", value_parser = parse_translation, allow_hyphen_values = true)]
     translate: Option<[f64; 2]>,
     /// Seed of the evaluation's starts and noise.
-    #[arg(long, default_value_t = 12345)]
+    #[arg(long, default_value_t = crate::mappo::evaluate::DEFAULT_EVAL_SEED)]
     seed: u64,
 }
 
@@ -368,21 +368,22 @@ fn cmd_eval(a: EvalArgs) -> Result<(), String> {
     {
         return Err(format!("--rotate {deg}: the angle must be finite"));
     }
-    let moved = a.rotate.is_some() || a.translate.is_some();
-    let mode =
-        if a.fixed || moved { envs::tasks::StartMode::fixed(config.seed) } else { envs::tasks::StartMode::Random };
     let deterministic = if a.stochastic {
-        false
+        Some(false)
     } else if a.mean {
-        true
+        Some(true)
     } else {
-        config.eval_deterministic
+        None
     };
-    let options = EvalOptions {
-        rotation_deg: a.rotate.unwrap_or(0.0),
-        translation: a.translate.unwrap_or([0.0, 0.0]),
-        ..EvalOptions::new(a.episodes, deterministic, a.seed, mode)
-    };
+    let options = EvalRequest {
+        episodes: a.episodes,
+        seed: a.seed,
+        deterministic,
+        fixed: a.fixed,
+        rotation_deg: a.rotate,
+        translation: a.translate,
+    }
+    .options(&config);
     let e = crate::mappo::evaluate::evaluate(&config.env, &teams, &options).map_err(|e| e.to_string())?;
     print_eval(config.is_sumo(), &e);
     let name = eval_file_name(a.rotate, a.translate, a.fixed);

@@ -191,6 +191,17 @@ pub fn parse_csv(text: &str) -> Result<Vec<BTreeMap<String, f64>>, String> {
     Ok(rows)
 }
 
+/// A metrics CSV as columns in file order, `(name, one value per row)`, an empty cell read
+/// as NaN (a value that does not apply or was not measured in that row); errors as
+/// [`parse_csv`].
+pub fn parse_columns(text: &str) -> Result<Vec<(String, Vec<f64>)>, String> {
+    let rows = parse_csv(text)?;
+    let header = text.lines().next().unwrap_or_default().split(',');
+    Ok(header
+        .map(|name| (name.to_string(), rows.iter().map(|r| r.get(name).copied().unwrap_or(f64::NAN)).collect()))
+        .collect())
+}
+
 /// The columns of a metrics file that measure time rather than training: two runs of one
 /// configuration, on any machine and thread count, agree bit for bit on every other column.
 pub const WALL_TIME_COLUMNS: [&str; 2] = ["wall_s", "steps_per_s"];
@@ -239,6 +250,17 @@ mod tests {
         assert_eq!(rot, [0.0, -45.5, 180.0]);
         // Columns of other bases are not rotations of this one.
         assert_eq!(rotations_of("eval_win_rate_t0", ["eval_win_rate_t0_rot90", "eval_win_rate_t1_rot90"]), [90.0]);
+    }
+
+    #[test]
+    fn columns_keep_the_file_order_and_read_empty_cells_as_nan() {
+        let cols = parse_columns("iteration,eval_success_rate,env_steps\n1,,10\n2,0.5,20\n").unwrap();
+        let names: Vec<&str> = cols.iter().map(|(n, _)| n.as_str()).collect();
+        assert_eq!(names, ["iteration", "eval_success_rate", "env_steps"]);
+        assert_eq!(cols[0].1, [1.0, 2.0]);
+        assert!(cols[1].1[0].is_nan() && cols[1].1[1] == 0.5);
+        let msg = parse_columns("a,b\n1,x\n").unwrap_err();
+        assert!(msg.contains("line 2") && msg.contains("column b"), "{msg}");
     }
 
     #[test]

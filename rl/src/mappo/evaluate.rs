@@ -19,6 +19,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::error::Result;
 use crate::mappo::actor::{ActMode, Actor, JointAction};
+use crate::mappo::config::TrainConfig;
 use crate::mappo::seeding::stream;
 use crate::mappo::team::Team;
 
@@ -76,6 +77,45 @@ impl EvalOptions {
     /// The motion applied to every start.
     pub fn motion(&self) -> SceneMotion {
         SceneMotion::about_origin(self.rotation_deg, self.translation)
+    }
+}
+
+/// The seed of an evaluation when none is given (`meben eval --seed`, `Policy.evaluate`).
+pub const DEFAULT_EVAL_SEED: u64 = 12345;
+
+/// An evaluation of a trained run as `meben eval` and Python's `Policy.evaluate` ask for
+/// it, the run's own settings filling what the request leaves open ([`EvalRequest::options`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct EvalRequest {
+    /// Episodes (environments).
+    pub episodes: usize,
+    /// Seed of the starts and the action noise.
+    pub seed: u64,
+    /// Mean actions (`Some(true)`) or samples (`Some(false)`); `None`: the run's
+    /// `eval_deterministic`.
+    pub deterministic: Option<bool>,
+    /// Every start from the fixed start of the run's seed (implied by a rotation or a
+    /// translation).
+    pub fixed: bool,
+    /// Every start rotated by this many degrees about the vertical through the origin: the
+    /// paper's equivariance test.
+    pub rotation_deg: Option<f64>,
+    /// Every start translated horizontally by this (x, y) in m after the rotation.
+    pub translation: Option<[f64; 2]>,
+}
+
+impl EvalRequest {
+    /// The request made concrete for a run trained with `config`: a moved evaluation (a
+    /// rotation or a translation) or a `fixed` one plays the fixed start of the run's seed,
+    /// any other the random starts; the action mode is the request's or the run's.
+    pub fn options(&self, config: &TrainConfig) -> EvalOptions {
+        let moved = self.rotation_deg.is_some() || self.translation.is_some();
+        let mode = if self.fixed || moved { StartMode::fixed(config.seed) } else { StartMode::Random };
+        EvalOptions {
+            rotation_deg: self.rotation_deg.unwrap_or(0.0),
+            translation: self.translation.unwrap_or([0.0, 0.0]),
+            ..EvalOptions::new(self.episodes, self.deterministic.unwrap_or(config.eval_deterministic), self.seed, mode)
+        }
     }
 }
 
@@ -198,5 +238,40 @@ pub fn summarise(outcome: &[Outcome], returns: &[f64], length: &[u32], teams: us
         mean_return: (0..teams).map(|k| (0..n).map(|e| returns[e * teams + k]).sum::<f64>() / n as f64).collect(),
         mean_length: length.iter().map(|&l| l as f64).sum::<f64>() / n as f64,
         ..Default::default()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_request_takes_the_runs_settings_where_it_leaves_them_open() {
+        let mut config = TrainConfig::resolve(None, None, &[]).unwrap();
+        config.seed = 9;
+        let plain = EvalRequest {
+            episodes: 4,
+            seed: 1,
+            deterministic: None,
+            fixed: false,
+            rotation_deg: None,
+            translation: None,
+        };
+        for run_mean in [true, false] {
+            config.eval_deterministic = run_mean;
+            let o = plain.options(&config);
+            assert_eq!((o.episodes, o.seed, o.deterministic, o.mode), (4, 1, run_mean, StartMode::Random));
+            assert_eq!((o.rotation_deg, o.translation), (0.0, [0.0, 0.0]));
+            let o = EvalRequest { deterministic: Some(!run_mean), ..plain }.options(&config);
+            assert_eq!(o.deterministic, !run_mean);
+        }
+        // A moved or fixed evaluation plays the fixed start of the run's seed (not the
+        // evaluation's), moved.
+        let fixed = StartMode::fixed(9);
+        assert_eq!(EvalRequest { fixed: true, ..plain }.options(&config).mode, fixed);
+        let o = EvalRequest { rotation_deg: Some(180.0), ..plain }.options(&config);
+        assert_eq!((o.mode, o.rotation_deg), (fixed, 180.0));
+        let o = EvalRequest { translation: Some([2.5, -1.0]), ..plain }.options(&config);
+        assert_eq!((o.mode, o.rotation_deg, o.translation), (fixed, 0.0, [2.5, -1.0]));
     }
 }
