@@ -7,6 +7,7 @@
 #   nice -n 19 rl/sweeps/repro_run.sh A &  nice -n 19 rl/sweeps/repro_run.sh B &    # the two workers
 #   rl/sweeps/repro_run.sh export                             # evidence -> results/, reports
 #   rl/sweeps/repro_run.sh restore                            # finished runs <- results/ (A and B do it first)
+#   rl/sweeps/repro_run.sh status                             # every run's progress and hours left
 #
 # OUT (default /tmp/runs/repro) holds the runs; BIN (default target/release/meben) is the
 # program (build it first: cargo build --release). Start the workers under `nice` as shown,
@@ -81,6 +82,13 @@ case "${1:-}" in
   restore)
     restore_finished
     ;;
+  status)
+    for exp in $EXPERIMENTS; do
+      [ -d "$OUT/$exp" ] || continue
+      echo "== $exp"
+      "$BIN" status "$OUT/$exp"
+    done
+    ;;
   export)
     for exp in $EXPERIMENTS; do
       [ -d "$OUT/$exp" ] || continue
@@ -90,7 +98,7 @@ case "${1:-}" in
     du -sh "$ROOT/results"
     ;;
   *)
-    echo "usage: $0 A | B | export | restore" >&2
+    echo "usage: $0 A | B | export | restore | status" >&2
     exit 2
     ;;
 esac

@@ -1,4 +1,4 @@
-//! The `meben` program end to end on a tiny budget: train -> eval -> report -> render produce
+//! The `meben` program end to end on a tiny budget: train -> eval -> status -> report -> render produce
 //! their files; bad configurations, names and files give clear errors and a non-zero exit.
 
 mod common;
@@ -63,6 +63,12 @@ fn train_eval_report_render_produce_their_files() {
     assert!(ok && stdout.contains("actions mean"), "{stdout}");
     assert!(run.join("eval_translate0_3.json").is_file());
 
+    let (ok, stdout, stderr) = meben(&["status", root.to_str().unwrap()]);
+    assert!(ok, "status failed: {stderr}");
+    let line = stdout.lines().find(|l| l.starts_with("run0 ")).unwrap_or_else(|| panic!("{stdout}"));
+    assert!(line.contains("finished") && line.contains("success"), "{stdout}");
+    assert!(stdout.contains("1 runs, 1 finished"), "{stdout}");
+
     let (ok, stdout, stderr) = meben(&["report", root.to_str().unwrap()]);
     assert!(ok, "report failed: {stderr}");
     assert!(stdout.contains("mlp_hn"), "{stdout}");
@@ -120,6 +126,7 @@ fn bad_input_gives_clear_errors() {
     fails_with(&["train", "--config", "/no/such/file.toml"], &["/no/such/file.toml", "cannot read"]);
     fails_with(&["eval", "--run", dir.join("nothing").to_str().unwrap()], &["config.toml", "not a run directory"]);
     fails_with(&["report", dir.join("nothing").to_str().unwrap()], &["nothing"]);
+    fails_with(&["status", dir.join("nothing").to_str().unwrap()], &["nothing", "not a directory"]);
     let nowhere = dir.join("nothing");
     let nowhere = nowhere.to_str().unwrap();
     for bad in ["1,x", "1", "1,2,3", "inf,0", "NaN,1"] {

@@ -40,6 +40,9 @@ enum Command {
     /// Tables (Markdown, CSV) and learning curves of a sweep or of runs under a directory
     /// (also redraws each run's curve.svg).
     Report(ReportArgs),
+    /// How far every run under a directory got: state (training now, stopped, finished),
+    /// env steps of the budget, last evaluation, training speed and hours left.
+    Status(StatusArgs),
     /// Copy the evidence of the runs under a directory (config.toml, metrics.csv, done.json,
     /// curve.svg, builds.csv, the sweep file) to another, without checkpoints: for
     /// committing results.
@@ -205,6 +208,12 @@ struct ExportArgs {
 }
 
 #[derive(Args)]
+struct StatusArgs {
+    /// Directory holding run directories (a sweep's --out), or one run directory.
+    root: PathBuf,
+}
+
+#[derive(Args)]
 struct ReportArgs {
     /// Directory holding run directories (a sweep's --out).
     root: PathBuf,
@@ -239,6 +248,7 @@ pub fn main() -> ExitCode {
         Some(Command::Ablate(a)) => cmd_ablate(a),
         Some(Command::Report(a)) => cmd_report(a),
         Some(Command::Export(a)) => cmd_export(a),
+        Some(Command::Status(a)) => cmd_status(a),
         Some(Command::Render(a)) => cmd_render(a),
         Some(Command::Sim(a)) => envs::rollout_tool::run(&a).map_err(|e| e.to_string()),
         Some(Command::Info(a)) => cmd_info(a),
@@ -461,6 +471,14 @@ fn cmd_export(a: ExportArgs) -> Result<(), String> {
             k.kept_rows,
             k.rows
         );
+    }
+    Ok(())
+}
+
+fn cmd_status(a: StatusArgs) -> Result<(), String> {
+    let runs = crate::app::status::status(&a.root).map_err(|e| e.to_string())?;
+    for line in crate::app::status::status_lines(&runs) {
+        println!("{line}");
     }
     Ok(())
 }

@@ -38,10 +38,7 @@ impl RunLock {
         match file.try_lock() {
             Ok(()) => {}
             Err(TryLockError::WouldBlock) => {
-                let mut holder = String::new();
-                let _ = file.read_to_string(&mut holder);
-                let holder = holder.trim();
-                let holder = if holder.is_empty() { "another process".to_string() } else { holder.to_string() };
+                let holder = read_holder(&mut file);
                 return Err(RlError::file(
                     root,
                     format!(
@@ -63,6 +60,35 @@ impl RunLock {
     /// The lock file.
     pub fn path(&self) -> &Path {
         &self.path
+    }
+}
+
+/// The holder a lock file names (`another process` if it names none).
+fn read_holder(file: &mut File) -> String {
+    let mut holder = String::new();
+    let _ = file.read_to_string(&mut holder);
+    let holder = holder.trim();
+    if holder.is_empty() { "another process".to_string() } else { holder.to_string() }
+}
+
+/// The holder of the run directory `root`'s lock as its lock file names it, if a process
+/// holds the lock now; `None` if none does or there is no lock file. It writes nothing: it
+/// tries a shared lock on the file and, given it, lets it go at once (a training that
+/// starts in that instant is refused as by any holder).
+pub fn holder(root: &Path) -> Result<Option<String>> {
+    let path = root.join(LOCK_FILE);
+    let mut file = match File::open(&path) {
+        Ok(f) => f,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
+        Err(e) => return Err(RlError::file(&path, format!("cannot open the lock file: {e}"))),
+    };
+    match file.try_lock_shared() {
+        Ok(()) => {
+            let _ = file.unlock();
+            Ok(None)
+        }
+        Err(TryLockError::WouldBlock) => Ok(Some(read_holder(&mut file))),
+        Err(TryLockError::Error(e)) => Err(RlError::file(&path, format!("cannot lock the lock file: {e}"))),
     }
 }
 

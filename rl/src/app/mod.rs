@@ -2,7 +2,8 @@
 //! layers ([`presets`]), training in a run directory ([`run`], [`run_dir`], [`lock`],
 //! [`metrics`], [`build_info`], [`progress`], [`curve`], [`plot`]), sweeps ([`sweep`], `meben ablate`),
 //! reports ([`report`](mod@report), `meben report`), evidence export
-//! ([`export`](mod@export), `meben export`), parameter counts ([`info`], `meben info`),
+//! ([`export`](mod@export), `meben export`), the progress of runs ([`status`](mod@status),
+//! `meben status`), parameter counts ([`info`], `meben info`),
 //! episode recordings ([`render`], `meben render`) and the command line ([`cli`]).
 
 pub mod build_info;
@@ -19,6 +20,7 @@ pub mod render;
 pub mod report;
 pub mod run;
 pub mod run_dir;
+pub mod status;
 pub mod sweep;
 #[cfg(test)]
 mod test_util;

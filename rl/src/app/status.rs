@@ -1,0 +1,270 @@
+//! `meben status <runs>`: how far every run under a directory got, whether a process is
+//! training it now, and how long its training iterations still need at the speed it has run
+//! at, for watching a sweep and planning machine time.
+//!
+//! Per run ([`RunProgress`]): its state (finished, training now, stopped, or not started),
+//! the last row's iteration, env steps and `wall_s`, the budget (`config.iterations()`
+//! iterations of `config.steps_per_iteration()` env steps), the last evaluation of its
+//! headline metric (Team Reach `eval_success_rate`, Team Sumo `eval_win_rate_t0`), its speed
+//! (the median `steps_per_s` of the rows without an evaluation: the speed of training
+//! iterations alone, as `docs/RESULTS.md` quotes it) and the hours its remaining iterations
+//! need at that speed. Evaluations come on top of those hours.
+
+use std::path::{Path, PathBuf};
+
+use crate::app::lock::holder;
+use crate::app::metrics::parse_csv;
+use crate::app::report::find_run_dirs;
+use crate::app::run_dir::RunDir;
+use crate::error::{Result, RlError};
+use crate::mappo::config::TrainConfig;
+
+/// Where a run stands.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum RunState {
+    /// `done.json` exists.
+    Finished,
+    /// A process holds the run's lock (its holder as the lock file names it).
+    Training(String),
+    /// Rows or a checkpoint, no `done.json`, nobody training it: the next training resumes.
+    Stopped,
+    /// No rows yet and nobody training it.
+    NotStarted,
+}
+
+/// One run's progress (module docs).
+#[derive(Clone, Debug, PartialEq)]
+pub struct RunProgress {
+    /// The run directory, relative to the root given (the root itself if it is the run).
+    pub run: PathBuf,
+    /// Where it stands.
+    pub state: RunState,
+    /// The last row's iteration (0: no rows).
+    pub iteration: u64,
+    /// The last row's env steps.
+    pub env_steps: u64,
+    /// The env steps of the whole budget (`iterations() * steps_per_iteration()`).
+    pub budget_steps: u64,
+    /// The last row's `wall_s` (training and evaluation, across resumes).
+    pub wall_s: f64,
+    /// The headline metric's column and its last evaluation `(env_steps, value)`, if any.
+    pub last_eval: Option<(String, u64, f64)>,
+    /// Median `steps_per_s` of the rows without an evaluation, if any.
+    pub steps_per_s: Option<f64>,
+    /// Hours the remaining training iterations need at `steps_per_s` (0 when finished).
+    pub hours_left: Option<f64>,
+}
+
+/// The progress of every run at or under `root` (a sweep's `--out`, or one run directory),
+/// sorted by path.
+pub fn status(root: &Path) -> Result<Vec<RunProgress>> {
+    let dirs = find_run_dirs(root)?;
+    if dirs.is_empty() {
+        return Err(RlError::file(root, "holds no run directory (config.toml and metrics.csv)"));
+    }
+    dirs.iter().map(|dir| run_progress(root, dir)).collect()
+}
+
+/// One run's progress.
+fn run_progress(root: &Path, dir: &Path) -> Result<RunProgress> {
+    let run = RunDir::new(dir);
+    let config = TrainConfig::load(&run.config())?;
+    let path = run.metrics();
+    let text = std::fs::read_to_string(&path).map_err(|e| RlError::file(&path, format!("cannot read: {e}")))?;
+    let rows = parse_csv(&text).map_err(|e| RlError::file(&path, e))?;
+    let last = |col: &str| rows.iter().rev().find_map(|r| r.get(col).copied().filter(|v| v.is_finite()));
+    let metric = if config.is_sumo() { "eval_win_rate_t0" } else { "eval_success_rate" };
+    let last_eval = rows.iter().rev().find_map(|r| {
+        let (steps, value) = (r.get("env_steps")?, r.get(metric)?);
+        Some((metric.to_string(), *steps as u64, *value))
+    });
+    let mut speeds: Vec<f64> = rows
+        .iter()
+        .filter(|r| !r.contains_key("eval_episodes"))
+        .filter_map(|r| r.get("steps_per_s").copied())
+        .filter(|v| v.is_finite() && *v > 0.0)
+        .collect();
+    speeds.sort_by(f64::total_cmp);
+    let steps_per_s = match speeds.len() {
+        0 => None,
+        n if n % 2 == 1 => Some(speeds[n / 2]),
+        n => Some(0.5 * (speeds[n / 2 - 1] + speeds[n / 2])),
+    };
+    let finished = run.done().is_file();
+    let state = if finished {
+        RunState::Finished
+    } else if let Some(h) = holder(dir)? {
+        RunState::Training(h)
+    } else if rows.is_empty() && !run.checkpoint().is_file() {
+        RunState::NotStarted
+    } else {
+        RunState::Stopped
+    };
+    let env_steps = last("env_steps").unwrap_or(0.0) as u64;
+    let budget_steps = config.iterations() * config.steps_per_iteration();
+    let left = budget_steps.saturating_sub(env_steps) as f64;
+    let hours_left = if finished { Some(0.0) } else { steps_per_s.map(|s| left / s / 3600.0) };
+    Ok(RunProgress {
+        // Relative to the root, or the directory as given when it is the root.
+        run: dir.strip_prefix(root).ok().filter(|r| !r.as_os_str().is_empty()).unwrap_or(dir).to_path_buf(),
+        state,
+        iteration: last("iteration").unwrap_or(0.0) as u64,
+        env_steps,
+        budget_steps,
+        wall_s: last("wall_s").unwrap_or(0.0),
+        last_eval,
+        steps_per_s,
+        hours_left,
+    })
+}
+
+/// `n` env steps in millions with two decimals (`9.01M`).
+fn millions(n: u64) -> String {
+    format!("{:.2}M", n as f64 / 1e6)
+}
+
+/// The table `meben status` prints: a header, a line per run, then the totals.
+pub fn status_lines(runs: &[RunProgress]) -> Vec<String> {
+    let mut lines = vec![format!(
+        "{:<44} {:<10} {:>9} {:>18} {:>24} {:>11} {:>8} {:>10}",
+        "run", "state", "iteration", "env steps", "last evaluation", "env steps/s", "wall h", "hours left"
+    )];
+    for r in runs {
+        let state = match &r.state {
+            RunState::Finished => "finished",
+            RunState::Training(_) => "training",
+            RunState::Stopped => "stopped",
+            RunState::NotStarted => "new",
+        };
+        let eval = match &r.last_eval {
+            Some((col, steps, v)) => {
+                format!(
+                    "{} {:.2}% at {}",
+                    col.trim_start_matches("eval_").trim_end_matches("_rate"),
+                    v * 100.0,
+                    millions(*steps)
+                )
+            }
+            None => "-".into(),
+        };
+        let or_dash = |v: Option<f64>, digits: usize| v.map_or("-".to_string(), |x| format!("{x:.digits$}"));
+        lines.push(format!(
+            "{:<44} {:<10} {:>9} {:>18} {:>24} {:>11} {:>8.1} {:>10}",
+            r.run.display().to_string(),
+            state,
+            r.iteration,
+            format!("{} of {}", millions(r.env_steps), millions(r.budget_steps)),
+            eval,
+            or_dash(r.steps_per_s, 0),
+            r.wall_s / 3600.0,
+            or_dash(r.hours_left, 1),
+        ));
+    }
+    let open: Vec<&RunProgress> = runs.iter().filter(|r| r.state != RunState::Finished).collect();
+    // A fold from +0: an empty f64 sum is -0, which would print as "-0.0".
+    let known = open.iter().filter_map(|r| r.hours_left).fold(0.0, |a, h| a + h);
+    let unknown = open.iter().filter(|r| r.hours_left.is_none()).count();
+    let spent: f64 = runs.iter().map(|r| r.wall_s).sum::<f64>() / 3600.0;
+    let mut total = format!(
+        "{} runs, {} finished; {spent:.1} machine-hours spent (wall_s); training iterations left: {known:.1} h",
+        runs.len(),
+        runs.len() - open.len()
+    );
+    if unknown > 0 {
+        total.push_str(&format!(" and {unknown} runs with no speed yet"));
+    }
+    total.push_str(" (evaluations add to it)");
+    lines.push(total);
+    for r in &open {
+        if let RunState::Training(h) = &r.state {
+            lines.push(format!("  {} is training: {h}", r.run.display()));
+        }
+    }
+    lines
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::app::lock::RunLock;
+    use crate::app::test_util::TempDir;
+
+    /// A run directory at `root/rel` with the quick preset's config (`steps` env steps) and
+    /// the given metrics rows (`iteration,env_steps,wall_s,steps_per_s,eval_episodes,eval_success_rate`).
+    fn run_dir(root: &Path, rel: &str, steps: u64, rows: &[&str]) -> PathBuf {
+        let dir = root.join(rel);
+        std::fs::create_dir_all(&dir).unwrap();
+        let mut config = TrainConfig::resolve(None, None, &[]).unwrap();
+        config.steps = steps;
+        std::fs::write(dir.join("config.toml"), config.to_toml()).unwrap();
+        let mut text = "iteration,env_steps,wall_s,steps_per_s,eval_episodes,eval_success_rate\n".to_string();
+        for r in rows {
+            text.push_str(r);
+            text.push('\n');
+        }
+        std::fs::write(dir.join("metrics.csv"), text).unwrap();
+        dir
+    }
+
+    #[test]
+    fn progress_speed_and_hours_left_of_each_run() {
+        let tmp = TempDir::new("status");
+        let root = tmp.0.join("runs");
+        let per_iter = TrainConfig::resolve(None, None, &[]).unwrap().steps_per_iteration();
+        let budget = 10 * per_iter;
+        // Three iterations without an evaluation at 100, 300 and 200 env steps/s, one with
+        // an evaluation (its slow speed is not training speed).
+        let rows = [
+            format!("1,{},10,100,,", per_iter),
+            format!("2,{},20,300,,", 2 * per_iter),
+            format!("3,{},30,5,128,0.25", 3 * per_iter),
+            format!("4,{},40,200,,", 4 * per_iter),
+        ];
+        let rows: Vec<&str> = rows.iter().map(|s| s.as_str()).collect();
+        run_dir(&root, "env/m/seed0", budget, &rows);
+        let done = run_dir(&root, "env/m/seed1", budget, &rows);
+        std::fs::write(done.join("done.json"), "{}").unwrap();
+        let held = run_dir(&root, "env/m/seed2", budget, &[]);
+        run_dir(&root, "env/m/seed3", budget, &[]);
+
+        let runs = status(&root).unwrap();
+        assert_eq!(runs.len(), 4);
+        let stopped = &runs[0];
+        assert_eq!(stopped.run, PathBuf::from("env/m/seed0"));
+        assert_eq!(stopped.state, RunState::Stopped);
+        assert_eq!((stopped.iteration, stopped.env_steps, stopped.budget_steps), (4, 4 * per_iter, budget));
+        assert_eq!(stopped.last_eval, Some(("eval_success_rate".to_string(), 3 * per_iter, 0.25)));
+        assert_eq!(stopped.steps_per_s, Some(200.0));
+        let hours = (6 * per_iter) as f64 / 200.0 / 3600.0;
+        assert!((stopped.hours_left.unwrap() - hours).abs() < 1e-12);
+        assert_eq!((runs[1].state.clone(), runs[1].hours_left), (RunState::Finished, Some(0.0)));
+        assert_eq!(
+            (runs[3].state.clone(), runs[3].steps_per_s, runs[3].hours_left),
+            (RunState::NotStarted, None, None)
+        );
+
+        // A run whose lock another holder has is training; its holder is named.
+        let lock = RunLock::acquire(&held).unwrap();
+        let runs = status(&root).unwrap();
+        let RunState::Training(h) = &runs[2].state else { panic!("{:?}", runs[2].state) };
+        assert!(h.contains(&format!("process {}", std::process::id())), "{h}");
+        let lines = status_lines(&runs);
+        assert_eq!(lines.len(), 1 + 4 + 2, "{lines:#?}");
+        assert!(lines[1].contains("stopped") && lines[1].contains("success 25.00% at"), "{}", lines[1]);
+        assert!(lines[5].contains(&format!("training iterations left: {hours:.1} h and 2 runs with no speed yet")));
+        assert!(lines[6].contains("env/m/seed2 is training: process"), "{}", lines[6]);
+        drop(lock);
+        assert_eq!(status(&root).unwrap()[2].state, RunState::NotStarted);
+        // With every run finished nothing is left (and no "-0.0").
+        let finished = status(&root.join("env/m/seed1")).unwrap();
+        assert!(status_lines(&finished)[2].contains("left: 0.0 h"), "{:?}", status_lines(&finished));
+        assert_eq!(finished[0].run, root.join("env/m/seed1"));
+    }
+
+    #[test]
+    fn a_directory_without_runs_is_an_error_naming_it() {
+        let tmp = TempDir::new("status-empty");
+        let msg = status(&tmp.0).unwrap_err().to_string();
+        assert!(msg.contains(&tmp.0.display().to_string()) && msg.contains("no run directory"), "{msg}");
+    }
+}
