@@ -1,5 +1,6 @@
 """A random policy, then a trained one, each stepping 256 environments of Team Reach for one
-episode, printing success rates.
+episode, printing success rates; then the same evaluation in one call (``Policy.evaluate``)
+and the run's learning curve (``meben.read_metrics``).
 
     python python/examples/success_rates.py [RUN_DIR]
 
@@ -41,6 +42,14 @@ def main():
     env = meben.make_eval(policy.env, 256, seed=1)
     rate = success_rate(env, lambda obs: policy.act(obs, deterministic=True))
     print(f"{policy.env}: trained {policy.model} ({run}) success rate {rate:.3f}")
+    # The same evaluation in one call (meben eval's, on the same starts with the same actions).
+    summary = policy.evaluate(episodes=256, seed=1, deterministic=True)
+    print(f"{policy.env}: policy.evaluate success rate {summary['success_rate']:.3f}")
+    # The run's learning curve, from its metrics.csv.
+    metrics = meben.read_metrics(run)
+    evaluated = ~np.isnan(metrics["eval_success_rate"])
+    for steps, rate in zip(metrics["env_steps"][evaluated], metrics["eval_success_rate"][evaluated]):
+        print(f"  after {steps:.0f} env steps: evaluation success rate {rate:.3f}")
 
 
 if __name__ == "__main__":
