@@ -22,7 +22,7 @@ use clap::{Args, Parser, Subcommand};
 #[command(
     name = "meben",
     version = crate::app::build_info::LONG_VERSION,
-    about = "Subequivariant multi-entity RL on MeBen: train, eval, ablate, report, render, sim"
+    about = "Subequivariant multi-entity RL on MeBen: train, eval, ablate, report, status, export, render, sim, info"
 )]
 struct Cli {
     #[command(subcommand)]
