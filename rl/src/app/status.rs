@@ -9,6 +9,11 @@
 //! (the median `steps_per_s` of the rows without an evaluation: the speed of training
 //! iterations alone, as `docs/RESULTS.md` quotes it) and the hours its remaining iterations
 //! need at that speed. Evaluations come on top of those hours.
+//!
+//! When the directory is a sweep's output (it holds the copy `sweep.toml` that `meben
+//! ablate` writes), the sweep's runs without a directory yet are listed too, as queued, with
+//! their budget; their speed, marked as an estimate, is the median speed of the runs of the
+//! same environment, model and opponent that have one (none: unknown).
 
 use std::path::{Path, PathBuf};
 
@@ -16,6 +21,7 @@ use crate::app::lock::holder;
 use crate::app::metrics::parse_csv;
 use crate::app::report::find_run_dirs;
 use crate::app::run_dir::RunDir;
+use crate::app::sweep::Sweep;
 use crate::error::{Result, RlError};
 use crate::mappo::config::TrainConfig;
 
@@ -30,6 +36,8 @@ pub enum RunState {
     Stopped,
     /// No rows yet and nobody training it.
     NotStarted,
+    /// A run of the sweep (`sweep.toml`) with no directory yet.
+    Queued,
 }
 
 /// One run's progress (module docs).
@@ -49,26 +57,92 @@ pub struct RunProgress {
     pub wall_s: f64,
     /// The headline metric's column and its last evaluation `(env_steps, value)`, if any.
     pub last_eval: Option<(String, u64, f64)>,
-    /// Median `steps_per_s` of the rows without an evaluation, if any.
+    /// Median `steps_per_s` of the rows without an evaluation, if any (for a run with no
+    /// such row, its siblings' median when `speed_estimated`).
     pub steps_per_s: Option<f64>,
+    /// Whether `steps_per_s` is borrowed from the runs of the same environment, model and
+    /// opponent.
+    pub speed_estimated: bool,
     /// Hours the remaining training iterations need at `steps_per_s` (0 when finished).
     pub hours_left: Option<f64>,
 }
 
 /// The progress of every run at or under `root` (a sweep's `--out`, or one run directory),
-/// sorted by path.
+/// sorted by path, then the sweep's queued runs (module docs).
 pub fn status(root: &Path) -> Result<Vec<RunProgress>> {
     let dirs = find_run_dirs(root)?;
-    if dirs.is_empty() {
-        return Err(RlError::file(root, "holds no run directory (config.toml and metrics.csv)"));
+    let sweep_file = root.join("sweep.toml");
+    let sweep = if sweep_file.is_file() { Some(Sweep::load(&sweep_file)?) } else { None };
+    if dirs.is_empty() && sweep.is_none() {
+        return Err(RlError::file(root, "holds no run directory (config.toml and metrics.csv) and no sweep.toml"));
     }
-    dirs.iter().map(|dir| run_progress(root, dir)).collect()
+    let mut runs = Vec::new();
+    for dir in &dirs {
+        let config = TrainConfig::load(&RunDir::new(dir).config())?;
+        runs.push((run_progress(root, dir, &config)?, config));
+    }
+    if let Some(sweep) = sweep {
+        for queued in sweep.runs()? {
+            if !runs.iter().any(|(r, _)| r.run == Path::new(&queued.name)) {
+                runs.push((queued_run(&queued.name, &queued.config), queued.config));
+            }
+        }
+    }
+    // Runs without a speed of their own borrow their siblings' median, as an estimate.
+    let same = |a: &TrainConfig, b: &TrainConfig| a.env == b.env && a.model == b.model && a.opponent == b.opponent;
+    let estimates: Vec<Option<f64>> = runs
+        .iter()
+        .map(|(r, c)| {
+            if r.steps_per_s.is_some() || r.state == RunState::Finished {
+                return None;
+            }
+            median(runs.iter().filter(|(o, oc)| same(c, oc) && !o.speed_estimated).filter_map(|(o, _)| o.steps_per_s))
+        })
+        .collect();
+    Ok(runs
+        .into_iter()
+        .zip(estimates)
+        .map(|((mut r, _), estimate)| {
+            if let Some(speed) = estimate {
+                r.steps_per_s = Some(speed);
+                r.speed_estimated = true;
+                r.hours_left = Some(r.budget_steps.saturating_sub(r.env_steps) as f64 / speed / 3600.0);
+            }
+            r
+        })
+        .collect())
 }
 
-/// One run's progress.
-fn run_progress(root: &Path, dir: &Path) -> Result<RunProgress> {
+/// The median of `values` (`None` for none).
+fn median(values: impl Iterator<Item = f64>) -> Option<f64> {
+    let mut v: Vec<f64> = values.collect();
+    v.sort_by(f64::total_cmp);
+    match v.len() {
+        0 => None,
+        n if n % 2 == 1 => Some(v[n / 2]),
+        n => Some(0.5 * (v[n / 2 - 1] + v[n / 2])),
+    }
+}
+
+/// A sweep run with no directory yet.
+fn queued_run(name: &str, config: &TrainConfig) -> RunProgress {
+    RunProgress {
+        run: PathBuf::from(name),
+        state: RunState::Queued,
+        iteration: 0,
+        env_steps: 0,
+        budget_steps: config.iterations() * config.steps_per_iteration(),
+        wall_s: 0.0,
+        last_eval: None,
+        steps_per_s: None,
+        speed_estimated: false,
+        hours_left: None,
+    }
+}
+
+/// One run's progress, its configuration being `config`.
+fn run_progress(root: &Path, dir: &Path, config: &TrainConfig) -> Result<RunProgress> {
     let run = RunDir::new(dir);
-    let config = TrainConfig::load(&run.config())?;
     let path = run.metrics();
     let text = std::fs::read_to_string(&path).map_err(|e| RlError::file(&path, format!("cannot read: {e}")))?;
     let rows = parse_csv(&text).map_err(|e| RlError::file(&path, e))?;
@@ -78,18 +152,12 @@ fn run_progress(root: &Path, dir: &Path) -> Result<RunProgress> {
         let (steps, value) = (r.get("env_steps")?, r.get(metric)?);
         Some((metric.to_string(), *steps as u64, *value))
     });
-    let mut speeds: Vec<f64> = rows
-        .iter()
-        .filter(|r| !r.contains_key("eval_episodes"))
-        .filter_map(|r| r.get("steps_per_s").copied())
-        .filter(|v| v.is_finite() && *v > 0.0)
-        .collect();
-    speeds.sort_by(f64::total_cmp);
-    let steps_per_s = match speeds.len() {
-        0 => None,
-        n if n % 2 == 1 => Some(speeds[n / 2]),
-        n => Some(0.5 * (speeds[n / 2 - 1] + speeds[n / 2])),
-    };
+    let steps_per_s = median(
+        rows.iter()
+            .filter(|r| !r.contains_key("eval_episodes"))
+            .filter_map(|r| r.get("steps_per_s").copied())
+            .filter(|v| v.is_finite() && *v > 0.0),
+    );
     let finished = run.done().is_file();
     let state = if finished {
         RunState::Finished
@@ -114,6 +182,7 @@ fn run_progress(root: &Path, dir: &Path) -> Result<RunProgress> {
         wall_s: last("wall_s").unwrap_or(0.0),
         last_eval,
         steps_per_s,
+        speed_estimated: false,
         hours_left,
     })
 }
@@ -135,6 +204,7 @@ pub fn status_lines(runs: &[RunProgress]) -> Vec<String> {
             RunState::Training(_) => "training",
             RunState::Stopped => "stopped",
             RunState::NotStarted => "new",
+            RunState::Queued => "queued",
         };
         let eval = match &r.last_eval {
             Some((col, steps, v)) => {
@@ -155,7 +225,7 @@ pub fn status_lines(runs: &[RunProgress]) -> Vec<String> {
             r.iteration,
             format!("{} of {}", millions(r.env_steps), millions(r.budget_steps)),
             eval,
-            or_dash(r.steps_per_s, 0),
+            if r.speed_estimated { format!("~{}", or_dash(r.steps_per_s, 0)) } else { or_dash(r.steps_per_s, 0) },
             r.wall_s / 3600.0,
             or_dash(r.hours_left, 1),
         ));
@@ -172,6 +242,9 @@ pub fn status_lines(runs: &[RunProgress]) -> Vec<String> {
     );
     if unknown > 0 {
         total.push_str(&format!(" and {unknown} runs with no speed yet"));
+    }
+    if runs.iter().any(|r| r.speed_estimated) {
+        total.push_str(", ~: a speed borrowed from runs of the same env and model");
     }
     total.push_str(" (evaluations add to it)");
     lines.push(total);
@@ -192,10 +265,15 @@ mod tests {
     /// A run directory at `root/rel` with the quick preset's config (`steps` env steps) and
     /// the given metrics rows (`iteration,env_steps,wall_s,steps_per_s,eval_episodes,eval_success_rate`).
     fn run_dir(root: &Path, rel: &str, steps: u64, rows: &[&str]) -> PathBuf {
-        let dir = root.join(rel);
-        std::fs::create_dir_all(&dir).unwrap();
         let mut config = TrainConfig::resolve(None, None, &[]).unwrap();
         config.steps = steps;
+        run_dir_with(root, rel, &config, rows)
+    }
+
+    /// A run directory at `root/rel` with `config` and the given metrics rows.
+    fn run_dir_with(root: &Path, rel: &str, config: &TrainConfig, rows: &[&str]) -> PathBuf {
+        let dir = root.join(rel);
+        std::fs::create_dir_all(&dir).unwrap();
         std::fs::write(dir.join("config.toml"), config.to_toml()).unwrap();
         let mut text = "iteration,env_steps,wall_s,steps_per_s,eval_episodes,eval_success_rate\n".to_string();
         for r in rows {
@@ -225,7 +303,9 @@ mod tests {
         let done = run_dir(&root, "env/m/seed1", budget, &rows);
         std::fs::write(done.join("done.json"), "{}").unwrap();
         let held = run_dir(&root, "env/m/seed2", budget, &[]);
-        run_dir(&root, "env/m/seed3", budget, &[]);
+        let mut other_model = TrainConfig::resolve(None, None, &[("model".into(), "\"mlp_hn\"".into())]).unwrap();
+        other_model.steps = budget;
+        run_dir_with(&root, "env/m2/seed3", &other_model, &[]);
 
         let runs = status(&root).unwrap();
         assert_eq!(runs.len(), 4);
@@ -238,6 +318,15 @@ mod tests {
         let hours = (6 * per_iter) as f64 / 200.0 / 3600.0;
         assert!((stopped.hours_left.unwrap() - hours).abs() < 1e-12);
         assert_eq!((runs[1].state.clone(), runs[1].hours_left), (RunState::Finished, Some(0.0)));
+        // A run with no speed of its own borrows that of the runs of its env and model...
+        let borrowed = &runs[2];
+        assert_eq!(
+            (borrowed.state.clone(), borrowed.steps_per_s, borrowed.speed_estimated),
+            (RunState::NotStarted, Some(200.0), true)
+        );
+        let hours_new = (10 * per_iter) as f64 / 200.0 / 3600.0;
+        assert!((borrowed.hours_left.unwrap() - hours_new).abs() < 1e-12);
+        // ... and none where there is none.
         assert_eq!(
             (runs[3].state.clone(), runs[3].steps_per_s, runs[3].hours_left),
             (RunState::NotStarted, None, None)
@@ -251,7 +340,9 @@ mod tests {
         let lines = status_lines(&runs);
         assert_eq!(lines.len(), 1 + 4 + 2, "{lines:#?}");
         assert!(lines[1].contains("stopped") && lines[1].contains("success 25.00% at"), "{}", lines[1]);
-        assert!(lines[5].contains(&format!("training iterations left: {hours:.1} h and 2 runs with no speed yet")));
+        assert!(lines[3].contains(" ~200 "), "{}", lines[3]);
+        let left = format!("training iterations left: {:.1} h and 1 runs with no speed yet", hours + hours_new);
+        assert!(lines[5].contains(&left) && lines[5].contains("~: a speed borrowed"), "{}", lines[5]);
         assert!(lines[6].contains("env/m/seed2 is training: process"), "{}", lines[6]);
         drop(lock);
         assert_eq!(status(&root).unwrap()[2].state, RunState::NotStarted);
@@ -259,6 +350,52 @@ mod tests {
         let finished = status(&root.join("env/m/seed1")).unwrap();
         assert!(status_lines(&finished)[2].contains("left: 0.0 h"), "{:?}", status_lines(&finished));
         assert_eq!(finished[0].run, root.join("env/m/seed1"));
+    }
+
+    #[test]
+    fn a_sweeps_runs_without_a_directory_are_queued_with_their_siblings_speed() {
+        let tmp = TempDir::new("status-sweep");
+        let root = tmp.0.join("out");
+        std::fs::create_dir_all(&root).unwrap();
+        let text = "envs = [\"team_reach/1_ant\"]\nmodels = [\"mlp_hn\", \"shnn\"]\nseeds = [0, 1]\n\
+                    preset = \"quick\"\n[config]\nsteps = 1000000\n";
+        std::fs::write(root.join("sweep.toml"), text).unwrap();
+        // Before any run has a directory, all four are queued, with no speed.
+        let runs = status(&root).unwrap();
+        assert_eq!(runs.len(), 4);
+        assert!(runs.iter().all(|r| r.state == RunState::Queued && r.hours_left.is_none()));
+        let sweep = Sweep::load(&root.join("sweep.toml")).unwrap();
+        let first = &sweep.runs().unwrap()[0];
+        assert_eq!(first.name, "team_reach_1_ant/mlp_hn/seed0");
+        let per_iter = first.config.steps_per_iteration();
+        let row = format!("1,{per_iter},10,400,,");
+        run_dir_with(&root, &first.name, &first.config, &[&row]);
+        let runs = status(&root).unwrap();
+        let names: Vec<String> = runs.iter().map(|r| r.run.display().to_string()).collect();
+        assert_eq!(
+            names,
+            [
+                "team_reach_1_ant/mlp_hn/seed0",
+                "team_reach_1_ant/mlp_hn/seed1",
+                "team_reach_1_ant/shnn/seed0",
+                "team_reach_1_ant/shnn/seed1"
+            ]
+        );
+        assert_eq!(
+            (runs[0].state.clone(), runs[0].steps_per_s, runs[0].speed_estimated),
+            (RunState::Stopped, Some(400.0), false)
+        );
+        assert_eq!(
+            (runs[1].state.clone(), runs[1].steps_per_s, runs[1].speed_estimated),
+            (RunState::Queued, Some(400.0), true)
+        );
+        assert_eq!(runs[1].budget_steps, first.config.iterations() * per_iter);
+        assert!((runs[1].hours_left.unwrap() - runs[1].budget_steps as f64 / 400.0 / 3600.0).abs() < 1e-12);
+        assert!(runs[2..].iter().all(|r| r.state == RunState::Queued && r.steps_per_s.is_none()));
+        // A malformed sweep copy is an error naming it.
+        std::fs::write(root.join("sweep.toml"), "envs = 3\n").unwrap();
+        let msg = status(&root).unwrap_err().to_string();
+        assert!(msg.contains("sweep.toml") && msg.contains("envs"), "{msg}");
     }
 
     #[test]
