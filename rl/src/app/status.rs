@@ -210,7 +210,7 @@ pub fn status_lines(runs: &[RunProgress]) -> Vec<String> {
             Some((col, steps, v)) => {
                 format!(
                     "{} {:.2}% at {}",
-                    col.trim_start_matches("eval_").trim_end_matches("_rate"),
+                    col.trim_start_matches("eval_").replace("_rate", ""),
                     v * 100.0,
                     millions(*steps)
                 )
@@ -396,6 +396,13 @@ mod tests {
         std::fs::write(root.join("sweep.toml"), "envs = 3\n").unwrap();
         let msg = status(&root).unwrap_err().to_string();
         assert!(msg.contains("sweep.toml") && msg.contains("envs"), "{msg}");
+    }
+
+    #[test]
+    fn the_evaluation_is_named_by_its_metric() {
+        let mut r = queued_run("team_sumo_2_ants/shnn/seed0", &TrainConfig::resolve(None, None, &[]).unwrap());
+        r.last_eval = Some(("eval_win_rate_t0".into(), 1_003_520, 0.1387));
+        assert!(status_lines(&[r])[1].contains(" win_t0 13.87% at 1.00M "), "{:?}", status_lines(&[]));
     }
 
     #[test]
