@@ -5,16 +5,14 @@
 //! endings, i.e. successes, are seen: those windows are left out), and one more evaluation
 //! series per further rotation of `eval_rotations` (`eval_success_rate_rot180`, ...).
 
-use crate::app::metrics::{eval_column, parse_csv, rotations_of};
+use crate::app::metrics::{eval_column, read_csv, rotations_of};
 use crate::app::plot::LinePlot;
 use crate::app::run_dir::RunDir;
-use crate::error::{Result, RlError};
+use crate::error::Result;
 
 /// Redraws `run`'s learning curve from its `metrics.csv`.
 pub fn write_run_curve(run: &RunDir) -> Result<()> {
-    let path = run.metrics();
-    let text = std::fs::read_to_string(&path).map_err(|e| RlError::file(&path, format!("cannot read: {e}")))?;
-    let rows = parse_csv(&text).map_err(|e| RlError::file(&path, e))?;
+    let rows = read_csv(&run.metrics())?;
     let series = |col: &str| -> Vec<(f64, f64)> {
         rows.iter().filter_map(|r| Some((r.get("env_steps").copied()?, 100.0 * r.get(col).copied()?))).collect()
     };

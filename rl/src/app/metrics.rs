@@ -191,6 +191,13 @@ pub fn parse_csv(text: &str) -> Result<Vec<BTreeMap<String, f64>>, String> {
     Ok(rows)
 }
 
+/// Reads and parses the metrics CSV at `path` ([`parse_csv`]); errors name the file.
+pub fn read_csv(path: &std::path::Path) -> crate::error::Result<Vec<BTreeMap<String, f64>>> {
+    use crate::error::RlError;
+    let text = std::fs::read_to_string(path).map_err(|e| RlError::file(path, format!("cannot read: {e}")))?;
+    parse_csv(&text).map_err(|e| RlError::file(path, e))
+}
+
 /// A metrics CSV as columns in file order, `(name, one value per row)`, an empty cell read
 /// as NaN (a value that does not apply or was not measured in that row); errors as
 /// [`parse_csv`].

@@ -286,9 +286,7 @@ fn column_curve(rows: &[BTreeMap<String, f64>], column: &str) -> Vec<(f64, f64)>
 fn read_run(dir: &Path) -> Result<std::result::Result<Vec<RunResult>, String>> {
     let run = RunDir::new(dir);
     let config = TrainConfig::load(&run.config())?;
-    let path = run.metrics();
-    let text = std::fs::read_to_string(&path).map_err(|e| RlError::file(&path, format!("cannot read: {e}")))?;
-    let rows = metrics::parse_csv(&text).map_err(|e| RlError::file(&path, e))?;
+    let rows = metrics::read_csv(&run.metrics())?;
     // (success or win, loss, draw) columns of evaluations and of training.
     let (eval, train) = if config.is_sumo() {
         (

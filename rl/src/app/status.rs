@@ -18,7 +18,7 @@
 use std::path::{Path, PathBuf};
 
 use crate::app::lock::holder;
-use crate::app::metrics::parse_csv;
+use crate::app::metrics::read_csv;
 use crate::app::report::find_run_dirs;
 use crate::app::run_dir::RunDir;
 use crate::app::sweep::Sweep;
@@ -106,11 +106,18 @@ pub fn status(root: &Path) -> Result<Vec<RunProgress>> {
             if let Some(speed) = estimate {
                 r.steps_per_s = Some(speed);
                 r.speed_estimated = true;
-                r.hours_left = Some(r.budget_steps.saturating_sub(r.env_steps) as f64 / speed / 3600.0);
+                r.hours_left = Some(r.hours_at(speed));
             }
             r
         })
         .collect())
+}
+
+impl RunProgress {
+    /// Hours the run's remaining env steps need at `steps_per_s`.
+    fn hours_at(&self, steps_per_s: f64) -> f64 {
+        self.budget_steps.saturating_sub(self.env_steps) as f64 / steps_per_s / 3600.0
+    }
 }
 
 /// The median of `values` (`None` for none).
@@ -143,9 +150,7 @@ fn queued_run(name: &str, config: &TrainConfig) -> RunProgress {
 /// One run's progress, its configuration being `config`.
 fn run_progress(root: &Path, dir: &Path, config: &TrainConfig) -> Result<RunProgress> {
     let run = RunDir::new(dir);
-    let path = run.metrics();
-    let text = std::fs::read_to_string(&path).map_err(|e| RlError::file(&path, format!("cannot read: {e}")))?;
-    let rows = parse_csv(&text).map_err(|e| RlError::file(&path, e))?;
+    let rows = read_csv(&run.metrics())?;
     let last = |col: &str| rows.iter().rev().find_map(|r| r.get(col).copied().filter(|v| v.is_finite()));
     let metric = if config.is_sumo() { "eval_win_rate_t0" } else { "eval_success_rate" };
     let last_eval = rows.iter().rev().find_map(|r| {
@@ -168,23 +173,21 @@ fn run_progress(root: &Path, dir: &Path, config: &TrainConfig) -> Result<RunProg
     } else {
         RunState::Stopped
     };
-    let env_steps = last("env_steps").unwrap_or(0.0) as u64;
-    let budget_steps = config.iterations() * config.steps_per_iteration();
-    let left = budget_steps.saturating_sub(env_steps) as f64;
-    let hours_left = if finished { Some(0.0) } else { steps_per_s.map(|s| left / s / 3600.0) };
-    Ok(RunProgress {
+    let mut progress = RunProgress {
         // Relative to the root, or the directory as given when it is the root.
         run: dir.strip_prefix(root).ok().filter(|r| !r.as_os_str().is_empty()).unwrap_or(dir).to_path_buf(),
         state,
         iteration: last("iteration").unwrap_or(0.0) as u64,
-        env_steps,
-        budget_steps,
+        env_steps: last("env_steps").unwrap_or(0.0) as u64,
+        budget_steps: config.iterations() * config.steps_per_iteration(),
         wall_s: last("wall_s").unwrap_or(0.0),
         last_eval,
         steps_per_s,
         speed_estimated: false,
-        hours_left,
-    })
+        hours_left: None,
+    };
+    progress.hours_left = if finished { Some(0.0) } else { steps_per_s.map(|s| progress.hours_at(s)) };
+    Ok(progress)
 }
 
 /// `n` env steps in millions with two decimals (`9.01M`).
@@ -402,7 +405,8 @@ mod tests {
     fn the_evaluation_is_named_by_its_metric() {
         let mut r = queued_run("team_sumo_2_ants/shnn/seed0", &TrainConfig::resolve(None, None, &[]).unwrap());
         r.last_eval = Some(("eval_win_rate_t0".into(), 1_003_520, 0.1387));
-        assert!(status_lines(&[r])[1].contains(" win_t0 13.87% at 1.00M "), "{:?}", status_lines(&[]));
+        let lines = status_lines(&[r]);
+        assert!(lines[1].contains(" win_t0 13.87% at 1.00M "), "{lines:?}");
     }
 
     #[test]
