@@ -10,13 +10,16 @@
 #   rl/sweeps/repro_run.sh status                             # every run's progress and hours left
 #
 # OUT (default /tmp/runs/repro) holds the runs; BIN (default target/release/meben) is the
-# program (build it first: cargo build --release). Start the workers under `nice` as shown,
+# program (build it first: cargo build --release); THREADS (default 1) the threads a run
+# uses: 2 for a worker left alone on the 2-core machine (its last runs), whose rows are the
+# same at any thread count (docs/PERFORMANCE.md). Start the workers under `nice` as shown,
 # so that builds and tests run beside them at full speed: every thread a worker creates
 # inherits its niceness, while `renice` of a running process id reaches only its main thread.
 set -uo pipefail
 ROOT=$(cd "$(dirname "$0")/../.." && pwd)
 BIN=${BIN:-$ROOT/target/release/meben}
 OUT=${OUT:-/tmp/runs/repro}
+THREADS=${THREADS:-1}
 SWEEPS=$ROOT/rl/sweeps
 EXPERIMENTS="reach_1_ant reach_2_ants equivariance sumo reach_2_ants_no_assignment reach_2_ants_per_slot_starts"
 
@@ -25,7 +28,7 @@ run() { # <experiment> <pattern>...: the sweep's runs whose names contain a patt
   local only=()
   for p in "$@"; do only+=(--only "$p"); done
   echo "== $(date -Is) $exp ${only[*]}"
-  "$BIN" ablate --sweep "$SWEEPS/repro_$exp.toml" --out "$OUT/$exp" --threads 1 --quiet "${only[@]}"
+  "$BIN" ablate --sweep "$SWEEPS/repro_$exp.toml" --out "$OUT/$exp" --threads "$THREADS" --quiet "${only[@]}"
 }
 
 # On a fresh machine (no run directories under OUT), the finished runs come back from their
