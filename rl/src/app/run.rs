@@ -44,10 +44,15 @@ pub struct RunSummary {
     pub final_eval_rotated: Vec<EvalSummary>,
 }
 
-/// Whether evaluation `evals_done` (0-based) falls after iteration `i` (1-based) of `n`:
-/// `num_evals` evenly spaced, the last at the end.
+/// How many of `num_evals` evaluations, evenly spaced over `n` iterations with the last at
+/// the end, fall at or before iteration `i` (0 for `n = 0`).
+pub(crate) fn evals_through(i: u64, n: u64, num_evals: u64) -> u64 {
+    (i * num_evals).checked_div(n).unwrap_or(0)
+}
+
+/// Whether an evaluation falls after iteration `i` (1-based) of `n` ([`evals_through`]).
 fn eval_due(i: u64, n: u64, num_evals: u64) -> bool {
-    num_evals > 0 && (i * num_evals / n) > ((i - 1) * num_evals / n)
+    evals_through(i, n, num_evals) > evals_through(i - 1, n, num_evals)
 }
 
 /// Fills a metrics row from an iteration's figures and evaluations (one per rotation of

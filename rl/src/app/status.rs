@@ -7,19 +7,23 @@
 //! iterations of `config.steps_per_iteration()` env steps), the last evaluation of its
 //! headline metric (Team Reach `eval_success_rate`, Team Sumo `eval_win_rate_t0`), its speed
 //! (the median `steps_per_s` of the rows without an evaluation: the speed of training
-//! iterations alone, as `docs/RESULTS.md` quotes it) and the hours its remaining iterations
-//! need at that speed. Evaluations come on top of those hours.
+//! iterations alone, as `docs/RESULTS.md` quotes it), what an evaluation costs (the median,
+//! over the rows with one, of the row's duration, the difference of consecutive `wall_s`,
+//! less the median duration of the rows without one) and the hours its remaining
+//! iterations and evaluations need at those rates.
 //!
 //! When the directory is a sweep's output (it holds the copy `sweep.toml` that `meben
 //! ablate` writes), the sweep's runs without a directory yet are listed too, as queued, with
-//! their budget; their speed, marked as an estimate, is the median speed of the runs of the
-//! same environment, model and opponent that have one (none: unknown).
+//! their budget. A run without a speed or an evaluation cost of its own (queued, or not yet
+//! evaluated) borrows, as an estimate, the median of the runs of the same environment, model
+//! and opponent that have one (none: unknown).
 
 use std::path::{Path, PathBuf};
 
 use crate::app::lock::holder;
 use crate::app::metrics::read_csv;
 use crate::app::report::find_run_dirs;
+use crate::app::run::evals_through;
 use crate::app::run_dir::RunDir;
 use crate::app::sweep::Sweep;
 use crate::error::{Result, RlError};
@@ -63,7 +67,16 @@ pub struct RunProgress {
     /// Whether `steps_per_s` is borrowed from the runs of the same environment, model and
     /// opponent.
     pub speed_estimated: bool,
-    /// Hours the remaining training iterations need at `steps_per_s` (0 when finished).
+    /// Seconds an evaluation adds to its iteration (module docs), if the run has evaluated
+    /// (otherwise its siblings' median when `eval_estimated`).
+    pub eval_s: Option<f64>,
+    /// Whether `eval_s` is borrowed from the runs of the same environment, model and
+    /// opponent.
+    pub eval_estimated: bool,
+    /// Evaluations still to come (`num_evals` evenly spaced, the last at the end).
+    pub evals_left: u64,
+    /// Hours the remaining training iterations need at `steps_per_s`, and the remaining
+    /// evaluations at `eval_s` where it is known (0 when finished).
     pub hours_left: Option<f64>,
 }
 
@@ -88,25 +101,35 @@ pub fn status(root: &Path) -> Result<Vec<RunProgress>> {
             }
         }
     }
-    // Runs without a speed of their own borrow their siblings' median, as an estimate.
+    // Runs without a speed or an evaluation cost of their own borrow their siblings'
+    // median, as an estimate.
     let same = |a: &TrainConfig, b: &TrainConfig| a.env == b.env && a.model == b.model && a.opponent == b.opponent;
-    let estimates: Vec<Option<f64>> = runs
+    let borrow = |c: &TrainConfig, own: fn(&RunProgress) -> Option<f64>| {
+        median(runs.iter().filter(|(_, oc)| same(c, oc)).filter_map(|(o, _)| own(o)))
+    };
+    let estimates: Vec<(Option<f64>, Option<f64>)> = runs
         .iter()
         .map(|(r, c)| {
-            if r.steps_per_s.is_some() || r.state == RunState::Finished {
-                return None;
+            if r.state == RunState::Finished {
+                return (None, None);
             }
-            median(runs.iter().filter(|(o, oc)| same(c, oc) && !o.speed_estimated).filter_map(|(o, _)| o.steps_per_s))
+            let speed = if r.steps_per_s.is_none() { borrow(c, |o| o.steps_per_s) } else { None };
+            let eval_s = if r.eval_s.is_none() { borrow(c, |o| o.eval_s) } else { None };
+            (speed, eval_s)
         })
         .collect();
     Ok(runs
         .into_iter()
         .zip(estimates)
-        .map(|((mut r, _), estimate)| {
-            if let Some(speed) = estimate {
-                r.steps_per_s = Some(speed);
-                r.speed_estimated = true;
-                r.hours_left = Some(r.hours_at(speed));
+        .map(|((mut r, _), (speed, eval_s))| {
+            if speed.is_some() {
+                (r.steps_per_s, r.speed_estimated) = (speed, true);
+            }
+            if eval_s.is_some() {
+                (r.eval_s, r.eval_estimated) = (eval_s, true);
+            }
+            if r.state != RunState::Finished {
+                r.hours_left = r.hours_left();
             }
             r
         })
@@ -114,10 +137,30 @@ pub fn status(root: &Path) -> Result<Vec<RunProgress>> {
 }
 
 impl RunProgress {
-    /// Hours the run's remaining env steps need at `steps_per_s`.
-    fn hours_at(&self, steps_per_s: f64) -> f64 {
-        self.budget_steps.saturating_sub(self.env_steps) as f64 / steps_per_s / 3600.0
+    /// Hours the run's remaining env steps need at its speed, plus its remaining
+    /// evaluations at their cost where that is known (`None` without a speed).
+    fn hours_left(&self) -> Option<f64> {
+        let training = self.budget_steps.saturating_sub(self.env_steps) as f64 / self.steps_per_s?;
+        Some((training + self.evals_left as f64 * self.eval_s.unwrap_or(0.0)) / 3600.0)
     }
+
+    /// Whether the hours left leave out evaluations whose cost is unknown.
+    fn evals_uncounted(&self) -> bool {
+        self.state != RunState::Finished && self.evals_left > 0 && self.eval_s.is_none()
+    }
+}
+
+/// Seconds an evaluation adds to its iteration: the median, over the rows with an
+/// evaluation, of the row's duration (the difference of its `wall_s` and the previous
+/// row's) less the median duration of the rows without one (`None` before an evaluation).
+fn evaluation_seconds(rows: &[std::collections::BTreeMap<String, f64>]) -> Option<f64> {
+    let durations: Vec<(bool, f64)> = rows
+        .windows(2)
+        .filter_map(|w| Some((w[1].contains_key("eval_episodes"), w[1].get("wall_s")? - w[0].get("wall_s")?)))
+        .filter(|(_, d)| d.is_finite() && *d >= 0.0)
+        .collect();
+    let iteration = median(durations.iter().filter(|(e, _)| !e).map(|(_, d)| *d))?;
+    median(durations.iter().filter(|(e, _)| *e).map(|(_, d)| (d - iteration).max(0.0)))
 }
 
 /// The median of `values` (`None` for none).
@@ -143,6 +186,9 @@ fn queued_run(name: &str, config: &TrainConfig) -> RunProgress {
         last_eval: None,
         steps_per_s: None,
         speed_estimated: false,
+        eval_s: None,
+        eval_estimated: false,
+        evals_left: config.num_evals as u64,
         hours_left: None,
     }
 }
@@ -173,20 +219,26 @@ fn run_progress(root: &Path, dir: &Path, config: &TrainConfig) -> Result<RunProg
     } else {
         RunState::Stopped
     };
+    let iteration = last("iteration").unwrap_or(0.0) as u64;
+    let evals_left = config.num_evals as u64
+        - evals_through(iteration.min(config.iterations()), config.iterations(), config.num_evals as u64);
     let mut progress = RunProgress {
         // Relative to the root, or the directory as given when it is the root.
         run: dir.strip_prefix(root).ok().filter(|r| !r.as_os_str().is_empty()).unwrap_or(dir).to_path_buf(),
         state,
-        iteration: last("iteration").unwrap_or(0.0) as u64,
+        iteration,
         env_steps: last("env_steps").unwrap_or(0.0) as u64,
         budget_steps: config.iterations() * config.steps_per_iteration(),
         wall_s: last("wall_s").unwrap_or(0.0),
         last_eval,
         steps_per_s,
         speed_estimated: false,
+        eval_s: evaluation_seconds(&rows),
+        eval_estimated: false,
+        evals_left: if finished { 0 } else { evals_left },
         hours_left: None,
     };
-    progress.hours_left = if finished { Some(0.0) } else { steps_per_s.map(|s| progress.hours_at(s)) };
+    progress.hours_left = if finished { Some(0.0) } else { progress.hours_left() };
     Ok(progress)
 }
 
@@ -230,26 +282,33 @@ pub fn status_lines(runs: &[RunProgress]) -> Vec<String> {
             eval,
             if r.speed_estimated { format!("~{}", or_dash(r.steps_per_s, 0)) } else { or_dash(r.steps_per_s, 0) },
             r.wall_s / 3600.0,
-            or_dash(r.hours_left, 1),
+            if r.eval_estimated && r.hours_left.is_some() {
+                format!("~{}", or_dash(r.hours_left, 1))
+            } else {
+                or_dash(r.hours_left, 1)
+            },
         ));
     }
     let open: Vec<&RunProgress> = runs.iter().filter(|r| r.state != RunState::Finished).collect();
     // A fold from +0: an empty f64 sum is -0, which would print as "-0.0".
     let known = open.iter().filter_map(|r| r.hours_left).fold(0.0, |a, h| a + h);
     let unknown = open.iter().filter(|r| r.hours_left.is_none()).count();
+    let uncounted = open.iter().filter(|r| r.hours_left.is_some() && r.evals_uncounted()).count();
     let spent: f64 = runs.iter().map(|r| r.wall_s).sum::<f64>() / 3600.0;
     let mut total = format!(
-        "{} runs, {} finished; {spent:.1} machine-hours spent (wall_s); training iterations left: {known:.1} h",
+        "{} runs, {} finished; {spent:.1} machine-hours spent (wall_s); left: {known:.1} h",
         runs.len(),
         runs.len() - open.len()
     );
     if unknown > 0 {
         total.push_str(&format!(" and {unknown} runs with no speed yet"));
     }
-    if runs.iter().any(|r| r.speed_estimated) {
-        total.push_str(", ~: a speed borrowed from runs of the same env and model");
+    if uncounted > 0 {
+        total.push_str(&format!(" (and the evaluations of {uncounted} runs with no evaluation cost yet)"));
     }
-    total.push_str(" (evaluations add to it)");
+    if runs.iter().any(|r| r.speed_estimated || r.eval_estimated) {
+        total.push_str("; ~: borrowed from runs of the same env and model");
+    }
     lines.push(total);
     for r in &open {
         if let RunState::Training(h) = &r.state {
@@ -294,12 +353,13 @@ mod tests {
         let per_iter = TrainConfig::resolve(None, None, &[]).unwrap().steps_per_iteration();
         let budget = 10 * per_iter;
         // Three iterations without an evaluation at 100, 300 and 200 env steps/s, one with
-        // an evaluation (its slow speed is not training speed).
+        // an evaluation (its slow speed is not training speed), which took 25 s where the
+        // others took 10: an evaluation costs 15 s.
         let rows = [
             format!("1,{},10,100,,", per_iter),
             format!("2,{},20,300,,", 2 * per_iter),
-            format!("3,{},30,5,128,0.25", 3 * per_iter),
-            format!("4,{},40,200,,", 4 * per_iter),
+            format!("3,{},45,5,128,0.25", 3 * per_iter),
+            format!("4,{},55,200,,", 4 * per_iter),
         ];
         let rows: Vec<&str> = rows.iter().map(|s| s.as_str()).collect();
         run_dir(&root, "env/m/seed0", budget, &rows);
@@ -318,7 +378,9 @@ mod tests {
         assert_eq!((stopped.iteration, stopped.env_steps, stopped.budget_steps), (4, 4 * per_iter, budget));
         assert_eq!(stopped.last_eval, Some(("eval_success_rate".to_string(), 3 * per_iter, 0.25)));
         assert_eq!(stopped.steps_per_s, Some(200.0));
-        let hours = (6 * per_iter) as f64 / 200.0 / 3600.0;
+        // The quick preset evaluates after each of the 10 iterations: 6 are still to come.
+        assert_eq!((stopped.eval_s, stopped.evals_left, stopped.eval_estimated), (Some(15.0), 6, false));
+        let hours = ((6 * per_iter) as f64 / 200.0 + 6.0 * 15.0) / 3600.0;
         assert!((stopped.hours_left.unwrap() - hours).abs() < 1e-12);
         assert_eq!((runs[1].state.clone(), runs[1].hours_left), (RunState::Finished, Some(0.0)));
         // A run with no speed of its own borrows that of the runs of its env and model...
@@ -327,7 +389,8 @@ mod tests {
             (borrowed.state.clone(), borrowed.steps_per_s, borrowed.speed_estimated),
             (RunState::NotStarted, Some(200.0), true)
         );
-        let hours_new = (10 * per_iter) as f64 / 200.0 / 3600.0;
+        assert_eq!((borrowed.eval_s, borrowed.evals_left, borrowed.eval_estimated), (Some(15.0), 10, true));
+        let hours_new = ((10 * per_iter) as f64 / 200.0 + 10.0 * 15.0) / 3600.0;
         assert!((borrowed.hours_left.unwrap() - hours_new).abs() < 1e-12);
         // ... and none where there is none.
         assert_eq!(
@@ -343,15 +406,17 @@ mod tests {
         let lines = status_lines(&runs);
         assert_eq!(lines.len(), 1 + 4 + 2, "{lines:#?}");
         assert!(lines[1].contains("stopped") && lines[1].contains("success 25.00% at"), "{}", lines[1]);
-        assert!(lines[3].contains(" ~200 "), "{}", lines[3]);
-        let left = format!("training iterations left: {:.1} h and 1 runs with no speed yet", hours + hours_new);
-        assert!(lines[5].contains(&left) && lines[5].contains("~: a speed borrowed"), "{}", lines[5]);
+        assert!(lines[3].contains(" ~200 ") && lines[3].ends_with(&format!(" ~{hours_new:.1}")), "{}", lines[3]);
+        let left = format!("left: {:.1} h and 1 runs with no speed yet;", hours + hours_new);
+        assert!(lines[5].contains(&left) && lines[5].contains("~: borrowed"), "{}", lines[5]);
+        assert!(!lines[5].contains("no evaluation cost"), "{}", lines[5]);
         assert!(lines[6].contains("env/m/seed2 is training: process"), "{}", lines[6]);
         drop(lock);
         assert_eq!(status(&root).unwrap()[2].state, RunState::NotStarted);
         // With every run finished nothing is left (and no "-0.0").
         let finished = status(&root.join("env/m/seed1")).unwrap();
         assert!(status_lines(&finished)[2].contains("left: 0.0 h"), "{:?}", status_lines(&finished));
+        assert_eq!((finished[0].evals_left, finished[0].hours_left), (0, Some(0.0)));
         assert_eq!(finished[0].run, root.join("env/m/seed1"));
     }
 
@@ -393,7 +458,11 @@ mod tests {
             (RunState::Queued, Some(400.0), true)
         );
         assert_eq!(runs[1].budget_steps, first.config.iterations() * per_iter);
+        // No run has evaluated yet: the hours count training alone, and the total says so.
         assert!((runs[1].hours_left.unwrap() - runs[1].budget_steps as f64 / 400.0 / 3600.0).abs() < 1e-12);
+        assert!((runs[0].eval_s, runs[1].eval_s) == (None, None) && runs[1].evals_left > 0);
+        let total = status_lines(&runs)[5].clone();
+        assert!(total.contains("(and the evaluations of 2 runs with no evaluation cost yet)"), "{total}");
         assert!(runs[2..].iter().all(|r| r.state == RunState::Queued && r.steps_per_s.is_none()));
         // A malformed sweep copy is an error naming it.
         std::fs::write(root.join("sweep.toml"), "envs = 3\n").unwrap();
