@@ -75,9 +75,6 @@ pub struct RunProgress {
     pub eval_estimated: bool,
     /// Evaluations still to come (`num_evals` evenly spaced, the last at the end).
     pub evals_left: u64,
-    /// Hours the remaining training iterations need at `steps_per_s`, and the remaining
-    /// evaluations at `eval_s` where it is known (0 when finished).
-    pub hours_left: Option<f64>,
 }
 
 /// The progress of every run at or under `root` (a sweep's `--out`, or one run directory),
@@ -128,9 +125,6 @@ pub fn status(root: &Path) -> Result<Vec<RunProgress>> {
             if eval_s.is_some() {
                 (r.eval_s, r.eval_estimated) = (eval_s, true);
             }
-            if r.state != RunState::Finished {
-                r.hours_left = r.hours_left();
-            }
             r
         })
         .collect())
@@ -138,15 +132,19 @@ pub fn status(root: &Path) -> Result<Vec<RunProgress>> {
 
 impl RunProgress {
     /// Hours the run's remaining env steps need at its speed, plus its remaining
-    /// evaluations at their cost where that is known (`None` without a speed).
-    fn hours_left(&self) -> Option<f64> {
+    /// evaluations at their cost where that is known (0 when finished, `None` without a
+    /// speed).
+    pub fn hours_left(&self) -> Option<f64> {
+        if self.state == RunState::Finished {
+            return Some(0.0);
+        }
         let training = self.budget_steps.saturating_sub(self.env_steps) as f64 / self.steps_per_s?;
         Some((training + self.evals_left as f64 * self.eval_s.unwrap_or(0.0)) / 3600.0)
     }
 
     /// Whether the hours left leave out evaluations whose cost is unknown.
     fn evals_uncounted(&self) -> bool {
-        self.state != RunState::Finished && self.evals_left > 0 && self.eval_s.is_none()
+        self.evals_left > 0 && self.eval_s.is_none()
     }
 }
 
@@ -189,7 +187,6 @@ fn queued_run(name: &str, config: &TrainConfig) -> RunProgress {
         eval_s: None,
         eval_estimated: false,
         evals_left: config.num_evals as u64,
-        hours_left: None,
     }
 }
 
@@ -222,7 +219,7 @@ fn run_progress(root: &Path, dir: &Path, config: &TrainConfig) -> Result<RunProg
     let iteration = last("iteration").unwrap_or(0.0) as u64;
     let evals_left = config.num_evals as u64
         - evals_through(iteration.min(config.iterations()), config.iterations(), config.num_evals as u64);
-    let mut progress = RunProgress {
+    Ok(RunProgress {
         // Relative to the root, or the directory as given when it is the root.
         run: dir.strip_prefix(root).ok().filter(|r| !r.as_os_str().is_empty()).unwrap_or(dir).to_path_buf(),
         state,
@@ -236,10 +233,7 @@ fn run_progress(root: &Path, dir: &Path, config: &TrainConfig) -> Result<RunProg
         eval_s: evaluation_seconds(&rows),
         eval_estimated: false,
         evals_left: if finished { 0 } else { evals_left },
-        hours_left: None,
-    };
-    progress.hours_left = if finished { Some(0.0) } else { progress.hours_left() };
-    Ok(progress)
+    })
 }
 
 /// `n` env steps in millions with two decimals (`9.01M`).
@@ -282,18 +276,17 @@ pub fn status_lines(runs: &[RunProgress]) -> Vec<String> {
             eval,
             if r.speed_estimated { format!("~{}", or_dash(r.steps_per_s, 0)) } else { or_dash(r.steps_per_s, 0) },
             r.wall_s / 3600.0,
-            if r.eval_estimated && r.hours_left.is_some() {
-                format!("~{}", or_dash(r.hours_left, 1))
-            } else {
-                or_dash(r.hours_left, 1)
+            match r.hours_left() {
+                Some(h) if r.eval_estimated => format!("~{h:.1}"),
+                h => or_dash(h, 1),
             },
         ));
     }
     let open: Vec<&RunProgress> = runs.iter().filter(|r| r.state != RunState::Finished).collect();
     // A fold from +0: an empty f64 sum is -0, which would print as "-0.0".
-    let known = open.iter().filter_map(|r| r.hours_left).fold(0.0, |a, h| a + h);
-    let unknown = open.iter().filter(|r| r.hours_left.is_none()).count();
-    let uncounted = open.iter().filter(|r| r.hours_left.is_some() && r.evals_uncounted()).count();
+    let known = open.iter().filter_map(|r| r.hours_left()).fold(0.0, |a, h| a + h);
+    let unknown = open.iter().filter(|r| r.hours_left().is_none()).count();
+    let uncounted = open.iter().filter(|r| r.hours_left().is_some() && r.evals_uncounted()).count();
     let spent: f64 = runs.iter().map(|r| r.wall_s).sum::<f64>() / 3600.0;
     let mut total = format!(
         "{} runs, {} finished; {spent:.1} machine-hours spent (wall_s); left: {known:.1} h",
@@ -381,8 +374,8 @@ mod tests {
         // The quick preset evaluates after each of the 10 iterations: 6 are still to come.
         assert_eq!((stopped.eval_s, stopped.evals_left, stopped.eval_estimated), (Some(15.0), 6, false));
         let hours = ((6 * per_iter) as f64 / 200.0 + 6.0 * 15.0) / 3600.0;
-        assert!((stopped.hours_left.unwrap() - hours).abs() < 1e-12);
-        assert_eq!((runs[1].state.clone(), runs[1].hours_left), (RunState::Finished, Some(0.0)));
+        assert!((stopped.hours_left().unwrap() - hours).abs() < 1e-12);
+        assert_eq!((runs[1].state.clone(), runs[1].hours_left()), (RunState::Finished, Some(0.0)));
         // A run with no speed of its own borrows that of the runs of its env and model...
         let borrowed = &runs[2];
         assert_eq!(
@@ -391,10 +384,10 @@ mod tests {
         );
         assert_eq!((borrowed.eval_s, borrowed.evals_left, borrowed.eval_estimated), (Some(15.0), 10, true));
         let hours_new = ((10 * per_iter) as f64 / 200.0 + 10.0 * 15.0) / 3600.0;
-        assert!((borrowed.hours_left.unwrap() - hours_new).abs() < 1e-12);
+        assert!((borrowed.hours_left().unwrap() - hours_new).abs() < 1e-12);
         // ... and none where there is none.
         assert_eq!(
-            (runs[3].state.clone(), runs[3].steps_per_s, runs[3].hours_left),
+            (runs[3].state.clone(), runs[3].steps_per_s, runs[3].hours_left()),
             (RunState::NotStarted, None, None)
         );
 
@@ -416,7 +409,7 @@ mod tests {
         // With every run finished nothing is left (and no "-0.0").
         let finished = status(&root.join("env/m/seed1")).unwrap();
         assert!(status_lines(&finished)[2].contains("left: 0.0 h"), "{:?}", status_lines(&finished));
-        assert_eq!((finished[0].evals_left, finished[0].hours_left), (0, Some(0.0)));
+        assert_eq!((finished[0].evals_left, finished[0].hours_left()), (0, Some(0.0)));
         assert_eq!(finished[0].run, root.join("env/m/seed1"));
     }
 
@@ -431,7 +424,7 @@ mod tests {
         // Before any run has a directory, all four are queued, with no speed.
         let runs = status(&root).unwrap();
         assert_eq!(runs.len(), 4);
-        assert!(runs.iter().all(|r| r.state == RunState::Queued && r.hours_left.is_none()));
+        assert!(runs.iter().all(|r| r.state == RunState::Queued && r.hours_left().is_none()));
         let sweep = Sweep::load(&root.join("sweep.toml")).unwrap();
         let first = &sweep.runs().unwrap()[0];
         assert_eq!(first.name, "team_reach_1_ant/mlp_hn/seed0");
@@ -459,7 +452,7 @@ mod tests {
         );
         assert_eq!(runs[1].budget_steps, first.config.iterations() * per_iter);
         // No run has evaluated yet: the hours count training alone, and the total says so.
-        assert!((runs[1].hours_left.unwrap() - runs[1].budget_steps as f64 / 400.0 / 3600.0).abs() < 1e-12);
+        assert!((runs[1].hours_left().unwrap() - runs[1].budget_steps as f64 / 400.0 / 3600.0).abs() < 1e-12);
         assert!((runs[0].eval_s, runs[1].eval_s) == (None, None) && runs[1].evals_left > 0);
         let total = status_lines(&runs)[5].clone();
         assert!(total.contains("(and the evaluations of 2 runs with no evaluation cost yet)"), "{total}");
