@@ -67,7 +67,7 @@ fn train_eval_report_render_produce_their_files() {
     assert!(ok, "status failed: {stderr}");
     let line = stdout.lines().find(|l| l.starts_with("run0 ")).unwrap_or_else(|| panic!("{stdout}"));
     assert!(line.contains("finished") && line.contains("success"), "{stdout}");
-    assert!(stdout.contains("1 runs, 1 finished"), "{stdout}");
+    assert!(stdout.contains("1 run, 1 finished"), "{stdout}");
 
     let (ok, stdout, stderr) = meben(&["report", root.to_str().unwrap()]);
     assert!(ok, "report failed: {stderr}");

@@ -454,8 +454,8 @@ fn cmd_report(a: ReportArgs) -> Result<(), String> {
 fn cmd_export(a: ExportArgs) -> Result<(), String> {
     let s = crate::app::export::export(&a.from, &a.to).map_err(|e| e.to_string())?;
     println!(
-        "meben: exported {} runs ({} unfinished, {} bytes) from {} to {}",
-        s.runs.len(),
+        "meben: exported {} ({} unfinished, {} bytes) from {} to {}",
+        crate::app::report::count(s.runs.len(), "run"),
         s.unfinished.len(),
         s.bytes,
         a.from.display(),

@@ -124,26 +124,47 @@ impl TrainConfig {
             Some(v) => return Err(RlError::config(&file_source, "env", v, "expected a string")),
             None => "team_reach/1_ant".to_string(),
         };
-        let base = TrainConfig::preset(preset, &env);
-        let mut merged = base.to_full_table();
+        let base = TrainConfig::preset(preset, &env).to_full_table();
         let source = if overrides.is_empty() { file_source } else { format!("{file_source} + command line") };
-        for (k, v) in table {
-            if !merged.contains_key(&k) {
+        let mut merged = base.clone();
+        for (k, v) in &table {
+            if !merged.contains_key(k) {
                 let known: Vec<&str> = merged.keys().map(|s| s.as_str()).collect();
                 return Err(RlError::config(
                     &source,
-                    &k,
-                    v,
+                    k,
+                    value_text(v),
                     format!("unknown field; known fields: preset, {}", known.join(", ")),
                 ));
             }
-            merged.insert(k, v);
+            merged.insert(k.clone(), v.clone());
         }
-        let config: TrainConfig = toml::Value::Table(merged)
-            .try_into()
-            .map_err(|e: toml::de::Error| RlError::config(&source, "*", "", e.to_string()))?;
+        let config: TrainConfig =
+            toml::Value::Table(merged).try_into().map_err(|e| wrong_type(&source, &base, &table, e))?;
         config.validate(&source)?;
         Ok(config)
+    }
+}
+
+/// The error for a given field whose value does not have the field's type (`steps = -1`,
+/// `num_evals = "abc"`): the serde error alone names neither field nor value, so each given
+/// field is tried alone on the (valid) preset `base` and the first that fails is named.
+fn wrong_type(source: &str, base: &toml::Table, given: &toml::Table, e: toml::de::Error) -> RlError {
+    for (k, v) in given {
+        let mut one = base.clone();
+        one.insert(k.clone(), v.clone());
+        if let Err(e) = toml::Value::Table(one).try_into::<TrainConfig>() {
+            return RlError::config(source, k, value_text(v), e.message());
+        }
+    }
+    RlError::config(source, "(several)", "", e.message())
+}
+
+/// A TOML value as the user wrote it, strings without their quotes.
+fn value_text(v: &toml::Value) -> String {
+    match v {
+        toml::Value::String(s) => s.clone(),
+        other => other.to_string(),
     }
 }
 
@@ -172,6 +193,27 @@ mod tests {
         assert_eq!(p.steps_per_iteration(), 163_840);
         assert_eq!(p.unrolls_per_iteration(), 16);
         assert_eq!(TrainConfig::preset(Preset::Paper, "team_sumo/2_ants").batch_size, 128);
+    }
+
+    /// A value of the wrong type names its field and value (it used to say "field `*` = \"\"",
+    /// leaving the user to find the field in serde's message).
+    #[test]
+    fn a_value_of_the_wrong_type_names_its_field_and_value() {
+        let cases = [
+            ("steps", "-1", "field `steps` = \"-1\"", "u64"),
+            ("num_evals", "abc", "field `num_evals` = \"abc\"", "usize"),
+        ];
+        for (field, value, named, expected) in cases {
+            let ov = vec![("seed".to_string(), "3".to_string()), (field.to_string(), value.to_string())];
+            let e = TrainConfig::resolve(None, None, &ov).unwrap_err().to_string();
+            assert!(e.starts_with(&format!("built-in + command line: {named}: ")), "{e}");
+            assert!(e.contains(expected), "{e}");
+        }
+        let dir = crate::app::test_util::TempDir::new("wrong-type");
+        let path = dir.0.join("bad.toml");
+        std::fs::write(&path, "model = \"mlp_hn\"\nepochs = \"four\"\n").unwrap();
+        let e = TrainConfig::resolve(None, Some(&path), &[]).unwrap_err().to_string();
+        assert!(e.starts_with(&format!("{}: field `epochs` = \"four\": ", path.display())), "{e}");
     }
 
     #[test]

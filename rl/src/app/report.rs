@@ -532,7 +532,7 @@ fn md_cell(s: &str) -> String {
 }
 
 /// `n` followed by `noun`, plural unless `n` is 1: "1 run", "3 runs".
-fn count(n: usize, noun: &str) -> String {
+pub(crate) fn count(n: usize, noun: &str) -> String {
     if n == 1 { format!("1 {noun}") } else { format!("{n} {noun}s") }
 }
 

@@ -22,7 +22,7 @@ use std::path::{Path, PathBuf};
 
 use crate::app::lock::holder;
 use crate::app::metrics::read_csv;
-use crate::app::report::find_run_dirs;
+use crate::app::report::{count, find_run_dirs};
 use crate::app::run::evals_through;
 use crate::app::run_dir::RunDir;
 use crate::app::sweep::Sweep;
@@ -289,15 +289,15 @@ pub fn status_lines(runs: &[RunProgress]) -> Vec<String> {
     let uncounted = open.iter().filter(|r| r.hours_left().is_some() && r.evals_uncounted()).count();
     let spent: f64 = runs.iter().map(|r| r.wall_s).sum::<f64>() / 3600.0;
     let mut total = format!(
-        "{} runs, {} finished; {spent:.1} machine-hours spent (wall_s); left: {known:.1} h",
-        runs.len(),
+        "{}, {} finished; {spent:.1} machine-hours spent (wall_s); left: {known:.1} h",
+        count(runs.len(), "run"),
         runs.len() - open.len()
     );
     if unknown > 0 {
-        total.push_str(&format!(" and {unknown} runs with no speed yet"));
+        total.push_str(&format!(" and {} with no speed yet", count(unknown, "run")));
     }
     if uncounted > 0 {
-        total.push_str(&format!(" (and the evaluations of {uncounted} runs with no evaluation cost yet)"));
+        total.push_str(&format!(" (and the evaluations of {} with no evaluation cost yet)", count(uncounted, "run")));
     }
     if runs.iter().any(|r| r.speed_estimated || r.eval_estimated) {
         total.push_str("; ~: borrowed from runs of the same env and model");
@@ -400,7 +400,7 @@ mod tests {
         assert_eq!(lines.len(), 1 + 4 + 2, "{lines:#?}");
         assert!(lines[1].contains("stopped") && lines[1].contains("success 25.00% at"), "{}", lines[1]);
         assert!(lines[3].contains(" ~200 ") && lines[3].ends_with(&format!(" ~{hours_new:.1}")), "{}", lines[3]);
-        let left = format!("left: {:.1} h and 1 runs with no speed yet;", hours + hours_new);
+        let left = format!("left: {:.1} h and 1 run with no speed yet;", hours + hours_new);
         assert!(lines[5].contains(&left) && lines[5].contains("~: borrowed"), "{}", lines[5]);
         assert!(!lines[5].contains("no evaluation cost"), "{}", lines[5]);
         assert!(lines[6].contains("env/m/seed2 is training: process"), "{}", lines[6]);
