@@ -154,6 +154,12 @@ fn unknown_names_and_bad_compositions_are_clear_errors() {
     let e = env.step(&a).unwrap_err().to_string();
     assert!(e.contains("actions[11]") && e.contains("environment 1"), "{e}");
     assert!(VecEnv::from_name("team_reach/1_ant", 0, 0, StartMode::Random).is_err());
+    // An impossible size is refused before anything is allocated (it used to abort the
+    // process, from Python too, when the allocation failed).
+    for batch in [envs::tasks::MAX_ENVS + 1, 1 << 40] {
+        let e = VecEnv::from_name("team_reach/1_ant", batch, 0, StartMode::Random).unwrap_err().to_string();
+        assert!(e.contains(&format!("batch = {batch}")) && e.contains("1048576"), "{e}");
+    }
 }
 
 #[test]

@@ -25,10 +25,13 @@ pub fn outcome_code(o: Outcome) -> i8 {
     }
 }
 
-/// A count given as a Python int, checked to lie in `min..`.
-fn count(what: &str, value: i64, min: i64) -> PyResult<usize> {
-    if value < min {
-        return Err(bad_argument(what, value, &format!("must be at least {min}")));
+/// A number of environments given as a Python int, checked to lie in `1..=MAX_ENVS`.
+fn env_count(what: &str, value: i64) -> PyResult<usize> {
+    if value < 1 {
+        return Err(bad_argument(what, value, "must be at least 1"));
+    }
+    if value as u64 > envs::tasks::MAX_ENVS as u64 {
+        return Err(bad_argument(what, value, &format!("must be at most {}", envs::tasks::MAX_ENVS)));
     }
     Ok(value as usize)
 }
@@ -96,7 +99,7 @@ impl PyVecEnv {
         point: (f64, f64),
         record: bool,
     ) -> PyResult<PyVecEnv> {
-        let b = count("num_envs", num_envs, 1)?;
+        let b = env_count("num_envs", num_envs)?;
         let s = non_negative("seed", seed)?;
         let mode = match fixed_start {
             Some(f) => {
@@ -129,7 +132,7 @@ impl PyVecEnv {
         translation: (f64, f64),
         record: bool,
     ) -> PyResult<PyVecEnv> {
-        let b = count("num_envs", num_envs, 1)?;
+        let b = env_count("num_envs", num_envs)?;
         let s = non_negative("seed", seed)?;
         let mode = match fixed_start {
             Some(f) => StartMode::fixed(non_negative("fixed_start", f)?),

@@ -52,6 +52,12 @@ def test_bad_names_and_arguments():
         meben.make("team_reach:agents=ant+octopus")
     with pytest.raises(ValueError, match=r"bad num_envs = 0: must be at least 1"):
         meben.make(NAME, num_envs=0)
+    # An impossible size is an error, not an aborted interpreter (it used to abort when the
+    # allocation failed).
+    with pytest.raises(ValueError, match=r"bad num_envs = 1099511627776: must be at most 1048576"):
+        meben.make(NAME, num_envs=2**40)
+    with pytest.raises(ValueError, match=r"bad num_envs = 1099511627776: must be at most 1048576"):
+        meben.make_eval(NAME, num_envs=2**40)
     with pytest.raises(ValueError, match=r"bad seed = -1"):
         meben.make(NAME, seed=-1)
     with pytest.raises(ValueError, match=r"bad path = .*expected a file name ending in .html, .gif or .csv"):

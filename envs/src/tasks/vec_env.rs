@@ -228,15 +228,20 @@ fn step_env(
     }
 }
 
+/// The most environments one [`VecEnv`] holds: beyond it a batch is refused before
+/// anything is allocated, so an impossible size is an error, not an aborted process.
+pub const MAX_ENVS: usize = 1 << 20;
+
 impl VecEnv {
-    /// `batch` environments of `spec` whose random streams derive from `seed`, starting as
-    /// `mode` says. Every environment begins an episode; [`VecEnv::obs`] is ready.
+    /// `batch` environments (1 to [`MAX_ENVS`]) of `spec` whose random streams derive from
+    /// `seed`, starting as `mode` says. Every environment begins an episode; [`VecEnv::obs`]
+    /// is ready.
     pub fn new(spec: &TaskSpec, batch: usize, seed: u64, mode: StartMode) -> Result<VecEnv, TaskError> {
-        if batch == 0 {
+        if !(1..=MAX_ENVS).contains(&batch) {
             return Err(TaskError::BadArgument {
                 what: "batch".into(),
-                value: "0".into(),
-                message: "at least one environment".into(),
+                value: batch.to_string(),
+                message: format!("must lie in 1 ..= {MAX_ENVS} environments"),
             });
         }
         mode.validate()?;

@@ -260,6 +260,7 @@ mod tests {
             ("num_envs", "\"many\"", "num_envs"),
             ("colour", "3", "colour"),
             ("num_envs", "100", "num_envs"),
+            ("num_envs", "1099511627776", "at most 1048576 environments"),
             ("eval_rotations", "[180.0]", "eval_rotations"),
             ("eval_rotations", "[]", "eval_rotations"),
             ("eval_rotations", "[0.0, 90.0, 90.0]", "90 appears twice"),

@@ -317,8 +317,8 @@ impl TrainConfig {
                 return err(field, &v, "at most 9223372036854775807 (TOML integers are signed 64-bit)");
             }
         }
-        if self.num_envs > 1 << 20 {
-            return err("num_envs", &self.num_envs, "at most 1048576 environments");
+        if self.num_envs > envs::tasks::MAX_ENVS {
+            return err("num_envs", &self.num_envs, &format!("at most {} environments", envs::tasks::MAX_ENVS));
         }
         let per_iteration = (self.batch_size as u64)
             .checked_mul(self.num_minibatches as u64)

@@ -120,7 +120,7 @@ impl EvalRequest {
 }
 
 /// The most episodes of one evaluation (one environment each, as `num_envs` at most).
-pub const MAX_EPISODES: usize = 1 << 20;
+pub const MAX_EPISODES: usize = envs::tasks::MAX_ENVS;
 
 /// The start of evaluation episode `e` (module docs).
 pub fn episode_start(scene: &Scene, options: &EvalOptions, e: usize) -> Start {
