@@ -21,7 +21,8 @@ pub fn train(
     progress: bool,
 ) -> PyResult<String> {
     let preset = preset.map(|p| Preset::parse(p, "meben.train(preset=...)")).transpose().map_err(rl_error)?;
-    let config = TrainConfig::resolve(preset, config.as_deref(), &overrides).map_err(rl_error)?;
+    let config =
+        TrainConfig::resolve_from(preset, config.as_deref(), &overrides, "meben.train keywords").map_err(rl_error)?;
     let options = TrainOptions { progress, ..TrainOptions::default() };
     let summary = py.detach(|| rl::train(&config, &RunDir::new(out), &options)).map_err(rl_error)?;
     serde_json::to_string(&summary).map_err(|e| pyo3::exceptions::PyRuntimeError::new_err(e.to_string()))

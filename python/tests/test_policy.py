@@ -98,6 +98,10 @@ def test_bad_runs_and_configurations(tmp_path):
         meben.train(out=tmp_path / "x", num_envz=8)
     with pytest.raises(ValueError, match=r"steps = nan: must be finite"):
         meben.train(out=tmp_path / "x", steps=float("nan"))
+    # A value of the wrong type names its field, its value and where it came from.
+    with pytest.raises(ValueError, match=r'built-in \+ meben.train keywords: field `steps` = "-1": invalid value'):
+        meben.train(out=tmp_path / "x", steps=-1)
+    assert not (tmp_path / "x").exists()
 
 
 @pytest.mark.parametrize(

@@ -102,8 +102,20 @@ impl TrainConfig {
 
     /// Resolves a configuration from its layers (module docs): `preset` (else the file's
     /// `preset` key, else `quick`), the TOML `file`, then `overrides` (`field = value`
-    /// pairs, values in TOML syntax or bare strings), and validates it.
+    /// pairs, values in TOML syntax or bare strings), and validates it. Errors name the
+    /// overrides "command line" ([`TrainConfig::resolve_from`] names them otherwise).
     pub fn resolve(preset: Option<Preset>, file: Option<&Path>, overrides: &[(String, String)]) -> Result<TrainConfig> {
+        Self::resolve_from(preset, file, overrides, "command line")
+    }
+
+    /// [`TrainConfig::resolve`] with errors naming the overrides' origin `origin` (Python's
+    /// `meben.train` keyword arguments, for one).
+    pub fn resolve_from(
+        preset: Option<Preset>,
+        file: Option<&Path>,
+        overrides: &[(String, String)],
+        origin: &str,
+    ) -> Result<TrainConfig> {
         let mut table = toml::Table::new();
         if let Some(path) = file {
             let text = std::fs::read_to_string(path).map_err(|e| RlError::file(path, format!("cannot read: {e}")))?;
@@ -125,7 +137,7 @@ impl TrainConfig {
             None => "team_reach/1_ant".to_string(),
         };
         let base = TrainConfig::preset(preset, &env).to_full_table();
-        let source = if overrides.is_empty() { file_source } else { format!("{file_source} + command line") };
+        let source = if overrides.is_empty() { file_source } else { format!("{file_source} + {origin}") };
         let mut merged = base.clone();
         for (k, v) in &table {
             if !merged.contains_key(k) {
