@@ -122,22 +122,24 @@ impl TrainConfig {
             table = text.parse::<toml::Table>().map_err(|e| RlError::file(path, format!("invalid TOML: {e}")))?;
         }
         let file_source = file.map(|p| p.display().to_string()).unwrap_or_else(|| "built-in".into());
+        let source = if overrides.is_empty() { file_source } else { format!("{file_source} + {origin}") };
         for (field, value) in overrides {
             table.insert(field.clone(), parse_override(value));
         }
         let preset = match (preset, table.remove("preset")) {
             (Some(p), _) => p,
-            (None, Some(toml::Value::String(s))) => Preset::parse(&s, &file_source)?,
-            (None, Some(v)) => return Err(RlError::config(&file_source, "preset", v, "expected `quick` or `paper`")),
+            (None, Some(toml::Value::String(s))) => Preset::parse(&s, &source)?,
+            (None, Some(v)) => {
+                return Err(RlError::config(&source, "preset", value_text(&v), "expected `quick` or `paper`"));
+            }
             (None, None) => Preset::Quick,
         };
         let env = match table.get("env") {
             Some(toml::Value::String(s)) => s.clone(),
-            Some(v) => return Err(RlError::config(&file_source, "env", v, "expected a string")),
+            Some(v) => return Err(RlError::config(&source, "env", value_text(v), "expected a string")),
             None => "team_reach/1_ant".to_string(),
         };
         let base = TrainConfig::preset(preset, &env).to_full_table();
-        let source = if overrides.is_empty() { file_source } else { format!("{file_source} + {origin}") };
         let mut merged = base.clone();
         for (k, v) in &table {
             if !merged.contains_key(k) {
@@ -221,6 +223,9 @@ mod tests {
             assert!(e.starts_with(&format!("built-in + command line: {named}: ")), "{e}");
             assert!(e.contains(expected), "{e}");
         }
+        // So does a bad `env` or `preset`, which are read before the rest.
+        let e = TrainConfig::resolve(None, None, &[("env".to_string(), "[1]".to_string())]).unwrap_err().to_string();
+        assert!(e.starts_with("built-in + command line: field `env` = \"[1]\": expected a string"), "{e}");
         let dir = crate::app::test_util::TempDir::new("wrong-type");
         let path = dir.0.join("bad.toml");
         std::fs::write(&path, "model = \"mlp_hn\"\nepochs = \"four\"\n").unwrap();
