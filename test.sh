@@ -9,9 +9,10 @@ if [ ! -x "$venv/bin/python" ]; then
     "${PYTHON:-python3}" -m venv "$venv"
 fi
 export PATH="$PWD/$venv/bin:$PATH"
-# The build backend and the test dependencies (gymnasium and pettingzoo: the adapters' API checks).
+# The build backend and the test dependencies (gymnasium and pettingzoo: the adapters' API
+# checks; mypy: the type stubs' and annotations' checks).
 python -m pip install --quiet --disable-pip-version-check "maturin>=1.9.4,<2" "numpy>=1.21" "pytest>=7" \
-    "gymnasium>=1.0" "pettingzoo>=1.24"
+    "gymnasium>=1.0" "pettingzoo>=1.24" "mypy>=1.10,<3"
 # The HTML player's test runs its page in headless Chromium; here a missing browser is a
 # failure, not a skip (MEBEN_REQUIRE_BROWSER), so install Debian's package when it is absent.
 if ! command -v chromium >/dev/null 2>&1 && ! command -v chromium-browser >/dev/null 2>&1; then
@@ -24,7 +25,7 @@ if ! command -v chromium >/dev/null 2>&1 && ! command -v chromium-browser >/dev/
     fi
 fi
 export MEBEN_REQUIRE_BROWSER=1
-# The Python tests' optional dependencies (gymnasium, pettingzoo), installed above, are
+# The Python tests' optional dependencies (gymnasium, pettingzoo, mypy), installed above, are
 # required too: a missing one fails its tests instead of skipping them.
 export MEBEN_REQUIRE_TEST_DEPS=1
 cargo test --workspace --release

@@ -10,13 +10,16 @@ trains a tiny run (a few seconds; it will not have learned much) into target/exa
 """
 
 import sys
+from typing import Callable
 
 import numpy as np
+from numpy.typing import NDArray
 
 import meben
+from meben.types import Observation
 
 
-def success_rate(env, act):
+def success_rate(env: meben.VecEnv, act: Callable[[Observation], NDArray[np.float32]]) -> float:
     """Plays one episode in every environment with ``act(obs)``; the fraction that succeeded."""
     obs = env.observation()
     alive = np.ones(env.num_envs, bool)
@@ -25,15 +28,25 @@ def success_rate(env, act):
         obs, _, terminated, truncated, info = env.step(act(obs))
         success |= alive & info["success"]
         alive &= ~(terminated | truncated)
-    return success.mean()
+    return float(success.mean())
 
 
-def main():
+def main() -> None:
     run = sys.argv[1] if len(sys.argv) > 1 else None
     if run is None:
         run = "target/example_run"
-        tiny = dict(steps=160, num_envs=8, batch_size=4, num_minibatches=4, epochs=1, num_evals=1, eval_episodes=2)
-        meben.train(out=run, env="team_reach/1_ant", model="mlp_hn", **tiny)
+        meben.train(
+            out=run,
+            env="team_reach/1_ant",
+            model="mlp_hn",
+            steps=160,
+            num_envs=8,
+            batch_size=4,
+            num_minibatches=4,
+            epochs=1,
+            num_evals=1,
+            eval_episodes=2,
+        )
     policy = meben.Policy.load(run)
     rng = np.random.default_rng(0)
     env = meben.make_eval(policy.env, 256, seed=1)

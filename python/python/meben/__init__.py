@@ -19,8 +19,14 @@ only when used.
 Rust core was built from (``+modified`` if its sources differed, ``unknown`` outside git);
 a run directory's ``builds.csv`` names it for every training session, as ``meben --version``
 does for the command line.
+
+The package is typed (``py.typed``): the returned dicts are the ``TypedDict`` types of
+``meben.types`` (``Observation``, ``StepInfo``, ``Spec``, ``EvalSummary``, ``RunSummary``).
 """
 
+from typing import Any
+
+from . import types
 from ._core import BUILD_COMMIT, BUILTIN_NAMES, OUTCOMES, Policy, VecEnv, __version__, read_metrics
 from ._train import train
 
@@ -34,10 +40,11 @@ __all__ = [
     "make_eval",
     "read_metrics",
     "train",
+    "types",
 ]
 
 
-def make(name, num_envs=1, seed=0, **options):
+def make(name: str, num_envs: int = 1, seed: int = 0, **options: Any) -> VecEnv:
     """``num_envs`` environments of ``name``, a built-in name (``meben.BUILTIN_NAMES``) or a
     composition such as ``"team_reach:agents=ant+claw;R=5;balls=2"`` (a morphology may be a
     Brax-config ``.txt`` file or an MJCF ``.xml`` file, e.g.
@@ -54,7 +61,7 @@ def make(name, num_envs=1, seed=0, **options):
     return VecEnv(name, num_envs, seed, **options)
 
 
-def make_eval(name, num_envs, seed=0, **options):
+def make_eval(name: str, num_envs: int, seed: int = 0, **options: Any) -> VecEnv:
     """The environments of ``meben eval``: one episode each, auto-reset off, starts drawn as
     the Rust evaluation draws them. Options: ``fixed_start=None`` (a seed), ``rotation_deg``
     (about the vertical through the origin), ``translation=(0, 0)``, ``record=False``.

@@ -1,9 +1,12 @@
 """Gymnasium spaces of a MeBen scene (shared by both adapters)."""
 
 import numpy as np
+from gymnasium import spaces
+
+from .types import Spec
 
 
-def observation_space(spec, spaces):
+def observation_space(spec: Spec) -> spaces.Dict:
     """One environment's observation: ``vectors [N, 3, 3]``, ``scalars [N, S]``, ``heading [A]``."""
     n, s, a = spec["num_nodes"], spec["num_scalars"], spec["num_agents"]
     return spaces.Dict(
@@ -15,6 +18,6 @@ def observation_space(spec, spaces):
     )
 
 
-def action_space(dof, spaces):
+def action_space(dof: int) -> spaces.Box:
     """``dof`` actions in [-1, 1]."""
     return spaces.Box(-1.0, 1.0, (dof,), np.float32)

@@ -3,11 +3,13 @@
 import json
 import math
 import os
+from typing import Any, Optional, Union
 
 from . import _core
+from .types import RunSummary
 
 
-def _toml_value(field, value):
+def _toml_value(field: str, value: Any) -> str:
     """``value`` as the TOML text ``meben train --set field=...`` takes."""
     if isinstance(value, bool):
         return "true" if value else "false"
@@ -24,7 +26,14 @@ def _toml_value(field, value):
     raise ValueError(f"bad {field} = {value!r}: expected a bool, number, string or list")
 
 
-def train(*, out, preset=None, config=None, progress=False, **fields):
+def train(
+    *,
+    out: Union[str, "os.PathLike[str]"],
+    preset: Optional[str] = None,
+    config: Union[str, "os.PathLike[str]", None] = None,
+    progress: bool = False,
+    **fields: Any,
+) -> RunSummary:
     """Trains as ``meben train`` does and returns the run summary (the ``done.json`` dict).
 
     ``out`` is the run directory (a run with a checkpoint there resumes); ``preset`` is
@@ -34,5 +43,6 @@ def train(*, out, preset=None, config=None, progress=False, **fields):
     ``ValueError`` naming them.
     """
     overrides = [(k, _toml_value(k, v)) for k, v in fields.items()]
-    config = os.fspath(config) if config is not None else None
-    return json.loads(_core.train(os.fspath(out), overrides, preset, config, progress))
+    config_path = os.fspath(config) if config is not None else None
+    summary: RunSummary = json.loads(_core.train(os.fspath(out), overrides, preset, config_path, progress))
+    return summary
