@@ -1,10 +1,11 @@
 //! Rust errors as Python exceptions with the same message: input the caller got wrong
 //! (names, compositions, arrays, arguments, configuration values) is a `ValueError`, a file
-//! that cannot be read or written an `OSError`, anything else a `RuntimeError`.
+//! that cannot be read or written an `OSError`, a training stopped on request a
+//! `KeyboardInterrupt`, anything else a `RuntimeError`.
 
 use envs::tasks::TaskError;
 use pyo3::PyErr;
-use pyo3::exceptions::{PyOSError, PyRuntimeError, PyValueError};
+use pyo3::exceptions::{PyKeyboardInterrupt, PyOSError, PyRuntimeError, PyValueError};
 use rl::RlError;
 
 /// A task error (every variant is caused by the caller's input) as a `ValueError`.
@@ -21,6 +22,7 @@ pub fn rl_error(e: RlError) -> PyErr {
         RlError::Env(t) => task_error(t),
         RlError::Config { .. } | RlError::Checkpoint { .. } => PyValueError::new_err(e.to_string()),
         RlError::File { .. } => PyOSError::new_err(e.to_string()),
+        RlError::Interrupted { .. } => PyKeyboardInterrupt::new_err(e.to_string()),
         RlError::NonFinite { .. } | RlError::Model(_) | RlError::Nn(_) => PyRuntimeError::new_err(e.to_string()),
     }
 }

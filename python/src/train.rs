@@ -1,15 +1,27 @@
 //! `meben.train`: the `meben train` trainer from Python, with the same configuration layers
 //! (a preset, a TOML file, then field overrides) and the same run directory.
+//!
+//! The training runs on a thread of its own while the calling thread, holding the GIL a
+//! moment every [`SIGNAL_POLL`], lets Python handle signals: a `KeyboardInterrupt` (Ctrl-C,
+//! or a notebook's interrupt) asks the training to stop after its current iteration with a
+//! checkpoint (`rl::StopFlag`), and is raised once it has, so the same call resumes the run.
+
+use std::time::Duration;
 
 use pyo3::prelude::*;
-use rl::{Preset, RunDir, TrainConfig, TrainOptions};
+use rl::{Preset, RlError, RunDir, StopFlag, TrainConfig, TrainOptions};
 
 use crate::errors::rl_error;
+
+/// How often the waiting thread takes the GIL to run Python's signal handlers.
+const SIGNAL_POLL: Duration = Duration::from_millis(50);
 
 /// Trains into the run directory `out` (resuming it if it holds a checkpoint) with the
 /// configuration resolved from `preset` (`quick` or `paper`), the TOML file `config`, then
 /// `overrides` (`(field, TOML value)` pairs, as `meben train --set field=value`). Returns the
-/// run summary (`done.json`) as JSON text. The GIL is released while training.
+/// run summary (`done.json`) as JSON text. The GIL is released while training; a
+/// `KeyboardInterrupt` stops it after its current iteration with a checkpoint and is then
+/// raised (module docs).
 #[pyfunction]
 #[pyo3(signature = (out, overrides, preset=None, config=None, progress=false))]
 pub fn train(
@@ -23,7 +35,33 @@ pub fn train(
     let preset = preset.map(|p| Preset::parse(p, "meben.train(preset=...)")).transpose().map_err(rl_error)?;
     let config =
         TrainConfig::resolve_from(preset, config.as_deref(), &overrides, "meben.train keywords").map_err(rl_error)?;
-    let options = TrainOptions { progress, ..TrainOptions::default() };
-    let summary = py.detach(|| rl::train(&config, &RunDir::new(out), &options)).map_err(rl_error)?;
-    serde_json::to_string(&summary).map_err(|e| pyo3::exceptions::PyRuntimeError::new_err(e.to_string()))
+    let stop = StopFlag::new();
+    let options = TrainOptions { progress, stop: stop.clone(), ..TrainOptions::default() };
+    let run = RunDir::new(out);
+    let training = std::thread::spawn(move || rl::train(&config, &run, &options));
+    let mut interrupt: Option<PyErr> = None;
+    while !training.is_finished() {
+        py.detach(|| std::thread::sleep(SIGNAL_POLL));
+        if interrupt.is_none()
+            && let Err(e) = py.check_signals()
+        {
+            stop.request();
+            eprintln!("meben.train: interrupted: stopping after the current iteration with a checkpoint");
+            interrupt = Some(e);
+        }
+    }
+    let result = training
+        .join()
+        .map_err(|_| pyo3::exceptions::PyRuntimeError::new_err("meben.train: the training thread panicked"))?;
+    match (result, interrupt) {
+        // Stopped on the interrupt: the checkpoint is written, the interrupt goes on up.
+        (Err(RlError::Interrupted { .. }), Some(e)) => Err(e),
+        (Err(e), _) => Err(rl_error(e)),
+        // Finished before the stop took effect (the last iteration): the run is done, and
+        // the interrupt is still raised, as Python would have raised it.
+        (Ok(_), Some(e)) => Err(e),
+        (Ok(summary), None) => {
+            serde_json::to_string(&summary).map_err(|e| pyo3::exceptions::PyRuntimeError::new_err(e.to_string()))
+        }
+    }
 }

@@ -39,6 +39,16 @@ pub enum RlError {
         /// What was non-finite (e.g. `team 0 loss at iteration 12, epoch 1, minibatch 3`).
         message: String,
     },
+    /// A training stopped on request ([`crate::app::stop::StopFlag`]): after a finished
+    /// iteration, whose checkpoint it wrote, so that the same command resumes it; or before
+    /// it began, having changed nothing.
+    Interrupted {
+        /// The run directory.
+        run: PathBuf,
+        /// The last finished iteration, which the checkpoint holds (`None`: stopped before
+        /// training began).
+        iteration: Option<u64>,
+    },
     /// The environment rejected a setting or an action array.
     Env(envs::tasks::TaskError),
     /// A model could not be built or run.
@@ -76,6 +86,14 @@ impl fmt::Display for RlError {
             RlError::File { path, message } => write!(f, "{}: {message}", path.display()),
             RlError::Checkpoint { path, message } => write!(f, "checkpoint {}: {message}", path.display()),
             RlError::NonFinite { message } => write!(f, "non-finite value: {message}"),
+            RlError::Interrupted { run, iteration: Some(i) } => write!(
+                f,
+                "{}: interrupted after iteration {i}, which its checkpoint holds (the same command resumes the run)",
+                run.display()
+            ),
+            RlError::Interrupted { run, iteration: None } => {
+                write!(f, "{}: interrupted before training began (nothing was changed)", run.display())
+            }
             RlError::Env(e) => write!(f, "{e}"),
             RlError::Model(e) => write!(f, "{e}"),
             RlError::Nn(e) => write!(f, "{e}"),

@@ -25,6 +25,7 @@ pub use app::presets::Preset;
 pub use app::report::{Report, report};
 pub use app::run::{RunSummary, TrainOptions, train};
 pub use app::run_dir::{RunDir, RunStatus};
+pub use app::stop::StopFlag;
 pub use app::sweep::{RunSelection, Shard, Sweep, SweepOutcome, SweepRun, run_sweep};
 pub use app::{lock::RunLock, plot::LinePlot};
 pub use error::{Result, RlError};

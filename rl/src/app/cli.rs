@@ -9,10 +9,12 @@
 
 use std::path::PathBuf;
 use std::process::ExitCode;
+use std::sync::OnceLock;
 
 use crate::app::presets::Preset;
 use crate::app::run::TrainOptions;
 use crate::app::run_dir::RunDir;
+use crate::app::stop::{INTERRUPTED_EXIT_CODE, StopFlag, install_signal_handler};
 use crate::error::RlError;
 use crate::mappo::config::TrainConfig;
 use crate::mappo::evaluate::EvalRequest;
@@ -253,13 +255,34 @@ pub fn main() -> ExitCode {
         Some(Command::Sim(a)) => envs::rollout_tool::run(&a).map_err(|e| e.to_string()),
         Some(Command::Info(a)) => cmd_info(a),
     };
+    let interrupted = STOP.get().is_some_and(StopFlag::is_requested);
     match result {
         Ok(()) => ExitCode::SUCCESS,
+        Err(e) if interrupted => {
+            eprintln!("meben: {e}");
+            ExitCode::from(INTERRUPTED_EXIT_CODE)
+        }
         Err(e) => {
             eprintln!("meben: error: {e}");
             ExitCode::FAILURE
         }
     }
+}
+
+/// The training commands' stop flag, set by Ctrl-C or SIGTERM once [`stop_on_signals`] has
+/// installed the handler.
+static STOP: OnceLock<StopFlag> = OnceLock::new();
+
+/// The stop flag of `meben train` and `meben ablate`: the first Ctrl-C or SIGTERM stops the
+/// training after its current iteration with a checkpoint, the second ends the program
+/// ([`crate::app::stop`]). Other commands keep the default: a signal ends them at once.
+fn stop_on_signals() -> Result<StopFlag, String> {
+    if let Some(flag) = STOP.get() {
+        return Ok(flag.clone());
+    }
+    let flag = StopFlag::new();
+    install_signal_handler(&flag).map_err(|e| e.to_string())?;
+    Ok(STOP.get_or_init(|| flag).clone())
 }
 
 fn resolve_train_config(a: &TrainArgs) -> Result<TrainConfig, RlError> {
@@ -326,7 +349,7 @@ fn cmd_train(a: TrainArgs) -> Result<(), String> {
         config.seed,
         out.display()
     );
-    let options = TrainOptions { progress: !a.quiet, stop_after: a.stop_after };
+    let options = TrainOptions { progress: !a.quiet, stop_after: a.stop_after, stop: stop_on_signals()? };
     let s = crate::app::run::train(&config, &run, &options).map_err(|e| e.to_string())?;
     print_summary(&config, &s);
     eprintln!("meben: metrics in {}, learning curve in {}", run.metrics().display(), run.curve().display());
@@ -428,7 +451,7 @@ fn cmd_ablate(a: AblateArgs) -> Result<(), String> {
     let sweep = crate::app::sweep::Sweep::load(&a.sweep).map_err(|e| e.to_string())?;
     let shard = a.shard.as_deref().map(crate::app::sweep::Shard::parse).transpose().map_err(|e| e.to_string())?;
     let selection = crate::app::sweep::RunSelection { shard, only: a.only.clone() };
-    let options = TrainOptions { progress: !a.quiet, stop_after: None };
+    let options = TrainOptions { progress: !a.quiet, stop_after: None, stop: stop_on_signals()? };
     let outcome = crate::app::sweep::run_sweep(&sweep, &a.out, &selection, |c, r| {
         eprintln!("meben: run {} ({} on {}, seed {})", r.root().display(), c.model, c.env, c.seed);
         let c = TrainConfig { threads: a.threads.unwrap_or(c.threads), ..c.clone() };

@@ -1,6 +1,7 @@
 //! The application around the algorithm ([`crate::mappo`]): configuration presets and
 //! layers ([`presets`]), training in a run directory ([`run`], [`run_dir`], [`lock`],
-//! [`metrics`], [`build_info`], [`progress`], [`curve`], [`plot`]), sweeps ([`sweep`], `meben ablate`),
+//! [`metrics`], [`build_info`], [`progress`], [`curve`], [`plot`]) and stopping it on
+//! request ([`stop`]), sweeps ([`sweep`], `meben ablate`),
 //! reports ([`report`](mod@report), `meben report`), evidence export
 //! ([`export`](mod@export), `meben export`), the progress of runs ([`status`](mod@status),
 //! `meben status`), parameter counts ([`info`], `meben info`),
@@ -21,6 +22,7 @@ pub mod report;
 pub mod run;
 pub mod run_dir;
 pub mod status;
+pub mod stop;
 pub mod sweep;
 #[cfg(test)]
 mod test_util;

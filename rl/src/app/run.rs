@@ -13,6 +13,7 @@ use crate::app::build_info::record_build;
 use crate::app::lock::{RunLock, remove_stale_temporaries};
 use crate::app::metrics::{MetricsLayout, MetricsRow, eval_column};
 use crate::app::run_dir::RunDir;
+use crate::app::stop::StopFlag;
 use crate::error::{Result, RlError};
 use crate::mappo::checkpoint::Checkpoint;
 use crate::mappo::config::TrainConfig;
@@ -26,6 +27,9 @@ pub struct TrainOptions {
     pub progress: bool,
     /// Stop (with a checkpoint) after this many iterations in total, as if interrupted.
     pub stop_after: Option<u64>,
+    /// Once set, stop after the current iteration with a checkpoint and return
+    /// [`RlError::Interrupted`] ([`crate::app::stop`]).
+    pub stop: StopFlag,
 }
 
 /// What a finished (or stopped) run reports, also written as `done.json`.
@@ -153,6 +157,10 @@ pub fn train(config: &TrainConfig, run: &RunDir, options: &TrainOptions) -> Resu
 }
 
 fn train_in_pool(config: &TrainConfig, run: &RunDir, options: &TrainOptions) -> Result<RunSummary> {
+    if options.stop.is_requested() {
+        // Asked to stop before it began (a sweep between runs): nothing is created or changed.
+        return Err(RlError::Interrupted { run: run.root().to_path_buf(), iteration: None });
+    }
     let ckpt_path = run.checkpoint();
     // A new run is built before its directory is created: building checks what validation
     // cannot (model options that do not apply to the model, the rollout's memory).
@@ -195,7 +203,10 @@ fn train_in_pool(config: &TrainConfig, run: &RunDir, options: &TrainOptions) -> 
     let bar = crate::app::progress::Progress::new(options.progress, config, trainer.env_steps);
     let start = Instant::now();
     let mut since_ckpt = 0u64;
-    while trainer.iteration < total {
+    // The stop flag is read once an iteration, so the iteration it stops after is the one
+    // whose checkpoint is written.
+    let mut requested = false;
+    while trainer.iteration < total && !requested {
         if options.stop_after.is_some_and(|s| trainer.iteration >= s) {
             break;
         }
@@ -218,7 +229,9 @@ fn train_in_pool(config: &TrainConfig, run: &RunDir, options: &TrainOptions) -> 
             .map_err(|e| RlError::file(&metrics_path, format!("cannot write: {e}")))?;
         bar.update(&row, trainer.env_steps);
         since_ckpt += 1;
-        let last = trainer.iteration >= total || options.stop_after.is_some_and(|s| trainer.iteration >= s);
+        requested = options.stop.is_requested();
+        let last =
+            trainer.iteration >= total || requested || options.stop_after.is_some_and(|s| trainer.iteration >= s);
         if evaluated || last || (config.checkpoint_every > 0 && since_ckpt >= config.checkpoint_every as u64) {
             trainer.checkpoint(wall, &last_evals).save(&ckpt_path)?;
             since_ckpt = 0;
@@ -228,6 +241,10 @@ fn train_in_pool(config: &TrainConfig, run: &RunDir, options: &TrainOptions) -> 
         }
     }
     bar.finish();
+    if requested && trainer.iteration < total {
+        // The caller asked; the metrics and the checkpoint are complete up to this iteration.
+        return Err(RlError::Interrupted { run: run.root().to_path_buf(), iteration: Some(trainer.iteration) });
+    }
     let summary = RunSummary {
         iterations: trainer.iteration,
         env_steps: trainer.env_steps,

@@ -334,7 +334,8 @@ impl Sweep {
 ///
 /// A run that fails (its `train_fn` returns an error, or its checkpoint was made with a
 /// different configuration) does not stop the others; the error then lists every failed
-/// run. Progress is printed to standard error, one line per run.
+/// run. A run interrupted on request ([`RlError::Interrupted`], [`crate::app::stop`]) stops
+/// the sweep: that error is returned at once, and the same command goes on from there. Progress is printed to standard error, one line per run.
 pub fn run_sweep(
     sweep: &Sweep,
     out: &Path,
@@ -396,6 +397,8 @@ pub fn run_sweep(
                 }),
         };
         match result {
+            // A stop was asked for: the sweep stops too (the same command goes on from here).
+            Err(e @ RlError::Interrupted { .. }) => return Err(e),
             Ok(_) if status == RunStatus::Partial => outcome.resumed += 1,
             Ok(_) => outcome.trained += 1,
             Err(e) => {
