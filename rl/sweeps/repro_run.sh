@@ -9,6 +9,9 @@
 #   rl/sweeps/repro_run.sh restore                            # finished runs <- results/ (A and B do it first)
 #   rl/sweeps/repro_run.sh status                             # every run's progress and hours left
 #
+# Ctrl-C or SIGTERM to a worker's `meben` stops its run after the current iteration with a
+# checkpoint (exit 130), and the worker with it.
+#
 # OUT (default /tmp/runs/repro) holds the runs; BIN (default target/release/meben) is the
 # program (build it first: cargo build --release); THREADS (default 1) the threads a run
 # uses: 2 for a worker left alone on the 2-core machine (its last runs), whose rows are the
@@ -29,6 +32,12 @@ run() { # <experiment> <pattern>...: the sweep's runs whose names contain a patt
   for p in "$@"; do only+=(--only "$p"); done
   echo "== $(date -Is) $exp ${only[*]}"
   "$BIN" ablate --sweep "$SWEEPS/repro_$exp.toml" --out "$OUT/$exp" --threads "$THREADS" --quiet "${only[@]}"
+  # 130: stopped by Ctrl-C or SIGTERM after an iteration, with a checkpoint; the worker
+  # stops too instead of starting the next sweep (the same command resumes it).
+  if [ $? -eq 130 ]; then
+    echo "== $(date -Is) interrupted: worker stops"
+    exit 130
+  fi
 }
 
 # On a fresh machine (no run directories under OUT), the finished runs come back from their
