@@ -1,12 +1,14 @@
 //! The Rust core of the `meben` Python package (`meben._core`): batched MeBen environments
 //! ([`env`](mod@env)), trained policies ([`policy`]), training ([`train`](mod@train)) and run
 //! metrics ([`metrics`](mod@metrics)) over the `envs` and `rl` crates, with numpy arrays
-//! across the boundary ([`arrays`]) and Rust errors as Python exceptions ([`errors`]). The plain-Python parts (`make`, the Gymnasium
+//! across the boundary ([`arrays`]), Rust errors as Python exceptions ([`errors`]) and long
+//! work that Ctrl-C can stop ([`interrupt`]). The plain-Python parts (`make`, the Gymnasium
 //! and PettingZoo adapters) are in `python/python/meben/`.
 
 pub mod arrays;
 pub mod env;
 pub mod errors;
+pub mod interrupt;
 pub mod metrics;
 pub mod policy;
 pub mod recorder;

@@ -7,11 +7,12 @@ use numpy::PyUntypedArrayMethods;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use rl::actor::{ActMode, Actor, JointAction};
-use rl::evaluate::evaluation_actors;
-use rl::{EvalRequest, RunDir, Team, TrainConfig};
+use rl::evaluate::{evaluate_unless_stopped, evaluation_actors};
+use rl::{EvalRequest, RunDir, StopFlag, Team, TrainConfig};
 
 use crate::arrays::{array, read_f32};
 use crate::errors::{bad_argument, rl_error};
+use crate::interrupt::run_interruptible;
 
 /// A trained run's policies (see `meben.Policy.load`).
 #[pyclass(name = "Policy", module = "meben._core")]
@@ -101,7 +102,8 @@ impl PyPolicy {
     /// `draw_rate`, `mean_return`, `mean_length`, ...). `deterministic=None` takes the run's
     /// `eval_deterministic`; `fixed`, a `rotation_deg` or a `translation` `(x, y)` plays
     /// the fixed start of the run's seed, moved (the paper's equivariance test). The
-    /// policy's own noise streams (`act`) are untouched. The GIL is released while playing.
+    /// policy's own noise streams (`act`) are untouched. The GIL is released while playing;
+    /// a `KeyboardInterrupt` abandons the evaluation and is raised.
     #[pyo3(signature = (episodes=1024, seed=rl::evaluate::DEFAULT_EVAL_SEED, deterministic=None, fixed=false, rotation_deg=None, translation=None))]
     #[allow(clippy::too_many_arguments)]
     fn evaluate<'py>(
@@ -124,7 +126,16 @@ impl PyPolicy {
         };
         let options = request.options(&self.config);
         let (env, teams) = (&self.config.env, &self.teams);
-        let summary = py.detach(|| rl::evaluate(env, teams, &options)).map_err(rl_error)?;
+        let stop = StopFlag::new();
+        let stopping = "Policy.evaluate: interrupted: abandoning the evaluation";
+        let (result, interrupt) =
+            run_interruptible(py, &stop, stopping, || evaluate_unless_stopped(env, teams, &options, &stop))?;
+        if let Some(e) = interrupt {
+            return Err(e);
+        }
+        let summary = result
+            .map_err(rl_error)?
+            .ok_or_else(|| pyo3::exceptions::PyRuntimeError::new_err("Policy.evaluate stopped without an interrupt"))?;
         let text =
             serde_json::to_string(&summary).map_err(|e| pyo3::exceptions::PyRuntimeError::new_err(e.to_string()))?;
         py.import("json")?.call_method1("loads", (text,))

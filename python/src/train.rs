@@ -1,20 +1,13 @@
 //! `meben.train`: the `meben train` trainer from Python, with the same configuration layers
 //! (a preset, a TOML file, then field overrides) and the same run directory.
-//!
-//! The training runs on a thread of its own while the calling thread, holding the GIL a
-//! moment every [`SIGNAL_POLL`], lets Python handle signals: a `KeyboardInterrupt` (Ctrl-C,
-//! or a notebook's interrupt) asks the training to stop after its current iteration with a
-//! checkpoint (`rl::StopFlag`), and is raised once it has, so the same call resumes the run.
-
-use std::time::Duration;
+//! A `KeyboardInterrupt` stops the training after its current iteration with a checkpoint
+//! ([`crate::interrupt`]) and is raised once it has, so the same call resumes the run.
 
 use pyo3::prelude::*;
 use rl::{Preset, RlError, RunDir, StopFlag, TrainConfig, TrainOptions};
 
 use crate::errors::rl_error;
-
-/// How often the waiting thread takes the GIL to run Python's signal handlers.
-const SIGNAL_POLL: Duration = Duration::from_millis(50);
+use crate::interrupt::run_interruptible;
 
 /// Trains into the run directory `out` (resuming it if it holds a checkpoint) with the
 /// configuration resolved from `preset` (`quick` or `paper`), the TOML file `config`, then
@@ -38,21 +31,8 @@ pub fn train(
     let stop = StopFlag::new();
     let options = TrainOptions { progress, stop: stop.clone(), ..TrainOptions::default() };
     let run = RunDir::new(out);
-    let training = std::thread::spawn(move || rl::train(&config, &run, &options));
-    let mut interrupt: Option<PyErr> = None;
-    while !training.is_finished() {
-        py.detach(|| std::thread::sleep(SIGNAL_POLL));
-        if interrupt.is_none()
-            && let Err(e) = py.check_signals()
-        {
-            stop.request();
-            eprintln!("meben.train: interrupted: stopping after the current iteration with a checkpoint");
-            interrupt = Some(e);
-        }
-    }
-    let result = training
-        .join()
-        .map_err(|_| pyo3::exceptions::PyRuntimeError::new_err("meben.train: the training thread panicked"))?;
+    let stopping = "meben.train: interrupted: stopping after the current iteration with a checkpoint";
+    let (result, interrupt) = run_interruptible(py, &stop, stopping, || rl::train(&config, &run, &options))?;
     match (result, interrupt) {
         // Stopped on the interrupt: the checkpoint is written, the interrupt goes on up.
         (Err(RlError::Interrupted { .. }), Some(e)) => Err(e),

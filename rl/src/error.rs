@@ -39,7 +39,7 @@ pub enum RlError {
         /// What was non-finite (e.g. `team 0 loss at iteration 12, epoch 1, minibatch 3`).
         message: String,
     },
-    /// A training stopped on request ([`crate::app::stop::StopFlag`]): after a finished
+    /// A training stopped on request ([`crate::stop::StopFlag`]): after a finished
     /// iteration, whose checkpoint it wrote, so that the same command resumes it; or before
     /// it began, having changed nothing.
     Interrupted {

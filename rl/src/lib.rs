@@ -11,7 +11,7 @@
 //! Two parts: [`mappo`], the algorithm (configuration, trainer, actor, rollout, GAE, PPO,
 //! normaliser, evaluation, checkpoints), and [`app`], the application around it (presets,
 //! the run directory, metrics, progress, curves and plots, sweeps, reports, export, render,
-//! the command line); [`error`] is shared. `app` uses `mappo`, never the other way.
+//! the command line); [`error`] and [`stop`] (stopping on request) are shared. `app` uses `mappo`, never the other way.
 //!
 //! The modules are also reachable under their paths from before this split (`rl::config`,
 //! `rl::checkpoint`, `rl::train`, `rl::normalizer`, `rl::sweep`, ...), so that code written
@@ -20,12 +20,12 @@
 pub mod app;
 pub mod error;
 pub mod mappo;
+pub mod stop;
 
 pub use app::presets::Preset;
 pub use app::report::{Report, report};
 pub use app::run::{RunSummary, TrainOptions, train};
 pub use app::run_dir::{RunDir, RunStatus};
-pub use app::stop::StopFlag;
 pub use app::sweep::{RunSelection, Shard, Sweep, SweepOutcome, SweepRun, run_sweep};
 pub use app::{lock::RunLock, plot::LinePlot};
 pub use error::{Result, RlError};
@@ -33,6 +33,7 @@ pub use mappo::config::{EntropyKind, NormStart, ObsNormKind, TrainConfig, TrainS
 pub use mappo::evaluate::{EvalOptions, EvalRequest, EvalSummary, evaluate};
 pub use mappo::team::Team;
 pub use mappo::trainer::Trainer;
+pub use stop::StopFlag;
 
 // The paths from before the split into `mappo` and `app`.
 pub use app::{curve, export, info, lock, metrics, plot, progress, report, run_dir, status, sweep};

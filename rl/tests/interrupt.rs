@@ -1,8 +1,8 @@
-//! Stopping a training on request (`rl::app::stop`): a set `StopFlag` ends `train` after a
-//! finished iteration with a checkpoint of it and `RlError::Interrupted`, and the run then
-//! resumes bit-identically; a flag set before training changes nothing; a sweep stops at
-//! the interrupted run; the `meben` program does the same on Ctrl-C (SIGINT) and SIGTERM,
-//! with exit status 130.
+//! Stopping on request (`rl::stop`): a set `StopFlag` ends `train` after a finished
+//! iteration with a checkpoint of it and `RlError::Interrupted`, and the run then resumes
+//! bit-identically; a flag set before training changes nothing; a sweep stops at the
+//! interrupted run; the `meben` program does the same on Ctrl-C (SIGINT) and SIGTERM, with
+//! exit status 130; an evaluation stops with no summary.
 
 mod common;
 
@@ -151,4 +151,28 @@ fn the_program_stops_with_a_checkpoint_on_sigint_and_sigterm() {
         assert_eq!(metrics(&run).len() as u64, saved, "SIG{signal}");
         assert!(!run.done().exists());
     }
+}
+
+#[test]
+fn a_stopped_evaluation_returns_no_summary_and_an_unstopped_one_the_same_as_evaluate() {
+    use rl::evaluate::{evaluate, evaluate_unless_stopped};
+    let dir = common::TempDir::new("interrupt-eval");
+    let config = common::tiny("team_reach/1_ant", "mlp_hn", 1, &[]);
+    let run = RunDir::new(dir.0.join("run"));
+    train(&config, &run, &TrainOptions::default()).unwrap();
+    let (config, teams) = rl::checkpoint::load_policies(&run).unwrap();
+    let request = rl::EvalRequest {
+        episodes: 6,
+        seed: 3,
+        deterministic: Some(false),
+        fixed: false,
+        rotation_deg: None,
+        translation: None,
+    };
+    let options = request.options(&config);
+    let flag = StopFlag::new();
+    let whole = evaluate_unless_stopped(&config.env, &teams, &options, &flag).unwrap();
+    assert_eq!(whole, Some(evaluate(&config.env, &teams, &options).unwrap()));
+    flag.request();
+    assert_eq!(evaluate_unless_stopped(&config.env, &teams, &options, &flag).unwrap(), None);
 }

@@ -14,10 +14,11 @@ use std::sync::OnceLock;
 use crate::app::presets::Preset;
 use crate::app::run::TrainOptions;
 use crate::app::run_dir::RunDir;
-use crate::app::stop::{INTERRUPTED_EXIT_CODE, StopFlag, install_signal_handler};
+use crate::app::signals::{INTERRUPTED_EXIT_CODE, install_signal_handler};
 use crate::error::RlError;
 use crate::mappo::config::TrainConfig;
 use crate::mappo::evaluate::EvalRequest;
+use crate::stop::StopFlag;
 use clap::{Args, Parser, Subcommand};
 
 #[derive(Parser)]
@@ -275,7 +276,7 @@ static STOP: OnceLock<StopFlag> = OnceLock::new();
 
 /// The stop flag of `meben train` and `meben ablate`: the first Ctrl-C or SIGTERM stops the
 /// training after its current iteration with a checkpoint, the second ends the program
-/// ([`crate::app::stop`]). Other commands keep the default: a signal ends them at once.
+/// ([`crate::app::signals`]). Other commands keep the default: a signal ends them at once.
 fn stop_on_signals() -> Result<StopFlag, String> {
     if let Some(flag) = STOP.get() {
         return Ok(flag.clone());

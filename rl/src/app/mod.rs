@@ -1,7 +1,7 @@
 //! The application around the algorithm ([`crate::mappo`]): configuration presets and
 //! layers ([`presets`]), training in a run directory ([`run`], [`run_dir`], [`lock`],
 //! [`metrics`], [`build_info`], [`progress`], [`curve`], [`plot`]) and stopping it on
-//! request ([`stop`]), sweeps ([`sweep`], `meben ablate`),
+//! Ctrl-C or SIGTERM ([`signals`]), sweeps ([`sweep`], `meben ablate`),
 //! reports ([`report`](mod@report), `meben report`), evidence export
 //! ([`export`](mod@export), `meben export`), the progress of runs ([`status`](mod@status),
 //! `meben status`), parameter counts ([`info`], `meben info`),
@@ -21,8 +21,8 @@ pub mod render;
 pub mod report;
 pub mod run;
 pub mod run_dir;
+pub mod signals;
 pub mod status;
-pub mod stop;
 pub mod sweep;
 #[cfg(test)]
 mod test_util;

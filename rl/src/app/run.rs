@@ -13,12 +13,12 @@ use crate::app::build_info::record_build;
 use crate::app::lock::{RunLock, remove_stale_temporaries};
 use crate::app::metrics::{MetricsLayout, MetricsRow, eval_column};
 use crate::app::run_dir::RunDir;
-use crate::app::stop::StopFlag;
 use crate::error::{Result, RlError};
 use crate::mappo::checkpoint::Checkpoint;
 use crate::mappo::config::TrainConfig;
 use crate::mappo::evaluate::EvalSummary;
 use crate::mappo::trainer::{IterationStats, Trainer};
+use crate::stop::StopFlag;
 
 /// How [`train`] runs, beyond the configuration.
 #[derive(Clone, Debug, Default)]
@@ -28,7 +28,7 @@ pub struct TrainOptions {
     /// Stop (with a checkpoint) after this many iterations in total, as if interrupted.
     pub stop_after: Option<u64>,
     /// Once set, stop after the current iteration with a checkpoint and return
-    /// [`RlError::Interrupted`] ([`crate::app::stop`]).
+    /// [`RlError::Interrupted`] ([`crate::stop`]).
     pub stop: StopFlag,
 }
 

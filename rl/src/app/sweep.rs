@@ -334,7 +334,7 @@ impl Sweep {
 ///
 /// A run that fails (its `train_fn` returns an error, or its checkpoint was made with a
 /// different configuration) does not stop the others; the error then lists every failed
-/// run. A run interrupted on request ([`RlError::Interrupted`], [`crate::app::stop`]) stops
+/// run. A run interrupted on request ([`RlError::Interrupted`], [`crate::stop`]) stops
 /// the sweep: that error is returned at once, and the same command goes on from there. Progress is printed to standard error, one line per run.
 pub fn run_sweep(
     sweep: &Sweep,

@@ -22,6 +22,7 @@ use crate::mappo::actor::{ActMode, Actor, JointAction};
 use crate::mappo::config::TrainConfig;
 use crate::mappo::seeding::stream;
 use crate::mappo::team::Team;
+use crate::stop::StopFlag;
 
 /// Results of one evaluation.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
@@ -158,6 +159,20 @@ pub fn eval_envs(env: &str, options: &EvalOptions) -> Result<VecEnv> {
 /// Plays `options.episodes` episodes of `env` with `teams` (not changed: their models are
 /// cloned so that the training's random streams are untouched) and summarises them.
 pub fn evaluate(env: &str, teams: &[Team], options: &EvalOptions) -> Result<EvalSummary> {
+    let summary = evaluate_unless_stopped(env, teams, options, &StopFlag::new())?;
+    Ok(summary.expect("a flag that is never set never stops an evaluation"))
+}
+
+/// [`evaluate`], reading `stop` before every control step: `Ok(None)` once it is set (the
+/// episodes are abandoned; nothing else changes, since an evaluation leaves the teams as it
+/// found them). For callers that must be able to interrupt a long evaluation (Python's
+/// `Policy.evaluate` on a `KeyboardInterrupt`).
+pub fn evaluate_unless_stopped(
+    env: &str,
+    teams: &[Team],
+    options: &EvalOptions,
+    stop: &StopFlag,
+) -> Result<Option<EvalSummary>> {
     let spec = TaskSpec::from_name(env)?;
     let mut venv = eval_envs(env, options)?;
     let (b, na, nt) = (options.episodes, venv.n_actions(), venv.scene().n_teams());
@@ -173,6 +188,9 @@ pub fn evaluate(env: &str, teams: &[Team], options: &EvalOptions) -> Result<Eval
     for _ in 0..max_steps {
         if remaining == 0 {
             break;
+        }
+        if stop.is_requested() {
+            return Ok(None);
         }
         for (team, (model, actor)) in teams.iter().zip(&mut players) {
             actor.act(model, &team.store, &team.norm, venv.obs().rows(), &mut joint)?;
@@ -193,12 +211,12 @@ pub fn evaluate(env: &str, teams: &[Team], options: &EvalOptions) -> Result<Eval
             }
         }
     }
-    Ok(EvalSummary {
+    Ok(Some(EvalSummary {
         sampled: !options.deterministic,
         rotation_deg: options.rotation_deg,
         translation: options.translation,
         ..summarise(&outcome, &returns, &length, nt)
-    })
+    }))
 }
 
 /// The players of an evaluation with seed `seed`: per team a copy of its model (so that the

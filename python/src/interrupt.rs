@@ -1,0 +1,43 @@
+//! Long Rust work that Ctrl-C can stop from Python: the work runs on a thread of its own
+//! while the calling thread, holding the GIL a moment every 50 ms (`SIGNAL_POLL`), lets Python
+//! run its signal handlers. A `KeyboardInterrupt` (Ctrl-C, or a notebook's interrupt) sets
+//! the work's [`StopFlag`] (`rl::stop`: a training stops after its current iteration with a
+//! checkpoint, an evaluation before its next step), and is returned once the work has
+//! stopped, to be raised in its place. Before, the work held the thread until it finished
+//! and an interrupt waited for it.
+
+use std::time::Duration;
+
+use pyo3::exceptions::PyRuntimeError;
+use pyo3::prelude::*;
+use rl::StopFlag;
+
+/// How often the waiting thread takes the GIL to run Python's signal handlers.
+const SIGNAL_POLL: Duration = Duration::from_millis(50);
+
+/// Runs `work` on a scoped thread until it returns; a `KeyboardInterrupt` meanwhile sets
+/// `stop` and prints `stopping` (what happens now) to standard error. Returns the work's
+/// result and the interrupt, if one came.
+pub fn run_interruptible<T: Send>(
+    py: Python<'_>,
+    stop: &StopFlag,
+    stopping: &str,
+    work: impl FnOnce() -> T + Send,
+) -> PyResult<(T, Option<PyErr>)> {
+    std::thread::scope(|scope| {
+        let worker = scope.spawn(work);
+        let mut interrupt: Option<PyErr> = None;
+        while !worker.is_finished() {
+            py.detach(|| std::thread::sleep(SIGNAL_POLL));
+            if interrupt.is_none()
+                && let Err(e) = py.check_signals()
+            {
+                stop.request();
+                eprintln!("{stopping}");
+                interrupt = Some(e);
+            }
+        }
+        let result = worker.join().map_err(|_| PyRuntimeError::new_err(format!("{stopping}: the work panicked")))?;
+        Ok((result, interrupt))
+    })
+}
