@@ -1,5 +1,6 @@
 //! `meben.train`: the `meben train` trainer from Python, with the same configuration layers
 //! (a preset, a TOML file, then field overrides) and the same run directory.
+//!
 //! A `KeyboardInterrupt` stops the training after its current iteration with a checkpoint
 //! ([`crate::interrupt`]) and is raised once it has, so the same call resumes the run.
 
