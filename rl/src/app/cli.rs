@@ -35,10 +35,16 @@ struct Cli {
 #[derive(Subcommand)]
 enum Command {
     /// Train a model (MAPPO). With no options: shnn on team_reach/1_ant, about ten minutes.
+    ///
+    /// Ctrl-C or SIGTERM stops after the current iteration with a checkpoint (exit status
+    /// 130); the same command resumes the run. A second Ctrl-C quits at once.
     Train(Box<TrainArgs>),
     /// Evaluate a trained run on N episodes.
     Eval(EvalArgs),
     /// Run a sweep of models x envs x seeds x variants (skips finished runs, resumes others).
+    ///
+    /// Ctrl-C or SIGTERM stops the running run after its current iteration with a checkpoint
+    /// and ends the sweep (exit status 130); the same command goes on from there.
     Ablate(AblateArgs),
     /// Tables (Markdown, CSV) and learning curves of a sweep or of runs under a directory
     /// (also redraws each run's curve.svg).
