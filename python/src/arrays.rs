@@ -18,6 +18,11 @@ pub fn array<'py, T: numpy::Element + Copy>(
     Ok(PyArray1::from_slice(py, data).reshape(shape)?.into_any())
 }
 
+/// Python's `repr` of the string `s` (for the classes' `__repr__`).
+pub fn py_repr(py: Python<'_>, s: &str) -> PyResult<String> {
+    Ok(pyo3::types::PyString::new(py, s).repr()?.to_string())
+}
+
 /// An observation as `{"vectors", "scalars", "heading"}` (fresh arrays, owned by Python).
 pub fn obs_dict<'py>(py: Python<'py>, o: &Observation) -> PyResult<Bound<'py, PyDict>> {
     let d = PyDict::new(py);

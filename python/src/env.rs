@@ -7,7 +7,7 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple};
 use rl::EvalOptions;
 
-use crate::arrays::{array, obs_dict, read_f32};
+use crate::arrays::{array, obs_dict, py_repr, read_f32};
 use crate::errors::{bad_argument, rl_error, task_error};
 use crate::recorder::Recorder;
 use crate::spec::spec_dict;
@@ -232,5 +232,16 @@ impl PyVecEnv {
     #[getter]
     fn auto_reset(&self) -> bool {
         self.auto_reset
+    }
+
+    /// `VecEnv(name=..., num_envs=..., num_actions=..., auto_reset=...)`.
+    fn __repr__(&self, py: Python<'_>) -> PyResult<String> {
+        Ok(format!(
+            "VecEnv(name={}, num_envs={}, num_actions={}, auto_reset={})",
+            py_repr(py, &self.env.scene().spec.name)?,
+            self.env.batch(),
+            self.env.n_actions(),
+            if self.auto_reset { "True" } else { "False" }
+        ))
     }
 }

@@ -10,13 +10,15 @@ use rl::actor::{ActMode, Actor, JointAction};
 use rl::evaluate::{evaluate_unless_stopped, evaluation_actors};
 use rl::{EvalRequest, RunDir, StopFlag, Team, TrainConfig};
 
-use crate::arrays::{array, read_f32};
+use crate::arrays::{array, py_repr, read_f32};
 use crate::errors::{bad_argument, rl_error};
 use crate::interrupt::run_interruptible;
 
 /// A trained run's policies (see `meben.Policy.load`).
 #[pyclass(name = "Policy", module = "meben._core")]
 pub struct PyPolicy {
+    /// The run directory it was loaded from.
+    run: std::path::PathBuf,
     config: TrainConfig,
     teams: Vec<Team>,
     /// Per team a copy of its model and its actor, in sampling mode; `act` sets the mode.
@@ -41,10 +43,11 @@ impl PyPolicy {
     #[staticmethod]
     #[pyo3(signature = (run, seed=0))]
     fn load(py: Python<'_>, run: std::path::PathBuf, seed: u64) -> PyResult<PyPolicy> {
-        let (config, teams) = py.detach(|| rl::checkpoint::load_policies(&RunDir::new(run))).map_err(rl_error)?;
+        let (config, teams) = py.detach(|| rl::checkpoint::load_policies(&RunDir::new(&run))).map_err(rl_error)?;
         let scene = py.detach(|| envs::tasks::Scene::from_name(&config.env)).map_err(crate::errors::task_error)?;
         let players = evaluation_actors(&teams, seed, ActMode::Sample);
         Ok(PyPolicy {
+            run,
             config,
             teams,
             players,
@@ -141,6 +144,12 @@ impl PyPolicy {
         py.import("json")?.call_method1("loads", (text,))
     }
 
+    /// The run directory the policy was loaded from.
+    #[getter]
+    fn run(&self) -> std::path::PathBuf {
+        self.run.clone()
+    }
+
     /// The run's environment name.
     #[getter]
     fn env(&self) -> &str {
@@ -157,5 +166,19 @@ impl PyPolicy {
     #[getter]
     fn config(&self) -> String {
         self.config.to_toml()
+    }
+
+    /// `Policy(run=..., env=..., model=...[, opponent=...])`.
+    fn __repr__(&self, py: Python<'_>) -> PyResult<String> {
+        let opponent = match self.config.opponent.as_str() {
+            "" => String::new(),
+            o => format!(", opponent={}", py_repr(py, o)?),
+        };
+        Ok(format!(
+            "Policy(run={}, env={}, model={}{opponent})",
+            py_repr(py, &self.run.display().to_string())?,
+            py_repr(py, &self.config.env)?,
+            py_repr(py, &self.config.model)?
+        ))
     }
 }

@@ -154,3 +154,11 @@ def test_read_metrics_gives_the_runs_columns(run, tmp_path):
         meben.read_metrics(bad)
     with pytest.raises(OSError, match="missing"):
         meben.read_metrics(tmp_path / "missing")
+
+
+def test_policy_and_env_say_what_they_are(run):
+    policy = meben.Policy.load(run)
+    assert policy.run == run
+    assert repr(policy) == f"Policy(run={str(run)!r}, env='team_reach/1_ant', model='mlp_hn')"
+    env = meben.make("team_sumo/2_ants", num_envs=3, auto_reset=False)
+    assert repr(env) == f"VecEnv(name='team_sumo/2_ants', num_envs=3, num_actions={env.num_actions}, auto_reset=False)"

@@ -2,6 +2,7 @@
 # are the Rust ones, at run time. python/tests/test_typing.py checks this file against the
 # built module (mypy's stubtest) and type-checks the example with it.
 import os
+import pathlib
 from typing import Dict, List, Optional, Sequence, Tuple, Union, final
 
 import numpy as np
@@ -61,6 +62,7 @@ class VecEnv:
     def curriculum_alpha(self, alpha: float) -> None: ...
     @property
     def auto_reset(self) -> bool: ...
+    def __repr__(self) -> str: ...
 
 @final
 class Policy:
@@ -77,11 +79,14 @@ class Policy:
         translation: Optional[Tuple[float, float]] = None,
     ) -> EvalSummary: ...
     @property
+    def run(self) -> pathlib.Path: ...
+    @property
     def env(self) -> str: ...
     @property
     def model(self) -> str: ...
     @property
     def config(self) -> str: ...
+    def __repr__(self) -> str: ...
 
 def train(
     out: _Path,
