@@ -6,6 +6,7 @@
 //! stopped, to be raised in its place. Before, the work held the thread until it finished
 //! and an interrupt waited for it.
 
+use std::sync::{Condvar, Mutex};
 use std::time::Duration;
 
 use pyo3::exceptions::PyRuntimeError;
@@ -24,11 +25,16 @@ pub fn run_interruptible<T: Send>(
     stopping: &str,
     work: impl FnOnce() -> T + Send,
 ) -> PyResult<(T, Option<PyErr>)> {
+    // The worker says when it is done (also if it panics: the guard's drop), so that short
+    // work returns at once rather than after a whole poll interval.
+    let done = Finished::default();
     std::thread::scope(|scope| {
-        let worker = scope.spawn(work);
+        let worker = scope.spawn(|| {
+            let _guard = FinishGuard(&done);
+            work()
+        });
         let mut interrupt: Option<PyErr> = None;
-        while !worker.is_finished() {
-            py.detach(|| std::thread::sleep(SIGNAL_POLL));
+        while !py.detach(|| done.wait(SIGNAL_POLL)) {
             if interrupt.is_none()
                 && let Err(e) = py.check_signals()
             {
@@ -40,4 +46,30 @@ pub fn run_interruptible<T: Send>(
         let result = worker.join().map_err(|_| PyRuntimeError::new_err(format!("{stopping}: the work panicked")))?;
         Ok((result, interrupt))
     })
+}
+
+/// Whether the work is done, and a way to wait for it.
+#[derive(Default)]
+struct Finished {
+    done: Mutex<bool>,
+    changed: Condvar,
+}
+
+impl Finished {
+    /// Waits at most `timeout` for the work to be done; whether it is.
+    fn wait(&self, timeout: Duration) -> bool {
+        let done = self.done.lock().unwrap_or_else(|e| e.into_inner());
+        let (done, _) = self.changed.wait_timeout_while(done, timeout, |d| !*d).unwrap_or_else(|e| e.into_inner());
+        *done
+    }
+}
+
+/// Marks the work done when dropped: when the work returns or unwinds.
+struct FinishGuard<'a>(&'a Finished);
+
+impl Drop for FinishGuard<'_> {
+    fn drop(&mut self) {
+        *self.0.done.lock().unwrap_or_else(|e| e.into_inner()) = true;
+        self.0.changed.notify_all();
+    }
 }
