@@ -134,6 +134,11 @@ def test_policy_evaluate_rejects_bad_requests_by_name(run):
         policy.evaluate(episodes=1, rotation_deg=float("nan"))
     with pytest.raises(ValueError, match="finite"):
         policy.evaluate(episodes=1, translation=(0.0, float("inf")))
+    # Finite but too far for f64 positions to keep the physics (envs MAX_MOTION_M).
+    with pytest.raises(ValueError, match=r"translation \[1e\+?300, 0\.0\].*within 1e6 m"):
+        policy.evaluate(episodes=1, translation=(1e300, 0.0))
+    with pytest.raises(ValueError, match="within 1e6 m"):
+        meben.make("team_reach/1_ant", fixed_start=1, rotation_deg=90, point=(0.0, -5e6))
 
 
 def test_read_metrics_gives_the_runs_columns(run, tmp_path):

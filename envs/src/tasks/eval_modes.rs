@@ -25,6 +25,16 @@ pub struct FixedStart {
     pub point: [f64; 2],
 }
 
+/// The farthest a rotation axis or a translation of a start may lie from the origin, in m
+/// (horizontally, per coordinate). Within it f64 positions keep a resolution of about 1e-10
+/// m; far beyond it a moved scene is no longer the same physics (at 1e12 m, 1e-4 m).
+pub const MAX_MOTION_M: f64 = 1e6;
+
+/// Whether every coordinate is finite and within [`MAX_MOTION_M`] of the origin.
+fn within_reach(xy: &[f64]) -> bool {
+    xy.iter().all(|x| x.is_finite() && x.abs() <= MAX_MOTION_M)
+}
+
 /// How each episode starts.
 #[derive(Clone, Copy, Debug, PartialEq, Default, Serialize, Deserialize)]
 pub enum StartMode {
@@ -52,15 +62,15 @@ impl StartMode {
         StartMode::Fixed(FixedStart { seed, angle, point })
     }
 
-    /// Errors when the angle or point is not finite.
+    /// Errors when the angle is not finite or the point not within [`MAX_MOTION_M`].
     pub fn validate(&self) -> Result<(), TaskError> {
         if let StartMode::Fixed(f) = self
-            && !(f.angle.is_finite() && f.point.iter().all(|x| x.is_finite()))
+            && !(f.angle.is_finite() && within_reach(&f.point))
         {
             return Err(TaskError::BadArgument {
                 what: "fixed start rotation".into(),
                 value: format!("angle {} about point {:?}", f.angle, f.point),
-                message: "the angle and the point must be finite".into(),
+                message: format!("the angle must be finite and the point within {MAX_MOTION_M:e} m of the origin"),
             });
         }
         Ok(())
@@ -107,13 +117,16 @@ impl SceneMotion {
         self.angle == 0.0 && self.shift == [0.0, 0.0]
     }
 
-    /// Errors when the angle, the point or the shift is not finite.
+    /// Errors when the angle is not finite, or the point or the shift not within
+    /// [`MAX_MOTION_M`].
     pub fn validate(&self) -> Result<(), TaskError> {
-        if !(self.angle.is_finite() && self.point.iter().chain(&self.shift).all(|x| x.is_finite())) {
+        if !(self.angle.is_finite() && within_reach(&self.point) && within_reach(&self.shift)) {
             return Err(TaskError::BadArgument {
                 what: "scene motion".into(),
                 value: format!("rotation {} rad about {:?}, translation {:?}", self.angle, self.point, self.shift),
-                message: "the angle, the point and the translation must be finite".into(),
+                message: format!(
+                    "the angle must be finite, the point and the translation within {MAX_MOTION_M:e} m of the origin"
+                ),
             });
         }
         Ok(())
@@ -166,15 +179,21 @@ mod tests {
     }
 
     #[test]
-    fn non_finite_motions_are_errors() {
+    fn non_finite_and_far_motions_are_errors() {
         assert!(SceneMotion::about_origin(180.0, [2.0, -3.0]).validate().is_ok());
+        assert!(SceneMotion::about_origin(1e5, [MAX_MOTION_M, -MAX_MOTION_M]).validate().is_ok());
         for m in [
             SceneMotion::about_origin(f64::NAN, [0.0, 0.0]),
             SceneMotion::about_origin(0.0, [f64::INFINITY, 0.0]),
             SceneMotion { point: [0.0, f64::NAN], ..SceneMotion::identity() },
+            SceneMotion::about_origin(0.0, [1e300, 0.0]),
+            SceneMotion { point: [0.0, -2e6], ..SceneMotion::identity() },
         ] {
             let e = m.validate().unwrap_err().to_string();
-            assert!(e.contains("scene motion") && e.contains("finite"), "{e}");
+            assert!(e.contains("scene motion") && e.contains("finite") && e.contains("1e6 m"), "{e}");
         }
+        assert!(StartMode::fixed_rotated(1, 0.5, [MAX_MOTION_M, 0.0]).validate().is_ok());
+        let e = StartMode::fixed_rotated(1, 0.5, [0.0, 1e7]).validate().unwrap_err().to_string();
+        assert!(e.contains("fixed start rotation") && e.contains("1e6 m"), "{e}");
     }
 }
