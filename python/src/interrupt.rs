@@ -43,7 +43,8 @@ pub fn run_interruptible<T: Send>(
                 interrupt = Some(e);
             }
         }
-        let result = worker.join().map_err(|_| PyRuntimeError::new_err(format!("{stopping}: the work panicked")))?;
+        // A panic is a bug in the Rust core (bad input is an error, not a panic).
+        let result = worker.join().map_err(|_| PyRuntimeError::new_err("meben: the Rust core panicked (a bug)"))?;
         Ok((result, interrupt))
     })
 }
