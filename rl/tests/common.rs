@@ -51,3 +51,10 @@ impl Drop for TempDir {
         let _ = std::fs::remove_dir_all(&self.0);
     }
 }
+
+/// A run's metrics rows without the wall-clock columns (`wall_s`, `steps_per_s`), for
+/// comparing runs row by row.
+pub fn metrics(run: &rl::RunDir) -> Vec<Vec<(String, f64)>> {
+    let rows = rl::metrics::parse_csv(&std::fs::read_to_string(run.metrics()).unwrap()).unwrap();
+    rows.into_iter().map(|r| r.into_iter().filter(|(k, _)| k != "wall_s" && k != "steps_per_s").collect()).collect()
+}

@@ -6,19 +6,14 @@
 
 mod common;
 
+use common::metrics;
+
 use std::path::Path;
 use std::process::Command;
 use std::time::{Duration, Instant};
 
 use rl::checkpoint::Checkpoint;
-use rl::metrics::parse_csv;
 use rl::{RlError, RunDir, RunSelection, StopFlag, Sweep, TrainOptions, run_sweep, train};
-
-/// Metrics rows without the wall-clock columns.
-fn metrics(run: &RunDir) -> Vec<Vec<(String, f64)>> {
-    let rows = parse_csv(&std::fs::read_to_string(run.metrics()).unwrap()).unwrap();
-    rows.into_iter().map(|r| r.into_iter().filter(|(k, _)| k != "wall_s" && k != "steps_per_s").collect()).collect()
-}
 
 /// Data rows of a metrics file (0 if it does not exist yet).
 fn rows_written(path: &Path) -> usize {

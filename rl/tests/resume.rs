@@ -5,16 +5,11 @@
 
 mod common;
 
+use common::metrics;
+
 use rl::checkpoint::Checkpoint;
-use rl::metrics::parse_csv;
 use rl::normalizer::{NormKind, ObsNormalizer};
 use rl::{RunDir, TrainConfig, TrainOptions, train};
-
-/// Metrics without the wall-clock columns.
-fn metrics(run: &RunDir) -> Vec<Vec<(String, f64)>> {
-    let rows = parse_csv(&std::fs::read_to_string(run.metrics()).unwrap()).unwrap();
-    rows.into_iter().map(|r| r.into_iter().filter(|(k, _)| k != "wall_s" && k != "steps_per_s").collect()).collect()
-}
 
 fn params(run: &RunDir) -> Vec<Vec<f64>> {
     let c = Checkpoint::load(&run.checkpoint()).unwrap();
