@@ -1,0 +1,335 @@
+//! `docs/RESULTS.md` quotes the committed evidence: every figure in the reproduction's
+//! tables (issue 15) is the one its run files give, to the places it is written with.
+//!
+//! The tables are written by hand beside the paper's numbers, so this test reads them back:
+//! - a table of final rates (first column `model`): every "here" cell of the form
+//!   `mean ± s.e. (seed, seed, ...)` must be a row of one of the section's
+//!   `results/<experiment>/report.csv` files (same model, the environment the column names,
+//!   the rotation it names), and the per-seed figures the last evaluation of each seed's
+//!   `metrics.csv`;
+//! - a table of runs (first column `run`, cells like `` `mlp` seed 1 ``): success and return
+//!   at 0 and 180 degrees, from the run's last evaluation;
+//! - a table of evaluations (first column `env steps`): each row the evaluation at those env
+//!   steps of the section's one run (win, loss and draw rates, mean returns, mean length).
+//!
+//! A section's experiments are the `results/<experiment>/report.md` files it links. A figure
+//! matches when it equals the evidence rounded to the decimals it is written with (either
+//! way at an exact tie, since `{:.2}` and Python's rounding differ there).
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+
+/// The workspace root.
+fn root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+/// One markdown table of the document, with the `###` heading it stands under.
+struct Table {
+    section: String,
+    line: usize,
+    header: Vec<String>,
+    rows: Vec<Vec<String>>,
+}
+
+/// The cells of a markdown table line `| a | b |`.
+fn cells(line: &str) -> Vec<String> {
+    let inner = line.trim().trim_start_matches('|').trim_end_matches('|');
+    inner.split('|').map(|c| c.trim().to_string()).collect()
+}
+
+/// The sections (`###` heading → its text) and tables of the reproduction part of the
+/// document: from `## The reproduction` to the next `## ` heading.
+fn reproduction(doc: &str) -> (HashMap<String, String>, Vec<Table>) {
+    let mut sections: HashMap<String, String> = HashMap::new();
+    let mut tables = Vec::new();
+    let mut inside = false;
+    let mut section = String::new();
+    let mut current: Option<Table> = None;
+    for (i, line) in doc.lines().enumerate() {
+        if line.starts_with("## ") {
+            inside = line.starts_with("## The reproduction");
+        }
+        if !inside {
+            continue;
+        }
+        if let Some(h) = line.strip_prefix("### ") {
+            section = h.to_string();
+        }
+        sections.entry(section.clone()).or_default().push_str(line);
+        sections.get_mut(&section).unwrap().push('\n');
+        if line.starts_with('|') {
+            let c = cells(line);
+            match current.as_mut() {
+                None => current = Some(Table { section: section.clone(), line: i + 1, header: c, rows: Vec::new() }),
+                Some(t) if c.iter().all(|x| x.chars().all(|ch| ch == '-' || ch == ':')) => {
+                    assert!(t.rows.is_empty(), "RESULTS.md line {}: a second separator line", i + 1)
+                }
+                Some(t) => t.rows.push(c),
+            }
+        } else if let Some(t) = current.take() {
+            tables.push(t);
+        }
+    }
+    tables.extend(current);
+    (sections, tables)
+}
+
+/// The experiments a section's text links: `results/<experiment>/report.md`.
+fn linked_experiments(text: &str) -> Vec<String> {
+    let mut out: Vec<String> = Vec::new();
+    for piece in text.split("results/").skip(1) {
+        if let Some((name, _)) = piece.split_once("/report.md")
+            && !name.is_empty()
+            && !name.contains(['/', ' ', '(', ')', '`'])
+            && !out.iter().any(|o| o == name)
+        {
+            out.push(name.to_string());
+        }
+    }
+    out
+}
+
+/// A CSV file's header and rows (the evidence has no quoted fields).
+fn read_csv(path: &Path) -> (Vec<String>, Vec<Vec<String>>) {
+    let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let mut lines = text.lines();
+    let header = lines.next().unwrap().split(',').map(str::to_string).collect();
+    (header, lines.map(|l| l.split(',').map(str::to_string).collect()).collect())
+}
+
+/// A run's `metrics.csv`, as column name → values by row.
+struct Metrics {
+    path: PathBuf,
+    columns: HashMap<String, Vec<String>>,
+}
+
+impl Metrics {
+    fn read(path: PathBuf) -> Self {
+        let (header, rows) = read_csv(&path);
+        let columns =
+            header.iter().enumerate().map(|(j, h)| (h.clone(), rows.iter().map(|r| r[j].clone()).collect())).collect();
+        Self { path, columns }
+    }
+
+    fn column(&self, name: &str) -> &[String] {
+        self.columns.get(name).unwrap_or_else(|| panic!("{}: no column {name}", self.path.display()))
+    }
+
+    /// The last non-empty value of `name`.
+    fn last(&self, name: &str) -> f64 {
+        let v = self.column(name).iter().rev().find(|v| !v.is_empty());
+        v.unwrap_or_else(|| panic!("{}: {name} is never written", self.path.display())).parse().unwrap()
+    }
+}
+
+/// Whether the figure `shown`, as written, is `value` rounded to its decimals.
+fn quotes(shown: &str, value: f64) -> bool {
+    let Ok(x) = shown.parse::<f64>() else { return false };
+    let decimals = shown.split_once('.').map_or(0, |(_, d)| d.len()) as i32;
+    (x - value).abs() <= 0.5 * 10f64.powi(-decimals) * (1.0 + 1e-9) + 1e-12
+}
+
+/// `a ± b (s, s, s)` → (a, b, [s...]); None for a cell without `±`.
+fn mean_se_seeds(cell: &str) -> Option<(String, String, Vec<String>)> {
+    let (mean, rest) = cell.split_once(" ± ")?;
+    let se: String = rest.chars().take_while(|c| c.is_ascii_digit() || *c == '.').collect();
+    let seeds = match rest.split_once('(') {
+        Some((_, list)) => list.trim_end_matches(')').split(',').map(|s| s.trim().to_string()).collect(),
+        None => Vec::new(),
+    };
+    Some((mean.trim().to_string(), se, seeds))
+}
+
+/// What a test of one table found: figures checked and mismatches.
+#[derive(Default)]
+struct Tally {
+    checked: usize,
+    wrong: Vec<String>,
+}
+
+impl Tally {
+    fn check(&mut self, place: String, shown: &str, value: f64) {
+        self.checked += 1;
+        if !quotes(shown, value) {
+            self.wrong.push(format!("{place}: the document says {shown}, the evidence {value}"));
+        }
+    }
+}
+
+/// A table of final rates: first column the model, "here" columns `mean ± s.e. (seeds)`.
+fn check_final_rates(t: &Table, experiments: &[String], tally: &mut Tally) {
+    let results = root().join("results");
+    let reports: Vec<(String, HashMap<String, String>)> = experiments
+        .iter()
+        .flat_map(|exp| {
+            let (header, rows) = read_csv(&results.join(exp).join("report.csv"));
+            rows.into_iter().map(move |r| (exp.clone(), header.iter().cloned().zip(r).collect()))
+        })
+        .collect();
+    for row in &t.rows {
+        let model = row[0].trim_matches('`');
+        for (j, head) in t.header.iter().enumerate().filter(|(_, h)| h.contains("here")) {
+            let Some((mean, se, seeds)) = mean_se_seeds(&row[j]) else { continue };
+            let env = head.split('`').nth(1);
+            let rotation = if head.contains("180°") { "180" } else { "0" };
+            let place = format!("RESULTS.md, table at line {} ({}), {model}, column \"{head}\"", t.line, t.section);
+            let found = reports.iter().find(|(_, r)| {
+                r["model"] == model
+                    && r["rotation_deg"] == rotation
+                    && env.is_none_or(|e| r["env"].ends_with(&format!("/{e}")))
+                    && quotes(&mean, r["mean_pct"].parse().unwrap())
+                    && quotes(&se, r["se_pct"].parse().unwrap())
+            });
+            tally.checked += 2;
+            let Some((exp, r)) = found else {
+                tally.wrong.push(format!("{place}: {mean} ± {se} is no row of the reports of {experiments:?}"));
+                continue;
+            };
+            if seeds.is_empty() {
+                continue;
+            }
+            let seed_list: Vec<&str> = r["seed_list"].split(' ').collect();
+            if seeds.len() != seed_list.len() {
+                tally.wrong.push(format!("{place}: {} per-seed figures for seeds {seed_list:?}", seeds.len()));
+                continue;
+            }
+            let metric = r["metric"].clone();
+            for (shown, seed) in seeds.iter().zip(seed_list) {
+                let m = Metrics::read(
+                    results.join(exp).join(&r["variant"]).join(format!("seed{seed}")).join("metrics.csv"),
+                );
+                tally.check(format!("{place}, seed {seed}"), shown, 100.0 * m.last(&metric));
+            }
+        }
+    }
+}
+
+/// The run directory of `` `model` seed k `` among the section's experiments: exactly one.
+fn run_dir(cell: &str, experiments: &[String]) -> PathBuf {
+    let (model, seed) = cell.split_once(" seed ").unwrap_or_else(|| panic!("run cell {cell:?}: not `model` seed k"));
+    let model = model.trim_matches('`');
+    let mut found = Vec::new();
+    for exp in experiments {
+        for group in std::fs::read_dir(root().join("results").join(exp)).unwrap() {
+            let dir = group.unwrap().path().join(model).join(format!("seed{}", seed.trim()));
+            if dir.join("metrics.csv").exists() {
+                found.push(dir);
+            }
+        }
+    }
+    assert_eq!(found.len(), 1, "run {cell:?}: run directories {found:?} among {experiments:?}");
+    found.pop().unwrap()
+}
+
+/// A table of runs at their last evaluation: success and return at 0 and 180 degrees.
+fn check_runs(t: &Table, experiments: &[String], tally: &mut Tally) {
+    for row in &t.rows {
+        let m = Metrics::read(run_dir(&row[0], experiments).join("metrics.csv"));
+        for (j, head) in t.header.iter().enumerate().skip(1) {
+            let suffix = if head.contains("180°") { "_rot180" } else { "" };
+            let (column, scale) = if head.starts_with("success") {
+                (format!("eval_success_rate{suffix}"), 100.0)
+            } else if head.starts_with("return") {
+                (format!("eval_return_t0{suffix}"), 1.0)
+            } else {
+                panic!("RESULTS.md line {}: column {head:?} of a table of runs is not known to this test", t.line)
+            };
+            let place = format!("RESULTS.md, table at line {} ({}), {}, column \"{head}\"", t.line, t.section, row[0]);
+            tally.check(place, &row[j], scale * m.last(&column));
+        }
+    }
+}
+
+/// A table of one run's evaluations, a row each: `env steps | wins t0 | wins t1 | draw |
+/// return t0 / return t1 | length`.
+fn check_evaluations(t: &Table, experiments: &[String], tally: &mut Tally) {
+    let mut runs = Vec::new();
+    for exp in experiments {
+        let mut stack = vec![root().join("results").join(exp)];
+        while let Some(d) = stack.pop() {
+            for e in std::fs::read_dir(&d).unwrap() {
+                let p = e.unwrap().path();
+                if p.is_dir() {
+                    stack.push(p);
+                } else if p.file_name().unwrap() == "metrics.csv" {
+                    runs.push(p);
+                }
+            }
+        }
+    }
+    assert_eq!(runs.len(), 1, "RESULTS.md line {}: a table of evaluations needs one run in {experiments:?}", t.line);
+    let m = Metrics::read(runs.pop().unwrap());
+    let steps = m.column("env_steps");
+    let evaluated = m.column("eval_win_rate_t0");
+    let expected_header = ["env steps", "wins", "wins", "draw", "mean return", "mean episode"];
+    for (head, want) in t.header.iter().zip(expected_header) {
+        assert!(head.contains(want), "RESULTS.md line {}: column {head:?} where this test reads {want:?}", t.line);
+    }
+    for row in &t.rows {
+        let i = (0..steps.len()).find(|&i| {
+            !evaluated[i].is_empty() && quotes(row[0].trim_end_matches('M'), steps[i].parse::<f64>().unwrap() / 1e6)
+        });
+        let place = format!("RESULTS.md, table at line {} ({}), evaluation at {}", t.line, t.section, row[0]);
+        let Some(i) = i else {
+            tally.wrong.push(format!("{place}: no evaluation at those env steps"));
+            continue;
+        };
+        let at = |c: &str| m.column(c)[i].parse::<f64>().unwrap();
+        tally.check(format!("{place}, wins t0"), &row[1], 100.0 * at("eval_win_rate_t0"));
+        tally.check(format!("{place}, wins t1"), &row[2], 100.0 * at("eval_win_rate_t1"));
+        tally.check(format!("{place}, draw"), &row[3], 100.0 * at("eval_draw_rate"));
+        let (r0, r1) = row[4].split_once(" / ").unwrap_or_else(|| panic!("{place}: returns {:?}", row[4]));
+        tally.check(format!("{place}, return t0"), r0, at("eval_return_t0"));
+        tally.check(format!("{place}, return t1"), r1, at("eval_return_t1"));
+        tally.check(format!("{place}, length"), &row[5], at("eval_length"));
+    }
+}
+
+#[test]
+fn the_reproduction_tables_quote_the_committed_evidence() {
+    let path = root().join("docs/RESULTS.md");
+    let doc = std::fs::read_to_string(&path).unwrap();
+    let (sections, tables) = reproduction(&doc);
+    let mut tally = Tally::default();
+    let mut checked_by_section: HashMap<String, usize> = HashMap::new();
+    for t in &tables {
+        let experiments = linked_experiments(&sections[&t.section]);
+        let before = tally.checked;
+        match t.header[0].as_str() {
+            "model" if t.header.iter().any(|h| h.contains("here")) => check_final_rates(t, &experiments, &mut tally),
+            "run" if t.rows.iter().all(|r| r[0].contains(" seed ")) => check_runs(t, &experiments, &mut tally),
+            "env steps" => check_evaluations(t, &experiments, &mut tally),
+            _ => continue,
+        }
+        *checked_by_section.entry(t.section.clone()).or_default() += tally.checked - before;
+    }
+    // Each experiment's section has a checked table with figures in it: a table whose
+    // header this test no longer recognises fails here instead of going unchecked.
+    for n in 1..=3 {
+        let found = checked_by_section.iter().find(|(s, _)| s.starts_with(&format!("Experiment {n}:")));
+        assert!(found.is_some_and(|(_, &c)| c > 0), "RESULTS.md: no figure of Experiment {n}'s tables was checked");
+    }
+    println!("{} figures checked: {checked_by_section:?}", tally.checked);
+    assert!(tally.wrong.is_empty(), "RESULTS.md disagrees with results/:\n{}", tally.wrong.join("\n"));
+}
+
+#[test]
+fn a_figure_matches_only_to_its_decimals() {
+    assert!(quotes("67.19", 67.1875));
+    assert!(!quotes("67.18", 67.1875));
+    assert!(quotes("3.12", 3.125) && quotes("3.13", 3.125), "an exact tie rounds either way");
+    assert!(!quotes("3.11", 3.125));
+    assert!(quotes("5297", 5297.096));
+    assert!(!quotes("5298", 5297.096));
+    assert!(!quotes("–", 1.0));
+    assert_eq!(
+        mean_se_seeds("82.36 ± 2.61 (85.16, 84.77, 77.15)"),
+        Some(("82.36".into(), "2.61".into(), vec!["85.16".into(), "84.77".into(), "77.15".into()]))
+    );
+    assert_eq!(mean_se_seeds("training (seed 0: 83.50 at 12.1M)"), None);
+    assert_eq!(
+        linked_experiments("[a](../results/sumo/report.md) and `results/reach_1_ant/report.md`"),
+        ["sumo", "reach_1_ant"]
+    );
+}
