@@ -52,9 +52,10 @@ impl Drop for TempDir {
     }
 }
 
-/// A run's metrics rows without the wall-clock columns (`wall_s`, `steps_per_s`), for
-/// comparing runs row by row.
+/// A run's metrics rows without the wall-clock columns (`rl::metrics::WALL_TIME_COLUMNS`),
+/// for comparing runs row by row.
 pub fn metrics(run: &rl::RunDir) -> Vec<Vec<(String, f64)>> {
-    let rows = rl::metrics::parse_csv(&std::fs::read_to_string(run.metrics()).unwrap()).unwrap();
-    rows.into_iter().map(|r| r.into_iter().filter(|(k, _)| k != "wall_s" && k != "steps_per_s").collect()).collect()
+    let rows = rl::metrics::read_csv(&run.metrics()).unwrap();
+    let wall = rl::metrics::WALL_TIME_COLUMNS;
+    rows.into_iter().map(|r| r.into_iter().filter(|(k, _)| !wall.contains(&k.as_str())).collect()).collect()
 }

@@ -16,7 +16,7 @@
 //! matches when it equals the evidence rounded to the decimals it is written with (either
 //! way at an exact tie, since `{:.2}` and Python's rounding differ there).
 
-use std::collections::HashMap;
+use std::collections::{BTreeMap, HashMap};
 use std::path::{Path, PathBuf};
 
 /// The workspace root.
@@ -56,8 +56,9 @@ fn reproduction(doc: &str) -> (HashMap<String, String>, Vec<Table>) {
         if let Some(h) = line.strip_prefix("### ") {
             section = h.to_string();
         }
-        sections.entry(section.clone()).or_default().push_str(line);
-        sections.get_mut(&section).unwrap().push('\n');
+        let text = sections.entry(section.clone()).or_default();
+        text.push_str(line);
+        text.push('\n');
         if line.starts_with('|') {
             let c = cells(line);
             match current.as_mut() {
@@ -90,37 +91,31 @@ fn linked_experiments(text: &str) -> Vec<String> {
     out
 }
 
-/// A CSV file's header and rows (the evidence has no quoted fields).
-fn read_csv(path: &Path) -> (Vec<String>, Vec<Vec<String>>) {
+/// A `report.csv`'s rows as column → cell (it holds names as well as numbers, and no quoted
+/// fields).
+fn read_report(path: &Path) -> Vec<HashMap<String, String>> {
     let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
     let mut lines = text.lines();
-    let header = lines.next().unwrap().split(',').map(str::to_string).collect();
-    (header, lines.map(|l| l.split(',').map(str::to_string).collect()).collect())
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    lines.map(|l| header.iter().map(|h| h.to_string()).zip(l.split(',').map(str::to_string)).collect()).collect()
 }
 
-/// A run's `metrics.csv`, as column name → values by row.
-struct Metrics {
-    path: PathBuf,
-    columns: HashMap<String, Vec<String>>,
+/// A run's `metrics.csv` rows (the project's reader: empty cells absent).
+fn read_metrics(run: &Path) -> Vec<MetricsRow> {
+    rl::metrics::read_csv(&run.join("metrics.csv")).unwrap()
 }
 
-impl Metrics {
-    fn read(path: PathBuf) -> Self {
-        let (header, rows) = read_csv(&path);
-        let columns =
-            header.iter().enumerate().map(|(j, h)| (h.clone(), rows.iter().map(|r| r[j].clone()).collect())).collect();
-        Self { path, columns }
-    }
+/// One row of `metrics.csv`.
+type MetricsRow = BTreeMap<String, f64>;
 
-    fn column(&self, name: &str) -> &[String] {
-        self.columns.get(name).unwrap_or_else(|| panic!("{}: no column {name}", self.path.display()))
-    }
+/// The last value of `column` in a run's rows.
+fn last(rows: &[MetricsRow], column: &str) -> f64 {
+    *rows.iter().rev().find_map(|r| r.get(column)).unwrap_or_else(|| panic!("{column} is never written"))
+}
 
-    /// The last non-empty value of `name`.
-    fn last(&self, name: &str) -> f64 {
-        let v = self.column(name).iter().rev().find(|v| !v.is_empty());
-        v.unwrap_or_else(|| panic!("{}: {name} is never written", self.path.display())).parse().unwrap()
-    }
+/// The run directories of the experiments under `results/`.
+fn runs_of(experiments: &[String]) -> Vec<PathBuf> {
+    experiments.iter().flat_map(|exp| rl::report::find_run_dirs(&root().join("results").join(exp)).unwrap()).collect()
 }
 
 /// Whether the figure `shown`, as written, is `value` rounded to its decimals.
@@ -160,12 +155,9 @@ impl Tally {
 /// A table of final rates: first column the model, "here" columns `mean ± s.e. (seeds)`.
 fn check_final_rates(t: &Table, experiments: &[String], tally: &mut Tally) {
     let results = root().join("results");
-    let reports: Vec<(String, HashMap<String, String>)> = experiments
+    let reports: Vec<(&String, HashMap<String, String>)> = experiments
         .iter()
-        .flat_map(|exp| {
-            let (header, rows) = read_csv(&results.join(exp).join("report.csv"));
-            rows.into_iter().map(move |r| (exp.clone(), header.iter().cloned().zip(r).collect()))
-        })
+        .flat_map(|exp| read_report(&results.join(exp).join("report.csv")).into_iter().map(move |r| (exp, r)))
         .collect();
     for row in &t.rows {
         let model = row[0].trim_matches('`');
@@ -196,10 +188,8 @@ fn check_final_rates(t: &Table, experiments: &[String], tally: &mut Tally) {
             }
             let metric = r["metric"].clone();
             for (shown, seed) in seeds.iter().zip(seed_list) {
-                let m = Metrics::read(
-                    results.join(exp).join(&r["variant"]).join(format!("seed{seed}")).join("metrics.csv"),
-                );
-                tally.check(format!("{place}, seed {seed}"), shown, 100.0 * m.last(&metric));
+                let rows = read_metrics(&results.join(exp).join(&r["variant"]).join(format!("seed{seed}")));
+                tally.check(format!("{place}, seed {seed}"), shown, 100.0 * last(&rows, &metric));
             }
         }
     }
@@ -208,16 +198,8 @@ fn check_final_rates(t: &Table, experiments: &[String], tally: &mut Tally) {
 /// The run directory of `` `model` seed k `` among the section's experiments: exactly one.
 fn run_dir(cell: &str, experiments: &[String]) -> PathBuf {
     let (model, seed) = cell.split_once(" seed ").unwrap_or_else(|| panic!("run cell {cell:?}: not `model` seed k"));
-    let model = model.trim_matches('`');
-    let mut found = Vec::new();
-    for exp in experiments {
-        for group in std::fs::read_dir(root().join("results").join(exp)).unwrap() {
-            let dir = group.unwrap().path().join(model).join(format!("seed{}", seed.trim()));
-            if dir.join("metrics.csv").exists() {
-                found.push(dir);
-            }
-        }
-    }
+    let tail = Path::new(model.trim_matches('`')).join(format!("seed{}", seed.trim()));
+    let mut found: Vec<PathBuf> = runs_of(experiments).into_iter().filter(|d| d.ends_with(&tail)).collect();
     assert_eq!(found.len(), 1, "run {cell:?}: run directories {found:?} among {experiments:?}");
     found.pop().unwrap()
 }
@@ -225,7 +207,7 @@ fn run_dir(cell: &str, experiments: &[String]) -> PathBuf {
 /// A table of runs at their last evaluation: success and return at 0 and 180 degrees.
 fn check_runs(t: &Table, experiments: &[String], tally: &mut Tally) {
     for row in &t.rows {
-        let m = Metrics::read(run_dir(&row[0], experiments).join("metrics.csv"));
+        let rows = read_metrics(&run_dir(&row[0], experiments));
         for (j, head) in t.header.iter().enumerate().skip(1) {
             let suffix = if head.contains("180°") { "_rot180" } else { "" };
             let (column, scale) = if head.starts_with("success") {
@@ -236,7 +218,7 @@ fn check_runs(t: &Table, experiments: &[String], tally: &mut Tally) {
                 panic!("RESULTS.md line {}: column {head:?} of a table of runs is not known to this test", t.line)
             };
             let place = format!("RESULTS.md, table at line {} ({}), {}, column \"{head}\"", t.line, t.section, row[0]);
-            tally.check(place, &row[j], scale * m.last(&column));
+            tally.check(place, &row[j], scale * last(&rows, &column));
         }
     }
 }
@@ -244,38 +226,31 @@ fn check_runs(t: &Table, experiments: &[String], tally: &mut Tally) {
 /// A table of one run's evaluations, a row each: `env steps | wins t0 | wins t1 | draw |
 /// return t0 / return t1 | length`.
 fn check_evaluations(t: &Table, experiments: &[String], tally: &mut Tally) {
-    let mut runs = Vec::new();
-    for exp in experiments {
-        let mut stack = vec![root().join("results").join(exp)];
-        while let Some(d) = stack.pop() {
-            for e in std::fs::read_dir(&d).unwrap() {
-                let p = e.unwrap().path();
-                if p.is_dir() {
-                    stack.push(p);
-                } else if p.file_name().unwrap() == "metrics.csv" {
-                    runs.push(p);
-                }
-            }
-        }
-    }
-    assert_eq!(runs.len(), 1, "RESULTS.md line {}: a table of evaluations needs one run in {experiments:?}", t.line);
-    let m = Metrics::read(runs.pop().unwrap());
-    let steps = m.column("env_steps");
-    let evaluated = m.column("eval_win_rate_t0");
+    let mut runs = runs_of(experiments);
+    assert_eq!(
+        runs.len(),
+        1,
+        "RESULTS.md, table at line {}: a table of evaluations needs one run in {experiments:?}",
+        t.line
+    );
+    let evaluations: Vec<MetricsRow> =
+        read_metrics(&runs.pop().unwrap()).into_iter().filter(|r| r.contains_key("eval_win_rate_t0")).collect();
     let expected_header = ["env steps", "wins", "wins", "draw", "mean return", "mean episode"];
     for (head, want) in t.header.iter().zip(expected_header) {
-        assert!(head.contains(want), "RESULTS.md line {}: column {head:?} where this test reads {want:?}", t.line);
+        assert!(
+            head.contains(want),
+            "RESULTS.md, table at line {}: column {head:?} where this test reads {want:?}",
+            t.line
+        );
     }
     for row in &t.rows {
-        let i = (0..steps.len()).find(|&i| {
-            !evaluated[i].is_empty() && quotes(row[0].trim_end_matches('M'), steps[i].parse::<f64>().unwrap() / 1e6)
-        });
         let place = format!("RESULTS.md, table at line {} ({}), evaluation at {}", t.line, t.section, row[0]);
-        let Some(i) = i else {
+        let shown_steps = row[0].trim_end_matches('M');
+        let Some(e) = evaluations.iter().find(|e| quotes(shown_steps, e["env_steps"] / 1e6)) else {
             tally.wrong.push(format!("{place}: no evaluation at those env steps"));
             continue;
         };
-        let at = |c: &str| m.column(c)[i].parse::<f64>().unwrap();
+        let at = |c: &str| e[c];
         tally.check(format!("{place}, wins t0"), &row[1], 100.0 * at("eval_win_rate_t0"));
         tally.check(format!("{place}, wins t1"), &row[2], 100.0 * at("eval_win_rate_t1"));
         tally.check(format!("{place}, draw"), &row[3], 100.0 * at("eval_draw_rate"));
