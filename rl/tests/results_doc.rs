@@ -250,14 +250,13 @@ fn check_evaluations(t: &Table, experiments: &[String], tally: &mut Tally) {
             tally.wrong.push(format!("{place}: no evaluation at those env steps"));
             continue;
         };
-        let at = |c: &str| e[c];
-        tally.check(format!("{place}, wins t0"), &row[1], 100.0 * at("eval_win_rate_t0"));
-        tally.check(format!("{place}, wins t1"), &row[2], 100.0 * at("eval_win_rate_t1"));
-        tally.check(format!("{place}, draw"), &row[3], 100.0 * at("eval_draw_rate"));
+        tally.check(format!("{place}, wins t0"), &row[1], 100.0 * e["eval_win_rate_t0"]);
+        tally.check(format!("{place}, wins t1"), &row[2], 100.0 * e["eval_win_rate_t1"]);
+        tally.check(format!("{place}, draw"), &row[3], 100.0 * e["eval_draw_rate"]);
         let (r0, r1) = row[4].split_once(" / ").unwrap_or_else(|| panic!("{place}: returns {:?}", row[4]));
-        tally.check(format!("{place}, return t0"), r0, at("eval_return_t0"));
-        tally.check(format!("{place}, return t1"), r1, at("eval_return_t1"));
-        tally.check(format!("{place}, length"), &row[5], at("eval_length"));
+        tally.check(format!("{place}, return t0"), r0, e["eval_return_t0"]);
+        tally.check(format!("{place}, return t1"), r1, e["eval_return_t1"]);
+        tally.check(format!("{place}, length"), &row[5], e["eval_length"]);
     }
 }
 
