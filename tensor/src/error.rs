@@ -32,6 +32,14 @@ pub enum TensorError {
         /// The length of the axis it indexes.
         len: usize,
     },
+    /// A device problem: no GPU adapter, tensors on different devices, an op with no kernel
+    /// on the device, a tensor too large for a device buffer.
+    Device {
+        /// The operation that was called.
+        op: &'static str,
+        /// What is wrong, and what to do about it.
+        detail: String,
+    },
     /// Any other invalid argument (empty lists, unsorted segment ids, ...).
     Invalid {
         /// The operation that was called.
@@ -54,7 +62,7 @@ impl fmt::Display for TensorError {
             TensorError::IndexOutOfRange { op, index, len } => {
                 write!(f, "{op}: index {index} is out of range for an axis of length {len}")
             }
-            TensorError::Invalid { op, detail } => write!(f, "{op}: {detail}"),
+            TensorError::Invalid { op, detail } | TensorError::Device { op, detail } => write!(f, "{op}: {detail}"),
         }
     }
 }

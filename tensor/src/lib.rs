@@ -24,6 +24,8 @@ mod backprop;
 pub mod element;
 pub mod error;
 pub mod flops;
+#[cfg(feature = "gpu")]
+pub mod gpu;
 pub mod gradcheck;
 pub mod kernels;
 pub mod op;

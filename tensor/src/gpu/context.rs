@@ -1,0 +1,325 @@
+//! The one GPU context of the process: adapter, device, queue, compiled kernels and a pool of
+//! free buffers. Every kernel launch goes through [`Gpu::launch`].
+
+use std::collections::HashMap;
+use std::sync::{Arc, Mutex, OnceLock};
+
+use crate::error::{Result, TensorError};
+
+/// Threads per workgroup of the one-dimensional kernels (`@workgroup_size(256)` in WGSL).
+pub(crate) const WORKGROUP: u32 = 256;
+/// The most workgroups along one dimension of a dispatch (WebGPU's guaranteed limit).
+const MAX_GROUPS_PER_DIM: u32 = 65_535;
+
+/// The adapter a [`Gpu`] runs on, as the driver reports it.
+#[derive(Clone, Debug)]
+pub struct AdapterInfo {
+    /// The adapter's name (e.g. `NVIDIA H100 80GB HBM3`, `llvmpipe (LLVM 15.0.6, 256 bits)`).
+    pub name: String,
+    /// The API wgpu drives it through (`Vulkan`, `Metal`, `Dx12`).
+    pub backend: String,
+    /// Discrete, integrated, virtual or CPU (lavapipe reports `Cpu`).
+    pub device_type: String,
+    /// The driver's name and version, when the driver says.
+    pub driver: String,
+}
+
+impl std::fmt::Display for AdapterInfo {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{} ({}, {}", self.name, self.backend, self.device_type)?;
+        if !self.driver.is_empty() {
+            write!(f, ", {}", self.driver)?;
+        }
+        write!(f, ")")
+    }
+}
+
+/// Counters of what the device has done since the process started.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct GpuStats {
+    /// Kernel launches.
+    pub launches: u64,
+    /// Host-to-device copies (uploads of tensors).
+    pub uploads: u64,
+    /// Bytes uploaded.
+    pub upload_bytes: u64,
+    /// Device-to-host copies (reads of tensors).
+    pub downloads: u64,
+    /// Bytes downloaded.
+    pub download_bytes: u64,
+    /// Buffer requests served from the pool.
+    pub pool_hits: u64,
+    /// Buffer requests that created a buffer.
+    pub pool_misses: u64,
+}
+
+/// The GPU device: created once per process by [`gpu`], shared by every tensor on it.
+pub struct Gpu {
+    pub(crate) device: wgpu::Device,
+    pub(crate) queue: wgpu::Queue,
+    info: AdapterInfo,
+    limits: wgpu::Limits,
+    pipelines: Mutex<HashMap<&'static str, Arc<wgpu::ComputePipeline>>>,
+    free: Mutex<HashMap<u64, Vec<wgpu::Buffer>>>,
+    stats: Mutex<GpuStats>,
+}
+
+/// The process's GPU, initialised on first use: the first adapter wgpu offers on Vulkan,
+/// Metal or DX12 (high-performance preference). An error says what was looked for and how to
+/// get an adapter; it is remembered, so a missing GPU is reported the same way every time.
+pub fn gpu() -> Result<&'static Gpu> {
+    static GPU: OnceLock<std::result::Result<Gpu, String>> = OnceLock::new();
+    GPU.get_or_init(Gpu::create).as_ref().map_err(|detail| TensorError::Device { op: "gpu", detail: detail.clone() })
+}
+
+/// Bytes of a buffer holding `n` 32-bit words (never 0: WebGPU cannot bind an empty buffer).
+pub(crate) fn words_to_bytes(n: usize) -> u64 {
+    (n.max(1) * 4) as u64
+}
+
+impl Gpu {
+    fn create() -> std::result::Result<Gpu, String> {
+        let mut desc = wgpu::InstanceDescriptor::new_without_display_handle_from_env();
+        desc.backends = wgpu::Backends::VULKAN | wgpu::Backends::METAL | wgpu::Backends::DX12;
+        let instance = wgpu::Instance::new(desc);
+        let options = wgpu::RequestAdapterOptions {
+            power_preference: wgpu::PowerPreference::HighPerformance,
+            force_fallback_adapter: false,
+            compatible_surface: None,
+            ..Default::default()
+        };
+        let adapter = pollster::block_on(instance.request_adapter(&options)).map_err(|e| {
+            format!(
+                "no GPU adapter found ({e}); looked for Vulkan, Metal or DX12 through wgpu. Install \
+                 your GPU's driver with its Vulkan support, or, to test without a GPU, Mesa's \
+                 lavapipe (Debian/Ubuntu: apt-get install mesa-vulkan-drivers libvulkan1)"
+            )
+        })?;
+        let ai = adapter.get_info();
+        let info = AdapterInfo {
+            name: ai.name.clone(),
+            backend: format!("{:?}", ai.backend),
+            device_type: format!("{:?}", ai.device_type),
+            driver: [ai.driver.as_str(), ai.driver_info.as_str()]
+                .iter()
+                .filter(|s| !s.is_empty())
+                .copied()
+                .collect::<Vec<_>>()
+                .join(" "),
+        };
+        // The adapter's own limits: the default 128 MiB binding limit is smaller than the
+        // activations of a paper-sized batch.
+        let limits = adapter.limits();
+        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+            label: Some("tensor"),
+            required_features: wgpu::Features::empty(),
+            required_limits: limits.clone(),
+            ..Default::default()
+        }))
+        .map_err(|e| format!("the GPU adapter {info} refused a device: {e}"))?;
+        Ok(Gpu {
+            device,
+            queue,
+            info,
+            limits,
+            pipelines: Mutex::new(HashMap::new()),
+            free: Mutex::new(HashMap::new()),
+            stats: Mutex::new(GpuStats::default()),
+        })
+    }
+
+    /// The adapter this device runs on.
+    pub fn adapter(&self) -> &AdapterInfo {
+        &self.info
+    }
+
+    /// Counters since the process started.
+    pub fn stats(&self) -> GpuStats {
+        *self.stats.lock().expect("gpu stats lock")
+    }
+
+    pub(crate) fn count(&self, f: impl FnOnce(&mut GpuStats)) {
+        f(&mut self.stats.lock().expect("gpu stats lock"));
+    }
+
+    /// Checks that a buffer of `n` f32 values can be bound on this device.
+    pub(crate) fn check_size(&self, op: &'static str, n: usize) -> Result<()> {
+        let bytes = words_to_bytes(n);
+        let max = self.limits.max_storage_buffer_binding_size.min(self.limits.max_buffer_size);
+        if bytes > max || n > u32::MAX as usize {
+            return Err(TensorError::Device {
+                op,
+                detail: format!(
+                    "a tensor of {n} values ({bytes} bytes) is larger than the {max} bytes a buffer \
+                     can hold on {}",
+                    self.info
+                ),
+            });
+        }
+        Ok(())
+    }
+
+    /// A buffer of `n` 32-bit words with unspecified contents (recycled when one of that size
+    /// is free).
+    pub(crate) fn alloc(&self, n: usize) -> wgpu::Buffer {
+        let bytes = words_to_bytes(n);
+        if let Some(b) = self.free.lock().expect("gpu pool lock").get_mut(&bytes).and_then(Vec::pop) {
+            self.count(|s| s.pool_hits += 1);
+            return b;
+        }
+        self.count(|s| s.pool_misses += 1);
+        self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: None,
+            size: bytes,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        })
+    }
+
+    /// A buffer of `n` zeros.
+    pub(crate) fn alloc_zeroed(&self, n: usize) -> wgpu::Buffer {
+        let b = self.alloc(n);
+        let mut enc = self.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
+        enc.clear_buffer(&b, 0, None);
+        self.queue.submit([enc.finish()]);
+        b
+    }
+
+    /// Gives a buffer back for reuse. At most 64 free buffers of one size are kept.
+    pub(crate) fn recycle(&self, b: wgpu::Buffer) {
+        let mut free = self.free.lock().expect("gpu pool lock");
+        let list = free.entry(b.size()).or_default();
+        if list.len() < 64 {
+            list.push(b);
+        }
+    }
+
+    /// A buffer holding `words` (32-bit values: f32 bits or u32 indices).
+    pub(crate) fn upload_words(&self, words: &[u32]) -> wgpu::Buffer {
+        let b = self.alloc(words.len());
+        if !words.is_empty() {
+            self.queue.write_buffer(&b, 0, bytemuck::cast_slice(words));
+        }
+        self.count(|s| {
+            s.uploads += 1;
+            s.upload_bytes += words.len() as u64 * 4;
+        });
+        b
+    }
+
+    /// The first `n` 32-bit words of `b`, copied to the host (waits for every kernel queued
+    /// before).
+    pub(crate) fn download_words(&self, b: &wgpu::Buffer, n: usize) -> Vec<u32> {
+        if n == 0 {
+            return Vec::new();
+        }
+        let bytes = (n * 4) as u64;
+        let staging = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("download"),
+            size: bytes,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let mut enc = self.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
+        enc.copy_buffer_to_buffer(b, 0, &staging, 0, bytes);
+        self.queue.submit([enc.finish()]);
+        let slice = staging.slice(..);
+        let (tx, rx) = std::sync::mpsc::channel();
+        slice.map_async(wgpu::MapMode::Read, move |r| {
+            let _ = tx.send(r);
+        });
+        self.device.poll(wgpu::PollType::wait_indefinitely()).expect("the GPU device was lost");
+        rx.recv().expect("map callback ran").expect("the GPU device could not map a buffer for reading");
+        let out = {
+            let view = slice.get_mapped_range().expect("mapped above");
+            bytemuck::cast_slice::<u8, u32>(&view).to_vec()
+        };
+        staging.unmap();
+        self.count(|s| {
+            s.downloads += 1;
+            s.download_bytes += bytes;
+        });
+        out
+    }
+
+    /// The compiled kernel `entry` of the WGSL module `source` (compiled once; `name` is
+    /// the cache key and the label in driver messages).
+    fn pipeline(&self, name: &'static str, source: &'static str, entry: &'static str) -> Arc<wgpu::ComputePipeline> {
+        let mut cache = self.pipelines.lock().expect("gpu pipeline lock");
+        cache
+            .entry(name)
+            .or_insert_with(|| {
+                let module = self.device.create_shader_module(wgpu::ShaderModuleDescriptor {
+                    label: Some(name),
+                    source: wgpu::ShaderSource::Wgsl(source.into()),
+                });
+                Arc::new(self.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                    label: Some(name),
+                    layout: None,
+                    module: &module,
+                    entry_point: Some(entry),
+                    compilation_options: Default::default(),
+                    cache: None,
+                }))
+            })
+            .clone()
+    }
+
+    /// Runs one kernel: binding 0 is a read-only array of u32 `params`, bindings 1.. are
+    /// `buffers` in order (as the kernel declares them), and the grid is `groups` workgroups
+    /// laid out as `(x, y)` with `x <= 65535` (kernels rebuild the linear workgroup index as
+    /// `wg.x + wg.y * num_workgroups.x`).
+    pub(crate) fn launch(&self, kernel: &Kernel, params: &[u32], buffers: &[&wgpu::Buffer], groups: u32) {
+        if groups == 0 {
+            return;
+        }
+        let pipeline = self.pipeline(kernel.name, kernel.source, kernel.entry);
+        let pbuf = self.alloc(params.len());
+        if !params.is_empty() {
+            self.queue.write_buffer(&pbuf, 0, bytemuck::cast_slice(params));
+        }
+        let mut entries = vec![wgpu::BindGroupEntry { binding: 0, resource: pbuf.as_entire_binding() }];
+        for (i, b) in buffers.iter().enumerate() {
+            entries.push(wgpu::BindGroupEntry { binding: i as u32 + 1, resource: b.as_entire_binding() });
+        }
+        let bind = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some(kernel.name),
+            layout: &pipeline.get_bind_group_layout(0),
+            entries: &entries,
+        });
+        let x = groups.min(MAX_GROUPS_PER_DIM);
+        let y = groups.div_ceil(x);
+        let mut enc = self.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some(kernel.name) });
+        {
+            let mut pass = enc
+                .begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some(kernel.name), timestamp_writes: None });
+            pass.set_pipeline(&pipeline);
+            pass.set_bind_group(0, &bind, &[]);
+            pass.dispatch_workgroups(x, y, 1);
+        }
+        self.queue.submit([enc.finish()]);
+        self.recycle(pbuf);
+        self.count(|s| s.launches += 1);
+    }
+
+    /// [`Gpu::launch`] with one thread per element for `n` elements (workgroups of
+    /// [`WORKGROUP`] threads).
+    pub(crate) fn launch_1d(&self, kernel: &Kernel, params: &[u32], buffers: &[&wgpu::Buffer], n: usize) {
+        self.launch(kernel, params, buffers, (n as u32).div_ceil(WORKGROUP));
+    }
+
+    /// Waits until every queued kernel has finished.
+    pub fn synchronize(&self) {
+        self.device.poll(wgpu::PollType::wait_indefinitely()).expect("the GPU device was lost");
+    }
+}
+
+/// A compute kernel: an entry point of a WGSL module.
+pub(crate) struct Kernel {
+    /// Unique name (the pipeline cache's key).
+    pub name: &'static str,
+    /// The WGSL module.
+    pub source: &'static str,
+    /// The entry point's name.
+    pub entry: &'static str,
+}

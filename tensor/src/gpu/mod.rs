@@ -1,0 +1,95 @@
+//! The GPU device (cargo feature `gpu`): f32 tensors in `wgpu` buffers and WGSL compute
+//! kernels for every op of the tape, forward and backward.
+//!
+//! - [`context`]: the process's one device ([`gpu`]), its buffer pool and kernel launches.
+//! - [`DeviceBuffer`]: the storage of a tensor on the device (f32 values).
+//! - `ops/`: one module per kernel family, each a thin Rust wrapper around a WGSL file in
+//!   `wgsl/` that computes every output element in one thread, in a fixed order: no
+//!   floating-point atomics, so a kernel gives the same bits on the same GPU and driver.
+//!
+//! Kernels follow one convention: binding 0 is `p: array<u32>` (sizes, and `f32` constants as
+//! bits), bindings 1.. the buffers in the order the Rust wrapper passes them, the output last;
+//! one-dimensional kernels use `@workgroup_size(256)` and the linear thread index
+//! `gid.x + gid.y * num_workgroups.x * 256` (see `wgsl/common.wgsl`).
+
+pub mod context;
+pub(crate) mod ops;
+
+pub use context::{AdapterInfo, Gpu, GpuStats, gpu};
+
+/// The storage of one tensor on the GPU: `len` f32 values in a buffer that goes back to the
+/// device's pool when dropped.
+pub struct DeviceBuffer {
+    buf: Option<wgpu::Buffer>,
+    len: usize,
+}
+
+impl DeviceBuffer {
+    /// Wraps a buffer holding `len` values.
+    pub(crate) fn from_raw(buf: wgpu::Buffer, len: usize) -> Self {
+        Self { buf: Some(buf), len }
+    }
+
+    /// A buffer of `len` values with unspecified contents, for a kernel that writes all of
+    /// them.
+    pub(crate) fn uninit(len: usize) -> Self {
+        Self::from_raw(device().alloc(len), len)
+    }
+
+    /// A buffer of `len` zeros.
+    pub(crate) fn zeros(len: usize) -> Self {
+        Self::from_raw(device().alloc_zeroed(len), len)
+    }
+
+    /// Uploads f32 values.
+    pub(crate) fn upload(values: &[f32]) -> Self {
+        Self::from_raw(device().upload_words(bytemuck::cast_slice(values)), values.len())
+    }
+
+    /// Uploads u32 values (indices, masks): `len` counts the words.
+    pub(crate) fn upload_u32(values: &[u32]) -> Self {
+        Self::from_raw(device().upload_words(values), values.len())
+    }
+
+    /// Uploads indices as u32 (callers check that they fit: shapes are limited to 2^32
+    /// elements on the device).
+    pub(crate) fn upload_indices(idx: &[usize]) -> Self {
+        let v: Vec<u32> = idx.iter().map(|&i| i as u32).collect();
+        Self::upload_u32(&v)
+    }
+
+    /// The values, copied to the host.
+    pub(crate) fn download(&self) -> Vec<f32> {
+        let words = device().download_words(self.buffer(), self.len);
+        bytemuck::cast_slice(&words).to_vec()
+    }
+
+    /// The number of values.
+    pub(crate) fn len(&self) -> usize {
+        self.len
+    }
+
+    /// The wgpu buffer.
+    pub(crate) fn buffer(&self) -> &wgpu::Buffer {
+        self.buf.as_ref().expect("a live buffer")
+    }
+}
+
+impl Drop for DeviceBuffer {
+    fn drop(&mut self) {
+        if let (Some(b), Ok(g)) = (self.buf.take(), gpu()) {
+            g.recycle(b);
+        }
+    }
+}
+
+impl std::fmt::Debug for DeviceBuffer {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "DeviceBuffer({} f32)", self.len)
+    }
+}
+
+/// The device, for code that only runs once a tensor is on it (so [`gpu`] succeeded).
+pub(crate) fn device() -> &'static Gpu {
+    gpu().expect("a tensor is on the GPU, so the device was created")
+}
