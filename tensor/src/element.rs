@@ -64,10 +64,14 @@ pub trait Float:
     fn neg_infinity() -> Self;
     /// The pool of recycled buffers of this type.
     fn pool() -> &'static crate::pool::BufferPool<Self>;
+    /// The values as `f32` if this is `f32` (what a GPU buffer holds), else `None`.
+    fn as_f32_slice(values: &[Self]) -> Option<&[f32]>;
+    /// Values read back from a GPU buffer, as this type.
+    fn from_f32_vec(values: Vec<f32>) -> Vec<Self>;
 }
 
 macro_rules! impl_float {
-    ($t:ty, $name:expr) => {
+    ($t:ty, $name:expr, $as_f32:expr, $from_f32:expr) => {
         impl Float for $t {
             const ZERO: Self = 0.0;
             const ONE: Self = 1.0;
@@ -128,9 +132,21 @@ macro_rules! impl_float {
                 static POOL: crate::pool::BufferPool<$t> = crate::pool::BufferPool::new();
                 &POOL
             }
+            fn as_f32_slice(values: &[Self]) -> Option<&[f32]> {
+                $as_f32(values)
+            }
+            fn from_f32_vec(values: Vec<f32>) -> Vec<Self> {
+                $from_f32(values)
+            }
         }
     };
 }
 
-impl_float!(f32, "f32");
-impl_float!(f64, "f64");
+fn some_f32(v: &[f32]) -> Option<&[f32]> {
+    Some(v)
+}
+fn no_f32(_: &[f64]) -> Option<&[f32]> {
+    None
+}
+impl_float!(f32, "f32", some_f32, |v: Vec<f32>| v);
+impl_float!(f64, "f64", no_f32, |v: Vec<f32>| v.into_iter().map(f64::from).collect());

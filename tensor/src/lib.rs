@@ -21,11 +21,14 @@
 //! ```
 
 mod backprop;
+pub mod device;
+mod dispatch;
 pub mod element;
 pub mod error;
 pub mod flops;
 #[cfg(feature = "gpu")]
 pub mod gpu;
+mod grad_store;
 pub mod gradcheck;
 pub mod kernels;
 pub mod op;
@@ -33,11 +36,16 @@ pub mod pool;
 pub mod shape;
 mod tape;
 mod tensor;
+mod tensor_ops;
 mod var_ops;
 
+pub use device::Device;
 pub use element::Float;
 pub use error::{Result, TensorError};
 pub use flops::FlopCount;
 pub use op::{Activation, BinaryOp, ReduceOp, UnaryOp};
 pub use tape::{Gradients, NoGradGuard, Tape, Var};
 pub use tensor::Tensor;
+#[cfg(feature = "gpu")]
+pub use tensor_ops::adam_update;
+pub use tensor_ops::first_non_finite;

@@ -206,18 +206,21 @@ mod tests {
 
     #[test]
     fn buffers_for_overwriting_keep_their_contents_and_zero_a_new_tail() {
-        let n = MIN_POOLED * 2 + 3;
-        let mut v: Vec<f32> = filled(n, 5.0);
+        // f64 and a size no other unit test asks for (the pools are global and the GPU
+        // kernels' tests use f32 buffers of similar sizes at the same time); the first test's
+        // sizes are at most half of this one's.
+        let n = MIN_POOLED * 7 + 3;
+        let mut v: Vec<f64> = filled(n, 5.0);
         let ptr = v.as_ptr();
         v.truncate(n - 10);
         recycle(v);
         // Longer than the recycled length: the old values, then zeros.
-        let w: Vec<f32> = for_overwrite(n);
+        let w: Vec<f64> = for_overwrite(n);
         assert_eq!((w.as_ptr(), w.len()), (ptr, n));
         assert!(w[..n - 10].iter().all(|&x| x == 5.0) && w[n - 10..].iter().all(|&x| x == 0.0));
         recycle(w);
         // Shorter: truncated.
-        let u: Vec<f32> = for_overwrite(n - 100);
+        let u: Vec<f64> = for_overwrite(n - 100);
         assert_eq!((u.as_ptr(), u.len()), (ptr, n - 100));
     }
 

@@ -28,6 +28,7 @@ pub(crate) struct Node<T: Float> {
 /// Create one per forward pass; it owns every intermediate value until dropped.
 pub struct Tape<T: Float> {
     nodes: RefCell<Vec<Node<T>>>,
+    device: crate::device::Device,
     grad_enabled: Cell<bool>,
     profile: RefCell<Option<Profile>>,
 }
@@ -114,7 +115,34 @@ impl<T: Float> Drop for NoGradGuard<'_, T> {
 impl<T: Float> Tape<T> {
     /// An empty tape with gradient recording on.
     pub fn new() -> Self {
-        Self { nodes: RefCell::new(Vec::new()), grad_enabled: Cell::new(true), profile: RefCell::new(None) }
+        Self::on(crate::device::Device::Cpu)
+    }
+
+    /// An empty tape whose leaves ([`Tape::var`], [`Tape::constant`]) are placed on `device`
+    /// when they are recorded: a host tensor given to a GPU tape is uploaded once there, so
+    /// every op of the forward and backward pass runs on the GPU. (On any tape an op runs on
+    /// the GPU when one of its inputs is there.) (An upload that fails, for
+    /// an `f64` tape or a tensor too large for a device buffer, leaves the leaf on the host;
+    /// the first op that uses it then reports the error.)
+    pub fn on(device: crate::device::Device) -> Self {
+        Self { nodes: RefCell::new(Vec::new()), device, grad_enabled: Cell::new(true), profile: RefCell::new(None) }
+    }
+
+    /// The device this tape places its leaves on.
+    pub fn device(&self) -> crate::device::Device {
+        self.device
+    }
+
+    /// `value` on the tape's device if that is the GPU (a CPU tape leaves tensors where they
+    /// are: a GPU tensor on it is computed on the GPU).
+    fn place(&self, value: Tensor<T>) -> Tensor<T> {
+        if value.device() == self.device || self.device == crate::device::Device::Cpu {
+            return value;
+        }
+        match value.to_device(self.device) {
+            Ok(v) => v,
+            Err(_) => value,
+        }
     }
 
     /// Starts recording the wall time and the floating-point operations of every op:
@@ -188,12 +216,12 @@ impl<T: Float> Tape<T> {
     /// A leaf whose gradient [`Tape::backward`] will report (a parameter or an input of a
     /// gradient check). Inside a no-grad scope it is a constant.
     pub fn var(&self, value: Tensor<T>) -> Var<'_, T> {
-        self.push(value, Op::Leaf, self.grad_enabled.get())
+        self.push(self.place(value), Op::Leaf, self.grad_enabled.get())
     }
 
     /// A leaf that never receives a gradient.
     pub fn constant(&self, value: Tensor<T>) -> Var<'_, T> {
-        self.push(value, Op::Leaf, false)
+        self.push(self.place(value), Op::Leaf, false)
     }
 
     /// Turns gradient recording off until the returned guard is dropped: values computed in
@@ -252,16 +280,16 @@ impl<T: Float> Tape<T> {
         }
         let mut store = GradStore::new(&nodes[..=loss.id]);
         if root.requires_grad {
-            store.add(loss.id, vec![T::ONE]);
+            let seed = Tensor::ones(root.value.shape()).to_device(root.value.device())?;
+            store.add(loss.id, seed);
         }
         for id in (0..=loss.id).rev() {
             if matches!(nodes[id].op, Op::Leaf) {
                 continue;
             }
-            if let Some(mut g) = store.take(id) {
+            if let Some(g) = store.take(id) {
                 let start = Instant::now();
-                propagate(&nodes, id, &mut g, &mut store);
-                crate::pool::recycle(g);
+                propagate(&nodes, id, g, &mut store)?;
                 if let Some(prof) = self.profile.borrow_mut().as_mut() {
                     let elapsed = start.elapsed();
                     let f = flops::backward(&nodes, id);

@@ -1,25 +1,50 @@
-//! [`Tensor`]: an immutable n-dimensional array with contiguous row-major storage.
+//! [`Tensor`]: an immutable n-dimensional array with contiguous row-major storage, on the
+//! host or (feature `gpu`) on the GPU.
 //!
 //! Values are shared (`Arc`), so cloning a tensor or reshaping it copies no data. Tensors are
 //! plain values: they record nothing. Differentiation happens on a [`crate::Tape`], whose
-//! [`crate::Var`]s hold tensors.
+//! [`crate::Var`]s hold tensors; an op runs on the device its inputs live on.
 
 use std::sync::Arc;
 
+use crate::device::Device;
 use crate::element::Float;
 use crate::error::{Result, invalid, mismatch};
 use crate::shape::numel;
 
 /// An n-dimensional array of `T` in row-major (C) order.
-#[derive(Clone, PartialEq)]
+#[derive(Clone)]
 pub struct Tensor<T: Float> {
     shape: Vec<usize>,
-    data: Arc<Buffer<T>>,
+    data: Storage<T>,
+}
+
+/// Where the elements live.
+#[derive(Clone)]
+pub(crate) enum Storage<T: Float> {
+    /// Host memory (the CPU device).
+    Host(Arc<Buffer<T>>),
+    /// A GPU buffer of f32 values, with a host copy made on first read.
+    #[cfg(feature = "gpu")]
+    Device(Arc<DeviceData<T>>),
+}
+
+/// A tensor's values on the GPU and, once [`Tensor::data`] has asked for them, on the host.
+#[cfg(feature = "gpu")]
+pub(crate) struct DeviceData<T: Float> {
+    pub(crate) buf: crate::gpu::DeviceBuffer,
+    host: std::sync::OnceLock<Vec<T>>,
+}
+
+impl<T: Float> PartialEq for Tensor<T> {
+    fn eq(&self, other: &Self) -> bool {
+        self.shape == other.shape && self.data() == other.data()
+    }
 }
 
 /// Element storage that returns large buffers to the pool when dropped.
 #[derive(PartialEq)]
-struct Buffer<T: Float>(Vec<T>);
+pub(crate) struct Buffer<T: Float>(Vec<T>);
 
 impl<T: Float> Clone for Buffer<T> {
     fn clone(&self) -> Self {
@@ -38,8 +63,11 @@ impl<T: Float> Drop for Buffer<T> {
 impl<T: Float> std::fmt::Debug for Tensor<T> {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(f, "Tensor<{}>{:?}", T::NAME, self.shape)?;
-        if self.data.0.len() <= 16 {
-            write!(f, " {:?}", self.data.0)?;
+        if self.device() != Device::Cpu {
+            write!(f, " on {}", self.device())?;
+        }
+        if self.numel() <= 16 {
+            write!(f, " {:?}", self.data())?;
         }
         Ok(())
     }
@@ -55,13 +83,13 @@ impl<T: Float> Tensor<T> {
                 format!("{} elements given for a shape of {}", data.len(), numel(shape)),
             ));
         }
-        Ok(Self { shape: shape.to_vec(), data: Arc::new(Buffer(data)) })
+        Ok(Self { shape: shape.to_vec(), data: Storage::Host(Arc::new(Buffer(data))) })
     }
 
     /// Internal constructor for kernels whose output size is right by construction.
     pub(crate) fn from_parts(data: Vec<T>, shape: Vec<usize>) -> Self {
         debug_assert_eq!(data.len(), numel(&shape));
-        Self { shape, data: Arc::new(Buffer(data)) }
+        Self { shape, data: Storage::Host(Arc::new(Buffer(data))) }
     }
 
     /// Converts `f64` values (handy in tests and for constants).
@@ -101,28 +129,51 @@ impl<T: Float> Tensor<T> {
 
     /// The number of elements.
     pub fn numel(&self) -> usize {
-        self.data.0.len()
+        numel(&self.shape)
     }
 
-    /// The elements in row-major order.
+    /// The device the elements live on.
+    pub fn device(&self) -> Device {
+        match &self.data {
+            Storage::Host(_) => Device::Cpu,
+            #[cfg(feature = "gpu")]
+            Storage::Device(_) => Device::Gpu,
+        }
+    }
+
+    /// The elements in row-major order. For a tensor on the GPU this copies them to the host
+    /// on the first call (waiting for the kernels that compute them) and keeps the copy.
     pub fn data(&self) -> &[T] {
-        &self.data.0
+        match &self.data {
+            Storage::Host(b) => &b.0,
+            #[cfg(feature = "gpu")]
+            Storage::Device(d) => d.host.get_or_init(|| T::from_f32_vec(d.buf.download())),
+        }
     }
 
-    /// Mutable access to the elements (copies first if the storage is shared).
+    /// Mutable access to the elements (copies first if the storage is shared). A tensor on
+    /// the GPU is brought to the host first.
     pub fn data_mut(&mut self) -> &mut [T] {
-        Arc::make_mut(&mut self.data).0.as_mut_slice()
+        #[cfg(feature = "gpu")]
+        if let Storage::Device(_) = self.data {
+            self.data = Storage::Host(Arc::new(Buffer(self.data().to_vec())));
+        }
+        match &mut self.data {
+            Storage::Host(b) => Arc::make_mut(b).0.as_mut_slice(),
+            #[cfg(feature = "gpu")]
+            Storage::Device(_) => unreachable!("moved to the host above"),
+        }
     }
 
     /// The elements as a new vector.
     pub fn to_vec(&self) -> Vec<T> {
-        self.data.0.to_vec()
+        self.data().to_vec()
     }
 
     /// The value of a one-element tensor.
     pub fn item(&self) -> Result<T> {
-        if self.data.0.len() == 1 {
-            Ok(self.data.0[0])
+        if self.numel() == 1 {
+            Ok(self.data()[0])
         } else {
             Err(invalid("item", format!("tensor of shape {:?} is not a single value", self.shape)))
         }
@@ -136,31 +187,112 @@ impl<T: Float> Tensor<T> {
         Ok(Self { shape: shape.to_vec(), data: self.data.clone() })
     }
 
-    /// Converts the elements to another precision.
-    pub fn cast<U: Float>(&self) -> Tensor<U> {
-        Tensor::from_parts(self.data.0.iter().map(|v| U::from_f64(v.to_f64())).collect(), self.shape.clone())
+    /// [`Tensor::reshape`] of a tensor the caller gives up (keeps its storage unshared).
+    pub(crate) fn into_reshaped(self, shape: &[usize]) -> Result<Self> {
+        if numel(shape) != self.numel() {
+            return Err(mismatch("reshape", &[&self.shape, shape], "element counts differ"));
+        }
+        Ok(Self { shape: shape.to_vec(), data: self.data })
     }
 
-    /// Whether every element is finite.
+    /// Converts the elements to another precision (on the host).
+    pub fn cast<U: Float>(&self) -> Tensor<U> {
+        Tensor::from_parts(self.data().iter().map(|v| U::from_f64(v.to_f64())).collect(), self.shape.clone())
+    }
+
+    /// Whether every element is finite (on the GPU, checked there: one value comes back).
     pub fn all_finite(&self) -> bool {
-        self.data.0.iter().all(|v| v.is_finite())
+        match &self.data {
+            Storage::Host(b) => b.0.iter().all(|v| v.is_finite()),
+            #[cfg(feature = "gpu")]
+            Storage::Device(_) => {
+                crate::tensor_ops::first_non_finite(std::slice::from_ref(self)).map(|i| i.is_none()).unwrap_or(false)
+            }
+        }
     }
 
     /// Whether both tensors have the same shape and every element differs by at most
     /// `atol + rtol * |other|`.
     pub fn all_close(&self, other: &Self, rtol: f64, atol: f64) -> bool {
         self.shape == other.shape
-            && self.data.0.iter().zip(other.data.0.iter()).all(|(a, b)| {
+            && self.data().iter().zip(other.data().iter()).all(|(a, b)| {
                 let (a, b) = (a.to_f64(), b.to_f64());
                 (a - b).abs() <= atol + rtol * b.abs()
             })
     }
 
-    /// The elements as a vector, without copying when the storage is not shared.
+    /// The elements as a vector, without copying when the storage is on the host and not
+    /// shared.
     pub(crate) fn into_vec(self) -> Vec<T> {
-        match Arc::try_unwrap(self.data) {
-            Ok(mut b) => std::mem::take(&mut b.0),
-            Err(shared) => shared.0.clone(),
+        match self.data {
+            Storage::Host(b) => match Arc::try_unwrap(b) {
+                Ok(mut b) => std::mem::take(&mut b.0),
+                Err(shared) => shared.0.clone(),
+            },
+            #[cfg(feature = "gpu")]
+            Storage::Device(_) => self.to_vec(),
+        }
+    }
+
+    /// The same tensor on `device` (no copy when it is already there). Moving to the GPU
+    /// fails without the `gpu` feature, with no adapter, for `f64` (the GPU holds `f32`) and
+    /// for tensors larger than a device buffer; moving to the CPU waits for the values.
+    pub fn to_device(&self, device: Device) -> Result<Tensor<T>> {
+        match (device, &self.data) {
+            (Device::Cpu, Storage::Host(_)) => Ok(self.clone()),
+            #[cfg(feature = "gpu")]
+            (Device::Gpu, Storage::Device(_)) => Ok(self.clone()),
+            #[cfg(feature = "gpu")]
+            (Device::Cpu, Storage::Device(_)) => Ok(Tensor::from_parts(self.to_vec(), self.shape.clone())),
+            #[cfg(feature = "gpu")]
+            (Device::Gpu, Storage::Host(b)) => {
+                let values = T::as_f32_slice(&b.0).ok_or_else(|| crate::error::TensorError::Device {
+                    op: "to_device",
+                    detail: format!("the GPU holds f32 tensors; this one is {}", T::NAME),
+                })?;
+                crate::gpu::gpu()?.check_size("to_device", values.len())?;
+                Ok(Tensor::from_device(crate::gpu::DeviceBuffer::upload(values), self.shape.clone()))
+            }
+            #[cfg(not(feature = "gpu"))]
+            (Device::Gpu, _) => Err(crate::error::TensorError::Device {
+                op: "to_device",
+                detail: "this build has no GPU device: rebuild with the cargo feature `gpu`".into(),
+            }),
+        }
+    }
+
+    /// Wraps a device buffer of `numel(shape)` values (a kernel's output).
+    #[cfg(feature = "gpu")]
+    pub(crate) fn from_device(buf: crate::gpu::DeviceBuffer, shape: Vec<usize>) -> Self {
+        debug_assert_eq!(buf.len(), numel(&shape));
+        Self { shape, data: Storage::Device(Arc::new(DeviceData { buf, host: std::sync::OnceLock::new() })) }
+    }
+
+    /// The device buffer of a tensor on the GPU, taken without a copy when no other tensor
+    /// shares it (else copied on the device).
+    #[cfg(feature = "gpu")]
+    pub(crate) fn into_device_buffer(self) -> crate::gpu::DeviceBuffer {
+        match self.data {
+            Storage::Device(d) => match Arc::try_unwrap(d) {
+                Ok(d) => d.buf,
+                Err(shared) => crate::gpu::ops::layout::strided_copy(
+                    &shared.buf,
+                    &self.shape,
+                    &crate::shape::strides(&self.shape),
+                    0,
+                    1.0,
+                ),
+            },
+            Storage::Host(_) => unreachable!("into_device_buffer of a host tensor"),
+        }
+    }
+
+    /// The device buffer of a tensor on the GPU.
+    #[cfg(feature = "gpu")]
+    pub(crate) fn device_buffer(&self) -> Option<&crate::gpu::DeviceBuffer> {
+        match &self.data {
+            Storage::Device(d) => Some(&d.buf),
+            Storage::Host(_) => None,
         }
     }
 }

@@ -4,9 +4,9 @@
 
 use std::sync::Arc;
 
+use crate::dispatch as k;
 use crate::element::Float;
 use crate::error::{Result, check_axis, invalid, mismatch};
-use crate::kernels::{elementwise, index, layout, matmul, nnops, reduce};
 use crate::op::{Activation, BinaryOp, NodeId, Op, ReduceOp, UnaryOp};
 use crate::shape::{broadcast_shapes, numel};
 use crate::tape::{Tape, Var};
@@ -17,7 +17,7 @@ use crate::tensor::Tensor;
 #[allow(clippy::should_implement_trait)]
 impl<'t, T: Float> Var<'t, T> {
     fn unary(self, op: UnaryOp) -> Var<'t, T> {
-        let y = elementwise::unary(&self.value(), op);
+        let y = k::unary(&self.value(), op);
         self.tape.record(y, Op::Unary(self.id, op), &[self.id])
     }
 
@@ -80,7 +80,7 @@ impl<'t, T: Float> Var<'t, T> {
 
     fn binary(self, other: Var<'t, T>, op: BinaryOp) -> Result<Var<'t, T>> {
         self.tape.check_same(other);
-        let y = elementwise::binary(&self.value(), &other.value(), op)?;
+        let y = k::binary(&self.value(), &other.value(), op)?;
         Ok(self.tape.record(y, Op::Binary(self.id, other.id, op), &[self.id, other.id]))
     }
 
@@ -110,7 +110,7 @@ impl<'t, T: Float> Var<'t, T> {
     }
 
     fn reduce(self, op: ReduceOp, axis: Option<usize>, keepdim: bool) -> Result<Var<'t, T>> {
-        let y = reduce::reduce(&self.value(), op, axis, keepdim)?;
+        let y = k::reduce(&self.value(), op, axis, keepdim)?;
         Ok(self.tape.record(y, Op::Reduce { x: self.id, op, axis, keepdim }, &[self.id]))
     }
 
@@ -148,7 +148,7 @@ impl<'t, T: Float> Var<'t, T> {
     /// transposes are read as strides, nothing is copied.
     pub fn matmul_t(self, other: Var<'t, T>, ta: bool, tb: bool) -> Result<Self> {
         self.tape.check_same(other);
-        let y = matmul::matmul(&self.value(), &other.value(), ta, tb)?;
+        let y = k::matmul(&self.value(), &other.value(), ta, tb)?;
         Ok(self.tape.record(y, Op::MatMul { a: self.id, b: other.id, ta, tb }, &[self.id, other.id]))
     }
 
@@ -159,7 +159,7 @@ impl<'t, T: Float> Var<'t, T> {
             self.tape.check_same(b);
             b.value()
         });
-        let y = nnops::linear(&self.value(), &w.value(), bv.as_ref(), act)?;
+        let y = k::linear_sum(&[(&self.value(), &w.value())], bv.as_ref(), act)?;
         let mut inputs = vec![self.id, w.id];
         inputs.extend(b.map(|b| b.id));
         Ok(self.tape.record(y, Op::Linear { parts: vec![(self.id, w.id)], b: b.map(|b| b.id), act }, &inputs))
@@ -167,21 +167,21 @@ impl<'t, T: Float> Var<'t, T> {
 
     /// Softmax over the last axis.
     pub fn softmax(self) -> Self {
-        let y = nnops::softmax(&self.value());
+        let y = k::softmax(&self.value());
         self.tape.record(y, Op::Softmax(self.id), &[self.id])
     }
 
     /// Euclidean norm over the last axis, `sqrt(sum x^2 + eps)`, with that axis kept as
     /// size 1 (`eps >= 0` keeps the gradient finite at 0).
     pub fn norm_last(self, eps: f64) -> Self {
-        let y = nnops::norm_last(&self.value(), eps);
+        let y = k::norm_last(&self.value(), eps);
         self.tape.record(y, Op::NormLast { x: self.id, eps }, &[self.id])
     }
 
     /// `(x - mean) / sqrt(var + eps)` over the last axis (biased variance): layer
     /// normalisation without its affine part, in one op.
     pub fn standardize(self, eps: f64) -> Self {
-        let y = nnops::standardize(&self.value(), eps);
+        let y = k::standardize(&self.value(), eps);
         self.tape.record(y, Op::Standardize { x: self.id, eps }, &[self.id])
     }
 
@@ -203,7 +203,7 @@ impl<'t, T: Float> Var<'t, T> {
 
     /// Reorders axes: output axis `i` is input axis `perm[i]`.
     pub fn permute(self, perm: &[usize]) -> Result<Self> {
-        let y = layout::permute(&self.value(), perm)?;
+        let y = k::permute(&self.value(), perm)?;
         Ok(self.tape.record(y, Op::Permute(self.id, perm.to_vec()), &[self.id]))
     }
 
@@ -219,19 +219,19 @@ impl<'t, T: Float> Var<'t, T> {
 
     /// Broadcasts to a larger shape (copies).
     pub fn expand(self, shape: &[usize]) -> Result<Self> {
-        let y = layout::expand(&self.value(), shape)?;
+        let y = k::expand(&self.value(), shape)?;
         Ok(self.tape.record(y, Op::Expand(self.id), &[self.id]))
     }
 
     /// Entries `start..start+len` of `axis`.
     pub fn narrow(self, axis: usize, start: usize, len: usize) -> Result<Self> {
-        let y = layout::narrow(&self.value(), axis, start, len)?;
+        let y = k::narrow(&self.value(), axis, start, len)?;
         Ok(self.tape.record(y, Op::Narrow { x: self.id, axis, start }, &[self.id]))
     }
 
     /// Entries of `axis` picked by `idx` (repeats allowed).
     pub fn index_select(self, axis: usize, idx: &[usize]) -> Result<Self> {
-        let y = index::index_select(&self.value(), axis, idx)?;
+        let y = k::index_select(&self.value(), axis, idx)?;
         Ok(self.tape.record(y, Op::IndexSelect { x: self.id, axis, idx: Arc::new(idx.to_vec()) }, &[self.id]))
     }
 
@@ -239,12 +239,7 @@ impl<'t, T: Float> Var<'t, T> {
     /// accumulate.
     pub fn index_add(self, axis: usize, idx: &[usize], src: Var<'t, T>) -> Result<Self> {
         self.tape.check_same(src);
-        let (x, s) = (self.value(), src.value());
-        index::check_index_add(x.shape(), s.shape(), axis, idx)?;
-        let (outer, n, inner) = crate::shape::split_at_axis(x.shape(), axis);
-        let mut out = x.to_vec();
-        index::index_add_into(&mut out, n, s.data(), idx.len(), outer, inner, idx);
-        let y = Tensor::from_parts(out, x.shape().to_vec());
+        let y = k::index_add(&self.value(), axis, idx, &src.value())?;
         Ok(self.tape.record(
             y,
             Op::IndexAdd { x: self.id, src: src.id, axis, idx: Arc::new(idx.to_vec()) },
@@ -258,14 +253,14 @@ impl<'t, T: Float> Var<'t, T> {
         check_axis("scatter_add", axis, &self.shape())?;
         let mut shape = self.shape();
         shape[axis] = size;
-        let zeros = self.tape.constant(Tensor::zeros(&shape));
+        let zeros = self.tape.constant(Tensor::zeros(&shape).to_device(self.value().device())?);
         zeros.index_add(axis, idx, self)
     }
 
     /// `out[o, j, i] = self[o, idx[o, j, i], i]` along `axis`; `idx` has shape `idx_shape`
     /// (equal to the input's except along `axis`).
     pub fn gather(self, axis: usize, idx_shape: &[usize], idx: &[usize]) -> Result<Self> {
-        let y = index::gather(&self.value(), axis, idx_shape, idx)?;
+        let y = k::gather(&self.value(), axis, idx_shape, idx)?;
         Ok(self.tape.record(y, Op::Gather { x: self.id, axis, idx: Arc::new(idx.to_vec()) }, &[self.id]))
     }
 
@@ -280,7 +275,7 @@ impl<'t, T: Float> Var<'t, T> {
     }
 
     fn segment(self, seg: &[usize], n: usize, mean: bool) -> Result<Self> {
-        let y = index::segment_reduce(&self.value(), seg, n, mean)?;
+        let y = k::segment_reduce(&self.value(), seg, n, mean)?;
         Ok(self.tape.record(y, Op::Segment { x: self.id, seg: Arc::new(seg.to_vec()), mean }, &[self.id]))
     }
 }
@@ -291,7 +286,7 @@ impl<T: Float> Tape<T> {
         xs.iter().for_each(|&x| self.check_same(x));
         let vals: Vec<Tensor<T>> = xs.iter().map(|x| x.value()).collect();
         let refs: Vec<&Tensor<T>> = vals.iter().collect();
-        let y = layout::cat(&refs, axis)?;
+        let y = k::cat(&refs, axis)?;
         let ids: Vec<usize> = xs.iter().map(|x| x.id).collect();
         Ok(self.record(y, Op::Cat { xs: ids.clone(), axis }, &ids))
     }
@@ -319,7 +314,7 @@ impl<T: Float> Tape<T> {
             self.check_same(b);
             b.value()
         });
-        let y = nnops::linear_sum(&refs, bv.as_ref(), act)?;
+        let y = k::linear_sum(&refs, bv.as_ref(), act)?;
         let ids: Vec<(NodeId, NodeId)> = parts.iter().map(|&(x, w)| (x.id, w.id)).collect();
         let mut inputs: Vec<NodeId> = ids.iter().flat_map(|&(x, w)| [x, w]).collect();
         inputs.extend(b.map(|b| b.id));
@@ -357,7 +352,8 @@ impl<T: Float> Tape<T> {
                 format!("mask has {} entries, the broadcast shape {shape:?} needs {}", mask.len(), numel(&shape)),
             ));
         }
-        let y = Tensor::from_parts(elementwise::where_select(mask, &shape, &av, &bv), shape);
-        Ok(self.record(y, Op::Where { a: a.id, b: b.id, mask: Arc::new(mask.to_vec()) }, &[a.id, b.id]))
+        let mask = Arc::new(mask.to_vec());
+        let y = k::where_select(&mask, &shape, &av, &bv)?;
+        Ok(self.record(y, Op::Where { a: a.id, b: b.id, mask }, &[a.id, b.id]))
     }
 }

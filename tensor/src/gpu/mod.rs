@@ -16,6 +16,7 @@ pub mod context;
 pub(crate) mod ops;
 
 pub use context::{AdapterInfo, Gpu, GpuStats, gpu};
+pub use ops::optim::AdamStep;
 
 /// The storage of one tensor on the GPU: `len` f32 values in a buffer that goes back to the
 /// device's pool when dropped.

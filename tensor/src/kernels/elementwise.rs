@@ -4,6 +4,7 @@ use super::fill_chunks;
 use crate::element::Float;
 use crate::error::Result;
 use crate::op::{BinaryOp, UnaryOp};
+use crate::pool;
 use crate::shape::{broadcast_shapes, broadcast_strides, for_each_run2, numel};
 use crate::tensor::Tensor;
 
@@ -184,4 +185,63 @@ pub fn where_select<T: Float>(mask: &[bool], shape: &[usize], a: &Tensor<T>, b: 
         }
     });
     out
+}
+
+/// The gradients `(dA, dB)` of a broadcasting binary op with output `y` and output gradient
+/// `g`, summed back to the operands' shapes; each only when wanted (`wants`).
+#[allow(clippy::type_complexity)]
+pub(crate) fn binary_backward<T: Float>(
+    g: &[T],
+    av: &Tensor<T>,
+    bv: &Tensor<T>,
+    y: &Tensor<T>,
+    op: BinaryOp,
+    wants: (bool, bool),
+) -> (Option<Vec<T>>, Option<Vec<T>>) {
+    let shape = y.shape();
+    let with = |other: &Tensor<T>, mul: bool| {
+        let (o, os) = (other.data(), other.shape());
+        if mul {
+            binary_into_shape(g, shape, o, os, shape, |gv, ov| gv * ov)
+        } else {
+            binary_into_shape(g, shape, o, os, shape, |gv, ov| gv / ov)
+        }
+    };
+    let (wa, wb) = wants;
+    if matches!(op, BinaryOp::Div | BinaryOp::Mul) && av.numel() == y.numel() && is_row_broadcast(bv.shape(), shape) {
+        // `a` scaled by one value of `b` per row (e.g. c / (||G|| + 1)): both gradients in
+        // one pass, without broadcast temporaries.
+        return row_scale_backward(g, av.data(), bv.data(), op == BinaryOp::Div, wa, wb);
+    }
+    let (ga, gb): (Option<Vec<T>>, Option<Vec<T>>) = match op {
+        BinaryOp::Add => (wa.then(|| pool::map(g, |v| v)), wb.then(|| pool::map(g, |v| v))),
+        BinaryOp::Sub => (wa.then(|| pool::map(g, |v| v)), wb.then(|| pool::map(g, |v| -v))),
+        BinaryOp::Mul => (wa.then(|| with(bv, true)), wb.then(|| with(av, true))),
+        BinaryOp::Div => {
+            let ga = wa.then(|| with(bv, false));
+            let gb = wb.then(|| {
+                // d(a/b)/db = -y / b
+                let gy = pool::zip_map(g, y.data(), |gv, yv| gv * yv);
+                let gb = binary_into_shape(&gy, shape, bv.data(), bv.shape(), shape, |t, bv| -t / bv);
+                pool::recycle(gy);
+                gb
+            });
+            (ga, gb)
+        }
+        BinaryOp::Minimum | BinaryOp::Maximum => {
+            let pick_a = |x: T, z: T| {
+                let chosen = if op == BinaryOp::Minimum { x <= z } else { x >= z };
+                if chosen { T::ONE } else { T::ZERO }
+            };
+            let mask = binary_into_shape(av.data(), av.shape(), bv.data(), bv.shape(), shape, pick_a);
+            let ga = wa.then(|| pool::zip_map(g, &mask, |gv, m| gv * m));
+            let gb = wb.then(|| pool::zip_map(g, &mask, |gv, m| gv * (T::ONE - m)));
+            pool::recycle(mask);
+            (ga, gb)
+        }
+    };
+    let back = |grad: Option<Vec<T>>, v: &Tensor<T>| {
+        grad.map(|grad| super::reduce::sum_to_shape(Tensor::from_parts(grad, shape.to_vec()), v.shape()).into_vec())
+    };
+    (back(ga, av), back(gb, bv))
 }

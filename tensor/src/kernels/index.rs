@@ -163,3 +163,22 @@ pub fn segment_counts(seg: &[usize], num_segments: usize) -> Vec<usize> {
     }
     c
 }
+
+/// Gradient of [`segment_reduce`]: row `r` of `dx` is `g[seg[r]]`, divided by the segment's
+/// row count for a mean (`g` has `num_segments` rows of `inner` values).
+pub(crate) fn segment_backward<T: Float>(
+    g: &[T],
+    seg: &[usize],
+    num_segments: usize,
+    inner: usize,
+    mean: bool,
+) -> Vec<T> {
+    let counts = if mean { segment_counts(seg, num_segments) } else { vec![] };
+    let mut dx = crate::pool::zeros(seg.len() * inner);
+    for (r, &s) in seg.iter().enumerate() {
+        let scale = if mean { T::ONE / T::from_f64(counts[s] as f64) } else { T::ONE };
+        let src = &g[s * inner..(s + 1) * inner];
+        dx[r * inner..(r + 1) * inner].iter_mut().zip(src).for_each(|(d, &v)| *d = v * scale);
+    }
+    dx
+}

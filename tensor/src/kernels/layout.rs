@@ -8,14 +8,7 @@ use crate::tensor::Tensor;
 /// Reorders the axes: output axis `i` is input axis `perm[i]` (copies into row-major order).
 pub fn permute<T: Float>(x: &Tensor<T>, perm: &[usize]) -> Result<Tensor<T>> {
     let r = x.rank();
-    let mut seen = vec![false; r];
-    if perm.len() != r || perm.iter().any(|&p| p >= r || std::mem::replace(&mut seen[p], true)) {
-        return Err(invalid(
-            "permute",
-            format!("{perm:?} is not a permutation of the {r} axes of shape {:?}", x.shape()),
-        ));
-    }
-    let shape: Vec<usize> = perm.iter().map(|&p| x.shape()[p]).collect();
+    let shape = permuted_shape(x.shape(), perm)?;
     let st = strides(x.shape());
     let src_strides: Vec<usize> = perm.iter().map(|&p| st[p]).collect();
     let zero = vec![0; r];
@@ -29,6 +22,17 @@ pub fn permute<T: Float>(x: &Tensor<T>, perm: &[usize]) -> Result<Tensor<T>> {
     Ok(Tensor::from_parts(out, shape))
 }
 
+/// The shape after permuting the axes of `shape` by `perm`; fails if `perm` is not a
+/// permutation of its axes.
+pub(crate) fn permuted_shape(shape: &[usize], perm: &[usize]) -> Result<Vec<usize>> {
+    let r = shape.len();
+    let mut seen = vec![false; r];
+    if perm.len() != r || perm.iter().any(|&p| p >= r || std::mem::replace(&mut seen[p], true)) {
+        return Err(invalid("permute", format!("{perm:?} is not a permutation of the {r} axes of shape {shape:?}")));
+    }
+    Ok(perm.iter().map(|&p| shape[p]).collect())
+}
+
 /// The inverse permutation of `perm`.
 pub fn inverse_permutation(perm: &[usize]) -> Vec<usize> {
     let mut inv = vec![0; perm.len()];
@@ -40,14 +44,8 @@ pub fn inverse_permutation(perm: &[usize]) -> Vec<usize> {
 
 /// Entries `start..start+len` of `axis`.
 pub fn narrow<T: Float>(x: &Tensor<T>, axis: usize, start: usize, len: usize) -> Result<Tensor<T>> {
-    check_axis("narrow", axis, x.shape())?;
+    check_narrow(x.shape(), axis, start, len)?;
     let (outer, n, inner) = split_at_axis(x.shape(), axis);
-    if start + len > n {
-        return Err(invalid(
-            "narrow",
-            format!("range {start}..{} is past the end of axis {axis} of shape {:?}", start + len, x.shape()),
-        ));
-    }
     let mut out = crate::pool::with_capacity(outer * len * inner);
     let xd = x.data();
     for o in 0..outer {
@@ -56,6 +54,18 @@ pub fn narrow<T: Float>(x: &Tensor<T>, axis: usize, start: usize, len: usize) ->
     let mut shape = x.shape().to_vec();
     shape[axis] = len;
     Ok(Tensor::from_parts(out, shape))
+}
+
+/// Checks that entries `start..start+len` of `axis` exist in `shape`.
+pub(crate) fn check_narrow(shape: &[usize], axis: usize, start: usize, len: usize) -> Result<()> {
+    check_axis("narrow", axis, shape)?;
+    if start.checked_add(len).is_none_or(|end| end > shape[axis]) {
+        return Err(invalid(
+            "narrow",
+            format!("range {start}..{} is past the end of axis {axis} of shape {shape:?}", start.saturating_add(len)),
+        ));
+    }
+    Ok(())
 }
 
 /// Adds `g` (the gradient of a narrow) into `dst` (shaped like the narrowed input).
@@ -96,15 +106,8 @@ pub fn narrow_add_into<T: Float>(
 
 /// Concatenates along `axis`; all other dims must agree.
 pub fn cat<T: Float>(xs: &[&Tensor<T>], axis: usize) -> Result<Tensor<T>> {
-    let first = xs.first().ok_or_else(|| invalid("cat", "needs at least one tensor"))?;
-    check_axis("cat", axis, first.shape())?;
-    for x in xs {
-        let ok = x.rank() == first.rank()
-            && x.shape().iter().zip(first.shape()).enumerate().all(|(d, (a, b))| d == axis || a == b);
-        if !ok {
-            return Err(mismatch("cat", &[first.shape(), x.shape()], format!("all dims but axis {axis} must agree")));
-        }
-    }
+    let shape = cat_shape(xs, axis)?;
+    let first = xs[0];
     let (outer, _, inner) = split_at_axis(first.shape(), axis);
     let total: usize = xs.iter().map(|x| x.shape()[axis]).sum();
     let mut out = crate::pool::with_capacity(outer * total * inner);
@@ -114,21 +117,41 @@ pub fn cat<T: Float>(xs: &[&Tensor<T>], axis: usize) -> Result<Tensor<T>> {
             out.extend_from_slice(&x.data()[o * l..(o + 1) * l]);
         }
     }
-    let mut shape = first.shape().to_vec();
-    shape[axis] = total;
     Ok(Tensor::from_parts(out, shape))
+}
+
+/// The shape of the concatenation of `xs` along `axis`; fails unless every other dim agrees.
+pub(crate) fn cat_shape<T: Float>(xs: &[&Tensor<T>], axis: usize) -> Result<Vec<usize>> {
+    let first = xs.first().ok_or_else(|| invalid("cat", "needs at least one tensor"))?;
+    check_axis("cat", axis, first.shape())?;
+    for x in xs {
+        let ok = x.rank() == first.rank()
+            && x.shape().iter().zip(first.shape()).enumerate().all(|(d, (a, b))| d == axis || a == b);
+        if !ok {
+            return Err(mismatch("cat", &[first.shape(), x.shape()], format!("all dims but axis {axis} must agree")));
+        }
+    }
+    let mut shape = first.shape().to_vec();
+    shape[axis] = xs.iter().map(|x| x.shape()[axis]).sum();
+    Ok(shape)
+}
+
+/// Checks that `from` broadcasts to exactly `to`.
+pub(crate) fn check_expand(from: &[usize], to: &[usize]) -> Result<()> {
+    let b = broadcast_shapes("expand", from, to)?;
+    if b != to {
+        return Err(TensorError::ShapeMismatch {
+            op: "expand",
+            shapes: vec![from.to_vec(), to.to_vec()],
+            detail: "the first shape does not broadcast to the second".into(),
+        });
+    }
+    Ok(())
 }
 
 /// Broadcasts `x` to `shape` (copies).
 pub fn expand<T: Float>(x: &Tensor<T>, shape: &[usize]) -> Result<Tensor<T>> {
-    let b = broadcast_shapes("expand", x.shape(), shape)?;
-    if b != shape {
-        return Err(TensorError::ShapeMismatch {
-            op: "expand",
-            shapes: vec![x.shape().to_vec(), shape.to_vec()],
-            detail: "the first shape does not broadcast to the second".into(),
-        });
-    }
+    check_expand(x.shape(), shape)?;
     let sx = broadcast_strides(x.shape(), shape);
     let zero = vec![0; shape.len()];
     let xd = x.data();

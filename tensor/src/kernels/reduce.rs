@@ -203,3 +203,32 @@ pub(crate) fn sum8<T: Float>(values: impl ExactSizeIterator<Item = T>) -> T {
     }
     s
 }
+
+/// Gradient of a reduction of `x` (as `[outer, len, inner]`, output `y`) given `g`: a sum
+/// or mean spreads `g` (times `1/len`) over the reduced axis, a max sends it to the first
+/// maximal entry.
+pub(crate) fn reduce_backward<T: Float>(
+    x: &[T],
+    y: &[T],
+    g: &[T],
+    op: ReduceOp,
+    outer: usize,
+    len: usize,
+    inner: usize,
+) -> Vec<T> {
+    match op {
+        ReduceOp::Max => max_backward(x, y, g, outer, len, inner),
+        ReduceOp::Sum | ReduceOp::Mean => {
+            let s = if op == ReduceOp::Mean { T::ONE / T::from_f64(len as f64) } else { T::ONE };
+            let mut dx = crate::pool::zeros(x.len());
+            for o in 0..outer {
+                let gr = &g[o * inner..(o + 1) * inner];
+                for k in 0..len {
+                    let d = &mut dx[(o * len + k) * inner..(o * len + k + 1) * inner];
+                    d.iter_mut().zip(gr).for_each(|(d, &gv)| *d = gv * s);
+                }
+            }
+            dx
+        }
+    }
+}

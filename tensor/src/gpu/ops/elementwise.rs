@@ -1,9 +1,11 @@
-//! Element-wise kernels: unary maps and their derivatives.
+//! Element-wise kernels: unary maps and their derivatives, broadcasting binary maps, masked
+//! selection and in-place accumulation.
 
-use super::{bits, kernel, u};
+use super::{bits, kernel, strided_params, u};
 use crate::gpu::context::Kernel;
 use crate::gpu::{DeviceBuffer, device};
-use crate::op::UnaryOp;
+use crate::op::{BinaryOp, UnaryOp};
+use crate::shape::{broadcast_strides, numel};
 
 const UNARY_FORWARD: Kernel = kernel!("unary_forward", "unary_fns.wgsl", "unary_forward.wgsl");
 const UNARY_BACKWARD: Kernel = kernel!("unary_backward", "unary_fns.wgsl", "unary_backward.wgsl");
@@ -44,6 +46,77 @@ pub(crate) fn unary_backward(g: &DeviceBuffer, x: &DeviceBuffer, y: &DeviceBuffe
     let [code, c0, c1] = unary_code(op);
     device().launch_1d(&UNARY_BACKWARD, &[u(n), code, c0, c1], &[g.buffer(), x.buffer(), y.buffer(), dx.buffer()], n);
     dx
+}
+
+const BINARY: Kernel = kernel!("binary", "strided_fns.wgsl", "binary.wgsl");
+const WHERE: Kernel = kernel!("where", "strided_fns.wgsl", "where.wgsl");
+const ADD_INTO: Kernel = kernel!("add_into", "add_into.wgsl");
+
+/// What the binary kernel computes: a [`BinaryOp`] or one of the 0/1 masks of the min/max
+/// gradients.
+#[derive(Clone, Copy, Debug)]
+pub(crate) enum BinaryCode {
+    /// The forward op.
+    Op(BinaryOp),
+    /// 1 where `a <= b`, else 0.
+    LessEq,
+    /// 1 where `a >= b`, else 0.
+    GreaterEq,
+}
+
+impl BinaryCode {
+    fn code(self) -> u32 {
+        match self {
+            BinaryCode::Op(BinaryOp::Add) => 0,
+            BinaryCode::Op(BinaryOp::Sub) => 1,
+            BinaryCode::Op(BinaryOp::Mul) => 2,
+            BinaryCode::Op(BinaryOp::Div) => 3,
+            BinaryCode::Op(BinaryOp::Minimum) => 4,
+            BinaryCode::Op(BinaryOp::Maximum) => 5,
+            BinaryCode::LessEq => 6,
+            BinaryCode::GreaterEq => 7,
+        }
+    }
+}
+
+/// `op(a, b)` over the broadcast `shape` (`a` and `b` broadcast to it).
+pub(crate) fn binary(
+    a: &DeviceBuffer,
+    a_shape: &[usize],
+    b: &DeviceBuffer,
+    b_shape: &[usize],
+    shape: &[usize],
+    op: BinaryCode,
+) -> DeviceBuffer {
+    let n = numel(shape);
+    let out = DeviceBuffer::uninit(n);
+    let mut params = vec![u(n), op.code(), 0, 0];
+    params.extend(strided_params(shape, &[&broadcast_strides(a_shape, shape), &broadcast_strides(b_shape, shape)]));
+    device().launch_1d(&BINARY, &params, &[a.buffer(), b.buffer(), out.buffer()], n);
+    out
+}
+
+/// `mask ? a : b` over `shape` (`mask` holds one u32 per element; `a`, `b` broadcast).
+pub(crate) fn where_select(
+    mask: &DeviceBuffer,
+    shape: &[usize],
+    a: &DeviceBuffer,
+    a_shape: &[usize],
+    b: &DeviceBuffer,
+    b_shape: &[usize],
+) -> DeviceBuffer {
+    let n = numel(shape);
+    let out = DeviceBuffer::uninit(n);
+    let mut params = vec![u(n)];
+    params.extend(strided_params(shape, &[&broadcast_strides(a_shape, shape), &broadcast_strides(b_shape, shape)]));
+    device().launch_1d(&WHERE, &params, &[mask.buffer(), a.buffer(), b.buffer(), out.buffer()], n);
+    out
+}
+
+/// `dst += src` element by element (equal lengths).
+pub(crate) fn add_into(dst: &DeviceBuffer, src: &DeviceBuffer) {
+    let n = dst.len();
+    device().launch_1d(&ADD_INTO, &[u(n)], &[src.buffer(), dst.buffer()], n);
 }
 
 #[cfg(test)]

@@ -1,0 +1,350 @@
+//! Matrix products on the device: batched `op(a) @ op(b)` with broadcast batch dims and
+//! transposed operands read through strides (as `kernels/matmul.rs` on the CPU), with an
+//! optional fused epilogue (bias and activation), and the fused layer [`linear_sum`] (as
+//! `kernels/nnops.rs`).
+//!
+//! One tiled kernel (`wgsl/matmul.wgsl`): 64 x 64 output tiles per workgroup of 16 x 16
+//! threads, 4 x 4 outputs per thread, the inner dim in steps of 16 through workgroup memory.
+//! Each output element is summed by one thread over k in increasing order, so a product has
+//! the same bits on every run (on the same GPU and driver).
+
+use super::{kernel, u};
+use crate::gpu::context::Kernel;
+use crate::gpu::{DeviceBuffer, device};
+use crate::kernels::matmul::MatMulPlan;
+use crate::op::Activation;
+
+const MATMUL: Kernel = kernel!("matmul", "matmul.wgsl");
+
+/// Output rows of the tile one workgroup computes (`TILE_M` in `matmul.wgsl`).
+const TILE_M: usize = 64;
+/// Output columns of the tile one workgroup computes (`TILE_N` in `matmul.wgsl`).
+const TILE_N: usize = 64;
+
+/// The kernel's code of an activation (`activation` in `matmul.wgsl`).
+fn activation_code(act: Activation) -> u32 {
+    match act {
+        Activation::Identity => 0,
+        Activation::Relu => 1,
+        Activation::Tanh => 2,
+    }
+}
+
+/// Writes (or, with `accumulate`, adds to `out`'s current values) `op(a) @ op(b)` following
+/// `plan` (`op(a)` is `a` or, with `ta`, its transpose read through strides; likewise `b`),
+/// then, when given, the epilogue: `+ bias` (an `[n]` buffer added to every row) and `act`,
+/// applied to the final sum. `out` holds `plan.out_shape()` values.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn matmul_into(
+    out: &DeviceBuffer,
+    accumulate: bool,
+    a: &DeviceBuffer,
+    ta: bool,
+    b: &DeviceBuffer,
+    tb: bool,
+    plan: &MatMulPlan,
+    bias: Option<&DeviceBuffer>,
+    act: Activation,
+) {
+    let (m, k, n) = (plan.m, plan.k, plan.n);
+    let batches = plan.offsets.len();
+    assert_eq!(out.len(), batches * m * n, "matmul: the output holds the plan's output shape");
+    for &(oa, ob) in &plan.offsets {
+        assert!(oa + m * k <= a.len() && ob + k * n <= b.len(), "matmul: operands smaller than the plan");
+    }
+    if let Some(bias) = bias {
+        assert_eq!(bias.len(), n, "matmul: the bias holds one value per output column");
+    }
+    let tiles_n = n.div_ceil(TILE_N);
+    let per_batch = m.div_ceil(TILE_M) * tiles_n;
+    let groups = per_batch * batches;
+    if groups == 0 {
+        return;
+    }
+    let offsets: Vec<u32> = plan.offsets.iter().flat_map(|&(oa, ob)| [u(oa), u(ob)]).collect();
+    let offsets = DeviceBuffer::upload_u32(&offsets);
+    let params = [
+        u(m),
+        u(k),
+        u(n),
+        u32::from(ta),
+        u32::from(tb),
+        u32::from(accumulate),
+        u32::from(bias.is_some()),
+        activation_code(act),
+        u(tiles_n),
+        u(per_batch),
+        u(batches),
+    ];
+    // Without a bias the kernel reads none: any buffer that is not the output fills the slot.
+    let bias = bias.unwrap_or(&offsets);
+    device().launch(
+        &MATMUL,
+        &params,
+        &[a.buffer(), b.buffer(), offsets.buffer(), bias.buffer(), out.buffer()],
+        u(groups),
+    );
+}
+
+/// `op(a) @ op(b)` following `plan`, as a new buffer of `plan.out_shape()` values.
+pub(crate) fn matmul(a: &DeviceBuffer, ta: bool, b: &DeviceBuffer, tb: bool, plan: &MatMulPlan) -> DeviceBuffer {
+    let out = DeviceBuffer::uninit(plan.offsets.len() * plan.m * plan.n);
+    matmul_into(&out, false, a, ta, b, tb, plan, None, Activation::Identity);
+    out
+}
+
+/// `act(sum_i x_i @ w_i + bias)` as a new `[rows, n]` buffer: `parts` are the `(x_i, k_i)`
+/// with `x_i` a `[rows, k_i]` buffer, `weights` the matching `w_i` as `[k_i, n]` buffers. The
+/// first product writes the output, later ones add to it, and the bias and activation are
+/// applied after the last (as `kernels::nnops::linear_sum`). Panics without parts or when
+/// `weights` and `parts` differ in length.
+pub(crate) fn linear_sum(
+    parts: &[(&DeviceBuffer, usize)],
+    weights: &[&DeviceBuffer],
+    rows: usize,
+    n: usize,
+    bias: Option<&DeviceBuffer>,
+    act: Activation,
+) -> DeviceBuffer {
+    assert!(!parts.is_empty(), "linear_sum: needs at least one (x, w) part");
+    assert_eq!(parts.len(), weights.len(), "linear_sum: one weight per input");
+    let out = DeviceBuffer::uninit(rows * n);
+    let last = parts.len() - 1;
+    for (i, (&(x, k), w)) in parts.iter().zip(weights).enumerate() {
+        let plan = MatMulPlan { m: rows, k, n, batch: vec![], offsets: vec![(0, 0)] };
+        let (bias, act) = if i == last { (bias, act) } else { (None, Activation::Identity) };
+        matmul_into(&out, i > 0, x, false, w, false, &plan, bias, act);
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::kernels::matmul as cpu;
+    use crate::kernels::nnops;
+    use crate::tensor::Tensor;
+
+    /// Deterministic values in [-1, 1) (xorshift64*).
+    fn values(len: usize, seed: u64) -> Vec<f32> {
+        let mut s = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
+        (0..len)
+            .map(|_| {
+                s ^= s >> 12;
+                s ^= s << 25;
+                s ^= s >> 27;
+                let r = s.wrapping_mul(0x2545_F491_4F6C_DD1D) >> 40; // 24 bits
+                r as f32 / (1u32 << 23) as f32 - 1.0
+            })
+            .collect()
+    }
+
+    /// A host tensor of `shape` with [`values`] from `seed`.
+    fn tensor(shape: &[usize], seed: u64) -> Tensor<f32> {
+        Tensor::new(values(shape.iter().product(), seed), shape).unwrap()
+    }
+
+    /// The tensor of the magnitudes of `t`'s elements.
+    fn abs(t: &Tensor<f32>) -> Tensor<f32> {
+        Tensor::new(t.data().iter().map(|v| v.abs()).collect(), t.shape()).unwrap()
+    }
+
+    /// Checks `got` against `want` elementwise. `mag` is, per element, the sum of the
+    /// magnitudes of everything added into it (`sum_k |a_ik b_kj|`, plus `|old|` when
+    /// accumulating and `|bias_j|`): f32 sums of the same terms in a different order (the CPU
+    /// uses other blockings and vector widths) differ by a few ulps of that sum, hence
+    /// `|gpu - cpu| <= 1e-5 * mag + 1e-6`. Relu and tanh are 1-Lipschitz, so the bound holds
+    /// after them too (the 1e-6 also covers the two tanh formulas' own rounding).
+    fn check(what: &str, got: &[f32], want: &[f32], mag: &[f32]) {
+        assert_eq!(got.len(), want.len(), "{what}: lengths");
+        for (i, ((g, w), s)) in got.iter().zip(want).zip(mag).enumerate() {
+            let tol = 1e-5 * s + 1e-6;
+            assert!((g - w).abs() <= tol, "{what}: element {i}: gpu {g} vs cpu {w} (tolerance {tol})");
+        }
+    }
+
+    /// The bits of the values (for exact comparisons).
+    fn bits(v: &[f32]) -> Vec<u32> {
+        v.iter().map(|x| x.to_bits()).collect()
+    }
+
+    /// The GPU product of two host tensors against the CPU's; with `twice`, also checks that a
+    /// second run gives the same bits.
+    fn compare(what: &str, a: &Tensor<f32>, ta: bool, b: &Tensor<f32>, tb: bool, twice: bool) {
+        let plan = MatMulPlan::new(a.shape(), b.shape(), ta, tb).unwrap();
+        let want = cpu::matmul(a, b, ta, tb).unwrap();
+        let mag = cpu::matmul(&abs(a), &abs(b), ta, tb).unwrap();
+        let (ad, bd) = (DeviceBuffer::upload(a.data()), DeviceBuffer::upload(b.data()));
+        let got = matmul(&ad, ta, &bd, tb, &plan).download();
+        let what =
+            format!("{what} {:?}{} @ {:?}{}", a.shape(), ["", "^T"][ta as usize], b.shape(), ["", "^T"][tb as usize]);
+        check(&what, &got, want.data(), mag.data());
+        if twice {
+            let again = matmul(&ad, ta, &bd, tb, &plan).download();
+            assert_eq!(bits(&got), bits(&again), "{what}: a second run gives other bits");
+        }
+    }
+
+    /// Stored shape of a matrix whose `op` is `r x c`.
+    fn stored(r: usize, c: usize, t: bool) -> [usize; 2] {
+        if t { [c, r] } else { [r, c] }
+    }
+
+    /// Random m, k, n in 1..70 for each of the four transpose combinations.
+    #[test]
+    fn small_random_shapes_match_the_cpu() {
+        // Sizes 1..70: one and two tiles along m and n, inner dims not multiples of 16.
+        let dims = values(3 * 4 * 12, 7);
+        let mut dims = dims.iter().map(|v| 1 + ((v + 1.0) * 34.5) as usize % 69);
+        let mut seed = 100;
+        for ta in [false, true] {
+            for tb in [false, true] {
+                for case in 0..12 {
+                    let (m, k, n) = (dims.next().unwrap(), dims.next().unwrap(), dims.next().unwrap());
+                    seed += 2;
+                    let a = tensor(&stored(m, k, ta), seed);
+                    let b = tensor(&stored(k, n, tb), seed + 1);
+                    compare(&format!("m={m} k={k} n={n}"), &a, ta, &b, tb, case == 0);
+                }
+            }
+        }
+        // Exact tile multiples and one more than a tile.
+        for (m, k, n) in [(64, 16, 64), (128, 32, 64), (65, 17, 65), (1, 1, 1)] {
+            compare("edges", &tensor(&[m, k], 1), false, &tensor(&[k, n], 2), false, false);
+        }
+    }
+
+    /// Batch dims broadcast between the operands, and a batch of more workgroups than one
+    /// grid dimension holds.
+    #[test]
+    fn batched_broadcast_shapes_match_the_cpu() {
+        for ta in [false, true] {
+            for tb in [false, true] {
+                let a = tensor(&[[2, 3], stored(5, 7, ta)].concat(), 11);
+                let b = tensor(&[[3].as_slice(), &stored(7, 4, tb)].concat(), 12);
+                compare("batch", &a, ta, &b, tb, ta && tb);
+                let a = tensor(&[[1].as_slice(), &stored(5, 7, ta)].concat(), 13);
+                let b = tensor(&[[4].as_slice(), &stored(7, 6, tb)].concat(), 14);
+                compare("batch", &a, ta, &b, tb, false);
+                let a = tensor(&[[3].as_slice(), &stored(70, 33, ta)].concat(), 15);
+                let b = tensor(&stored(33, 66, tb), 16);
+                compare("batch", &a, ta, &b, tb, false);
+            }
+        }
+        // More workgroups than one grid dimension holds (65535): the grid folds into y.
+        let a = tensor(&[66_000, 1, 2], 17);
+        let b = tensor(&[66_000, 2, 1], 18);
+        compare("many batches", &a, false, &b, false, true);
+    }
+
+    /// `accumulate` adds the product to the output's values.
+    #[test]
+    fn accumulate_adds_to_the_output() {
+        for (ta, tb) in [(false, false), (true, false), (false, true), (true, true)] {
+            let (m, k, n) = (37, 45, 70);
+            let (a, b) = (tensor(&stored(m, k, ta), 21), tensor(&stored(k, n, tb), 22));
+            let plan = MatMulPlan::new(a.shape(), b.shape(), ta, tb).unwrap();
+            let old = values(m * n, 23);
+            let mut want = old.clone();
+            cpu::matmul_into(&mut want, true, a.data(), ta, b.data(), tb, &plan);
+            let mag = cpu::matmul(&abs(&a), &abs(&b), ta, tb).unwrap();
+            let mag: Vec<f32> = mag.data().iter().zip(&old).map(|(s, o)| s + o.abs()).collect();
+            let out = DeviceBuffer::upload(&old);
+            let (ad, bd) = (DeviceBuffer::upload(a.data()), DeviceBuffer::upload(b.data()));
+            matmul_into(&out, true, &ad, ta, &bd, tb, &plan, None, Activation::Identity);
+            check(&format!("accumulate ta={ta} tb={tb}"), &out.download(), &want, &mag);
+        }
+    }
+
+    /// k = 0: the product is zeros, so the output is the old values or the epilogue of 0.
+    #[test]
+    fn empty_inner_dim_gives_zeros_then_the_epilogue() {
+        let (a, b) = (Tensor::<f32>::zeros(&[5, 0]), Tensor::<f32>::zeros(&[0, 70]));
+        let plan = MatMulPlan::new(a.shape(), b.shape(), false, false).unwrap();
+        let (ad, bd) = (DeviceBuffer::upload(&[]), DeviceBuffer::upload(&[]));
+        assert_eq!(matmul(&ad, false, &bd, false, &plan).download(), vec![0.0; 5 * 70]);
+        let old = values(5 * 70, 31);
+        let out = DeviceBuffer::upload(&old);
+        matmul_into(&out, true, &ad, false, &bd, false, &plan, None, Activation::Identity);
+        assert_eq!(out.download(), old);
+        let bias = values(70, 32);
+        let want = nnops::linear(&a, &b, Some(&Tensor::new(bias.clone(), &[70]).unwrap()), Activation::Relu).unwrap();
+        matmul_into(&out, false, &ad, false, &bd, false, &plan, Some(&DeviceBuffer::upload(&bias)), Activation::Relu);
+        assert_eq!(out.download(), want.data());
+    }
+
+    /// The fused bias and each activation, against the CPU's `linear`.
+    #[test]
+    fn bias_and_activation_epilogues_match_the_cpu() {
+        let (rows, k, n) = (70, 40, 67);
+        let (x, w) = (tensor(&[rows, k], 41), tensor(&[k, n], 42));
+        let bias = tensor(&[n], 43);
+        let mag = cpu::matmul(&abs(&x), &abs(&w), false, false).unwrap();
+        let mag: Vec<f32> =
+            mag.data().chunks(n).flat_map(|r| r.iter().zip(bias.data()).map(|(s, c)| s + c.abs())).collect();
+        let plan = MatMulPlan::new(x.shape(), w.shape(), false, false).unwrap();
+        let (xd, wd, bd) =
+            (DeviceBuffer::upload(x.data()), DeviceBuffer::upload(w.data()), DeviceBuffer::upload(bias.data()));
+        for act in [Activation::Identity, Activation::Relu, Activation::Tanh] {
+            let want = nnops::linear(&x, &w, Some(&bias), act).unwrap();
+            let out = DeviceBuffer::uninit(rows * n);
+            matmul_into(&out, false, &xd, false, &wd, false, &plan, Some(&bd), act);
+            let got = out.download();
+            check(&format!("bias + {act:?}"), &got, want.data(), &mag);
+            let again = linear_sum(&[(&xd, k)], &[&wd], rows, n, Some(&bd), act).download();
+            assert_eq!(bits(&got), bits(&again), "{act:?}: linear_sum gives other bits than matmul_into");
+        }
+    }
+
+    /// Sums of 2 and 3 products, with and without bias, against the CPU's `linear_sum`.
+    #[test]
+    fn linear_sum_matches_the_cpu() {
+        let (rows, n) = (90, 35);
+        for (ks, bias, act) in [
+            (vec![20, 33], true, Activation::Tanh),
+            (vec![7, 64, 1], false, Activation::Relu),
+            (vec![16, 5, 48], true, Activation::Identity),
+        ] {
+            let xs: Vec<Tensor<f32>> = ks.iter().enumerate().map(|(i, &k)| tensor(&[rows, k], 50 + i as u64)).collect();
+            let ws: Vec<Tensor<f32>> = ks.iter().enumerate().map(|(i, &k)| tensor(&[k, n], 60 + i as u64)).collect();
+            let b = bias.then(|| tensor(&[n], 70));
+            let parts: Vec<(&Tensor<f32>, &Tensor<f32>)> = xs.iter().zip(&ws).collect();
+            let want = nnops::linear_sum(&parts, b.as_ref(), act).unwrap();
+            let mut mag = vec![0.0f32; rows * n];
+            for (x, w) in &parts {
+                let m = cpu::matmul(&abs(x), &abs(w), false, false).unwrap();
+                mag.iter_mut().zip(m.data()).for_each(|(s, v)| *s += v);
+            }
+            if let Some(b) = &b {
+                mag.chunks_mut(n).for_each(|r| r.iter_mut().zip(b.data()).for_each(|(s, c)| *s += c.abs()));
+            }
+            let xd: Vec<DeviceBuffer> = xs.iter().map(|x| DeviceBuffer::upload(x.data())).collect();
+            let wd: Vec<DeviceBuffer> = ws.iter().map(|w| DeviceBuffer::upload(w.data())).collect();
+            let bd = b.as_ref().map(|b| DeviceBuffer::upload(b.data()));
+            let dparts: Vec<(&DeviceBuffer, usize)> = xd.iter().zip(&ks).map(|(x, &k)| (x, k)).collect();
+            let dw: Vec<&DeviceBuffer> = wd.iter().collect();
+            let got = linear_sum(&dparts, &dw, rows, n, bd.as_ref(), act).download();
+            check(&format!("linear_sum {ks:?} bias={bias} {act:?}"), &got, want.data(), &mag);
+            let again = linear_sum(&dparts, &dw, rows, n, bd.as_ref(), act).download();
+            assert_eq!(bits(&got), bits(&again), "linear_sum {ks:?}: a second run gives other bits");
+        }
+    }
+
+    /// The model's tall, skinny layer products and their backward products.
+    #[test]
+    fn tall_skinny_model_shapes_match_the_cpu() {
+        // The model's layer products with the batch of rows scaled down (lavapipe runs on the
+        // CPU): forward x @ w, and the backward products x^T g (weights) and g w^T (inputs).
+        let rows = 3000;
+        let x = tensor(&[rows, 1153], 81);
+        let w = tensor(&[1153, 64], 82);
+        let g = tensor(&[rows, 64], 83);
+        compare("forward", &x, false, &w, false, true);
+        compare("weight gradient", &x, true, &g, false, true);
+        compare("input gradient", &g, false, &w, true, false);
+        let w2 = tensor(&[64, 1088], 84);
+        let g2 = tensor(&[rows, 1088], 85);
+        compare("forward", &g, false, &w2, false, false);
+        compare("weight gradient", &g, true, &g2, false, false);
+    }
+}
