@@ -6,6 +6,16 @@ fn tanh_stable(v: f32) -> f32 {
     return sign(v) * (1.0 - e) / (1.0 + e);
 }
 
+// ln(1 + v), accurate for small v (Goldberg's trick: the rounding of 1 + v cancels out),
+// as softplus needs for large negative inputs where e^x is tiny.
+fn log1p(v: f32) -> f32 {
+    let u = 1.0 + v;
+    if u == 1.0 {
+        return v;
+    }
+    return log(u) * v / (u - 1.0);
+}
+
 fn sigmoid(v: f32) -> f32 {
     if v >= 0.0 {
         return 1.0 / (1.0 + exp(-v));
@@ -43,7 +53,7 @@ fn apply(code: u32, v: f32, c0: f32, c1: f32) -> f32 {
         case 5u: { return tanh_stable(v); }
         case 6u: { return sigmoid(v); }
         case 7u: { return max(v, 0.0); }
-        case 8u: { return max(v, 0.0) + log(1.0 + exp(-abs(v))); }
+        case 8u: { return max(v, 0.0) + log1p(exp(-abs(v))); }
         case 9u: { return abs(v); }
         case 10u: { return powq(v, c0); }
         case 11u: { return min(max(v, c0), c1); }
