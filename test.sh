@@ -25,10 +25,31 @@ if ! command -v chromium >/dev/null 2>&1 && ! command -v chromium-browser >/dev/
     fi
 fi
 export MEBEN_REQUIRE_BROWSER=1
+# The GPU device's tests run on whatever Vulkan adapter the machine has; CI has no GPU, so
+# they run on Mesa's lavapipe (a Vulkan device on the CPU: Debian's mesa-vulkan-drivers).
+# Installed here when absent; a missing Vulkan driver fails the GPU tests, never skips them.
+if ! ls /usr/share/vulkan/icd.d/*.json >/dev/null 2>&1 || ! ldconfig -p 2>/dev/null | grep -q libvulkan.so.1; then
+    if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then
+        export DEBIAN_FRONTEND=noninteractive
+        apt-get install -y mesa-vulkan-drivers libvulkan1 || { apt-get update && apt-get install -y mesa-vulkan-drivers libvulkan1; }
+    else
+        echo "test.sh: no Vulkan driver; install one (Debian: sudo apt-get install mesa-vulkan-drivers libvulkan1) and run again" >&2
+        exit 1
+    fi
+fi
+# Mesa warns when this is unset (harmless); give it a private directory.
+if [ -z "${XDG_RUNTIME_DIR:-}" ]; then
+    XDG_RUNTIME_DIR="$(mktemp -d)"
+    export XDG_RUNTIME_DIR
+fi
 # The Python tests' optional dependencies (gymnasium, pettingzoo, mypy), installed above, are
 # required too: a missing one fails its tests instead of skipping them.
 export MEBEN_REQUIRE_TEST_DEPS=1
 cargo test --workspace --release
+# The GPU device (feature `gpu`): every op, every model and short trainings on the GPU
+# against the CPU (docs/TENSOR.md). The tests fail when no adapter is found.
+cargo test --release -p tensor --features gpu
+cargo test --release -p models --features gpu --test gpu_models
 # The Rust programs the Python tests compare with (already built by cargo test; cheap).
 cargo build --release -p rl --bin meben -p envs --example replay_actions
 python -m pip install --quiet --disable-pip-version-check --no-build-isolation --no-deps --force-reinstall ./python

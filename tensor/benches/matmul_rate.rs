@@ -21,7 +21,11 @@
 //! where the last line is the median of the library's rate over the large shapes (at least
 //! 2^28 multiply-adds; the [2048x128]x[128x256] product is reported but not included).
 //!
-//! Run: `cargo bench -p tensor --bench matmul_rate`.
+//! Run: `cargo bench -p tensor --bench matmul_rate`. With the GPU device, `cargo bench -p
+//! tensor --features gpu --bench matmul_rate -- --device gpu` times the WGSL product of the
+//! same shapes on the GPU instead (operands already on the device, the time to the end of
+//! the kernel; `gpu_gflops=`, then `gpu_matmul_rate_gflops=` over the large shapes), after
+//! checking each product against the CPU's.
 
 use std::hint::black_box;
 use std::time::{Duration, Instant};
@@ -87,7 +91,53 @@ fn median(mut v: Vec<f64>) -> f64 {
     if n % 2 == 1 { v[n / 2] } else { 0.5 * (v[n / 2 - 1] + v[n / 2]) }
 }
 
+/// The GPU half: each shape's product and its two backward products on the device, timed
+/// to the end of the kernel.
+#[cfg(feature = "gpu")]
+fn gpu_main() {
+    use tensor::Device;
+    let gpu = tensor::gpu::gpu().expect("a GPU adapter");
+    eprintln!("matmul_rate: f32 on the GPU: {}, median of {SAMPLES} samples", gpu.adapter());
+    let mut large = Vec::new();
+    for (m, k, n) in SHAPES {
+        let a = Tensor::new(matrix(m, k, 0.1), &[m, k]).expect("shape matches data");
+        let b = Tensor::new(matrix(k, n, 0.7), &[k, n]).expect("shape matches data");
+        let g = Tensor::new(matrix(m, n, 0.3), &[m, n]).expect("shape matches data");
+        let (ad, bd, gd) =
+            (a.to_device(Device::Gpu).unwrap(), b.to_device(Device::Gpu).unwrap(), g.to_device(Device::Gpu).unwrap());
+        // Correctness first: the device's product against the host's.
+        let (want, got) = (matmul(&a, &b, false, false).unwrap(), ad.matmul_t(&bd, false, false).unwrap());
+        let worst = got.data().iter().zip(want.data()).map(|(x, y)| (x - y).abs()).fold(0.0f32, f32::max);
+        assert!(worst <= 1e-5 * k as f32, "GPU product [{m}x{k}]x[{k}x{n}] differs from the CPU's by {worst}");
+        let time = |ta: bool, tb: bool, l: &Tensor<f32>, r: &Tensor<f32>| {
+            time_per_call(|| {
+                black_box(l.matmul_t(r, ta, tb).expect("shapes agree"));
+                gpu.synchronize();
+            })
+        };
+        let flops = 2.0 * (m * k * n) as f64;
+        let (fw, dx, dw) = (time(false, false, &ad, &bd), time(false, true, &gd, &bd), time(true, false, &ad, &gd));
+        println!(
+            "matmul m={m} k={k} n={n} gpu_gflops={:.1} ms={:.3} dx_gflops={:.1} dw_gflops={:.1}",
+            flops / fw * 1e-9,
+            fw * 1e3,
+            flops / dx * 1e-9,
+            flops / dw * 1e-9
+        );
+        if m * k * n >= LARGE_WORK {
+            large.push(flops / fw * 1e-9);
+        }
+    }
+    println!("gpu_matmul_rate_gflops={:.1}", median(large));
+}
+
 fn main() {
+    if std::env::args().any(|a| a == "gpu") {
+        #[cfg(feature = "gpu")]
+        return gpu_main();
+        #[cfg(not(feature = "gpu"))]
+        panic!("--device gpu needs the bench built with --features gpu");
+    }
     eprintln!("matmul_rate: f32, {} rayon threads, median of {SAMPLES} samples", rayon::current_num_threads());
     let mut large = Vec::new();
     for (m, k, n) in SHAPES {

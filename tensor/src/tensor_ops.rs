@@ -14,6 +14,12 @@ impl<T: Float> Tensor<T> {
         crate::dispatch::unary(self, op)
     }
 
+    /// `op(self) @ op(other)` over the last two dims (transposes read as strides), on the
+    /// operands' device, off the tape (benchmarks, inference).
+    pub fn matmul_t(&self, other: &Tensor<T>, ta: bool, tb: bool) -> Result<Tensor<T>> {
+        crate::dispatch::matmul(self, other, ta, tb)
+    }
+
     /// The sum of the squared elements, in f64 on the host; on the GPU the squares are summed
     /// there (in f32) and one value comes back.
     pub fn sum_of_squares(&self) -> Result<f64> {

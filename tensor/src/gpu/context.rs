@@ -1,5 +1,5 @@
 //! The one GPU context of the process: adapter, device, queue, compiled kernels and a pool of
-//! free buffers. Every kernel launch goes through [`Gpu::launch`].
+//! free buffers. Every kernel launch goes through `Gpu::launch`.
 
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex, OnceLock};
