@@ -1,10 +1,11 @@
 #!/usr/bin/env bash
-# Runs the reproduction's sweeps (issue 15, docs/RESULTS.md) as two workers of one thread
-# each, cheap runs first, then exports their evidence into results/ and regenerates the
+# Runs the reproduction's sweeps (issue 15, docs/RESULTS.md; the second wave, issue 45, as
+# workers C and D) as two workers of one thread each, cheap runs first, then exports their evidence into results/ and regenerates the
 # reports. Run directories live outside the work tree; restarting a worker resumes where it
 # stopped (finished runs are skipped, interrupted ones resume bit-identically).
 #
 #   nice -n 19 rl/sweeps/repro_run.sh A &  nice -n 19 rl/sweeps/repro_run.sh B &    # the two workers
+#   nice -n 19 rl/sweeps/repro_run.sh C &  nice -n 19 rl/sweeps/repro_run.sh D &    # the second wave's
 #   rl/sweeps/repro_run.sh export                             # evidence -> results/, reports
 #   rl/sweeps/repro_run.sh restore                            # finished runs <- results/ (A and B do it first)
 #   rl/sweeps/repro_run.sh status                             # every run's progress and hours left
@@ -24,7 +25,7 @@ BIN=${BIN:-$ROOT/target/release/meben}
 OUT=${OUT:-/tmp/runs/repro}
 THREADS=${THREADS:-1}
 SWEEPS=$ROOT/rl/sweeps
-EXPERIMENTS="reach_1_ant reach_2_ants equivariance sumo reach_2_ants_no_assignment reach_2_ants_per_slot_starts"
+EXPERIMENTS="reach_1_ant reach_2_ants equivariance sumo reach_2_ants_no_assignment reach_2_ants_per_slot_starts transformer_1_ant centipede"
 
 run() { # <experiment> <pattern>...: the sweep's runs whose names contain a pattern
   local exp=$1; shift
@@ -80,7 +81,28 @@ list_b() {
   run reach_2_ants /shnn/
 }
 
+# The second wave (issue 45): the cheaper model of each pair first, so that both experiments
+# have a finished baseline early; then the SHNN-family runs, `shtransformer` the slowest.
+list_c() {
+  run centipede /mlp_hn/
+  run transformer_1_ant /transformer_hn/
+  run centipede /shnn/
+}
+list_d() {
+  run transformer_1_ant /shtransformer/
+}
+
 case "${1:-}" in
+  C)
+    restore_finished
+    list_c
+    list_d
+    ;;
+  D)
+    restore_finished
+    list_d
+    list_c
+    ;;
   A)
     restore_finished
     list_a
@@ -110,7 +132,7 @@ case "${1:-}" in
     du -sh "$ROOT/results"
     ;;
   *)
-    echo "usage: $0 A | B | export | restore | status" >&2
+    echo "usage: $0 A | B | C | D | export | restore | status" >&2
     exit 2
     ;;
 esac

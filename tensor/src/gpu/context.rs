@@ -8,6 +8,11 @@ use crate::error::{Result, TensorError};
 
 /// Threads per workgroup of the one-dimensional kernels (`@workgroup_size(256)` in WGSL).
 pub(crate) const WORKGROUP: u32 = 256;
+/// Launches recorded into one command buffer before it is submitted (submits cost tens of
+/// microseconds each on a real GPU; a batch bounds how long the GPU waits for work).
+const LAUNCHES_PER_SUBMIT: usize = 64;
+/// 32-bit words of the parameter arena one batch of launches reads its parameters from.
+const ARENA_WORDS: usize = 1 << 16;
 /// The most workgroups along one dimension of a dispatch (WebGPU's guaranteed limit).
 const MAX_GROUPS_PER_DIM: u32 = 65_535;
 
@@ -62,6 +67,22 @@ pub struct Gpu {
     pipelines: Mutex<HashMap<&'static str, Arc<wgpu::ComputePipeline>>>,
     free: Mutex<HashMap<u64, Vec<wgpu::Buffer>>>,
     stats: Mutex<GpuStats>,
+    pending: Mutex<Pending>,
+}
+
+/// Launches recorded but not yet submitted. Ordering rules that keep a batch correct:
+/// commands inside one command buffer run in order (wgpu inserts the barriers), so a buffer
+/// freed to the pool may be reused at once as a later kernel's output; `queue.write_buffer`
+/// runs before the next submit's commands, so writes into pooled buffers (uploads) flush the
+/// batch first, and every launch's parameters go into this batch's own arena, written just
+/// before it is submitted.
+struct Pending {
+    encoder: Option<wgpu::CommandEncoder>,
+    /// The parameters of the recorded launches, each at a 256-byte-aligned offset.
+    params: Vec<u32>,
+    /// The buffer `params` is written to when the batch is submitted.
+    arena: wgpu::Buffer,
+    launches: usize,
 }
 
 /// The process's GPU, initialised on first use: the first adapter wgpu offers on Vulkan,
@@ -117,6 +138,12 @@ impl Gpu {
             ..Default::default()
         }))
         .map_err(|e| format!("the GPU adapter {info} refused a device: {e}"))?;
+        let arena = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("parameters"),
+            size: words_to_bytes(ARENA_WORDS),
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
         Ok(Gpu {
             device,
             queue,
@@ -125,6 +152,7 @@ impl Gpu {
             pipelines: Mutex::new(HashMap::new()),
             free: Mutex::new(HashMap::new()),
             stats: Mutex::new(GpuStats::default()),
+            pending: Mutex::new(Pending { encoder: None, params: Vec::new(), arena, launches: 0 }),
         })
     }
 
@@ -179,10 +207,33 @@ impl Gpu {
     /// A buffer of `n` zeros.
     pub(crate) fn alloc_zeroed(&self, n: usize) -> wgpu::Buffer {
         let b = self.alloc(n);
-        let mut enc = self.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
-        enc.clear_buffer(&b, 0, None);
-        self.queue.submit([enc.finish()]);
+        let mut pending = self.pending.lock().expect("gpu batch lock");
+        self.encoder(&mut pending).clear_buffer(&b, 0, None);
         b
+    }
+
+    /// The batch's command encoder (a new one when none is open).
+    fn encoder<'p>(&self, pending: &'p mut Pending) -> &'p mut wgpu::CommandEncoder {
+        pending
+            .encoder
+            .get_or_insert_with(|| self.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None }))
+    }
+
+    /// Submits the recorded launches (their parameters first).
+    fn flush_locked(&self, pending: &mut Pending) {
+        if let Some(enc) = pending.encoder.take() {
+            if !pending.params.is_empty() {
+                self.queue.write_buffer(&pending.arena, 0, bytemuck::cast_slice(&pending.params));
+            }
+            self.queue.submit([enc.finish()]);
+            pending.params.clear();
+            pending.launches = 0;
+        }
+    }
+
+    /// Submits every launch recorded so far.
+    pub(crate) fn flush(&self) {
+        self.flush_locked(&mut self.pending.lock().expect("gpu batch lock"));
     }
 
     /// Gives a buffer back for reuse. At most 64 free buffers of one size are kept.
@@ -197,6 +248,9 @@ impl Gpu {
     /// A buffer holding `words` (32-bit values: f32 bits or u32 indices).
     pub(crate) fn upload_words(&self, words: &[u32]) -> wgpu::Buffer {
         let b = self.alloc(words.len());
+        // The buffer may come from the pool while a recorded launch still reads it, and a
+        // queue write runs before the next submit: submit the batch first.
+        self.flush();
         if !words.is_empty() {
             self.queue.write_buffer(&b, 0, bytemuck::cast_slice(words));
         }
@@ -220,9 +274,11 @@ impl Gpu {
             usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        let mut enc = self.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
-        enc.copy_buffer_to_buffer(b, 0, &staging, 0, bytes);
-        self.queue.submit([enc.finish()]);
+        {
+            let mut pending = self.pending.lock().expect("gpu batch lock");
+            self.encoder(&mut pending).copy_buffer_to_buffer(b, 0, &staging, 0, bytes);
+            self.flush_locked(&mut pending);
+        }
         let slice = staging.slice(..);
         let (tx, rx) = std::sync::mpsc::channel();
         slice.map_async(wgpu::MapMode::Read, move |r| {
@@ -274,11 +330,25 @@ impl Gpu {
             return;
         }
         let pipeline = self.pipeline(kernel.name, kernel.source, kernel.entry);
-        let pbuf = self.alloc(params.len());
-        if !params.is_empty() {
-            self.queue.write_buffer(&pbuf, 0, bytemuck::cast_slice(params));
+        let mut pending = self.pending.lock().expect("gpu batch lock");
+        // This launch's parameters at the next 256-byte boundary of the arena (WebGPU's
+        // storage-offset alignment); a full arena submits the batch first.
+        let align = (self.limits.min_storage_buffer_offset_alignment as usize / 4).max(1);
+        let words = params.len().max(1);
+        if pending.params.len().next_multiple_of(align) + words > ARENA_WORDS || pending.launches >= LAUNCHES_PER_SUBMIT
+        {
+            self.flush_locked(&mut pending);
         }
-        let mut entries = vec![wgpu::BindGroupEntry { binding: 0, resource: pbuf.as_entire_binding() }];
+        let offset = pending.params.len().next_multiple_of(align);
+        pending.params.resize(offset, 0);
+        pending.params.extend_from_slice(params);
+        pending.params.resize(offset + words, 0);
+        let binding = wgpu::BufferBinding {
+            buffer: &pending.arena,
+            offset: (offset * 4) as u64,
+            size: std::num::NonZeroU64::new((words * 4) as u64),
+        };
+        let mut entries = vec![wgpu::BindGroupEntry { binding: 0, resource: wgpu::BindingResource::Buffer(binding) }];
         for (i, b) in buffers.iter().enumerate() {
             entries.push(wgpu::BindGroupEntry { binding: i as u32 + 1, resource: b.as_entire_binding() });
         }
@@ -289,16 +359,16 @@ impl Gpu {
         });
         let x = groups.min(MAX_GROUPS_PER_DIM);
         let y = groups.div_ceil(x);
-        let mut enc = self.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some(kernel.name) });
         {
+            let enc = self.encoder(&mut pending);
             let mut pass = enc
                 .begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some(kernel.name), timestamp_writes: None });
             pass.set_pipeline(&pipeline);
             pass.set_bind_group(0, &bind, &[]);
             pass.dispatch_workgroups(x, y, 1);
         }
-        self.queue.submit([enc.finish()]);
-        self.recycle(pbuf);
+        pending.launches += 1;
+        drop(pending);
         self.count(|s| s.launches += 1);
     }
 
@@ -310,6 +380,7 @@ impl Gpu {
 
     /// Waits until every queued kernel has finished.
     pub fn synchronize(&self) {
+        self.flush();
         self.device.poll(wgpu::PollType::wait_indefinitely()).expect("the GPU device was lost");
     }
 }
