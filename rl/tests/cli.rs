@@ -112,6 +112,10 @@ fn bad_input_gives_clear_errors() {
     fails_with(&["train", "--set", "nonsense", "--out", out_s], &["FIELD=VALUE"]);
     fails_with(&["train", "--preset", "fast", "--out", out_s], &["preset", "fast"]);
     fails_with(&["train", "--opponent", "mlp", "--out", out_s], &["opponent", "Team Sumo"]);
+    fails_with(&["train", "--device", "tpu", "--out", out_s], &["device", "tpu", "\"cpu\" or \"gpu\""]);
+    if cfg!(not(feature = "gpu")) {
+        fails_with(&["train", "--device", "gpu", "--out", out_s], &["device", "rebuild with --features gpu"]);
+    }
     let bad = dir.join("bad.toml");
     for (text, needles) in [
         ("num_envs = \"many\"\n", vec!["bad.toml", "num_envs"]),

@@ -117,6 +117,10 @@ struct TrainArgs {
     /// Worker threads (0: all cores; results do not depend on it).
     #[arg(long)]
     threads: Option<usize>,
+    /// Where the updates run: cpu (default) or gpu (a build with --features gpu). Not part
+    /// of the run's identity: a run resumes on either device.
+    #[arg(long)]
+    device: Option<String>,
     /// Starting point: quick (default, ~10 minutes on 2 cores) or paper (the reference schedule).
     #[arg(long)]
     preset: Option<String>,
@@ -203,6 +207,10 @@ struct AblateArgs {
     /// depend on it.
     #[arg(long)]
     threads: Option<usize>,
+    /// Where every run's updates run (cpu or gpu, the latter in a build with --features
+    /// gpu), whatever the sweep says; a run resumes on either device.
+    #[arg(long)]
+    device: Option<String>,
     /// No progress bar.
     #[arg(long)]
     quiet: bool,
@@ -326,6 +334,9 @@ fn resolve_train_config(a: &TrainArgs) -> Result<TrainConfig, RlError> {
             ov.push((k.into(), v.to_string()));
         }
     }
+    if let Some(v) = &a.device {
+        ov.push(("device".into(), quote(v)));
+    }
     for s in &a.set {
         let (k, v) = s.split_once('=').ok_or_else(|| {
             RlError::config("command line", "--set", s, "expected FIELD=VALUE, e.g. --set entropy_coef=0.005")
@@ -356,10 +367,20 @@ fn cmd_train(a: TrainArgs) -> Result<(), String> {
         config.seed,
         out.display()
     );
+    announce_device(config.device)?;
     let options = TrainOptions { progress: !a.quiet, stop_after: a.stop_after, stop: stop_on_signals()? };
     let s = crate::app::run::train(&config, &run, &options).map_err(|e| e.to_string())?;
     print_summary(&config, &s);
     eprintln!("meben: metrics in {}, learning curve in {}", run.metrics().display(), run.curve().display());
+    Ok(())
+}
+
+/// Checks that training can run on `device` ([`crate::mappo::device::check_device`]) and,
+/// for the GPU, says which adapter it runs on.
+fn announce_device(device: tensor::Device) -> Result<(), String> {
+    if let Some(adapter) = crate::mappo::device::check_device(device).map_err(|e| e.to_string())? {
+        eprintln!("meben: training on GPU: {adapter}");
+    }
     Ok(())
 }
 
@@ -458,10 +479,19 @@ fn cmd_ablate(a: AblateArgs) -> Result<(), String> {
     let sweep = crate::app::sweep::Sweep::load(&a.sweep).map_err(|e| e.to_string())?;
     let shard = a.shard.as_deref().map(crate::app::sweep::Shard::parse).transpose().map_err(|e| e.to_string())?;
     let selection = crate::app::sweep::RunSelection { shard, only: a.only.clone() };
+    let device = a
+        .device
+        .as_deref()
+        .map(|d| d.parse::<tensor::Device>().map_err(|e| RlError::config("command line", "--device", d, e).to_string()))
+        .transpose()?;
     let options = TrainOptions { progress: !a.quiet, stop_after: None, stop: stop_on_signals()? };
     let outcome = crate::app::sweep::run_sweep(&sweep, &a.out, &selection, |c, r| {
         eprintln!("meben: run {} ({} on {}, seed {})", r.root().display(), c.model, c.env, c.seed);
-        let c = TrainConfig { threads: a.threads.unwrap_or(c.threads), ..c.clone() };
+        let c =
+            TrainConfig { threads: a.threads.unwrap_or(c.threads), device: device.unwrap_or(c.device), ..c.clone() };
+        if let Some(adapter) = crate::mappo::device::check_device(c.device)? {
+            eprintln!("meben: training on GPU: {adapter}");
+        }
         crate::app::run::train(&c, r, &options)
     })
     .map_err(|e| e.to_string())?;

@@ -76,6 +76,7 @@ impl TrainConfig {
             eval_rotations: default_eval_rotations(),
             checkpoint_every: 10,
             threads: 0,
+            device: tensor::Device::Cpu,
         };
         match preset {
             Preset::Paper => paper,

@@ -233,7 +233,7 @@ fn train_in_pool(config: &TrainConfig, run: &RunDir, options: &TrainOptions) -> 
         let last =
             trainer.iteration >= total || requested || options.stop_after.is_some_and(|s| trainer.iteration >= s);
         if evaluated || last || (config.checkpoint_every > 0 && since_ckpt >= config.checkpoint_every as u64) {
-            trainer.checkpoint(wall, &last_evals).save(&ckpt_path)?;
+            trainer.checkpoint(wall, &last_evals)?.save(&ckpt_path)?;
             since_ckpt = 0;
         }
         if evaluated {

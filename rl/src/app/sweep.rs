@@ -36,9 +36,11 @@
 //! keeps the runs whose name contains one of the patterns (`--only mlp_hn/ --only
 //! 2_ants/shnn/`), applied after the shard: cheap runs first, or one run of a sweep.
 //!
-//! **Threads and checkpoints.** A run's results depend neither on its thread count nor on
-//! how often it writes checkpoints, so `threads` and `checkpoint_every` may differ between
-//! a checkpoint and the sweep (`meben ablate --threads 1`, two sweeps side by side).
+//! **Threads, checkpoints and devices.** A run's results depend neither on its thread count
+//! nor on how often it writes checkpoints, so `threads` and `checkpoint_every` may differ
+//! between a checkpoint and the sweep (`meben ablate --threads 1`, two sweeps side by side);
+//! nor is the `device` part of a run's identity: a run started on the GPU may go on on the
+//! CPU and the other way round (`meben ablate --device gpu`).
 //!
 //! **Restarts.** A run that is done (`done.json`) is skipped; one with a checkpoint is
 //! resumed, after checking that it was started with the same configuration (except
@@ -457,13 +459,14 @@ fn check_resumable(dir: &RunDir, wanted: &TrainConfig) -> Result<()> {
 }
 
 /// `field: saved X, sweep Y` for every field that differs (`steps` only if `with_steps`;
-/// never `threads` or `checkpoint_every`, which the results do not depend on).
+/// never `threads` or `checkpoint_every`, which the results do not depend on, nor `device`,
+/// on which a run may go on either way).
 fn config_differences(saved: &TrainConfig, wanted: &TrainConfig, with_steps: bool) -> Vec<String> {
     let a = toml::Table::try_from(saved).unwrap_or_default();
     let b = toml::Table::try_from(wanted).unwrap_or_default();
     let keys: BTreeSet<&String> = a.keys().chain(b.keys()).collect();
     keys.into_iter()
-        .filter(|k| !matches!(k.as_str(), "threads" | "checkpoint_every"))
+        .filter(|k| !matches!(k.as_str(), "threads" | "checkpoint_every" | "device"))
         .filter(|k| with_steps || k.as_str() != "steps")
         .filter(|k| a.get(*k) != b.get(*k))
         .map(|k| {
@@ -886,14 +889,15 @@ config = { entropy_coef = 0.0 }
     }
 
     #[test]
-    fn only_patterns_select_runs_and_threads_do_not_block_a_resume() {
+    fn only_patterns_select_runs_and_threads_and_devices_do_not_block_a_resume() {
         let tmp = TempDir::new("sweep-only");
         let text = "envs = [\"team_reach/1_ant\"]\nmodels = [\"mlp_hn\", \"shnn\"]\nseeds = [0, 1]\npreset = \"quick\"";
         let sweep = Sweep::parse(text, "s.toml").unwrap();
         let runs = sweep.runs().unwrap();
-        // A partial shnn run trained with one thread and other checkpoints; the sweep says
-        // every core and its own checkpoint interval.
-        let one_thread = TrainConfig { threads: 1, checkpoint_every: 7, ..runs[3].config.clone() };
+        // A partial shnn run trained with one thread, other checkpoints and on the GPU; the
+        // sweep says every core, its own checkpoint interval and the CPU.
+        let one_thread =
+            TrainConfig { threads: 1, checkpoint_every: 7, device: tensor::Device::Gpu, ..runs[3].config.clone() };
         fake_run(&RunDir::new(tmp.0.join(&runs[3].name)), &one_thread, false);
         let selection = RunSelection { shard: None, only: vec!["shnn/".into(), "mlp_hn/seed0".into()] };
         let mut called = Vec::new();

@@ -195,6 +195,12 @@ pub struct TrainConfig {
     pub checkpoint_every: usize,
     /// Worker threads (0: every core). Results do not depend on it.
     pub threads: usize,
+    /// Where the updates run: `cpu` (default) or `gpu` (a build with the feature `gpu`;
+    /// [`crate::mappo::device`]). Like `threads`, not part of the run's identity: a run
+    /// resumes on either device (GPU results differ from the CPU's by f32 rounding). Written
+    /// to `config.toml` only when not `cpu`; absent from files written before it existed.
+    #[serde(default, skip_serializing_if = "crate::mappo::device::is_cpu", with = "crate::mappo::device")]
+    pub device: tensor::Device,
 }
 
 impl TrainConfig {
@@ -209,13 +215,14 @@ impl TrainConfig {
     }
 
     /// Every field as a TOML table, including those `config.toml` leaves out at their
-    /// default (`train_starts`): the fields a preset, a file or `--set` may name.
+    /// default (`train_starts`, `device`): the fields a preset, a file or `--set` may name.
     pub fn to_full_table(&self) -> toml::Table {
         let mut table =
             toml::Table::try_from(self).unwrap_or_else(|e| unreachable!("a TrainConfig always serialises: {e}"));
         let starts = toml::Value::try_from(self.train_starts)
             .unwrap_or_else(|e| unreachable!("a TrainStarts always serialises: {e}"));
         table.entry("train_starts").or_insert(starts);
+        table.entry("device").or_insert_with(|| toml::Value::String(self.device.name().into()));
         table
     }
 

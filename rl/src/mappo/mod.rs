@@ -12,12 +12,15 @@
 //! - [`normalizer`]: observation statistics; [`seeding`]: the random streams;
 //! - [`evaluate`](mod@evaluate): episodes of the trained teams;
 //! - [`checkpoint`] (the exact training state) with its [`checksum`], and [`memory`] (whether
-//!   an iteration's buffers fit).
+//!   an iteration's buffers fit);
+//! - [`device`]: where the updates run (`device = "cpu" | "gpu"`) and whether this build and
+//!   machine have it.
 
 pub mod actor;
 pub mod checkpoint;
 pub mod checksum;
 pub mod config;
+pub mod device;
 pub mod evaluate;
 pub mod gae;
 pub mod memory;

@@ -20,7 +20,9 @@ pub struct Team {
     pub index: usize,
     /// The policy and critic.
     pub model: Model,
-    /// Its parameters (names under `team<k>.`).
+    /// Its parameters (names under `team<k>.`), on the host: what the act step reads and a
+    /// checkpoint saves. With `device = "gpu"` the trainer's updates work on a copy on the
+    /// GPU and refresh this one after each update phase ([`crate::mappo::trainer`]).
     pub store: ParamStore<f32>,
     /// Its optimiser.
     pub adam: Adam,

@@ -19,18 +19,32 @@
 //!    clipped to `+-grad_clip` -> one Adam step. A non-finite loss or gradient stops the run
 //!    ([`RlError::NonFinite`]); the last checkpoint is kept.
 //!
+//! **Devices** ([`crate::mappo::device`]). With `device = "gpu"` the update runs on the GPU:
+//! every team's parameters and Adam moments live there from the trainer's construction (or
+//! resumption) on, each minibatch goes to a GPU tape (`Tape::on`: uploaded once), and the
+//! gradients' non-finite check (one value back), the clipping and the Adam step (f32 moments,
+//! [`nn::Adam`]) run there. Values come to the host for GAE (the values), the loss
+//! statistics, and, once per iteration after the update phase, the parameters: the act step
+//! (collection, evaluation) reads a host copy of them ([`Team::store`]) and runs on the CPU,
+//! as the simulator does. A checkpoint holds the host copies and the moments brought back
+//! ([`nn::Adam::sync_to_host`]), so it is the same file whichever device wrote it. With
+//! `device = "cpu"` (the default) nothing of this happens: the same code as before the GPU
+//! existed, bit for bit.
+//!
 //! The application drives a [`Trainer`] in a run directory ([`crate::app::run`]).
 
 use std::time::Instant;
 
 use envs::tasks::{Outcome, StepOutput, TaskKind, TaskSpec, VecEnv};
 use models::layout::{ObsSpec, Observation};
-use tensor::Tape;
+use nn::ParamStore;
+use tensor::{Device, Tape};
 
 use crate::error::{Result, RlError};
 use crate::mappo::actor::JointAction;
 use crate::mappo::checkpoint::{Checkpoint, TeamState, VERSION};
 use crate::mappo::config::{NormStart, TrainConfig};
+use crate::mappo::device::check_device;
 use crate::mappo::evaluate::{EvalOptions, EvalSummary, evaluate};
 use crate::mappo::ppo::{self, LossStats, LossTerms, PpoParams, loss_stats, ppo_loss};
 use crate::mappo::rollout::{MinibatchBuf, Rollout};
@@ -123,12 +137,17 @@ pub struct Trainer {
     joint: JointAction,
     mb: MinibatchBuf,
     normalised: Observation,
+    /// With `device = "gpu"`: every team's parameters on the GPU, the copy the updates read
+    /// and write (each [`Team::store`] is the host copy, refreshed after every update phase).
+    /// Empty on the CPU.
+    device_stores: Vec<ParamStore<f32>>,
 }
 
 impl Trainer {
     /// A fresh run of `config`.
     pub fn new(config: &TrainConfig) -> Result<Trainer> {
         config.validate("config")?;
+        check_device(config.device)?;
         let spec = TaskSpec::from_name(&config.env)?;
         let env_seed = derive_seed(config.seed, "envs", 0, 0);
         let mut env = VecEnv::new(&spec, config.num_envs, env_seed, config.train_start_mode())?;
@@ -176,6 +195,7 @@ impl Trainer {
             &widths,
         );
         let na = env.n_actions();
+        let device_stores = place_on_device(config.device, &mut teams)?;
         Ok(Trainer {
             config: config.clone(),
             spec: obs_spec,
@@ -188,12 +208,14 @@ impl Trainer {
             joint: JointAction::new(config.num_envs, na, nt),
             mb: MinibatchBuf::default(),
             normalised: Observation::empty(0, 0),
+            device_stores,
             env,
         })
     }
 
     /// The run restored from a checkpoint (its configuration, except `steps`, `num_evals`,
-    /// `checkpoint_every` and `threads`, which may be changed to extend a run).
+    /// `checkpoint_every` and `threads`, which may be changed to extend a run, and `device`:
+    /// a run resumes on either device).
     pub fn from_checkpoint(c: &Checkpoint, config: &TrainConfig, path: &std::path::Path) -> Result<Trainer> {
         let bad = |m: String| RlError::Checkpoint { path: path.to_path_buf(), message: m };
         let mut fixed = c.config.clone();
@@ -201,6 +223,7 @@ impl Trainer {
         fixed.num_evals = config.num_evals;
         fixed.checkpoint_every = config.checkpoint_every;
         fixed.threads = config.threads;
+        fixed.device = config.device;
         if &fixed != config {
             let a = toml::Table::try_from(&fixed).unwrap_or_default();
             let b = toml::Table::try_from(config).unwrap_or_default();
@@ -243,6 +266,8 @@ impl Trainer {
             team.actor.noise = s.noise.iter().map(|r| r.restore()).collect::<Result<Vec<_>>>()?;
             team.shuffle = s.shuffle.restore()?;
         }
+        // The restored parameters and moments to the update's device.
+        t.device_stores = place_on_device(config.device, &mut t.teams)?;
         t.env.restore(&c.env).map_err(|e| bad(e.to_string()))?;
         t.iteration = c.iteration;
         t.env_steps = c.env_steps;
@@ -252,9 +277,16 @@ impl Trainer {
     }
 
     /// The state to save; `last_evals` is the last scheduled evaluation, one summary per
-    /// rotation of `eval_rotations` (empty before the first).
-    pub fn checkpoint(&self, wall_s: f64, last_evals: &[EvalSummary]) -> Checkpoint {
-        Checkpoint {
+    /// rotation of `eval_rotations` (empty before the first). On the GPU the Adam moments
+    /// come back to the host for it (one transfer per team).
+    pub fn checkpoint(&self, wall_s: f64, last_evals: &[EvalSummary]) -> Result<Checkpoint> {
+        let mut adams = Vec::with_capacity(self.teams.len());
+        for t in &self.teams {
+            let mut adam = t.adam.clone();
+            adam.sync_to_host()?;
+            adams.push(adam);
+        }
+        Ok(Checkpoint {
             version: VERSION,
             config: self.config.clone(),
             iteration: self.iteration,
@@ -264,9 +296,10 @@ impl Trainer {
             teams: self
                 .teams
                 .iter()
-                .map(|t| TeamState {
+                .zip(adams)
+                .map(|(t, adam)| TeamState {
                     params: nn::StateDict::from_store(&t.store),
-                    adam: t.adam.clone(),
+                    adam,
                     normalizer: t.norm.clone(),
                     noise: t.actor.noise.iter().map(RngState::of).collect(),
                     shuffle: RngState::of(&t.shuffle),
@@ -276,7 +309,7 @@ impl Trainer {
             episode_returns: self.episode_returns.clone(),
             last_eval: last_evals.first().cloned(),
             last_eval_rotated: last_evals.iter().skip(1).cloned().collect(),
-        }
+        })
     }
 
     /// The Team Sumo curriculum factor at the current step (1 for Reach).
@@ -333,12 +366,19 @@ impl Trainer {
         Ok(stats)
     }
 
-    /// Step 3 of [`Trainer::iterate`]: `epochs` passes of minibatch updates of every team.
+    /// Step 3 of [`Trainer::iterate`]: `epochs` passes of minibatch updates of every team,
+    /// on the configuration's device (module docs).
     fn update(&mut self) -> Result<Vec<LossStats>> {
         let c = &self.config;
         let hp = PpoParams::from_config(c);
         let mut all = Vec::with_capacity(self.teams.len());
-        for team in &mut self.teams {
+        for (ti, team) in self.teams.iter_mut().enumerate() {
+            // The parameters the update reads and writes: the team's own on the CPU, its
+            // copy on the GPU there.
+            let store = match self.device_stores.get_mut(ti) {
+                Some(s) => s,
+                None => &mut team.store,
+            };
             let mut sum = LossStats::default();
             let mut count = 0.0;
             for epoch in 0..c.epochs {
@@ -350,8 +390,8 @@ impl Trainer {
                     team.norm.apply_rows(self.mb.obs.rows(), &mut self.normalised);
                     let mb = self.mb.view(self.normalised.rows());
                     // Forward: the transitions on the tape, the bootstrap rows without it.
-                    let tape = Tape::<f32>::new();
-                    let p = team.store.bind(&tape);
+                    let tape = Tape::<f32>::on(c.device);
+                    let p = store.bind(&tape);
                     let fwd = ppo::forward(&mut team.model, &p, &mb)?;
                     // GAE from the values and the bootstrap values (Brax's, per minibatch).
                     let adv_targets = ppo::advantages(&mb, &fwd, &hp);
@@ -368,20 +408,26 @@ impl Trainer {
                     }
                     // Backward, every gradient element clipped, one Adam step.
                     let mut grads = p.grads(&tape.backward(loss.total)?);
-                    if let Some((i, _)) = grads.iter().enumerate().find(|(_, g)| !g.all_finite()) {
+                    if let Some(i) = tensor::first_non_finite(&grads)? {
                         return Err(RlError::NonFinite {
-                            message: format!("gradient of {} of {}", team.store.names()[i], at.describe(&stats)),
+                            message: format!("gradient of {} of {}", store.names()[i], at.describe(&stats)),
                         });
                     }
                     if c.grad_clip > 0.0 {
                         nn::clip_elementwise(&mut grads, c.grad_clip);
                     }
-                    team.adam.step(&mut team.store, &grads)?;
+                    team.adam.step(store, &grads)?;
                     add_stats(&mut sum, &stats);
                     count += 1.0;
                 }
             }
             all.push(scale_stats(&sum, 1.0 / count));
+        }
+        // The act step reads host parameters: each team's come back once (one transfer).
+        for (team, on_device) in self.teams.iter_mut().zip(&self.device_stores) {
+            let mut host = on_device.clone();
+            host.to_device(Device::Cpu)?;
+            team.store = host;
         }
         Ok(all)
     }
@@ -399,6 +445,23 @@ impl Trainer {
             EvalOptions::new(c.eval_episodes, c.eval_deterministic, derive_seed(c.seed, "eval", k, 0), c.start_mode());
         c.eval_rotations.iter().map(|&rotation_deg| EvalOptions { rotation_deg, ..base }).collect()
     }
+}
+
+/// On the GPU, every team's parameters copied there and its Adam moments moved there (the
+/// updates' copies; module docs); on the CPU nothing (an empty list).
+fn place_on_device(device: Device, teams: &mut [Team]) -> Result<Vec<ParamStore<f32>>> {
+    if device == Device::Cpu {
+        return Ok(Vec::new());
+    }
+    teams
+        .iter_mut()
+        .map(|t| {
+            let mut store = t.store.clone();
+            store.to_device(device)?;
+            t.adam.to_device(device)?;
+            Ok(store)
+        })
+        .collect()
 }
 
 /// Where a minibatch update is, for error messages.
