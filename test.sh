@@ -50,6 +50,8 @@ cargo test --workspace --release
 # against the CPU (docs/TENSOR.md). The tests fail when no adapter is found.
 cargo test --release -p tensor --features gpu
 cargo test --release -p models --features gpu --test gpu_models
+cargo test --release -p nn --features gpu --test gpu_optim
+cargo test --release -p rl --features gpu --test gpu_training
 # The Rust programs the Python tests compare with (already built by cargo test; cheap).
 cargo build --release -p rl --bin meben -p envs --example replay_actions
 python -m pip install --quiet --disable-pip-version-check --no-build-isolation --no-deps --force-reinstall ./python
