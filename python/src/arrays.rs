@@ -1,6 +1,7 @@
 //! Moving arrays across the boundary: observations out as a dict of numpy arrays
 //! (`vectors [B, N, 3, 3]`, `scalars [B, N, S]`, `heading [B, A]`), `[B, K]` float32 arrays
-//! in, checked for dtype, shape and finiteness with errors that name the argument.
+//! in, checked for dtype and shape ([`read_f32`]) and finiteness ([`check_finite`]) with
+//! errors that name the argument.
 
 use envs::tasks::{N_SCALARS, Observation};
 use numpy::{PyArray1, PyArrayMethods, PyUntypedArray, PyUntypedArrayMethods};
@@ -60,4 +61,25 @@ pub fn read_f32(value: &Bound<'_, PyAny>, what: &str, shape: &[usize], out: &mut
     out.clear();
     out.extend(view.as_array().iter().copied());
     Ok(())
+}
+
+/// `ValueError` at the first entry of `values` (row-major, of `shape`) that is NaN or
+/// infinite, naming the argument `what`, the entry's index and its value:
+/// `bad obs["scalars"][1, 4, 7] = NaN: must be finite (the first non-finite entry)`.
+pub fn check_finite(values: &[f32], what: &str, shape: &[usize]) -> PyResult<()> {
+    let Some(flat) = values.iter().position(|x| !x.is_finite()) else {
+        return Ok(());
+    };
+    let mut index = vec![0; shape.len()];
+    let mut rest = flat;
+    for (i, &d) in index.iter_mut().zip(shape).rev() {
+        *i = rest % d.max(1);
+        rest /= d.max(1);
+    }
+    let index: Vec<String> = index.iter().map(|i| i.to_string()).collect();
+    Err(bad_argument(
+        &format!("{what}[{}]", index.join(", ")),
+        values[flat],
+        "must be finite (the first non-finite entry)",
+    ))
 }

@@ -16,7 +16,8 @@ use rl::StopFlag;
 /// How often the waiting thread takes the GIL to run Python's signal handlers.
 const SIGNAL_POLL: Duration = Duration::from_millis(50);
 
-/// Runs `work` on a scoped thread until it returns; a `KeyboardInterrupt` meanwhile sets
+/// Runs `work` on a scoped thread until it returns (its parallel loops on the pool of
+/// [`crate::pool::forked_pool`]); a `KeyboardInterrupt` meanwhile sets
 /// `stop` and prints `stopping` (what happens now) to standard error. Returns the work's
 /// result and the interrupt, if one came.
 pub fn run_interruptible<T: Send>(
@@ -28,10 +29,11 @@ pub fn run_interruptible<T: Send>(
     // The worker says when it is done (also if it panics: the guard's drop), so that short
     // work returns at once rather than after a whole poll interval.
     let done = Finished::default();
+    let pool = crate::pool::forked_pool()?;
     std::thread::scope(|scope| {
         let worker = scope.spawn(|| {
             let _guard = FinishGuard(&done);
-            work()
+            crate::pool::run_on(pool.as_deref(), work)
         });
         let mut interrupt: Option<PyErr> = None;
         while !py.detach(|| done.wait(SIGNAL_POLL)) {

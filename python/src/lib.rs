@@ -2,8 +2,9 @@
 //! ([`env`](mod@env)), trained policies ([`policy`]), training ([`train`](mod@train)) and run
 //! metrics ([`metrics`](mod@metrics)) over the `envs` and `rl` crates, with numpy arrays
 //! across the boundary ([`arrays`]), Rust errors as Python exceptions ([`errors`]) and long
-//! work that Ctrl-C can stop ([`interrupt`]). The plain-Python parts (`make`, the Gymnasium
-//! and PettingZoo adapters) are in `python/python/meben/`.
+//! work that Ctrl-C can stop ([`interrupt`]), parallel work in forked processes ([`pool`]).
+//! The plain-Python parts (`make`, the Gymnasium and PettingZoo adapters) are in
+//! `python/python/meben/`.
 
 pub mod arrays;
 pub mod env;
@@ -11,6 +12,7 @@ pub mod errors;
 pub mod interrupt;
 pub mod metrics;
 pub mod policy;
+pub mod pool;
 pub mod recorder;
 pub mod spec;
 pub mod train;
@@ -20,6 +22,7 @@ use pyo3::prelude::*;
 /// The extension module `meben._core`.
 #[pymodule]
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    pool::init();
     m.add_class::<env::PyVecEnv>()?;
     m.add_class::<policy::PyPolicy>()?;
     m.add_function(wrap_pyfunction!(train::train, m)?)?;

@@ -1,6 +1,12 @@
 //! `meben.Policy`: the trained teams of a run directory acting on observation dicts, with
 //! the random streams of the Rust evaluation (`rl::evaluate`), so that a policy loaded with
 //! seed `s` acts as `meben eval --seed s` does.
+//!
+//! `act` changes the policy's noise streams, so one thread acts at a time: a call while
+//! another thread is acting raises a `RuntimeError` saying so ([`POLICY_IN_USE`]).
+//! `evaluate` reads the trained teams only and runs alongside.
+
+use std::sync::Mutex;
 
 use envs::tasks::{N_SCALARS, ObsSpec};
 use numpy::PyUntypedArrayMethods;
@@ -10,21 +16,33 @@ use rl::actor::{ActMode, Actor, JointAction};
 use rl::evaluate::{evaluate_unless_stopped, evaluation_actors};
 use rl::{EvalRequest, RunDir, StopFlag, Team, TrainConfig};
 
-use crate::arrays::{array, py_repr, read_f32};
-use crate::errors::{bad_argument, rl_error};
+use crate::arrays::{array, check_finite, py_repr, read_f32};
+use crate::errors::{bad_argument, rl_error, try_lock};
 use crate::interrupt::run_interruptible;
+use crate::pool;
+
+/// The error of `act` on a policy that another thread is acting with.
+pub const POLICY_IN_USE: &str = "this Policy is in use by another thread (Policy.act is running there): each \
+                                 thread needs its own Policy (call meben.Policy.load in each thread)";
 
 /// A trained run's policies (see `meben.Policy.load`).
-#[pyclass(name = "Policy", module = "meben._core")]
+#[pyclass(name = "Policy", module = "meben._core", frozen)]
 pub struct PyPolicy {
     /// The run directory it was loaded from.
     run: std::path::PathBuf,
     config: TrainConfig,
     teams: Vec<Team>,
-    /// Per team a copy of its model and its actor, in sampling mode; `act` sets the mode.
-    players: Vec<(models::Model, Actor)>,
+    /// What acting changes (one thread at a time: module docs).
+    acting: Mutex<Acting>,
     spec: ObsSpec,
     n_actions: usize,
+}
+
+/// The state `act` changes.
+struct Acting {
+    /// Per team a copy of its model and its actor, in sampling mode; `act` sets the mode.
+    players: Vec<(models::Model, Actor)>,
+    /// The observation arrays read from Python (vectors, scalars, heading).
     obs: [Vec<f32>; 3],
 }
 
@@ -43,29 +61,29 @@ impl PyPolicy {
     #[staticmethod]
     #[pyo3(signature = (run, seed=0))]
     fn load(py: Python<'_>, run: std::path::PathBuf, seed: u64) -> PyResult<PyPolicy> {
-        let (config, teams) = py.detach(|| rl::checkpoint::load_policies(&RunDir::new(&run))).map_err(rl_error)?;
-        let scene = py.detach(|| envs::tasks::Scene::from_name(&config.env)).map_err(crate::errors::task_error)?;
+        let (config, teams) =
+            pool::detach(py, || rl::checkpoint::load_policies(&RunDir::new(&run)))?.map_err(rl_error)?;
+        let scene =
+            pool::detach(py, || envs::tasks::Scene::from_name(&config.env))?.map_err(crate::errors::task_error)?;
         let players = evaluation_actors(&teams, seed, ActMode::Sample);
         Ok(PyPolicy {
             run,
             config,
             teams,
-            players,
+            acting: Mutex::new(Acting { players, obs: Default::default() }),
             spec: scene.obs_spec,
             n_actions: scene.n_actions,
-            obs: Default::default(),
         })
     }
 
     /// Actions `[B, total_dof]` (float32 in [-1, 1]) of every team for observations `obs` (a
     /// dict as `env.step` returns): the mean actions if `deterministic`, else samples.
+    /// Observations that are not float32 arrays of the scene's shapes, with no row (`B` =
+    /// 0), or that hold NaN or infinity raise `ValueError` naming the array (and the first
+    /// non-finite entry); a call while another thread is acting with this policy raises
+    /// `RuntimeError` (each thread needs its own policy).
     #[pyo3(signature = (obs, deterministic=true))]
-    fn act<'py>(
-        &mut self,
-        py: Python<'py>,
-        obs: &Bound<'py, PyDict>,
-        deterministic: bool,
-    ) -> PyResult<Bound<'py, PyAny>> {
+    fn act<'py>(&self, py: Python<'py>, obs: &Bound<'py, PyDict>, deterministic: bool) -> PyResult<Bound<'py, PyAny>> {
         let (n, a) = (self.spec.n_nodes, self.spec.n_agents);
         let heading = item(obs, "heading")?;
         let b = match heading.cast::<numpy::PyUntypedArray>() {
@@ -78,22 +96,34 @@ impl PyPolicy {
                 ));
             }
         };
-        let [vectors, scalars, head] = &mut self.obs;
-        read_f32(&item(obs, "vectors")?, "obs[\"vectors\"]", &[b, n, 3, 3], vectors)?;
-        read_f32(&item(obs, "scalars")?, "obs[\"scalars\"]", &[b, n, N_SCALARS], scalars)?;
-        read_f32(&heading, "obs[\"heading\"]", &[b, a], head)?;
+        if b == 0 {
+            return Err(bad_argument(
+                "obs[\"heading\"]",
+                format!("an array of shape [0, {a}]"),
+                "expected at least one row (observations of B >= 1 environments)",
+            ));
+        }
+        let mut guard = try_lock(&self.acting, POLICY_IN_USE)?;
+        let Acting { players, obs: [vectors, scalars, head] } = &mut *guard;
+        let (vs, ss, hs) = ([b, n, 3, 3], [b, n, N_SCALARS], [b, a]);
+        read_f32(&item(obs, "vectors")?, "obs[\"vectors\"]", &vs, vectors)?;
+        read_f32(&item(obs, "scalars")?, "obs[\"scalars\"]", &ss, scalars)?;
+        read_f32(&heading, "obs[\"heading\"]", &hs, head)?;
+        check_finite(vectors, "obs[\"vectors\"]", &vs)?;
+        check_finite(scalars, "obs[\"scalars\"]", &ss)?;
+        check_finite(head, "obs[\"heading\"]", &hs)?;
         let mode = if deterministic { ActMode::Mean } else { ActMode::Sample };
         let raw = models::ObsRows::new(n, a, vectors.as_slice(), scalars.as_slice(), head.as_slice())
             .map_err(|e| bad_argument("obs", "arrays".to_string(), &e.to_string()))?;
         let mut joint = JointAction::new(b, self.n_actions, self.teams.len());
-        let (teams, players) = (&self.teams, &mut self.players);
-        py.detach(|| {
+        let teams = &self.teams;
+        pool::detach(py, || {
             for (team, (model, actor)) in teams.iter().zip(players.iter_mut()) {
                 actor.mode = mode;
                 actor.act(model, &team.store, &team.norm, raw, &mut joint)?;
             }
             Ok(())
-        })
+        })?
         .map_err(rl_error)?;
         let actions = joint.actions;
         array(py, &actions, &[b, self.n_actions])

@@ -7,7 +7,7 @@
 use pyo3::prelude::*;
 use rl::{Preset, RlError, RunDir, StopFlag, TrainConfig, TrainOptions};
 
-use crate::errors::rl_error;
+use crate::errors::{bad_argument, rl_error};
 use crate::interrupt::run_interruptible;
 
 /// Trains into the run directory `out` (resuming it if it holds a checkpoint) with the
@@ -15,7 +15,8 @@ use crate::interrupt::run_interruptible;
 /// `overrides` (`(field, TOML value)` pairs, as `meben train --set field=value`). Returns the
 /// run summary (`done.json`) as JSON text. The GIL is released while training; a
 /// `KeyboardInterrupt` stops it after its current iteration with a checkpoint and is then
-/// raised (module docs).
+/// raised (module docs). An empty `out` raises `ValueError` before anything is read or
+/// written (it would make the working directory the run directory).
 #[pyfunction]
 #[pyo3(signature = (out, overrides, preset=None, config=None, progress=false))]
 pub fn train(
@@ -26,6 +27,14 @@ pub fn train(
     config: Option<std::path::PathBuf>,
     progress: bool,
 ) -> PyResult<String> {
+    if out.as_os_str().is_empty() {
+        return Err(bad_argument(
+            "out",
+            "''",
+            "expected the run directory's path (e.g. out=\"runs/x\"); an empty path would train into the working \
+             directory",
+        ));
+    }
     let preset = preset.map(|p| Preset::parse(p, "meben.train(preset=...)")).transpose().map_err(rl_error)?;
     let config =
         TrainConfig::resolve_from(preset, config.as_deref(), &overrides, "meben.train keywords").map_err(rl_error)?;

@@ -40,3 +40,42 @@ def replay_actions():
 def meben_cli():
     """The `meben` program."""
     return rust_program("meben")
+
+
+# A forked child answers within this many seconds or the test fails (a hung child used to
+# block the test run for ever).
+FORK_TIMEOUT_S = 120
+
+
+def _send_result(conn, fn, args):
+    try:
+        conn.send(("ok", fn(*args)))
+    except BaseException as e:  # noqa: BLE001 - everything goes back to the parent
+        conn.send(("error", f"{type(e).__name__}: {e}"))
+    finally:
+        conn.close()
+
+
+def in_forked_child(fn, *args):
+    """``fn(*args)`` run in a child process started with multiprocessing's ``fork`` start
+    method; returns its result. A child that raises fails the test with its error, one that
+    does not answer within ``FORK_TIMEOUT_S`` is killed and fails the test."""
+    import multiprocessing
+
+    if "fork" not in multiprocessing.get_all_start_methods():
+        pytest.skip("no fork start method on this platform")
+    ctx = multiprocessing.get_context("fork")
+    receive, send = ctx.Pipe(duplex=False)
+    child = ctx.Process(target=_send_result, args=(send, fn, args))
+    child.start()
+    send.close()
+    try:
+        if not receive.poll(FORK_TIMEOUT_S):
+            pytest.fail(f"the forked child did not answer within {FORK_TIMEOUT_S} s: it hangs")
+        status, value = receive.recv()
+    finally:
+        child.kill()
+        child.join()
+    if status != "ok":
+        pytest.fail(f"the forked child raised {value}")
+    return value

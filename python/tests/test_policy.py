@@ -4,9 +4,12 @@ in Python gives the same returns, lengths and success rate, to the last bit."""
 
 import json
 import subprocess
+import sys
+import threading
 
 import numpy as np
 import pytest
+from conftest import in_forked_child
 
 import meben
 
@@ -20,6 +23,14 @@ def run(tmp_path_factory):
     assert summary["env_steps"] >= 160 and summary["final_eval"]["episodes"] == 2
     for f in ("config.toml", "metrics.csv", "checkpoint.json", "done.json"):
         assert (out / f).is_file(), f
+    return out
+
+
+@pytest.fixture(scope="module")
+def sumo_run(tmp_path_factory):
+    """A tiny shnn run of Team Sumo (two teams, the other model family)."""
+    out = tmp_path_factory.mktemp("runs") / "sumo"
+    meben.train(out=out, env="team_sumo/2_ants", model="shnn", seed=3, **TINY)
     return out
 
 
@@ -89,6 +100,95 @@ def test_policy_actions_are_deterministic_and_bounded(run):
     with pytest.raises(ValueError, match="without \"scalars\""):
         policy.act({"vectors": obs["vectors"], "heading": obs["heading"]})
     assert np.array_equal(policy.act(obs), a)
+
+
+@pytest.mark.parametrize("which", ["run", "sumo_run"])
+@pytest.mark.parametrize(
+    "key,index,value,shown",
+    [
+        ("vectors", (1, 3, 0, 2), np.nan, "NaN"),
+        ("scalars", (0, 4, 7), np.inf, "inf"),
+        ("heading", (0, 0), -np.inf, "-inf"),
+    ],
+)
+def test_non_finite_observations_raise_and_change_nothing(request, which, key, index, value, shown):
+    # They used to give finite actions without a word (issue 44, item 3).
+    run = request.getfixturevalue(which)
+    policy, twin = meben.Policy.load(run, seed=1), meben.Policy.load(run, seed=1)
+    obs = meben.make(policy.env, num_envs=2, seed=0).reset()
+    bad = {k: v.copy() for k, v in obs.items()}
+    bad[key][index] = value
+    bad[key].reshape(-1)[-1] = np.nan  # a later one: the first is named
+    where = ", ".join(map(str, index))
+    for deterministic in (True, False):
+        with pytest.raises(ValueError, match=rf'bad obs\["{key}"\]\[{where}\] = {shown}: must be finite'):
+            policy.act(bad, deterministic=deterministic)
+    # The noise streams did not move: the policy samples as its twin that saw no error.
+    assert np.array_equal(policy.act(obs, deterministic=False), twin.act(obs, deterministic=False))
+
+
+def test_observations_of_no_environment_raise_value_error(run):
+    policy = meben.Policy.load(run)
+    obs = meben.make("team_reach/1_ant", num_envs=2, seed=0).reset()
+    # It used to be a RuntimeError from the model.
+    with pytest.raises(ValueError, match=r'bad obs\["heading"\] = an array of shape \[0, 1\]: expected at least one row'):
+        policy.act({k: v[:0] for k, v in obs.items()})
+
+
+def act_and_evaluate(run):
+    """What a policy loaded in this process does: actions, then a short evaluation."""
+    policy = meben.Policy.load(run, seed=2)
+    obs = meben.make(policy.env, num_envs=8, seed=0).reset()
+    return policy.act(obs), policy.act(obs, deterministic=False), policy.evaluate(episodes=2, seed=1)
+
+
+@pytest.mark.filterwarnings("ignore:.*multi-threaded.*fork:DeprecationWarning")
+def test_a_forked_child_acts_and_evaluates_as_its_parent(run):
+    # The parent's pool has run (training, acting) before the fork; the child used to hang
+    # (issue 44, item 1; the environments: test_fork.py).
+    parent = act_and_evaluate(run)
+    child = in_forked_child(act_and_evaluate, run)
+    assert np.array_equal(parent[0], child[0]) and np.array_equal(parent[1], child[1])
+    assert parent[2] == child[2]
+
+
+def test_a_policy_used_by_two_threads_says_so(run):
+    policy = meben.Policy.load(run)
+    obs = meben.make("team_reach/1_ant", num_envs=4096, seed=0).reset()
+    errors, done = [], threading.Event()
+
+    def act():
+        try:
+            for _ in range(10):
+                policy.act(obs)
+        finally:
+            done.set()
+
+    old = sys.getswitchinterval()
+    sys.setswitchinterval(1e-4)
+    try:
+        t = threading.Thread(target=act)
+        t.start()
+        while not done.is_set():
+            try:
+                policy.act(obs)
+            except RuntimeError as e:
+                errors.append(str(e))
+        t.join()
+    finally:
+        sys.setswitchinterval(old)
+    # It used to be PyO3's bare "Already borrowed".
+    assert errors, "the two threads never met"
+    assert all("in use by another thread" in e and "each thread needs its own Policy" in e for e in errors), errors
+    assert np.array_equal(policy.act(obs), meben.Policy.load(run).act(obs))
+
+
+def test_an_empty_run_directory_is_refused_before_touching_the_disk(tmp_path, monkeypatch):
+    # It used to leave a `lock` file in the working directory and raise a confusing OSError.
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(ValueError, match=r"bad out = '': expected the run directory's path"):
+        meben.train(out="", env="team_reach/1_ant", **TINY)
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_bad_runs_and_configurations(tmp_path):

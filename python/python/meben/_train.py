@@ -36,7 +36,8 @@ def train(
 ) -> RunSummary:
     """Trains as ``meben train`` does and returns the run summary (the ``done.json`` dict).
 
-    ``out`` is the run directory (a run with a checkpoint there resumes); ``preset`` is
+    ``out`` is the run directory (a run with a checkpoint there resumes; an empty path raises
+    ``ValueError`` before anything is written); ``preset`` is
     ``"quick"`` (default) or ``"paper"``; ``config`` a TOML file; every other keyword is a
     field of the Rust ``TrainConfig`` (``env``, ``model``, ``steps``, ``seed``, ``num_envs``,
     ...), applied last like ``--set field=value``. Unknown fields and bad values raise
