@@ -73,6 +73,33 @@ def test_auto_reset_returns_the_true_final_observation():
     obs, *_ = auto.step(random_actions(auto, rng))  # and it goes on
 
 
+def test_without_auto_reset_an_ended_environment_goes_on():
+    # What make's docstring says of auto_reset=False: the ended environment is not frozen
+    # in its last state; each step goes on from it and is judged again (issue 44, item 13).
+    # Here (R = 0.5, seed 0, the episode after the first reset) the ball is covered at once.
+    name = "team_reach:agents=ant;R=0.5"
+    env = meben.make(name, num_envs=1, seed=0, auto_reset=False)
+    auto = meben.make(name, num_envs=1, seed=0)
+    env.reset()
+    auto.reset()
+    a = np.zeros((1, env.num_actions), np.float32)
+    obs, first, terminated, _, info = env.step(a)
+    auto.step(a)
+    assert terminated[0] and info["success"][0], "the setting no longer succeeds at once"
+    # With auto-reset, the step after the end is the first of a new episode.
+    assert auto.step(a)[4]["episode_len"][0] == 1
+    for t in range(2, 5):
+        last = obs
+        obs, reward, terminated, truncated, info = env.step(a)
+        # The same episode goes on: its length counts on, the physics moves, and the
+        # success is paid (its bonus) and reported again.
+        assert info["episode_len"][0] == t and not truncated[0]
+        assert terminated[0] and info["success"][0] and info["outcome"][0] == 1
+        assert reward[0, 0] > 0.5 * first[0, 0] > 0
+        assert not np.array_equal(obs["vectors"], last["vectors"])
+    assert env.reset() is not None and env.step(a)[4]["episode_len"][0] == 1
+
+
 def test_fixed_and_rotated_starts():
     fixed = meben.make("team_reach/2_ants", num_envs=2, seed=0, fixed_start=7)
     obs = fixed.reset()

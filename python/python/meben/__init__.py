@@ -57,6 +57,21 @@ def make(name: str, num_envs: int = 1, seed: int = 0, **options: Any) -> VecEnv:
     (a seed: every episode starts from the start drawn with it), ``rotation_deg=0.0`` and
     ``point=(0, 0)`` (the fixed start rotated about the vertical through ``point``),
     ``record=False`` (record environment 0 for ``env.render(path)``).
+
+    ``auto_reset=False`` does not reset an ended environment, nor freeze it: each later
+    ``step`` goes on simulating the same scene from where the episode ended, with the new
+    actions, ``info["episode_len"]`` counting past the end, and judges it afresh as during
+    the episode. Team Reach pays the success bonus again (outcome success, ``terminated``) at
+    every step on which the balls are still covered; Team Sumo's win or draw is judged on
+    each new state; after the time limit every step not terminated is ``truncated`` (outcome
+    ``time_limit``); a diverged environment stays diverged (zero reward, ``terminated``).
+    Only ``env.reset()`` begins new episodes (in every environment), so stop stepping an
+    environment, or ignore its rows, once it has ended.
+
+    An environment is one thread's: a call while another thread is stepping or resetting it
+    raises ``RuntimeError`` (make one per thread). In a process forked after ``meben`` was
+    used (``multiprocessing``'s ``fork`` start method) the environments step on a thread pool
+    of that process's own.
     """
     return VecEnv(name, num_envs, seed, **options)
 

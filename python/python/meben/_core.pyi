@@ -21,6 +21,9 @@ OUTCOMES: Tuple[str, ...]
 
 @final
 class VecEnv:
+    """Batched MeBen environments (see ``meben.make``). One thread's at a time: a call while
+    another thread is stepping or resetting it raises ``RuntimeError``."""
+
     def __new__(
         cls,
         name: str,
@@ -32,7 +35,19 @@ class VecEnv:
         rotation_deg: float = 0.0,
         point: Tuple[float, float] = ...,  # (0.0, 0.0)
         record: bool = False,
-    ) -> VecEnv: ...
+    ) -> VecEnv:
+        """``num_envs`` environments of ``name`` seeded with ``seed`` (``meben.make``).
+
+        ``auto_reset=True``: an ended environment begins its next episode in the same step.
+        ``auto_reset=False``: it is not reset, nor frozen: each later ``step`` goes on
+        simulating the same scene from where it ended, with the new actions,
+        ``episode_len`` counting past the end, and judges it afresh as during the episode:
+        Team Reach pays the success bonus again (outcome success, ``terminated``) at every
+        step on which the balls are still covered, Team Sumo's win or draw is judged on each
+        new state, after the time limit every step not terminated is ``truncated`` (outcome
+        time_limit), and a diverged environment stays diverged (zero reward,
+        ``terminated``). Only ``reset()`` begins new episodes (in every environment).
+        """
     @staticmethod
     def evaluation(
         name: str,
@@ -44,10 +59,14 @@ class VecEnv:
         translation: Tuple[float, float] = ...,  # (0.0, 0.0)
         record: bool = False,
     ) -> VecEnv: ...
-    def reset(self) -> Observation: ...
+    def reset(self) -> Observation:
+        """Begins a new episode in every environment; returns the first observations."""
     def step(
         self, actions: NDArray[np.float32]
-    ) -> Tuple[Observation, NDArray[np.float32], NDArray[np.bool_], NDArray[np.bool_], StepInfo]: ...
+    ) -> Tuple[Observation, NDArray[np.float32], NDArray[np.bool_], NDArray[np.bool_], StepInfo]:
+        """One control step with ``actions`` (float32 ``[num_envs, total_dof]``): ``(obs,
+        reward, terminated, truncated, info)``. Bad actions raise ``ValueError`` and change
+        nothing; a step while another thread uses the env raises ``RuntimeError``."""
     def observation(self) -> Observation: ...
     def render(self, path: str) -> int: ...
     @property
@@ -61,14 +80,20 @@ class VecEnv:
     @curriculum_alpha.setter
     def curriculum_alpha(self, alpha: float) -> None: ...
     @property
-    def auto_reset(self) -> bool: ...
+    def auto_reset(self) -> bool:
+        """Whether ended environments begin their next episode at once (off: they go on
+        from their last state until ``reset``; see ``VecEnv()``)."""
     def __repr__(self) -> str: ...
 
 @final
 class Policy:
     @staticmethod
     def load(run: _Path, seed: int = 0) -> Policy: ...
-    def act(self, obs: Observation, deterministic: bool = True) -> NDArray[np.float32]: ...
+    def act(self, obs: Observation, deterministic: bool = True) -> NDArray[np.float32]:
+        """Actions ``[B, total_dof]`` for ``obs``: the means if ``deterministic``, else
+        samples. Arrays of the wrong dtype or shape, with no row, or holding NaN or infinity
+        raise ``ValueError`` naming the array (and the first non-finite entry); a call while
+        another thread is acting with this policy raises ``RuntimeError``."""
     def evaluate(
         self,
         episodes: int = 1024,
@@ -94,5 +119,7 @@ def train(
     preset: Optional[str] = None,
     config: Optional[_Path] = None,
     progress: bool = False,
-) -> str: ...
+) -> str:
+    """Trains into the run directory ``out`` (``meben.train``); returns ``done.json``'s text.
+    An empty ``out`` raises ``ValueError`` before anything is written."""
 def read_metrics(path: _Path) -> Dict[str, NDArray[np.float64]]: ...
