@@ -11,7 +11,9 @@ A trained run: ``meben.Policy.load(run)`` acts (``policy.act(obs)``) and evaluat
 (``policy.evaluate(episodes=1024, rotation_deg=180)``: the summary ``meben eval`` writes);
 ``meben.read_metrics(run)`` gives its ``metrics.csv`` as float64 numpy columns.
 
-Adapters: ``meben.gymnasium.GymVecEnv`` (Gymnasium's vector-env API) and
+Adapters: ``meben.gymnasium.GymVecEnv`` (Gymnasium's vector-env API), ``GymEnv`` (one
+``gymnasium.Env``; both take ``seed=``, and ``flatten=True`` for one flat ``Box``
+observation, as Stable-Baselines3's and CleanRL's MLP policies take it) and
 ``meben.pettingzoo.ParallelEnv`` (PettingZoo's parallel API); they import their packages
 only when used.
 
