@@ -10,7 +10,7 @@ pub enum Device {
     /// Host memory; kernels in `kernels/`, parallel through rayon.
     #[default]
     Cpu,
-    /// The process's GPU ([`crate::gpu`]); kernels in `gpu/`.
+    /// The process's GPU (module `gpu`, feature `gpu`); kernels in `gpu/`.
     Gpu,
 }
 
