@@ -34,7 +34,10 @@ $C/gpu_ops --test-threads 1 2>&1 | tail -3
 $C/gpu_models 2>&1 | tail -3
 
 echo "== matmul rate (f32, GPU)"
-$C/matmul_rate --device gpu 2>&1 | grep -E 'matmul|rate|GPU'
+# QUICK: the first shapes only (lavapipe takes minutes for the large square product).
+MM_LIMIT=300
+[ -n "${QUICK:-}" ] && MM_LIMIT=60
+timeout "$MM_LIMIT" $C/matmul_rate --device gpu 2>&1 | grep -E 'matmul|rate|GPU'
 
 if [ -n "${QUICK:-}" ]; then STEPS=1024; NENVS=16; SET="--set batch_size=8 --set num_minibatches=2"; else STEPS=0; NENVS=0; SET=""; fi
 train() { # <device> <threads> <env> <model>: env steps/s of a short paper-preset training
