@@ -141,10 +141,45 @@ fn metrics_upto(path: &std::path::Path, iteration: u64, layout: &MetricsLayout) 
     out
 }
 
+/// Refuses to resume the checkpoint `c` (at `path`) under a budget of `config.steps` env
+/// steps that it has already passed, or that it has reached but was not trained to: the run
+/// would end at once without its final evaluation (`done.json` with `"final_eval": null`),
+/// and its `config.toml` would say a budget smaller than the steps done. A finished run
+/// resumed with its own budget, or a larger one, passes.
+fn check_budget(c: &Checkpoint, config: &TrainConfig, path: &std::path::Path) -> Result<()> {
+    let total = config.iterations();
+    let own_total = c.config.iterations();
+    let done = format!(
+        "the {} env steps ({} iterations) this run has already done of its budget of {}",
+        c.env_steps, c.iteration, c.config.steps
+    );
+    let message = if c.iteration > total {
+        format!(
+            "a budget of {} env steps ({total} iterations) is below {done}: {}",
+            config.steps,
+            if own_total > c.iteration {
+                format!("give more than {} steps", c.env_steps)
+            } else {
+                format!("the run is finished; give at least {} steps", c.config.steps)
+            }
+        )
+    } else if c.iteration == total && own_total > c.iteration {
+        format!(
+            "a budget of {} env steps ({total} iterations) is not more than {done}: the run would end without its \
+             final evaluation; give more than {} steps",
+            config.steps, c.env_steps
+        )
+    } else {
+        return Ok(());
+    };
+    Err(RlError::config(path.display().to_string(), "steps", config.steps, message))
+}
+
 /// Trains `config` in `run`: from scratch, or from the run's checkpoint (module docs). The
 /// resolved configuration goes to `config.toml`, a row per iteration to `metrics.csv`, the
 /// state to `checkpoint.json` and the summary to `done.json` at the end. A run whose
-/// `done.json` exists and whose steps are reached returns its summary at once. The run
+/// `done.json` exists and whose steps are reached returns its summary at once; a budget not
+/// above the steps a checkpoint has done is refused before anything is written. The run
 /// directory is locked while training ([`RunLock`]: a second training of it fails at once,
 /// naming the holder); temporary files of interrupted writes are removed first.
 pub fn train(config: &TrainConfig, run: &RunDir, options: &TrainOptions) -> Result<RunSummary> {
@@ -171,6 +206,7 @@ fn train_in_pool(config: &TrainConfig, run: &RunDir, options: &TrainOptions) -> 
     remove_stale_temporaries(run.root(), &lock)?;
     let (mut trainer, wall_before, mut last_evals) = if ckpt_path.is_file() {
         let c = Checkpoint::load(&ckpt_path)?;
+        check_budget(&c, config, &ckpt_path)?;
         let t = Trainer::from_checkpoint(&c, config, &ckpt_path)?;
         let evals: Vec<EvalSummary> = c.last_eval.iter().chain(&c.last_eval_rotated).cloned().collect();
         (t, c.wall_s, evals)
