@@ -84,6 +84,13 @@ fn train_eval_report_render_produce_their_files() {
     assert!(std::fs::read(&gif).unwrap().starts_with(b"GIF89a"));
     let (ok, _, stderr) = meben(&["render", "--run", run_s, "--out", dir.join("e.mp4").to_str().unwrap()]);
     assert!(!ok && stderr.contains("e.mp4"), "{stderr}");
+    // Issue 44 item 8: the run's own files are refused as the output, and left as they were.
+    let metrics = std::fs::read(run.join("metrics.csv")).unwrap();
+    for name in ["metrics.csv", "builds.csv", "config.toml"] {
+        let out = run.join(name);
+        fails_with(&["render", "--run", run_s, "--out", out.to_str().unwrap()], &[name, "--out", "own"]);
+    }
+    assert_eq!(std::fs::read(run.join("metrics.csv")).unwrap(), metrics);
     let _ = std::fs::remove_dir_all(&dir);
 }
 

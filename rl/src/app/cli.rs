@@ -242,6 +242,7 @@ struct RenderArgs {
     #[arg(long)]
     run: PathBuf,
     /// Output file: .html (interactive animation), .gif (animated image) or .csv (body poses per frame).
+    /// A run directory's own files (metrics.csv, config.toml, ...) are refused.
     #[arg(long)]
     out: PathBuf,
     /// Seed of the episode's start.
@@ -552,6 +553,7 @@ fn cmd_info(a: InfoArgs) -> Result<(), String> {
 
 fn cmd_render(a: RenderArgs) -> Result<(), String> {
     let run = RunDir::new(&a.run);
+    crate::app::run_dir::check_not_a_run_file("--out", &a.out).map_err(|e| e.to_string())?;
     let (config, mut teams) = crate::app::run_dir::load_policies(&run).map_err(|e| e.to_string())?;
     let ext = a.out.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
     if !["html", "gif", "csv"].contains(&ext.as_str()) {
