@@ -135,6 +135,8 @@ fn bad_input_gives_clear_errors() {
         fails_with(&args, &needles);
     }
     fails_with(&["train", "--config", "/no/such/file.toml"], &["/no/such/file.toml", "cannot read"]);
+    // Issue 44 item 10: a thread count beyond 4 per core (and 64) is refused, naming the cores.
+    fails_with(&["train", "--threads", "100000", "--out", out_s, "--quiet"], &["threads", "100000", "cores"]);
     fails_with(&["eval", "--run", dir.join("nothing").to_str().unwrap()], &["config.toml", "not a run directory"]);
     fails_with(&["report", dir.join("nothing").to_str().unwrap()], &["nothing"]);
     fails_with(&["status", dir.join("nothing").to_str().unwrap()], &["nothing", "not a directory"]);

@@ -114,7 +114,8 @@ struct TrainArgs {
     /// Environments stepped together.
     #[arg(long)]
     num_envs: Option<usize>,
-    /// Worker threads (0: all cores; results do not depend on it).
+    /// Worker threads (0: all cores; results do not depend on it). At most 4 per core, or
+    /// 64 if that is more.
     #[arg(long)]
     threads: Option<usize>,
     /// Where the updates run: cpu (default) or gpu (a build with --features gpu). Not part
@@ -204,7 +205,7 @@ struct AblateArgs {
     #[arg(long)]
     only: Vec<String>,
     /// Worker threads of every run (0: every core), whatever the sweep says; results do not
-    /// depend on it.
+    /// depend on it. At most 4 per core, or 64 if that is more.
     #[arg(long)]
     threads: Option<usize>,
     /// Where every run's updates run (cpu or gpu, the latter in a build with --features

@@ -193,7 +193,8 @@ pub struct TrainConfig {
     /// Write a checkpoint every this many iterations (and after every evaluation and at the
     /// end; 0: only then).
     pub checkpoint_every: usize,
-    /// Worker threads (0: every core). Results do not depend on it.
+    /// Worker threads (0: every core). Results do not depend on it. Training refuses more
+    /// than [`crate::app::run::max_threads`] (4 per core, at least 64).
     pub threads: usize,
     /// Where the updates run: `cpu` (default) or `gpu` (a build with the feature `gpu`;
     /// [`crate::mappo::device`]). Like `threads`, not part of the run's identity: a run
