@@ -137,6 +137,14 @@ fn bad_input_gives_clear_errors() {
     fails_with(&["train", "--config", "/no/such/file.toml"], &["/no/such/file.toml", "cannot read"]);
     // Issue 44 item 10: a thread count beyond 4 per core (and 64) is refused, naming the cores.
     fails_with(&["train", "--threads", "100000", "--out", out_s, "--quiet"], &["threads", "100000", "cores"]);
+    // Issue 44 item 12: an integer beyond TOML's names the bound; a file without end is refused.
+    fails_with(
+        &["train", "--seed", "9223372036854775808", "--out", out_s],
+        &["seed", "9223372036854775808", "at most 9223372036854775807"],
+    );
+    if cfg!(target_os = "linux") {
+        fails_with(&["train", "--config", "/dev/zero", "--out", out_s], &["/dev/zero", "1 MiB"]);
+    }
     fails_with(&["eval", "--run", dir.join("nothing").to_str().unwrap()], &["config.toml", "not a run directory"]);
     fails_with(&["report", dir.join("nothing").to_str().unwrap()], &["nothing"]);
     fails_with(&["status", dir.join("nothing").to_str().unwrap()], &["nothing", "not a directory"]);

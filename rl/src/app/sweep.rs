@@ -217,7 +217,7 @@ impl FromStr for Shard {
 impl Sweep {
     /// Reads and parses a sweep file.
     pub fn load(path: &Path) -> Result<Sweep> {
-        let text = std::fs::read_to_string(path).map_err(|e| RlError::file(path, format!("cannot read: {e}")))?;
+        let text = crate::app::presets::read_text_file(path, crate::app::presets::MAX_SWEEP_BYTES, "a sweep file")?;
         Sweep::parse(&text, &path.display().to_string())
     }
 

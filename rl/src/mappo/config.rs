@@ -208,7 +208,7 @@ impl TrainConfig {
     /// Reads a resolved configuration written by [`TrainConfig::save`] (a run's
     /// `config.toml`); every field must be present.
     pub fn load(path: &Path) -> Result<TrainConfig> {
-        let text = std::fs::read_to_string(path).map_err(|e| RlError::file(path, format!("cannot read: {e}")))?;
+        let text = crate::app::presets::read_config_text(path)?;
         let config: TrainConfig =
             toml::from_str(&text).map_err(|e| RlError::file(path, format!("invalid run configuration: {e}")))?;
         config.validate(&path.display().to_string())?;
