@@ -84,6 +84,13 @@ fn train_eval_report_render_produce_their_files() {
     assert!(std::fs::read(&gif).unwrap().starts_with(b"GIF89a"));
     let (ok, _, stderr) = meben(&["render", "--run", run_s, "--out", dir.join("e.mp4").to_str().unwrap()]);
     assert!(!ok && stderr.contains("e.mp4"), "{stderr}");
+    // Issue 44 item 8: the run's own files are refused as the output, and left as they were.
+    let metrics = std::fs::read(run.join("metrics.csv")).unwrap();
+    for name in ["metrics.csv", "builds.csv", "config.toml"] {
+        let out = run.join(name);
+        fails_with(&["render", "--run", run_s, "--out", out.to_str().unwrap()], &[name, "--out", "own"]);
+    }
+    assert_eq!(std::fs::read(run.join("metrics.csv")).unwrap(), metrics);
     let _ = std::fs::remove_dir_all(&dir);
 }
 
@@ -128,6 +135,16 @@ fn bad_input_gives_clear_errors() {
         fails_with(&args, &needles);
     }
     fails_with(&["train", "--config", "/no/such/file.toml"], &["/no/such/file.toml", "cannot read"]);
+    // Issue 44 item 10: a thread count beyond 4 per core (and 64) is refused, naming the cores.
+    fails_with(&["train", "--threads", "100000", "--out", out_s, "--quiet"], &["threads", "100000", "cores"]);
+    // Issue 44 item 12: an integer beyond TOML's names the bound; a file without end is refused.
+    fails_with(
+        &["train", "--seed", "9223372036854775808", "--out", out_s],
+        &["seed", "9223372036854775808", "at most 9223372036854775807"],
+    );
+    if cfg!(target_os = "linux") {
+        fails_with(&["train", "--config", "/dev/zero", "--out", out_s], &["/dev/zero", "1 MiB"]);
+    }
     fails_with(&["eval", "--run", dir.join("nothing").to_str().unwrap()], &["config.toml", "not a run directory"]);
     fails_with(&["report", dir.join("nothing").to_str().unwrap()], &["nothing"]);
     fails_with(&["status", dir.join("nothing").to_str().unwrap()], &["nothing", "not a directory"]);

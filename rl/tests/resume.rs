@@ -161,3 +161,41 @@ fn damaged_metrics_config_and_done_files_are_repaired_or_refused_by_name() {
     let done: rl::RunSummary = serde_json::from_str(&std::fs::read_to_string(run.done()).unwrap()).unwrap();
     assert_eq!(done.iterations, 2);
 }
+
+/// Issue 44 item 5: a run stopped after 2 of its 6 iterations and resumed with a budget of
+/// 2 iterations ended at once without its final evaluation (`done.json` with
+/// `"final_eval": null`); a finished run resumed with a smaller budget had its `config.toml`
+/// rewritten to it (`meben status`: `0.02M of 0.01M`). Both are refused, naming the
+/// checkpoint, the budget and the steps done, and nothing is written.
+#[test]
+fn a_budget_not_above_the_steps_done_is_refused() {
+    let dir = common::TempDir::new("resume-budget");
+    let config = common::tiny("team_reach/1_ant", "mlp_hn", 6, &[]);
+    let run = RunDir::new(dir.0.join("run"));
+    train(&config, &run, &TrainOptions { stop_after: Some(2), ..Default::default() }).unwrap();
+    let before = std::fs::read(run.config()).unwrap();
+    let refused = |steps: u64, done: u64| {
+        let smaller = TrainConfig { steps, ..config.clone() };
+        let e = train(&smaller, &run, &TrainOptions::default()).unwrap_err().to_string();
+        let ckpt = run.checkpoint().display().to_string();
+        assert!(e.starts_with(&format!("{ckpt}: field `steps` = \"{steps}\": ")), "{e}");
+        assert!(e.contains(&format!("{done} env steps")), "{e}");
+        assert!(!run.done().exists(), "{e}");
+        assert_eq!(std::fs::read(run.config()).unwrap(), before, "config.toml was rewritten");
+    };
+    // Equal to the steps done (2 iterations of 80), and below them.
+    refused(160, 160);
+    refused(80, 160);
+    // One step more is one more iteration: the run ends with its final evaluation.
+    let s = train(&TrainConfig { steps: 161, ..config.clone() }, &run, &TrainOptions::default()).unwrap();
+    assert_eq!(s.iterations, 3);
+    assert!(s.final_eval.is_some());
+    // A finished run keeps its budget: a smaller one is refused, its own passes.
+    let before = std::fs::read(run.config()).unwrap();
+    let smaller = TrainConfig { steps: 80, ..config.clone() };
+    let e = train(&smaller, &run, &TrainOptions::default()).unwrap_err().to_string();
+    assert!(e.contains("240 env steps") && e.contains("\"80\""), "{e}");
+    assert_eq!(std::fs::read(run.config()).unwrap(), before, "config.toml was rewritten");
+    let again = train(&TrainConfig { steps: 161, ..config.clone() }, &run, &TrainOptions::default()).unwrap();
+    assert_eq!(again.iterations, 3);
+}

@@ -114,7 +114,8 @@ struct TrainArgs {
     /// Environments stepped together.
     #[arg(long)]
     num_envs: Option<usize>,
-    /// Worker threads (0: all cores; results do not depend on it).
+    /// Worker threads (0: all cores; results do not depend on it). At most 4 per core, or
+    /// 64 if that is more.
     #[arg(long)]
     threads: Option<usize>,
     /// Where the updates run: cpu (default) or gpu (a build with --features gpu). Not part
@@ -204,7 +205,7 @@ struct AblateArgs {
     #[arg(long)]
     only: Vec<String>,
     /// Worker threads of every run (0: every core), whatever the sweep says; results do not
-    /// depend on it.
+    /// depend on it. At most 4 per core, or 64 if that is more.
     #[arg(long)]
     threads: Option<usize>,
     /// Where every run's updates run (cpu or gpu, the latter in a build with --features
@@ -242,6 +243,7 @@ struct RenderArgs {
     #[arg(long)]
     run: PathBuf,
     /// Output file: .html (interactive animation), .gif (animated image) or .csv (body poses per frame).
+    /// A run directory's own files (metrics.csv, config.toml, ...) are refused.
     #[arg(long)]
     out: PathBuf,
     /// Seed of the episode's start.
@@ -552,6 +554,7 @@ fn cmd_info(a: InfoArgs) -> Result<(), String> {
 
 fn cmd_render(a: RenderArgs) -> Result<(), String> {
     let run = RunDir::new(&a.run);
+    crate::app::run_dir::check_not_a_run_file("--out", &a.out).map_err(|e| e.to_string())?;
     let (config, mut teams) = crate::app::run_dir::load_policies(&run).map_err(|e| e.to_string())?;
     let ext = a.out.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
     if !["html", "gif", "csv"].contains(&ext.as_str()) {

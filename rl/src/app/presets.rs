@@ -119,7 +119,7 @@ impl TrainConfig {
     ) -> Result<TrainConfig> {
         let mut table = toml::Table::new();
         if let Some(path) = file {
-            let text = std::fs::read_to_string(path).map_err(|e| RlError::file(path, format!("cannot read: {e}")))?;
+            let text = read_config_text(path)?;
             table = text.parse::<toml::Table>().map_err(|e| RlError::file(path, format!("invalid TOML: {e}")))?;
         }
         let file_source = file.map(|p| p.display().to_string()).unwrap_or_else(|| "built-in".into());
@@ -161,6 +161,33 @@ impl TrainConfig {
     }
 }
 
+/// The largest configuration file read: 1 MiB (the built-in files are a few hundred bytes).
+pub const MAX_CONFIG_BYTES: u64 = 1 << 20;
+
+/// The largest sweep file read: 64 MiB (some million seeds).
+pub const MAX_SWEEP_BYTES: u64 = 64 << 20;
+
+/// The text of a configuration file of at most [`MAX_CONFIG_BYTES`] ([`read_text_file`]).
+pub fn read_config_text(path: &Path) -> Result<String> {
+    read_text_file(path, MAX_CONFIG_BYTES, "a configuration file")
+}
+
+/// The text of the file `path` of at most `max_bytes`, else an error naming the file and
+/// the limit, and saying what the file was expected to be (`what`): a file without end
+/// (`--config /dev/zero`, which used to be read until memory ran out) is refused after
+/// reading one byte more than the limit.
+pub fn read_text_file(path: &Path, max_bytes: u64, what: &str) -> Result<String> {
+    use std::io::Read;
+    let file = std::fs::File::open(path).map_err(|e| RlError::file(path, format!("cannot read: {e}")))?;
+    let mut bytes = Vec::new();
+    file.take(max_bytes + 1).read_to_end(&mut bytes).map_err(|e| RlError::file(path, format!("cannot read: {e}")))?;
+    if bytes.len() as u64 > max_bytes {
+        let mib = max_bytes as f64 / f64::from(1u32 << 20);
+        return Err(RlError::file(path, format!("larger than {max_bytes} bytes ({mib} MiB): too large for {what}")));
+    }
+    String::from_utf8(bytes).map_err(|e| RlError::file(path, format!("cannot read: not UTF-8 text ({e})")))
+}
+
 /// The error for a given field whose value does not have the field's type (`steps = -1`,
 /// `num_evals = "abc"`): the serde error alone names neither field nor value, so each given
 /// field is tried alone on the (valid) preset `base` and the first that fails is named.
@@ -169,10 +196,28 @@ fn wrong_type(source: &str, base: &toml::Table, given: &toml::Table, e: toml::de
         let mut one = base.clone();
         one.insert(k.clone(), v.clone());
         if let Err(e) = toml::Value::Table(one).try_into::<TrainConfig>() {
+            // An integer beyond TOML's (`--seed 9223372036854775808`) arrives as a string:
+            // serde's "invalid type: string" would hide the bound.
+            if let (Some(toml::Value::Integer(_)), toml::Value::String(s)) = (base.get(k), v)
+                && is_integer_text(s)
+            {
+                return RlError::config(
+                    source,
+                    k,
+                    s,
+                    "out of range: at most 9223372036854775807 (TOML integers are signed 64-bit)",
+                );
+            }
             return RlError::config(source, k, value_text(v), e.message());
         }
     }
     RlError::config(source, "(several)", "", e.message())
+}
+
+/// Whether `s` is an integer in decimal (an optional sign, then digits), of any size.
+fn is_integer_text(s: &str) -> bool {
+    let digits = s.strip_prefix(['-', '+']).unwrap_or(s);
+    !digits.is_empty() && digits.bytes().all(|b| b.is_ascii_digit())
 }
 
 /// A TOML value as the user wrote it, strings without their quotes.
@@ -232,6 +277,43 @@ mod tests {
         std::fs::write(&path, "model = \"mlp_hn\"\nepochs = \"four\"\n").unwrap();
         let e = TrainConfig::resolve(None, Some(&path), &[]).unwrap_err().to_string();
         assert!(e.starts_with(&format!("{}: field `epochs` = \"four\": ", path.display())), "{e}");
+    }
+
+    /// Issue 44 item 12: `--seed 9223372036854775808` said "invalid type: string, expected
+    /// u64"; the bound is now named with the field and the value.
+    #[test]
+    fn an_integer_beyond_toml_names_the_bound() {
+        for (field, value) in [("seed", "9223372036854775808"), ("steps", "99999999999999999999999")] {
+            let ov = vec![(field.to_string(), value.to_string())];
+            let e = TrainConfig::resolve(None, None, &ov).unwrap_err().to_string();
+            assert!(e.contains(&format!("field `{field}` = \"{value}\"")), "{e}");
+            assert!(e.contains("at most 9223372036854775807"), "{e}");
+        }
+        // A string that is not a number keeps serde's message.
+        let ov = vec![("seed".to_string(), "12a".to_string())];
+        let e = TrainConfig::resolve(None, None, &ov).unwrap_err().to_string();
+        assert!(e.contains("field `seed` = \"12a\"") && e.contains("u64"), "{e}");
+    }
+
+    /// Issue 44 item 12: `--config /dev/zero` was read until memory ran out. A file above
+    /// 1 MiB is refused, named; one of 1 MiB is read.
+    #[test]
+    fn a_configuration_file_above_one_mib_is_refused() {
+        let dir = crate::app::test_util::TempDir::new("big-config");
+        let path = dir.0.join("big.toml");
+        let line = "# padding\n";
+        let fill = line.repeat((MAX_CONFIG_BYTES as usize) / line.len());
+        let exact = format!("{fill}{}", "#".repeat(MAX_CONFIG_BYTES as usize - fill.len()));
+        std::fs::write(&path, &exact).unwrap();
+        assert_eq!(read_config_text(&path).unwrap().len() as u64, MAX_CONFIG_BYTES);
+        std::fs::write(&path, format!("{exact}\n")).unwrap();
+        let e = TrainConfig::resolve(None, Some(&path), &[]).unwrap_err().to_string();
+        assert!(e.starts_with(&path.display().to_string()) && e.contains("1 MiB"), "{e}");
+        #[cfg(target_os = "linux")]
+        {
+            let e = TrainConfig::resolve(None, Some(Path::new("/dev/zero")), &[]).unwrap_err().to_string();
+            assert!(e.starts_with("/dev/zero: larger than"), "{e}");
+        }
     }
 
     #[test]

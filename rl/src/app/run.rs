@@ -141,14 +141,86 @@ fn metrics_upto(path: &std::path::Path, iteration: u64, layout: &MetricsLayout) 
     out
 }
 
+/// The most worker threads a training may ask for on a machine of `cores` cores:
+/// [`THREADS_PER_CORE`] per core, and at least [`MIN_THREADS_CAP`] (so that a sweep file
+/// written for a larger machine still runs on a laptop). Beyond it the threads only contend:
+/// on 2 cores, a run of 1.3 s took 22 to 31 s on 512 threads (issue 44 item 10).
+pub fn max_threads(cores: usize) -> usize {
+    cores.saturating_mul(THREADS_PER_CORE).max(MIN_THREADS_CAP)
+}
+
+/// Worker threads allowed per core ([`max_threads`]).
+pub const THREADS_PER_CORE: usize = 4;
+
+/// Worker threads allowed whatever the number of cores ([`max_threads`]).
+pub const MIN_THREADS_CAP: usize = 64;
+
+/// The cores this process may use (`std::thread::available_parallelism`, 1 if unknown).
+fn cores() -> usize {
+    std::thread::available_parallelism().map_or(1, |n| n.get())
+}
+
+/// Refuses `threads` above [`max_threads`] of `cores`, naming the value and the cores.
+fn check_threads(threads: usize, cores: usize) -> Result<()> {
+    let max = max_threads(cores);
+    if threads > max {
+        return Err(RlError::config(
+            "config",
+            "threads",
+            threads,
+            format!(
+                "at most {max} worker threads on this machine's {cores} cores (the larger of {THREADS_PER_CORE} per \
+                 core and {MIN_THREADS_CAP}; 0 uses every core, and results do not depend on it)"
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// Refuses to resume the checkpoint `c` (at `path`) under a budget of `config.steps` env
+/// steps that it has already passed, or that it has reached but was not trained to: the run
+/// would end at once without its final evaluation (`done.json` with `"final_eval": null`),
+/// and its `config.toml` would say a budget smaller than the steps done. A finished run
+/// resumed with its own budget, or a larger one, passes.
+fn check_budget(c: &Checkpoint, config: &TrainConfig, path: &std::path::Path) -> Result<()> {
+    let total = config.iterations();
+    let own_total = c.config.iterations();
+    let done = format!(
+        "the {} env steps ({} iterations) this run has already done of its budget of {}",
+        c.env_steps, c.iteration, c.config.steps
+    );
+    let message = if c.iteration > total {
+        format!(
+            "a budget of {} env steps ({total} iterations) is below {done}: {}",
+            config.steps,
+            if own_total > c.iteration {
+                format!("give more than {} steps", c.env_steps)
+            } else {
+                format!("the run is finished; give at least {} steps", c.config.steps)
+            }
+        )
+    } else if c.iteration == total && own_total > c.iteration {
+        format!(
+            "a budget of {} env steps ({total} iterations) is not more than {done}: the run would end without its \
+             final evaluation; give more than {} steps",
+            config.steps, c.env_steps
+        )
+    } else {
+        return Ok(());
+    };
+    Err(RlError::config(path.display().to_string(), "steps", config.steps, message))
+}
+
 /// Trains `config` in `run`: from scratch, or from the run's checkpoint (module docs). The
 /// resolved configuration goes to `config.toml`, a row per iteration to `metrics.csv`, the
 /// state to `checkpoint.json` and the summary to `done.json` at the end. A run whose
-/// `done.json` exists and whose steps are reached returns its summary at once. The run
+/// `done.json` exists and whose steps are reached returns its summary at once; a budget not
+/// above the steps a checkpoint has done is refused before anything is written. The run
 /// directory is locked while training ([`RunLock`]: a second training of it fails at once,
 /// naming the holder); temporary files of interrupted writes are removed first.
 pub fn train(config: &TrainConfig, run: &RunDir, options: &TrainOptions) -> Result<RunSummary> {
     let threads = config.threads;
+    check_threads(threads, cores())?;
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build()
@@ -171,6 +243,7 @@ fn train_in_pool(config: &TrainConfig, run: &RunDir, options: &TrainOptions) -> 
     remove_stale_temporaries(run.root(), &lock)?;
     let (mut trainer, wall_before, mut last_evals) = if ckpt_path.is_file() {
         let c = Checkpoint::load(&ckpt_path)?;
+        check_budget(&c, config, &ckpt_path)?;
         let t = Trainer::from_checkpoint(&c, config, &ckpt_path)?;
         let evals: Vec<EvalSummary> = c.last_eval.iter().chain(&c.last_eval_rotated).cloned().collect();
         (t, c.wall_s, evals)
@@ -262,6 +335,21 @@ fn train_in_pool(config: &TrainConfig, run: &RunDir, options: &TrainOptions) -> 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Issue 44 item 10: `--threads 512` on 2 cores was taken, and the run took 20 times as
+    /// long. Above 4 per core (and above 64) it is refused, naming the cores.
+    #[test]
+    fn threads_are_bounded_by_the_cores() {
+        assert_eq!(max_threads(2), 64);
+        assert_eq!(max_threads(32), 128);
+        check_threads(0, 2).unwrap();
+        check_threads(64, 2).unwrap();
+        check_threads(128, 32).unwrap();
+        let e = check_threads(512, 2).unwrap_err().to_string();
+        assert!(e.contains("`threads` = \"512\"") && e.contains("at most 64") && e.contains("2 cores"), "{e}");
+        assert!(check_threads(usize::MAX, usize::MAX).is_ok());
+        assert!(check_threads(129, 32).is_err());
+    }
 
     #[test]
     fn evaluations_are_evenly_spaced_and_end_at_the_end() {

@@ -95,6 +95,50 @@ impl RunDir {
     }
 }
 
+/// The names of the files a run directory keeps (module docs), which no other output may
+/// take: `eval*.json` (`meben eval`'s results) besides these.
+pub const RUN_FILES: [&str; 7] = [
+    "config.toml",
+    "metrics.csv",
+    "checkpoint.json",
+    "curve.svg",
+    "done.json",
+    crate::app::build_info::BUILDS_FILE,
+    crate::app::lock::LOCK_FILE,
+];
+
+/// Whether `name` is the name of one of a run directory's own files: [`RUN_FILES`] or an
+/// evaluation's `eval*.json`.
+pub fn is_run_file_name(name: &str) -> bool {
+    RUN_FILES.contains(&name) || (name.starts_with("eval") && name.ends_with(".json"))
+}
+
+/// Refuses `out` as the output of another command (`meben render --out`) when it is one of
+/// a run directory's own files ([`is_run_file_name`] in a directory holding a `config.toml`
+/// or a `checkpoint.json`): writing it would replace the run's metrics, configuration or
+/// checkpoint. Paths are compared canonicalised (through `..` and symbolic links); the error
+/// names `option`, the path and the run directory.
+pub fn check_not_a_run_file(option: &str, out: &Path) -> Result<()> {
+    // Where `out` leads: the file itself if it exists (a link to a run's file), else its
+    // parent directory, canonicalised, and its name.
+    let target = out.canonicalize().ok().or_else(|| {
+        let parent = out.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+        Some(parent.canonicalize().ok()?.join(out.file_name()?))
+    });
+    let Some(target) = target else { return Ok(()) };
+    let (Some(dir), Some(name)) = (target.parent(), target.file_name().and_then(|n| n.to_str())) else {
+        return Ok(());
+    };
+    let run = RunDir::new(dir);
+    if is_run_file_name(name) && (run.config().is_file() || run.checkpoint().is_file()) {
+        return Err(RlError::file(
+            out,
+            format!("{option} would overwrite the run directory {}'s own {name}; write to another file", dir.display()),
+        ));
+    }
+    Ok(())
+}
+
 /// The trained teams of a run directory (its `config.toml` and `checkpoint.json`): the
 /// models with their parameters and normalisers, ready for [`crate::mappo::evaluate::evaluate`] or
 /// rendering.
@@ -129,4 +173,39 @@ pub fn load_policies(run: &RunDir) -> Result<(TrainConfig, Vec<Team>)> {
         teams.push(t);
     }
     Ok((config, teams))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Issue 44 item 8: `meben render --out RUN/metrics.csv` replaced the run's metrics with
+    /// body poses. Every file of a run directory is refused, by any path that leads to it.
+    #[test]
+    fn a_run_directorys_own_files_are_refused_as_outputs() {
+        let dir = crate::app::test_util::TempDir::new("run-files");
+        let run = dir.0.join("run");
+        std::fs::create_dir_all(run.join("sub")).unwrap();
+        std::fs::write(run.join("config.toml"), "").unwrap();
+        std::fs::write(run.join("metrics.csv"), "iteration\n1\n").unwrap();
+        let refused = |p: &Path| {
+            let e = check_not_a_run_file("--out", p).unwrap_err().to_string();
+            assert!(e.starts_with(&p.display().to_string()) && e.contains("--out") && e.contains("own"), "{e}");
+        };
+        for name in RUN_FILES.iter().copied().chain(["eval.json", "eval_rotate180.json"]) {
+            refused(&run.join(name));
+        }
+        refused(&run.join("sub").join("..").join("metrics.csv"));
+        #[cfg(unix)]
+        {
+            let link = dir.0.join("poses.csv");
+            std::os::unix::fs::symlink(run.join("metrics.csv"), &link).unwrap();
+            refused(&link);
+        }
+        // Other files of the run directory, and a metrics.csv outside any run, are fine.
+        check_not_a_run_file("--out", &run.join("episode.csv")).unwrap();
+        check_not_a_run_file("--out", &run.join("sub").join("metrics.csv")).unwrap();
+        check_not_a_run_file("--out", &dir.0.join("metrics.csv")).unwrap();
+        check_not_a_run_file("--out", Path::new("/no/such/dir/metrics.csv")).unwrap();
+    }
 }

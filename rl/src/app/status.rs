@@ -18,6 +18,7 @@
 //! evaluated) borrows, as an estimate, the median of the runs of the same environment, model
 //! and opponent that have one (none: unknown).
 
+use std::collections::{HashMap, HashSet};
 use std::path::{Path, PathBuf};
 
 use crate::app::lock::holder;
@@ -92,27 +93,37 @@ pub fn status(root: &Path) -> Result<Vec<RunProgress>> {
         runs.push((run_progress(root, dir, &config)?, config));
     }
     if let Some(sweep) = sweep {
+        // Sets and maps keyed by name and by group, not searches of `runs`: a sweep of 10k
+        // queued runs took 20 s (issue 44 item 9).
+        let mut known: HashSet<PathBuf> = runs.iter().map(|(r, _)| r.run.clone()).collect();
         for queued in sweep.runs()? {
-            if !runs.iter().any(|(r, _)| r.run == Path::new(&queued.name)) {
+            if known.insert(PathBuf::from(&queued.name)) {
                 runs.push((queued_run(&queued.name, &queued.config), queued.config));
             }
         }
     }
     // Runs without a speed or an evaluation cost of their own borrow their siblings'
-    // median, as an estimate.
-    let same = |a: &TrainConfig, b: &TrainConfig| a.env == b.env && a.model == b.model && a.opponent == b.opponent;
-    let borrow = |c: &TrainConfig, own: fn(&RunProgress) -> Option<f64>| {
-        median(runs.iter().filter(|(_, oc)| same(c, oc)).filter_map(|(o, _)| own(o)))
-    };
+    // median (runs of the same env, model and opponent), as an estimate.
+    let group = |c: &TrainConfig| (c.env.clone(), c.model.clone(), c.opponent.clone());
+    type Group = (String, String, String);
+    let mut siblings: HashMap<Group, (Vec<f64>, Vec<f64>)> = HashMap::new();
+    for (r, c) in &runs {
+        let (speeds, evals) = siblings.entry(group(c)).or_default();
+        speeds.extend(r.steps_per_s);
+        evals.extend(r.eval_s);
+    }
+    let medians: HashMap<_, (Option<f64>, Option<f64>)> = siblings
+        .into_iter()
+        .map(|(k, (speeds, evals))| (k, (median(speeds.into_iter()), median(evals.into_iter()))))
+        .collect();
     let estimates: Vec<(Option<f64>, Option<f64>)> = runs
         .iter()
         .map(|(r, c)| {
             if r.state == RunState::Finished {
                 return (None, None);
             }
-            let speed = if r.steps_per_s.is_none() { borrow(c, |o| o.steps_per_s) } else { None };
-            let eval_s = if r.eval_s.is_none() { borrow(c, |o| o.eval_s) } else { None };
-            (speed, eval_s)
+            let (speed, eval_s) = medians.get(&group(c)).copied().unwrap_or_default();
+            (speed.filter(|_| r.steps_per_s.is_none()), eval_s.filter(|_| r.eval_s.is_none()))
         })
         .collect();
     Ok(runs

@@ -193,7 +193,8 @@ pub struct TrainConfig {
     /// Write a checkpoint every this many iterations (and after every evaluation and at the
     /// end; 0: only then).
     pub checkpoint_every: usize,
-    /// Worker threads (0: every core). Results do not depend on it.
+    /// Worker threads (0: every core). Results do not depend on it. Training refuses more
+    /// than [`crate::app::run::max_threads`] (4 per core, at least 64).
     pub threads: usize,
     /// Where the updates run: `cpu` (default) or `gpu` (a build with the feature `gpu`;
     /// [`crate::mappo::device`]). Like `threads`, not part of the run's identity: a run
@@ -207,7 +208,7 @@ impl TrainConfig {
     /// Reads a resolved configuration written by [`TrainConfig::save`] (a run's
     /// `config.toml`); every field must be present.
     pub fn load(path: &Path) -> Result<TrainConfig> {
-        let text = std::fs::read_to_string(path).map_err(|e| RlError::file(path, format!("cannot read: {e}")))?;
+        let text = crate::app::presets::read_config_text(path)?;
         let config: TrainConfig =
             toml::from_str(&text).map_err(|e| RlError::file(path, format!("invalid run configuration: {e}")))?;
         config.validate(&path.display().to_string())?;
