@@ -99,21 +99,7 @@ pub(crate) fn reduce<T: Float>(x: &Tensor<T>, op: ReduceOp, axis: Option<usize>,
     match x.device() {
         Device::Cpu => reduce::reduce(x, op, axis, keepdim),
         Device::Gpu => on_gpu! {
-            let name = match op {
-                ReduceOp::Sum => "sum",
-                ReduceOp::Mean => "mean",
-                ReduceOp::Max => "max",
-            };
-            if let Some(a) = axis {
-                check_axis(name, a, x.shape())?;
-            }
-            let (outer, len, inner) = match axis {
-                Some(a) => split_at_axis(x.shape(), a),
-                None => (1, x.numel(), 1),
-            };
-            if len == 0 && op != ReduceOp::Sum {
-                return Err(invalid(name, format!("cannot reduce an empty axis of shape {:?}", x.shape())));
-            }
+            let (outer, len, inner) = reduce::reduce_plan(x.shape(), op, axis)?;
             let scale = if op == ReduceOp::Mean { 1.0 / len as f64 } else { 1.0 };
             let y = crate::gpu::ops::reduce::reduce_axis(dev::buf(x), outer, len, inner, op == ReduceOp::Max, scale);
             Ok(dev::out(y, reduce::reduced_shape(x.shape(), axis, keepdim)))

@@ -164,26 +164,24 @@ impl<T: Float> GradStore<T> {
             matmul::matmul_into(slot, accumulate, l.data(), tl, r.data(), tr, plan);
             return Ok(());
         }
-        on_gpu_only(|| {
-            #[cfg(feature = "gpu")]
-            {
-                let (l, r) = (l.to_device(crate::Device::Gpu)?, r.to_device(crate::Device::Gpu)?);
-                let (slot, accumulate) = self.device_slot(target, len, false);
-                let (lb, rb) = (l.device_buffer().expect("placed"), r.device_buffer().expect("placed"));
-                crate::gpu::ops::matmul::matmul_into(
-                    slot,
-                    accumulate,
-                    lb,
-                    tl,
-                    rb,
-                    tr,
-                    plan,
-                    None,
-                    crate::op::Activation::Identity,
-                );
-            }
-            Ok(())
-        })
+        #[cfg(feature = "gpu")]
+        {
+            let (l, r) = (l.to_device(crate::Device::Gpu)?, r.to_device(crate::Device::Gpu)?);
+            let (slot, accumulate) = self.device_slot(target, len, false);
+            let (lb, rb) = (l.device_buffer().expect("placed"), r.device_buffer().expect("placed"));
+            crate::gpu::ops::matmul::matmul_into(
+                slot,
+                accumulate,
+                lb,
+                tl,
+                rb,
+                tr,
+                plan,
+                None,
+                crate::op::Activation::Identity,
+            );
+        }
+        Ok(())
     }
 
     /// The gradients of a batch of tiny products on the host in one pass (a CPU fast path:
@@ -251,26 +249,24 @@ impl<T: Float> GradStore<T> {
             layout::narrow_backward_into(slot, x_shape, g.data(), axis, start);
             return Ok(());
         }
-        on_gpu_only(|| {
-            #[cfg(feature = "gpu")]
-            {
-                let g = g.to_device(crate::Device::Gpu)?;
-                let (outer, n, inner) = split_at_axis(x_shape, axis);
-                let len = g.shape()[axis];
-                let block = crate::gpu::ops::layout::Block {
-                    outer,
-                    inner,
-                    len,
-                    src_n: len,
-                    src_start: 0,
-                    dst_n: n,
-                    dst_start: start,
-                };
-                let (slot, _) = self.device_slot(x, numel(x_shape), true);
-                crate::gpu::ops::layout::block_copy_into(slot, g.device_buffer().expect("placed"), block, true);
-            }
-            Ok(())
-        })
+        #[cfg(feature = "gpu")]
+        {
+            let g = g.to_device(crate::Device::Gpu)?;
+            let (outer, n, inner) = split_at_axis(x_shape, axis);
+            let len = g.shape()[axis];
+            let block = crate::gpu::ops::layout::Block {
+                outer,
+                inner,
+                len,
+                src_n: len,
+                src_start: 0,
+                dst_n: n,
+                dst_start: start,
+            };
+            let (slot, _) = self.device_slot(x, numel(x_shape), true);
+            crate::gpu::ops::layout::block_copy_into(slot, g.device_buffer().expect("placed"), block, true);
+        }
+        Ok(())
     }
 
     /// Adds entries `start..start+len` of `axis` of `g` (a concatenation's gradient) to the
@@ -289,25 +285,23 @@ impl<T: Float> GradStore<T> {
             layout::narrow_add_into(slot, accumulate, g.data(), g.shape(), axis, start, len);
             return Ok(());
         }
-        on_gpu_only(|| {
-            #[cfg(feature = "gpu")]
-            {
-                let g = g.to_device(crate::Device::Gpu)?;
-                let (outer, n, inner) = split_at_axis(g.shape(), axis);
-                let block = crate::gpu::ops::layout::Block {
-                    outer,
-                    inner,
-                    len,
-                    src_n: n,
-                    src_start: start,
-                    dst_n: len,
-                    dst_start: 0,
-                };
-                let (slot, accumulate) = self.device_slot(x, len_x, false);
-                crate::gpu::ops::layout::block_copy_into(slot, g.device_buffer().expect("placed"), block, accumulate);
-            }
-            Ok(())
-        })
+        #[cfg(feature = "gpu")]
+        {
+            let g = g.to_device(crate::Device::Gpu)?;
+            let (outer, n, inner) = split_at_axis(g.shape(), axis);
+            let block = crate::gpu::ops::layout::Block {
+                outer,
+                inner,
+                len,
+                src_n: n,
+                src_start: start,
+                dst_n: len,
+                dst_start: 0,
+            };
+            let (slot, accumulate) = self.device_slot(x, len_x, false);
+            crate::gpu::ops::layout::block_copy_into(slot, g.device_buffer().expect("placed"), block, accumulate);
+        }
+        Ok(())
     }
 
     /// Adds `g` at the entries `idx` of an axis (`(outer, n, inner)` of `x`'s shape) to the
@@ -325,15 +319,13 @@ impl<T: Float> GradStore<T> {
             index::index_add_into(slot, n, g.data(), idx.len(), outer, inner, idx);
             return Ok(());
         }
-        on_gpu_only(|| {
-            #[cfg(feature = "gpu")]
-            {
-                let g = g.to_device(crate::Device::Gpu)?;
-                let (slot, _) = self.device_slot(x, len, true);
-                crate::gpu::ops::index::index_add_into(slot, n, g.device_buffer().expect("placed"), outer, inner, idx);
-            }
-            Ok(())
-        })
+        #[cfg(feature = "gpu")]
+        {
+            let g = g.to_device(crate::Device::Gpu)?;
+            let (slot, _) = self.device_slot(x, len, true);
+            crate::gpu::ops::index::index_add_into(slot, n, g.device_buffer().expect("placed"), outer, inner, idx);
+        }
+        Ok(())
     }
 
     /// Adds `g` to the gradient of `x` at the gathered positions: the adjoint of a gather.
@@ -350,25 +342,23 @@ impl<T: Float> GradStore<T> {
             index::gather_backward_into(slot, x_shape, axis, g.data(), idx);
             return Ok(());
         }
-        on_gpu_only(|| {
-            #[cfg(feature = "gpu")]
-            {
-                let g = g.to_device(crate::Device::Gpu)?;
-                let (outer, n, inner) = split_at_axis(x_shape, axis);
-                let m = g.shape()[axis];
-                let (slot, _) = self.device_slot(x, numel(x_shape), true);
-                crate::gpu::ops::index::gather_backward_into(
-                    slot,
-                    outer,
-                    n,
-                    inner,
-                    m,
-                    g.device_buffer().expect("placed"),
-                    idx,
-                );
-            }
-            Ok(())
-        })
+        #[cfg(feature = "gpu")]
+        {
+            let g = g.to_device(crate::Device::Gpu)?;
+            let (outer, n, inner) = split_at_axis(x_shape, axis);
+            let m = g.shape()[axis];
+            let (slot, _) = self.device_slot(x, numel(x_shape), true);
+            crate::gpu::ops::index::gather_backward_into(
+                slot,
+                outer,
+                n,
+                inner,
+                m,
+                g.device_buffer().expect("placed"),
+                idx,
+            );
+        }
+        Ok(())
     }
 
     /// Removes and returns node `id`'s gradient, shaped like its value.
@@ -402,12 +392,6 @@ fn host_mut<T: Float>(g: &mut Option<Grad<T>>) -> &mut [T] {
 /// Whether `t` is on the GPU.
 fn on_device<T: Float>(t: &Tensor<T>) -> bool {
     t.device() == crate::Device::Gpu
-}
-
-/// Runs the GPU arm of an accumulation (only reachable with the `gpu` feature, since only then
-/// can a value be on the device).
-fn on_gpu_only(f: impl FnOnce() -> Result<()>) -> Result<()> {
-    f()
 }
 
 /// A contribution as a gradient buffer (no copy when the tensor's storage is not shared).

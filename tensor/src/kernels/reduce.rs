@@ -27,23 +27,30 @@ pub fn reduced_shape(shape: &[usize], axis: Option<usize>, keepdim: bool) -> Vec
     }
 }
 
-/// Reduces `x` with `op` over `axis` (or everything).
-pub fn reduce<T: Float>(x: &Tensor<T>, op: ReduceOp, axis: Option<usize>, keepdim: bool) -> Result<Tensor<T>> {
+/// Checks a reduction of a tensor of `shape` and returns its `(outer, len, inner)` view
+/// (every device's kernel reads the input that way).
+pub(crate) fn reduce_plan(shape: &[usize], op: ReduceOp, axis: Option<usize>) -> Result<(usize, usize, usize)> {
     let name = match op {
         ReduceOp::Sum => "sum",
         ReduceOp::Mean => "mean",
         ReduceOp::Max => "max",
     };
     if let Some(a) = axis {
-        check_axis(name, a, x.shape())?;
+        check_axis(name, a, shape)?;
     }
     let (outer, len, inner) = match axis {
-        Some(a) => split_at_axis(x.shape(), a),
-        None => (1, x.numel(), 1),
+        Some(a) => split_at_axis(shape, a),
+        None => (1, shape.iter().product(), 1),
     };
     if len == 0 && op != ReduceOp::Sum {
-        return Err(invalid(name, format!("cannot reduce an empty axis of shape {:?}", x.shape())));
+        return Err(invalid(name, format!("cannot reduce an empty axis of shape {shape:?}")));
     }
+    Ok((outer, len, inner))
+}
+
+/// Reduces `x` with `op` over `axis` (or everything).
+pub fn reduce<T: Float>(x: &Tensor<T>, op: ReduceOp, axis: Option<usize>, keepdim: bool) -> Result<Tensor<T>> {
+    let (outer, len, inner) = reduce_plan(x.shape(), op, axis)?;
     let out_shape = reduced_shape(x.shape(), axis, keepdim);
     let data = match (op, axis) {
         (ReduceOp::Max, _) => max_axis(x.data(), outer, len, inner),

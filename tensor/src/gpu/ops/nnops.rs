@@ -20,8 +20,9 @@ const SOFTMAX: Kernel = kernel!("nn_softmax", "nn_softmax.wgsl");
 const SOFTMAX_BACKWARD: Kernel = kernel!("nn_softmax_backward", "nn_softmax_backward.wgsl");
 const NORM_LAST: Kernel = kernel!("nn_norm_last", "nn_fns.wgsl", "nn_norm_last.wgsl");
 const NORM_LAST_BACKWARD: Kernel = kernel!("nn_norm_last_backward", "nn_norm_last_backward.wgsl");
-const STANDARDIZE: Kernel = kernel!("nn_standardize", "nn_fns.wgsl", "nn_standardize.wgsl");
-const STANDARDIZE_BACKWARD: Kernel = kernel!("nn_standardize_backward", "nn_fns.wgsl", "nn_standardize_backward.wgsl");
+const STANDARDIZE: Kernel = kernel!("nn_standardize", "nn_fns.wgsl", "nn_row_stats.wgsl", "nn_standardize.wgsl");
+const STANDARDIZE_BACKWARD: Kernel =
+    kernel!("nn_standardize_backward", "nn_fns.wgsl", "nn_row_stats.wgsl", "nn_standardize_backward.wgsl");
 
 /// The number of rows of length `n` in `len` values (0 when `n` is 0).
 fn rows(len: usize, n: usize) -> usize {
