@@ -29,8 +29,8 @@ use std::time::Instant;
 #[global_allocator]
 static ALLOC: mimalloc::MiMalloc = mimalloc::MiMalloc;
 
-use rl::ppo::{self, LossTerms, PpoParams};
-use rl::rollout::MinibatchBuf;
+use rl::minibatch::Minibatch;
+use rl::ppo::{self, PpoParams};
 use rl::{Preset, TrainConfig, Trainer};
 use tensor::{Tape, Tensor};
 
@@ -78,24 +78,18 @@ fn median(xs: &[f64]) -> f64 {
 /// one untimed pass).
 fn minibatch_flops(t: &Trainer, c: &TrainConfig, reps: usize) -> Result<(u64, f64), Box<dyn std::error::Error>> {
     let ids: Vec<usize> = (0..c.batch_size).collect();
-    let mut mb = MinibatchBuf::default();
+    let mut mb = Minibatch::default();
     t.rollout().gather(&ids, 0, &mut mb);
-    let spec = &t.spec;
     let team = &t.teams[0];
-    let mut obs = models::layout::Observation::empty(0, 0);
-    team.norm.apply_rows(mb.obs.rows(), &mut obs);
+    mb.normalise(&team.norm);
     let hp = PpoParams::from_config(c);
     // One forward-and-backward pass of the minibatch on `tape`.
     let pass = |tape: &Tape<f32>| -> Result<(), Box<dyn std::error::Error>> {
         let p = team.store.bind(tape);
         let mut model = team.model.clone();
         let mut noise = rl::seeding::minibatch_stream(c.seed, "entropy", 0, 0, 0, 0);
-        let mb = mb.view(obs.rows());
-        let fwd = ppo::forward(&mut model, &p, &mb)?;
-        let adv_targets = ppo::advantages(&mb, &fwd, &hp);
-        let terms = LossTerms::new(&fwd, &mb, spec, adv_targets, hp.entropy, &mut noise)?;
-        let loss = ppo::ppo_loss(&terms, &hp)?;
-        std::hint::black_box(tape.backward(loss.total)?);
+        let (loss, _) = ppo::loss(&mut model, &p, &mb, &hp, &mut noise)?;
+        std::hint::black_box(tape.backward(loss)?);
         Ok(())
     };
     let mut times = Vec::new();

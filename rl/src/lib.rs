@@ -37,7 +37,7 @@ pub use stop::StopFlag;
 
 // The paths from before the split into `mappo` and `app`.
 pub use app::{curve, export, info, lock, metrics, plot, progress, report, run_dir, status, sweep};
-pub use mappo::{actor, checksum, evaluate, gae, memory, normalizer, ppo, rollout, seeding, team};
+pub use mappo::{actor, checksum, evaluate, gae, memory, minibatch, normalizer, ppo, rollout, seeding, team};
 
 /// The configuration (path from before the split): [`mappo::config`] and the presets of
 /// [`app::presets`].

@@ -23,7 +23,6 @@ use std::path::Path;
 
 use common::{TempDir, metrics};
 use rl::checkpoint::Checkpoint;
-use rl::ppo::LossStats;
 use rl::{RunDir, TrainConfig, TrainOptions, Trainer, train};
 use tensor::Device;
 
@@ -49,20 +48,6 @@ fn close(name: &str, gpu: f64, cpu: f64) -> bool {
     (gpu - cpu).abs() <= atol + 1e-4 * cpu.abs()
 }
 
-fn named(s: &LossStats) -> [(&'static str, f64); 9] {
-    [
-        ("loss", s.loss),
-        ("policy_loss", s.policy_loss),
-        ("value_loss", s.value_loss),
-        ("entropy", s.entropy),
-        ("approx_kl", s.approx_kl),
-        ("clip_fraction", s.clip_fraction),
-        ("explained_variance", s.explained_variance),
-        ("mean_ratio", s.mean_ratio),
-        ("mean_advantage", s.mean_advantage),
-    ]
-}
-
 /// Three iterations of each model on the CPU; before each, the CPU's state goes to a GPU
 /// trainer that does the same iteration: the same rollout, the update's metrics and the
 /// parameters within the tolerance (module docs).
@@ -77,7 +62,7 @@ fn gpu_iterations_follow_the_cpu_from_the_same_state() {
             let g = gpu.iterate().unwrap();
             let c = cpu.iterate().unwrap();
             assert_eq!(g.episodes, c.episodes, "{model}, iteration {i}: the act step runs on the CPU");
-            for ((name, a), (_, b)) in named(&g.losses[0]).iter().zip(named(&c.losses[0])) {
+            for ((name, a), (_, b)) in g.losses[0].named().iter().zip(c.losses[0].named()) {
                 assert!(close(name, *a, b), "{model}, iteration {i}: {name} {a} on the GPU, {b} on the CPU");
             }
             let (pg, pc) = (gpu.teams[0].store.values(), cpu.teams[0].store.values());

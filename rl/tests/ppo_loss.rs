@@ -5,57 +5,36 @@
 mod common;
 
 use models::distribution::std_from_scale;
-use models::layout::Observation;
-use nn::Bound;
-use rl::gae::{Unrolls, gae};
-use rl::ppo::{self, LossStats, LossTerms, Minibatch, PpoParams};
-use rl::rollout::{MinibatchBuf, NO_FINAL};
+use rl::gae::gae;
+use rl::minibatch::Minibatch;
+use rl::ppo::{self, PpoParams};
 use rl::seeding::{minibatch_stream, standard_normal};
 use rl::{EntropyKind, TrainConfig, Trainer};
 use tensor::Tape;
-use tensor::Var;
-
-/// The loss of one minibatch as the trainer takes it: forward, GAE, the loss terms, the
-/// PPO loss and its diagnostics.
-fn minibatch_loss<'t>(
-    model: &mut models::Model,
-    p: &Bound<'t, f32>,
-    mb: &Minibatch<'_>,
-    hp: &PpoParams,
-    noise: &mut rand_chacha::ChaCha8Rng,
-) -> (Var<'t, f32>, LossStats) {
-    let fwd = ppo::forward(model, p, mb).unwrap();
-    let adv_targets = ppo::advantages(mb, &fwd, hp);
-    let terms = LossTerms::new(&fwd, mb, model.spec(), adv_targets, hp.entropy, noise).unwrap();
-    let loss = ppo::ppo_loss(&terms, hp).unwrap();
-    let stats = ppo::loss_stats(&loss, &terms, hp).unwrap();
-    (loss.total, stats)
-}
 
 fn params(c: &TrainConfig) -> PpoParams {
     PpoParams::from_config(c)
 }
 
 /// Collects one iteration without updating the normaliser and gathers team 0's first
-/// minibatch of the identity permutation.
-fn first_minibatch(config: &TrainConfig) -> (Trainer, MinibatchBuf) {
+/// minibatch of the identity permutation, normalised by the team's (frozen) normaliser.
+fn first_minibatch(config: &TrainConfig) -> (Trainer, Minibatch) {
     let mut t = Trainer::new(config).unwrap();
     t.collect().unwrap();
     let ids: Vec<usize> = (0..config.batch_size).collect();
-    let mut mb = MinibatchBuf::default();
+    let mut mb = Minibatch::default();
     t.rollout().gather(&ids, 0, &mut mb);
+    mb.normalise(&t.teams[0].norm);
     (t, mb)
 }
 
 /// The loss statistics of team 0 on `mb` under the trainer's current parameters.
-fn loss_stats(t: &mut Trainer, mb: &MinibatchBuf, config: &TrainConfig) -> rl::ppo::LossStats {
+fn loss_stats(t: &mut Trainer, mb: &Minibatch, config: &TrainConfig) -> rl::ppo::LossStats {
     let team = &mut t.teams[0];
-    let mut obs = Observation::empty(0, 0);
-    team.norm.apply_rows(mb.obs.rows(), &mut obs);
     let tape = Tape::<f32>::new();
     let p = team.store.bind(&tape);
     let mut noise = minibatch_stream(config.seed, "entropy", 0, 0, 0, 0);
-    minibatch_loss(&mut team.model, &p, &mb.view(obs.rows()), &params(config), &mut noise).1
+    ppo::loss(&mut team.model, &p, mb, &params(config), &mut noise).unwrap().1
 }
 
 #[test]
@@ -115,38 +94,21 @@ fn loss_matches_a_hand_computation(kind: EntropyKind) {
         *l += [0.5f32, -0.5, 0.05, 0.0][i % 4];
     }
     let team = &mut t.teams[0];
-    let mut obs = Observation::empty(0, 0);
-    team.norm.apply_rows(mb.obs.rows(), &mut obs);
     let hp = params(&config);
     let tape = Tape::<f32>::new();
     let p = team.store.bind(&tape);
     let noise = minibatch_stream(config.seed, "entropy", 0, 3, 1, 2);
-    let (loss, st) = minibatch_loss(&mut team.model.clone(), &p, &mb.view(obs.rows()), &hp, &mut noise.clone());
+    let (loss, st) = ppo::loss(&mut team.model.clone(), &p, &mb, &hp, &mut noise.clone()).unwrap();
     // The noise the Tanh-Normal estimate draws: per agent a [T M, dof] block in row order.
     let mut draws = noise;
 
     // The same model outputs, then every term by hand in f64.
     let tape2 = Tape::<f32>::new();
     let p2 = team.store.bind(&tape2);
-    let out = team.model.forward_batch(&p2, &obs.rows()).unwrap();
-    let (tl, m) = (mb.steps, mb.unrolls);
-    let n = tl * m;
+    let out = team.model.forward_batch(&p2, &mb.obs.rows()).unwrap();
+    let n = mb.transitions();
     let values = out.team_value().unwrap().value().to_vec();
-    let finals: Vec<f32> =
-        (0..n).map(|i| if mb.final_row[i] != NO_FINAL { values[mb.final_row[i] as usize] } else { 0.0 }).collect();
-    let (adv, targets) = gae(
-        &Unrolls {
-            steps: tl,
-            unrolls: m,
-            rewards: &mb.rewards,
-            terminated: &mb.terminated,
-            truncated: &mb.truncated,
-            values: &values[..(tl + 1) * m],
-            final_values: &finals,
-        },
-        hp.discount,
-        hp.gae_lambda,
-    );
+    let (adv, targets) = gae(&mb, &values, hp.discount, hp.gae_lambda);
     let na = mb.actions.len() / n;
     let (mut logp, mut ent) = (vec![0.0f64; n], 0.0f64);
     for a in &out.agents {
@@ -214,14 +176,12 @@ fn the_entropy_estimate_is_reproducible_from_the_minibatch_stream() {
     let config = common::tiny("team_reach/1_ant", "mlp_hn", 1, &[]);
     let (mut t, mb) = first_minibatch(&config);
     let team = &mut t.teams[0];
-    let mut obs = Observation::empty(0, 0);
-    team.norm.apply_rows(mb.obs.rows(), &mut obs);
     let mut run = |kind: EntropyKind, minibatch: u64| {
         let tape = Tape::<f32>::new();
         let p = team.store.bind(&tape);
         let hp = PpoParams { entropy: kind, ..params(&config) };
         let mut noise = minibatch_stream(config.seed, "entropy", 0, 0, 0, minibatch);
-        let (loss, st) = minibatch_loss(&mut team.model, &p, &mb.view(obs.rows()), &hp, &mut noise);
+        let (loss, st) = ppo::loss(&mut team.model, &p, &mb, &hp, &mut noise).unwrap();
         (loss.value().item().unwrap().to_bits(), st.entropy.to_bits())
     };
     let a = run(EntropyKind::TanhNormal, 0);

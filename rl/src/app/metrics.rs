@@ -2,7 +2,8 @@
 //! (empty cells where a value does not apply, e.g. team 1 of Team Reach, or was not
 //! measured, e.g. evaluation columns between evaluations).
 //!
-//! The layout is [`COLUMNS`], then, for every rotation of the configuration's
+//! The layout is [`COLUMNS`], then the loss statistics of each team ([`loss_columns`]: the
+//! recorded ones of [`LossStats`] with the suffix `_t0`, then `_t1`), then, for every rotation of the configuration's
 //! `eval_rotations` after the first (which is 0 and uses the plain `eval_*` columns), the
 //! [`EVAL_COLUMNS`] with the suffix `_rot<degrees>` ([`eval_column`]): e.g.
 //! `eval_success_rate_rot180`. The header line names the columns, so readers
@@ -10,11 +11,12 @@
 
 use std::collections::BTreeMap;
 
-/// The columns of every run, in file order. `_t0`/`_t1` are teams 0 and 1; `train_*` are
-/// episodes that ended during collection in this iteration, `eval_*` an evaluation run at
-/// the end of this iteration (the first of `eval_rotations`, i.e. unrotated;
-/// `eval_sampled` is 1 when it sampled actions, 0 when it took the mean action), the losses
-/// the means over the iteration's minibatches.
+use crate::mappo::ppo::LossStats;
+
+/// The columns of every run before the losses, in file order. `_t0`/`_t1` are teams 0 and
+/// 1; `train_*` are episodes that ended during collection in this iteration, `eval_*` an
+/// evaluation run at the end of this iteration (the first of `eval_rotations`, i.e.
+/// unrotated; `eval_sampled` is 1 when it sampled actions, 0 when it took the mean action).
 pub const COLUMNS: &[&str] = &[
     "iteration",
     "env_steps",
@@ -38,19 +40,19 @@ pub const COLUMNS: &[&str] = &[
     "eval_return_t0",
     "eval_return_t1",
     "eval_length",
-    "policy_loss_t0",
-    "value_loss_t0",
-    "entropy_t0",
-    "approx_kl_t0",
-    "clip_fraction_t0",
-    "explained_variance_t0",
-    "policy_loss_t1",
-    "value_loss_t1",
-    "entropy_t1",
-    "approx_kl_t1",
-    "clip_fraction_t1",
-    "explained_variance_t1",
 ];
+
+/// The column of loss statistic `name` (one of [`LossStats::RECORDED`]) of team `team`:
+/// `policy_loss_t0`.
+pub fn loss_column(name: &str, team: usize) -> String {
+    format!("{name}_t{team}")
+}
+
+/// The loss columns of both teams, in file order: the means over the iteration's minibatches
+/// of [`LossStats::RECORDED`], team 0's then team 1's.
+pub fn loss_columns() -> Vec<String> {
+    (0..2).flat_map(|team| LossStats::RECORDED.iter().map(move |name| loss_column(name, team))).collect()
+}
 
 /// The evaluation columns repeated, with a suffix, for every further rotation.
 pub const EVAL_COLUMNS: &[&str] = &[
@@ -100,16 +102,18 @@ pub struct MetricsLayout {
 }
 
 impl Default for MetricsLayout {
-    /// The layout of a run evaluated without rotations: [`COLUMNS`].
+    /// The layout of a run evaluated without rotations: [`COLUMNS`] and the [`loss_columns`].
     fn default() -> Self {
         MetricsLayout::new(&[0.0])
     }
 }
 
 impl MetricsLayout {
-    /// [`COLUMNS`], then the [`EVAL_COLUMNS`] of every rotation after the first.
+    /// [`COLUMNS`], the [`loss_columns`], then the [`EVAL_COLUMNS`] of every rotation after
+    /// the first.
     pub fn new(eval_rotations: &[f64]) -> Self {
         let mut columns: Vec<String> = COLUMNS.iter().map(|c| c.to_string()).collect();
+        columns.extend(loss_columns());
         for &deg in eval_rotations.iter().skip(1) {
             columns.extend(EVAL_COLUMNS.iter().map(|c| eval_column(c, deg)));
         }
@@ -241,10 +245,10 @@ mod tests {
     #[test]
     fn rotated_evaluations_get_their_own_columns_and_read_back() {
         let layout = MetricsLayout::new(&[0.0, 180.0, -45.5]);
-        assert_eq!(layout.columns().len(), COLUMNS.len() + 2 * EVAL_COLUMNS.len());
+        assert_eq!(layout.columns().len(), COLUMNS.len() + loss_columns().len() + 2 * EVAL_COLUMNS.len());
         assert!(layout.columns().iter().any(|c| c == "eval_success_rate_rot180"));
         assert!(layout.columns().iter().any(|c| c == "eval_win_rate_t0_rot-45.5"));
-        assert_eq!(MetricsLayout::default().header(), COLUMNS.join(","));
+        assert_eq!(MetricsLayout::default().header(), [COLUMNS.join(","), loss_columns().join(",")].join(","));
         let mut row = MetricsRow::default();
         row.set("iteration", 3.0);
         row.set("eval_success_rate", 0.25);
@@ -257,6 +261,16 @@ mod tests {
         assert_eq!(rot, [0.0, -45.5, 180.0]);
         // Columns of other bases are not rotations of this one.
         assert_eq!(rotations_of("eval_win_rate_t0", ["eval_win_rate_t0_rot90", "eval_win_rate_t1_rot90"]), [90.0]);
+    }
+
+    /// The header derived from the loss statistics' list is the one of the committed runs
+    /// (a changed header would make their rows incomparable with a re-run's).
+    #[test]
+    fn the_header_is_that_of_the_committed_runs() {
+        let committed =
+            concat!(env!("CARGO_MANIFEST_DIR"), "/../results/reach_1_ant/team_reach_1_ant/shnn/seed0/metrics.csv");
+        let text = std::fs::read_to_string(committed).unwrap();
+        assert_eq!(text.lines().next().unwrap(), MetricsLayout::default().header());
     }
 
     #[test]

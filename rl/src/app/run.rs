@@ -11,12 +11,13 @@ use serde::{Deserialize, Serialize};
 
 use crate::app::build_info::record_build;
 use crate::app::lock::{RunLock, remove_stale_temporaries};
-use crate::app::metrics::{MetricsLayout, MetricsRow, eval_column};
+use crate::app::metrics::{MetricsLayout, MetricsRow, eval_column, loss_column};
 use crate::app::run_dir::RunDir;
 use crate::error::{Result, RlError};
 use crate::mappo::checkpoint::Checkpoint;
 use crate::mappo::config::TrainConfig;
 use crate::mappo::evaluate::EvalSummary;
+use crate::mappo::ppo::LossStats;
 use crate::mappo::trainer::{IterationStats, Trainer};
 use crate::stop::StopFlag;
 
@@ -62,10 +63,6 @@ fn eval_due(i: u64, n: u64, num_evals: u64) -> bool {
 /// Fills a metrics row from an iteration's figures and evaluations (one per rotation of
 /// `eval_rotations`, or none).
 fn metrics_row(t: &Trainer, s: &IterationStats, wall: f64, sps: f64, evals: &[EvalSummary]) -> MetricsRow {
-    const LOSS: [[&str; 6]; 2] = [
-        ["policy_loss_t0", "value_loss_t0", "entropy_t0", "approx_kl_t0", "clip_fraction_t0", "explained_variance_t0"],
-        ["policy_loss_t1", "value_loss_t1", "entropy_t1", "approx_kl_t1", "clip_fraction_t1", "explained_variance_t1"],
-    ];
     let sumo = t.spec.n_teams > 1;
     let mut r = MetricsRow::default();
     r.set("iteration", t.iteration as f64);
@@ -106,9 +103,8 @@ fn metrics_row(t: &Trainer, s: &IterationStats, wall: f64, sps: f64, evals: &[Ev
         }
     }
     for (k, l) in s.losses.iter().enumerate().take(2) {
-        let v = [l.policy_loss, l.value_loss, l.entropy, l.approx_kl, l.clip_fraction, l.explained_variance];
-        for (name, x) in LOSS[k].iter().zip(v) {
-            r.set(*name, x);
+        for (name, x) in LossStats::RECORDED.iter().zip(l.recorded()) {
+            r.set(loss_column(name, k), x);
         }
     }
     r

@@ -8,51 +8,40 @@
 //! `A_t = delta_t + gamma lambda (1 - term_t)(1 - trunc_t) A_{t+1}`, `A_T = 0`;
 //! value targets `v_t = A_t + V(s_t)`.
 //!
-//! Arrays are time-major: entry `(t, j)` of `T` steps of `M` unrolls is at `t * M + j`.
+//! Arrays are time-major, as in a [`Minibatch`]: entry `(t, j)` of `T` steps of `M` unrolls
+//! is at `t M + j`.
 
-/// One minibatch of unrolls, time-major.
-#[derive(Clone, Copy, Debug)]
-pub struct Unrolls<'a> {
-    /// Steps per unroll `T`.
-    pub steps: usize,
-    /// Unrolls `M`.
-    pub unrolls: usize,
-    /// `[T, M]` rewards (already scaled).
-    pub rewards: &'a [f32],
-    /// `[T, M]`: the episode ended by its rules at this step.
-    pub terminated: &'a [bool],
-    /// `[T, M]`: the episode reached its time limit at this step.
-    pub truncated: &'a [bool],
-    /// `[T + 1, M]` values `V(s_t)`; row `T` is the state after the unroll.
-    pub values: &'a [f32],
-    /// `[T, M]` values of the final observation where `truncated` (other entries unused).
-    pub final_values: &'a [f32],
-}
+use crate::mappo::minibatch::{Minibatch, NO_FINAL};
 
-/// Advantages and value targets, `[T, M]` each (module docs). Computed in f64.
-pub fn gae(u: &Unrolls<'_>, discount: f64, lambda: f64) -> (Vec<f32>, Vec<f32>) {
-    let (t_len, m) = (u.steps, u.unrolls);
-    assert_eq!(u.rewards.len(), t_len * m);
-    assert_eq!(u.terminated.len(), t_len * m);
-    assert_eq!(u.truncated.len(), t_len * m);
-    assert_eq!(u.values.len(), (t_len + 1) * m);
-    assert_eq!(u.final_values.len(), t_len * m);
-    let mut adv = vec![0.0f32; t_len * m];
-    let mut targets = vec![0.0f32; t_len * m];
+/// Advantages and value targets of the minibatch's transitions, `[T, M]` each (module docs),
+/// from `values`, one per observation row of `mb` (`(T + 1) M + K`: `V(s_t)`, row `T` the
+/// state after the unroll, then `V(s_final)` of the truncated transitions, at their
+/// [`Minibatch::final_row`]). Computed in f64. Panics when the lengths disagree (the
+/// trainer's internal arrays).
+pub fn gae(mb: &Minibatch, values: &[f32], discount: f64, lambda: f64) -> (Vec<f32>, Vec<f32>) {
+    let (t_len, m) = (mb.steps, mb.unrolls);
+    let n = t_len * m;
+    assert_eq!(mb.rewards.len(), n);
+    assert_eq!(mb.terminated.len(), n);
+    assert_eq!(mb.truncated.len(), n);
+    assert_eq!(mb.final_row.len(), n);
+    assert!(values.len() >= (t_len + 1) * m);
+    let mut adv = vec![0.0f32; n];
+    let mut targets = vec![0.0f32; n];
     for j in 0..m {
         let mut next_adv = 0.0f64;
         for t in (0..t_len).rev() {
             let i = t * m + j;
-            let v = u.values[i] as f64;
-            let (term, trunc) = (u.terminated[i], u.truncated[i]);
+            let v = values[i] as f64;
+            let (term, trunc) = (mb.terminated[i], mb.truncated[i]);
             let next_v = if term {
                 0.0
             } else if trunc {
-                u.final_values[i] as f64
+                if mb.final_row[i] == NO_FINAL { 0.0 } else { values[mb.final_row[i] as usize] as f64 }
             } else {
-                u.values[i + m] as f64
+                values[i + m] as f64
             };
-            let delta = u.rewards[i] as f64 + discount * next_v - v;
+            let delta = mb.rewards[i] as f64 + discount * next_v - v;
             let carry = if term || trunc { 0.0 } else { discount * lambda * next_adv };
             let a = delta + carry;
             adv[i] = a as f32;
@@ -67,6 +56,19 @@ pub fn gae(u: &Unrolls<'_>, discount: f64, lambda: f64) -> (Vec<f32>, Vec<f32>) 
 mod tests {
     use super::*;
 
+    /// A minibatch of `m` unrolls of `steps` steps with these arrays (no observations).
+    fn unrolls(steps: usize, m: usize, r: &[f32], term: &[bool], trunc: &[bool], final_row: &[u32]) -> Minibatch {
+        Minibatch {
+            steps,
+            unrolls: m,
+            rewards: r.to_vec(),
+            terminated: term.to_vec(),
+            truncated: trunc.to_vec(),
+            final_row: final_row.to_vec(),
+            ..Minibatch::default()
+        }
+    }
+
     fn close(a: &[f32], b: &[f64]) {
         assert_eq!(a.len(), b.len());
         for (x, y) in a.iter().zip(b) {
@@ -79,16 +81,8 @@ mod tests {
         // T = 3, M = 1, gamma 0.5, lambda 0.5.
         let r = [1.0, 2.0, 3.0];
         let v = [0.5, 1.0, 1.5, 2.0];
-        let u = Unrolls {
-            steps: 3,
-            unrolls: 1,
-            rewards: &r,
-            terminated: &[false; 3],
-            truncated: &[false; 3],
-            values: &v,
-            final_values: &[0.0; 3],
-        };
-        let (a, t) = gae(&u, 0.5, 0.5);
+        let mb = unrolls(3, 1, &r, &[false; 3], &[false; 3], &[NO_FINAL; 3]);
+        let (a, t) = gae(&mb, &v, 0.5, 0.5);
         // deltas: 1 + .5*1 - .5 = 1; 2 + .5*1.5 - 1 = 1.75; 3 + .5*2 - 1.5 = 2.5
         // A2 = 2.5; A1 = 1.75 + .25*2.5 = 2.375; A0 = 1 + .25*2.375 = 1.59375
         close(&a, &[1.59375, 2.375, 2.5]);
@@ -102,18 +96,10 @@ mod tests {
         let r = [1.0, 1.0, 2.0, 2.0]; // (t0,j0) (t0,j1) (t1,j0) (t1,j1)
         let term = [true, false, false, false];
         let trunc = [false, true, false, false];
-        let v = [0.5, 0.5, 3.0, 3.0, 4.0, 4.0];
-        let fv = [0.0, 10.0, 0.0, 0.0];
-        let u = Unrolls {
-            steps: 2,
-            unrolls: 2,
-            rewards: &r,
-            terminated: &term,
-            truncated: &trunc,
-            values: &v,
-            final_values: &fv,
-        };
-        let (a, t) = gae(&u, 0.9, 0.8);
+        // Rows: (T + 1) M = 6 states, then the final observation of the truncated one (row 6).
+        let v = [0.5, 0.5, 3.0, 3.0, 4.0, 4.0, 10.0];
+        let mb = unrolls(2, 2, &r, &term, &trunc, &[NO_FINAL, 6, NO_FINAL, NO_FINAL]);
+        let (a, t) = gae(&mb, &v, 0.9, 0.8);
         // t1 (both): delta = 2 + .9*4 - 3 = 2.6 = A.
         // (t0, j0): terminated: delta = 1 - .5 = .5, no carry.
         // (t0, j1): truncated: delta = 1 + .9*10 - .5 = 9.5, no carry.

@@ -6,9 +6,10 @@
 //! - [`actor`]: a team's act step (normalise, policy, sample, log-probability), used by
 //!   collection, evaluation, rendering and the Python policy;
 //! - [`team`]: one team's learner (model, parameters, Adam, normaliser, actor);
-//! - [`rollout`]: an iteration's data, written once per step, and its minibatches;
-//! - [`gae`]: generalised advantage estimation; [`ppo`]: the minibatch's forward pass, GAE
-//!   and the PPO loss;
+//! - [`rollout`]: an iteration's data, written once per step, from which the update gathers
+//!   its [`minibatch`]es;
+//! - [`ppo`]: the PPO loss of a minibatch, in one function (forward, [`gae`], log-probabilities
+//!   and entropy, the loss, its statistics);
 //! - [`normalizer`]: observation statistics; [`seeding`]: the random streams;
 //! - [`evaluate`](mod@evaluate): episodes of the trained teams;
 //! - [`checkpoint`] (the exact training state) with its [`checksum`], and [`memory`] (whether
@@ -24,6 +25,7 @@ pub mod device;
 pub mod evaluate;
 pub mod gae;
 pub mod memory;
+pub mod minibatch;
 pub mod normalizer;
 pub mod ppo;
 pub mod rollout;

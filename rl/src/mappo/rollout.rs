@@ -18,10 +18,7 @@ use envs::tasks::StepOutput;
 use models::layout::{ObsRows, Observation, RowWidths};
 
 use crate::mappo::actor::JointAction;
-use crate::mappo::ppo::Minibatch;
-
-/// Marks a transition without a final observation.
-pub const NO_FINAL: u32 = u32::MAX;
+use crate::mappo::minibatch::{Minibatch, NO_FINAL};
 
 /// One iteration's data (module docs).
 #[derive(Clone, Debug)]
@@ -58,67 +55,6 @@ pub struct Rollout {
     assignment_width: Vec<usize>,
     /// Per team, `[U T E, width]` the task assignment each transition was acted on.
     assignment: Vec<Vec<u32>>,
-}
-
-/// A gathered minibatch of one team (owned arrays behind a [`Minibatch`]).
-#[derive(Clone, Debug)]
-pub struct MinibatchBuf {
-    /// Raw observation rows `(T + 1) M + K`.
-    pub obs: Observation,
-    /// `[T M, n_actions]`.
-    pub actions: Vec<f32>,
-    /// `[T M]`.
-    pub logp_old: Vec<f32>,
-    /// `[T M]`.
-    pub rewards: Vec<f32>,
-    /// `[T M]`.
-    pub terminated: Vec<bool>,
-    /// `[T M]`.
-    pub truncated: Vec<bool>,
-    /// `[T M]` rows of final observations.
-    pub final_row: Vec<u32>,
-    /// `[T M, width]` the transitions' task assignments (empty: not stored).
-    pub assignment: Vec<u32>,
-    /// Unrolls `M`.
-    pub unrolls: usize,
-    /// Steps `T`.
-    pub steps: usize,
-}
-
-impl Default for MinibatchBuf {
-    fn default() -> Self {
-        Self {
-            obs: Observation::empty(0, 0),
-            actions: Vec::new(),
-            logp_old: Vec::new(),
-            rewards: Vec::new(),
-            terminated: Vec::new(),
-            truncated: Vec::new(),
-            final_row: Vec::new(),
-            assignment: Vec::new(),
-            unrolls: 0,
-            steps: 0,
-        }
-    }
-}
-
-impl MinibatchBuf {
-    /// The minibatch with normalised observation rows `obs` (the same rows as
-    /// [`MinibatchBuf::obs`]).
-    pub fn view<'a>(&'a self, obs: ObsRows<'a, f32>) -> Minibatch<'a> {
-        Minibatch {
-            steps: self.steps,
-            unrolls: self.unrolls,
-            obs,
-            actions: &self.actions,
-            logp_old: &self.logp_old,
-            rewards: &self.rewards,
-            terminated: &self.terminated,
-            truncated: &self.truncated,
-            final_row: &self.final_row,
-            assignment: &self.assignment,
-        }
-    }
 }
 
 impl Rollout {
@@ -259,14 +195,15 @@ impl Rollout {
     }
 
     /// Gathers team `team`'s minibatch of unrolls `ids` (unroll `q` is block `q / E`,
-    /// environment `q % E`) into `mb`, time-major (module docs of [`crate::mappo::ppo`]).
-    pub fn gather(&self, ids: &[usize], team: usize, mb: &mut MinibatchBuf) {
+    /// environment `q % E`) into `mb`, time-major, its raw observation rows in
+    /// [`Minibatch::raw`] (module docs of [`crate::mappo::minibatch`]).
+    pub fn gather(&self, ids: &[usize], team: usize, mb: &mut Minibatch) {
         let (t_len, m, e_n) = (self.steps, ids.len(), self.envs);
         let (nt, nact) = (self.teams, self.n_actions);
         mb.unrolls = m;
         mb.steps = t_len;
-        mb.obs.clear();
-        (mb.obs.nodes, mb.obs.agents) = (self.obs.nodes, self.obs.agents);
+        mb.raw.clear();
+        (mb.raw.nodes, mb.raw.agents) = (self.obs.nodes, self.obs.agents);
         for v in [&mut mb.actions, &mut mb.logp_old, &mut mb.rewards] {
             v.clear();
         }
@@ -278,7 +215,7 @@ impl Rollout {
         for t in 0..=t_len {
             for &q in ids {
                 let r = self.obs_row(q / e_n, t) + q % e_n;
-                mb.obs.push_rows(self.obs.rows().slice(r..r + 1));
+                mb.raw.push_rows(self.obs.rows().slice(r..r + 1));
             }
         }
         let mut next_row = ((t_len + 1) * m) as u32;
@@ -296,7 +233,7 @@ impl Rollout {
                     mb.final_row.push(NO_FINAL);
                 } else {
                     let f = f as usize;
-                    mb.obs.push_rows(self.finals.rows().slice(f..f + 1));
+                    mb.raw.push_rows(self.finals.rows().slice(f..f + 1));
                     mb.final_row.push(next_row);
                     next_row += 1;
                 }

@@ -13,10 +13,10 @@
 //!    observations (then stay frozen for the update, as in the reference).
 //! 3. **Update** every team: `epochs` passes, each over a fresh permutation of the
 //!    iteration's unrolls cut into `num_minibatches` minibatches of `batch_size` whole unrolls;
-//!    per minibatch (`Trainer::update`, top to bottom): gather -> normalise -> forward ->
-//!    GAE from the values and bootstrap values -> the PPO loss ([`crate::mappo::ppo`]; the entropy
-//!    estimate's noise from the minibatch's own stream) -> backward -> every gradient element
-//!    clipped to `+-grad_clip` -> one Adam step. A non-finite loss or gradient stops the run
+//!    per minibatch (`Trainer::update`, top to bottom): gather -> normalise -> the PPO loss
+//!    ([`ppo::loss`]: forward, GAE, log-probabilities and entropy, the loss and its
+//!    statistics; the entropy estimate's noise from the minibatch's own stream) -> backward ->
+//!    every gradient element clipped to `+-grad_clip` -> one Adam step. A non-finite loss or gradient stops the run
 //!    ([`RlError::NonFinite`]); the last checkpoint is kept.
 //!
 //! **Devices** ([`crate::mappo::device`]). With `device = "gpu"` the update runs on the GPU:
@@ -36,7 +36,7 @@
 use std::time::Instant;
 
 use envs::tasks::{Outcome, StepOutput, TaskKind, TaskSpec, VecEnv};
-use models::layout::{ObsSpec, Observation};
+use models::layout::ObsSpec;
 use nn::ParamStore;
 use tensor::{Device, Tape};
 
@@ -46,8 +46,9 @@ use crate::mappo::checkpoint::{Checkpoint, TeamState, VERSION};
 use crate::mappo::config::{NormStart, TrainConfig};
 use crate::mappo::device::check_device;
 use crate::mappo::evaluate::{EvalOptions, EvalSummary, evaluate};
-use crate::mappo::ppo::{self, LossStats, LossTerms, PpoParams, loss_stats, ppo_loss};
-use crate::mappo::rollout::{MinibatchBuf, Rollout};
+use crate::mappo::minibatch::Minibatch;
+use crate::mappo::ppo::{self, LossStats, PpoParams};
+use crate::mappo::rollout::Rollout;
 use crate::mappo::seeding::{RngState, derive_seed, minibatch_stream};
 use crate::mappo::team::Team;
 
@@ -135,8 +136,7 @@ pub struct Trainer {
     pub episode_returns: Vec<f64>,
     rollout: Rollout,
     joint: JointAction,
-    mb: MinibatchBuf,
-    normalised: Observation,
+    mb: Minibatch,
     /// With `device = "gpu"`: every team's parameters on the GPU, the copy the updates read
     /// and write (each [`Team::store`] is the host copy, refreshed after every update phase).
     /// Empty on the CPU.
@@ -206,8 +206,7 @@ impl Trainer {
             episode_returns: vec![0.0; config.num_envs * nt],
             rollout,
             joint: JointAction::new(config.num_envs, na, nt),
-            mb: MinibatchBuf::default(),
-            normalised: Observation::empty(0, 0),
+            mb: Minibatch::default(),
             device_stores,
             env,
         })
@@ -387,27 +386,20 @@ impl Trainer {
                     let at = Where { team: team.index, iteration: self.iteration, epoch, minibatch: k };
                     // Gather the minibatch's unrolls (time-major) and normalise them.
                     self.rollout.gather(ids, team.index, &mut self.mb);
-                    team.norm.apply_rows(self.mb.obs.rows(), &mut self.normalised);
-                    let mb = self.mb.view(self.normalised.rows());
-                    // Forward: the transitions on the tape, the bootstrap rows without it.
+                    self.mb.normalise(&team.norm);
+                    // The PPO loss; the entropy estimate draws from the minibatch's stream.
                     let tape = Tape::<f32>::on(c.device);
                     let p = store.bind(&tape);
-                    let fwd = ppo::forward(&mut team.model, &p, &mb)?;
-                    // GAE from the values and the bootstrap values (Brax's, per minibatch).
-                    let adv_targets = ppo::advantages(&mb, &fwd, &hp);
-                    // The PPO loss; the entropy estimate draws from the minibatch's stream.
                     let mut noise =
                         minibatch_stream(c.seed, "entropy", at.team as u64, at.iteration, epoch as u64, k as u64);
-                    let terms = LossTerms::new(&fwd, &mb, &self.spec, adv_targets, hp.entropy, &mut noise)?;
-                    let loss = ppo_loss(&terms, &hp)?;
-                    let stats = loss_stats(&loss, &terms, &hp)?;
+                    let (loss, stats) = ppo::loss(&mut team.model, &p, &self.mb, &hp, &mut noise)?;
                     if !stats.loss.is_finite() {
                         return Err(RlError::NonFinite {
                             message: format!("loss {} of {}", stats.loss, at.describe(&stats)),
                         });
                     }
                     // Backward, every gradient element clipped, one Adam step.
-                    let mut grads = p.grads(&tape.backward(loss.total)?);
+                    let mut grads = p.grads(&tape.backward(loss)?);
                     if let Some(i) = tensor::first_non_finite(&grads)? {
                         return Err(RlError::NonFinite {
                             message: format!("gradient of {} of {}", store.names()[i], at.describe(&stats)),
@@ -417,11 +409,11 @@ impl Trainer {
                         nn::clip_elementwise(&mut grads, c.grad_clip);
                     }
                     team.adam.step(store, &grads)?;
-                    add_stats(&mut sum, &stats);
+                    sum.add(&stats);
                     count += 1.0;
                 }
             }
-            all.push(scale_stats(&sum, 1.0 / count));
+            all.push(sum.scaled(1.0 / count));
         }
         // The act step reads host parameters: each team's come back once (one transfer).
         for (team, on_device) in self.teams.iter_mut().zip(&self.device_stores) {
@@ -491,32 +483,6 @@ fn permutation(n: usize, rng: &mut rand_chacha::ChaCha8Rng) -> Vec<usize> {
         p.swap(i, j);
     }
     p
-}
-
-fn add_stats(a: &mut LossStats, b: &LossStats) {
-    a.loss += b.loss;
-    a.policy_loss += b.policy_loss;
-    a.value_loss += b.value_loss;
-    a.entropy += b.entropy;
-    a.approx_kl += b.approx_kl;
-    a.clip_fraction += b.clip_fraction;
-    a.explained_variance += b.explained_variance;
-    a.mean_ratio += b.mean_ratio;
-    a.mean_advantage += b.mean_advantage;
-}
-
-fn scale_stats(a: &LossStats, s: f64) -> LossStats {
-    LossStats {
-        loss: a.loss * s,
-        policy_loss: a.policy_loss * s,
-        value_loss: a.value_loss * s,
-        entropy: a.entropy * s,
-        approx_kl: a.approx_kl * s,
-        clip_fraction: a.clip_fraction * s,
-        explained_variance: a.explained_variance * s,
-        mean_ratio: a.mean_ratio * s,
-        mean_advantage: a.mean_advantage * s,
-    }
 }
 
 #[cfg(test)]
