@@ -2,7 +2,11 @@
 checkpoint of it, and ``KeyboardInterrupt`` is raised; during ``Policy.evaluate``: the
 evaluation is abandoned and ``KeyboardInterrupt`` raised (before, the interrupt waited for
 the whole training or evaluation to end). Each runs in a child process, which the test
-interrupts with SIGINT."""
+interrupts with SIGINT.
+
+Each child restores Python's own SIGINT handler first: a process started from a background
+job of a shell script inherits SIGINT as ignored, and Python then leaves it ignored, so the
+signal the test sends would never arrive (the test sets up its own precondition)."""
 
 import json
 import signal
@@ -10,7 +14,12 @@ import subprocess
 import sys
 import time
 
-SCRIPT = """
+RESTORE_SIGINT = """
+import signal
+signal.signal(signal.SIGINT, signal.default_int_handler)
+"""
+
+SCRIPT = RESTORE_SIGINT + """
 import sys
 import meben
 
@@ -59,7 +68,7 @@ def test_ctrl_c_stops_training_with_a_checkpoint(tmp_path):
     assert not (run / "done.json").exists()
 
 
-EVALUATE = """
+EVALUATE = RESTORE_SIGINT + """
 import sys, time
 import meben
 
