@@ -1,74 +1,28 @@
-//! The step pipeline and MuJoCo's semi-implicit Euler integrator with implicit joint damping
-//! (MuJoCo documentation, "Computation: numerical integration"; `mj_Euler`, `mj_integratePos`).
+//! The integrators: MuJoCo's semi-implicit Euler with implicit joint damping (MuJoCo
+//! documentation, "Computation: numerical integration"; `mj_Euler`, `mj_integratePos`), its
+//! `EulerGyro` variant and the implicit integrator.
 //!
-//! [`step`] = [`forward`] then [`integrate`]:
-//! 1. kinematics (body, geom poses), `cdof`/`cinert`;
-//! 2. mass matrix `M` by CRBA (armature on the diagonal);
-//! 3. velocities, bias `c = C qdot + g` by recursive Newton-Euler;
-//! 4. passive force `-D qvel`, motors `gear * clamp(ctrl, ctrlrange)`;
-//! 5. `M` factored (tree-sparse `L^T D L`), `qacc_smooth = M^-1 f` with the smooth force
-//!    `f = tau_act + tau_applied - D qvel - c`; with damping, `H = M + h D` factored too;
-//! 6. collision detection, then limits and contacts (`constraints`), solved with `M` as in
-//!    MuJoCo, and `qacc = H^-1 (f + J^T lambda)`;
-//! 7. `qvel <- qvel + h qacc` and positions integrated with the new velocity: hinges
-//!    `q += h qdot`; free joints `p += h v` (world frame) and
-//!    `quat <- normalize(quat * exp(h w / 2))` with `w` in the body frame.
+//! [`step`] = [`crate::forward::forward`] (the named stages, ending with the Euler
+//! `qacc = H^-1 (f + J^T lambda)` and this module's [`integrator_qacc`]) then [`integrate`]:
+//! `qvel <- qvel + h qacc` and positions integrated with the new velocity: hinges
+//! `q += h qdot`; free joints `p += h v` (world frame) and
+//! `quat <- normalize(quat * exp(h w / 2))` with `w` in the body frame.
 //!
 //! This is exactly MuJoCo's `mj_Euler` when any dof has damping: it solves
 //! `(M + h D) qacc = f(q, v)` where `f` contains `-D v`, so `v' = v + h qacc` satisfies
 //! `M (v' - v) / h = tau - c - D v'` (damping evaluated at the new velocity).
 
 use crate::data::Data;
+use crate::forward::forward;
 use crate::math;
 use crate::model::{Integrator, JointKind, Model};
-use crate::{collision, constraints, crba, kinematics, rne};
+use crate::{crba, kinematics, rne};
 
-/// Computes `d.qacc` (and everything it depends on) for the current state, without changing
-/// the state.
-pub fn forward(m: &Model, d: &mut Data) {
-    let h = m.opt.timestep;
-    kinematics::kinematics(m, d);
-    kinematics::com_pos(m, d);
-    crba::crba(m, d);
-    kinematics::com_vel(m, d);
-    rne::bias(m, d);
-    let nv = m.nv;
-    for i in 0..nv {
-        d.qfrc_passive[i] = -m.dof_damping[i] * d.qvel[i];
-        d.qfrc_actuator[i] = 0.0;
-    }
-    for (a, act) in m.actuators.iter().enumerate() {
-        let c = match act.ctrlrange {
-            Some([lo, hi]) => d.ctrl[a].clamp(lo, hi),
-            None => d.ctrl[a],
-        };
-        d.qfrc_actuator[act.dof] += act.gear * c;
-    }
-    for i in 0..nv {
-        d.qfrc_smooth[i] = d.qfrc_actuator[i] + d.qfrc_applied[i] + d.qfrc_passive[i] - d.qfrc_bias[i];
-    }
-    // A failed factorisation means a non-finite state (build() checked positive
-    // definiteness); the non-finite values then propagate to qacc and are visible to callers.
-    // M (for qacc_smooth and the constraint solver, as MuJoCo) and, with damping, M + h D.
-    d.qlm.copy_from_slice(&d.qm);
-    let _ = crba::ltdl_factor(m, &mut d.qlm);
-    d.qacc_smooth.copy_from_slice(&d.qfrc_smooth);
-    crba::ltdl_solve(m, &d.qlm, &mut d.qacc_smooth);
-    let damped = m.dof_damping.iter().any(|&x| x > 0.0);
-    if damped {
-        let _ = crba::factor_h(m, d, h);
-    }
-    collision::collide(m, d);
-    constraints::solve(m, d);
-    // qacc = (M + h D)^-1 (f + J^T lambda): MuJoCo's Euler with implicit damping.
-    if damped || d.efc.n > 0 {
-        for i in 0..nv {
-            d.qacc[i] = d.qfrc_smooth[i] + d.qfrc_constraint[i];
-        }
-        crba::ltdl_solve(m, if damped { &d.qh } else { &d.qlm }, &mut d.qacc);
-    } else {
-        d.qacc.copy_from_slice(&d.qacc_smooth);
-    }
+/// The integrator's own acceleration, once [`crate::forward::forward`]'s stages have found
+/// the Euler `qacc = H^-1 (f + J^T lambda)`: unchanged for [`Integrator::Euler`], corrected for
+/// the root spins' gyroscopic forces ([`Integrator::EulerGyro`]) or by the velocity
+/// derivative of all the bias forces ([`Integrator::Implicit`]).
+pub fn integrator_qacc(m: &Model, d: &mut Data) {
     match m.opt.integrator {
         Integrator::Implicit => implicit_qacc(m, d),
         Integrator::EulerGyro => root_gyro_qacc(m, d),
@@ -78,7 +32,7 @@ pub fn forward(m: &Model, d: &mut Data) {
 
 /// Columns of `dc/dqvel` for the three angular dofs of every floating root, into `cols`
 /// (`3 nv`, column `k` at `k nv..(k + 1) nv`; rows of trees without a floating root are zero).
-/// Needs the velocities and bias of the current state ([`forward`] up to [`rne::bias`]).
+/// Needs the velocities and bias of the current state ([`crate::forward::velocity`]).
 ///
 /// Forward-mode derivative of the Newton-Euler bias pass ([`rne::bias`]) in the direction
 /// `e_k` of the root's angular dof `k`, whose motion axis `s_k = cdof[root + 3 + k]` is the same
