@@ -10,7 +10,8 @@
 //! `scalars`, `heading`), then per step: `obs` (the same three), `reward`, `final_obs`,
 //! `terminated` and `truncated` (as 0.0 or 1.0).
 
-use envs::tasks::{Observation, StartMode, VecEnv};
+use envs::layout::Observation;
+use envs::tasks::{StartMode, VecEnv};
 
 fn push_obs(out: &mut Vec<f32>, o: &Observation) {
     out.extend_from_slice(&o.vectors);

@@ -231,7 +231,7 @@ impl Data {
 
     /// Sets the state carried between steps from `s` (checked against `m` first: nothing
     /// changes on error). The derived quantities (poses, velocities, contacts, `qacc`) are left
-    /// as they are: [`crate::forward`] or [`crate::kinematics::kinematics`] brings them up to
+    /// as they are: [`crate::forward()`] or [`crate::kinematics::kinematics`] brings them up to
     /// date; the next step recomputes them anyway.
     pub fn set_state(&mut self, m: &Model, s: &DataState) -> Result<(), StateMismatch> {
         s.check(m)?;

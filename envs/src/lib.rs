@@ -20,6 +20,7 @@ pub mod diagnostics;
 pub mod forward;
 pub mod integrator;
 pub mod kinematics;
+pub mod layout;
 pub mod limits;
 pub mod math;
 pub mod mjcf;

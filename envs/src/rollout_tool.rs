@@ -167,12 +167,32 @@ pub fn run(args: &RolloutArgs) -> Result<(), RolloutError> {
             first_non_finite = Some(k + 1);
         }
     }
-    nn::write_atomic(&args.out, out.as_bytes())
+    write_replacing(&args.out, out.as_bytes())
         .map_err(|e| RolloutError::File { path: out_path.clone(), message: format!("cannot write: {e}") })?;
     match first_non_finite {
         Some(control_step) => Err(RolloutError::NonFinite { control_step }),
         None => Ok(()),
     }
+}
+
+/// Writes `bytes` to `path` through a temporary sibling file, synced, then renamed over
+/// `path`: a crash leaves the old file or the new one, never half of one (the scheme of
+/// `nn::write_atomic`, written here so that the simulator depends on no other crate).
+fn write_replacing(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
+    use std::io::Write;
+    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    let tmp = path.with_file_name(format!(".{name}.{}.tmp", std::process::id()));
+    let written = (|| {
+        let mut f = std::fs::File::create(&tmp)?;
+        f.write_all(bytes)?;
+        f.sync_all()?;
+        drop(f);
+        std::fs::rename(&tmp, path)
+    })();
+    if written.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    written
 }
 
 /// Refuses an output path that names one of the inputs (compared canonicalised, so

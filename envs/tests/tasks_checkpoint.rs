@@ -3,7 +3,8 @@
 //! auto-resets, fixed start modes, the curriculum factor); bad states are refused with the
 //! field named and nothing changed.
 
-use envs::tasks::{Observation, StartMode, StepOutput, TaskError, TaskSpec, VecEnv, VecEnvState};
+use envs::layout::Observation;
+use envs::tasks::{StartMode, StepOutput, TaskError, TaskSpec, VecEnv, VecEnvState};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 

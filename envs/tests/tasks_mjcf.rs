@@ -103,7 +103,7 @@ fn the_mjcf_ant_gives_the_brax_ants_task_spec_and_first_observation() {
         // limb types of the MJCF ant's MuJoCo-style names come from the depth rule, the Brax
         // ant's from the release's table: torso, thigh, leg alike).
         let (mut sa, mut sb) = (brax.obs_spec.clone(), mjcf.obs_spec.clone());
-        let limits = |s: &mut envs::tasks::ObsSpec| std::mem::take(&mut s.static_scalars);
+        let limits = |s: &mut envs::layout::ObsSpec| std::mem::take(&mut s.static_scalars);
         let (la, lb) = (limits(&mut sa), limits(&mut sb));
         assert_eq!(sa, sb, "{template}");
         // The scaled limits go through degrees -> radians -> degrees by different products.

@@ -2,8 +2,9 @@
 //! release's AMORPHEUS table, and the Team Sumo entity types seen from each team.
 
 use envs::brax::morphologies::MORPHOLOGIES;
-use envs::tasks::observation::{ENTITY_AGENT, ENTITY_CENTRE, ENTITY_GOAL, ENTITY_OPPONENT};
-use envs::tasks::{N_SCALARS, Scene, StartMode, VecEnv};
+use envs::layout::N_SCALARS;
+use envs::layout::{ENTITY_AGENT, ENTITY_CENTRE, ENTITY_GOAL, ENTITY_OPPONENT};
+use envs::tasks::{Scene, StartMode, VecEnv};
 
 const TORSO: Option<usize> = Some(0);
 const THIGH: Option<usize> = Some(1);
@@ -209,7 +210,7 @@ fn sumo_entity_types_are_team_0s_view_and_to_team_view_swaps_own_and_opponent() 
     assert_eq!(o.agent_team[2], 1);
     assert_eq!(&s64[root1 * N_SCALARS..root1 * N_SCALARS + 3], &[1.0, 0.0, 0.0]);
     // Bad input: a team the game does not have, a length that is not whole rows.
-    assert!(matches!(o.to_team_view(2, &mut v1.clone()), Err(models::ModelError::Input(_))));
+    assert!(matches!(o.to_team_view(2, &mut v1.clone()), Err(envs::layout::LayoutError(_))));
     let mut short = raw[..nn * N_SCALARS - 1].to_vec();
     let err = o.to_team_view(1, &mut short).unwrap_err();
     assert!(err.to_string().contains("scalars"), "{err}");
@@ -233,7 +234,7 @@ fn reach_entity_types_are_agent_and_goal_and_no_view_changes_them() {
     assert_eq!(v, out.obs.scalars);
     // Reach has one team: team 1 is an error and leaves the array alone.
     let err = o.to_team_view(1, &mut v).unwrap_err();
-    assert!(matches!(err, models::ModelError::Input(_)) && err.to_string().contains("team"), "{err}");
+    assert!(matches!(err, envs::layout::LayoutError(_)) && err.to_string().contains("team"), "{err}");
     assert_eq!(v, out.obs.scalars);
 }
 

@@ -4,8 +4,9 @@
 
 #![allow(clippy::needless_range_loop)] // index loops mirror the array layouts
 
+use envs::layout::N_SCALARS;
 use envs::tasks::outcome::Outcome;
-use envs::tasks::{BUILTIN_NAMES, N_SCALARS, Scene, StartMode, StepOutput, TaskError, TaskSpec, VecEnv};
+use envs::tasks::{BUILTIN_NAMES, Scene, StartMode, StepOutput, TaskError, TaskSpec, VecEnv};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 

@@ -15,7 +15,7 @@ fn file() -> &'static PathBuf {
 
 libfuzzer_sys::fuzz_target!(|data: &[u8]| {
     std::fs::write(file(), data).unwrap();
-    if let Ok(c) = rl::checkpoint::Checkpoint::load(file())
+    if let Ok(c) = rl::mappo::checkpoint::Checkpoint::load(file())
         && c.config.num_envs <= 64
         && c.config.steps_per_iteration() <= 4096
     {

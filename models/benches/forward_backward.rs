@@ -14,8 +14,9 @@ use std::time::Instant;
 #[global_allocator]
 static ALLOC: mimalloc::MiMalloc = mimalloc::MiMalloc;
 
+use envs::layout::ObsRows;
 use envs::tasks::{StartMode, VecEnv};
-use models::{Model, ModelConfig, ObsRows};
+use models::{Model, ModelConfig};
 use nn::ParamStore;
 use tensor::Tape;
 

@@ -29,8 +29,9 @@ use tensor::{Activation, Float, Tensor, Var};
 
 use crate::error::{ModelError, Result};
 use crate::frame::to_frame;
-use crate::input::{AgentBody, NODE_VECTORS};
-use crate::layout::{N_SCALARS, ObsSpec};
+use crate::input::AgentBody;
+use envs::layout::NODE_VECTORS;
+use envs::layout::{N_SCALARS, ObsSpec};
 
 /// Sizes of a [`BodyGnn`].
 #[derive(Clone, Debug)]

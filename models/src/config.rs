@@ -11,7 +11,7 @@ use crate::entity_graph::GraphBuilder;
 use crate::error::{ModelError, Result};
 use crate::input::{EntityAbstraction, InputProcessor, Translation};
 use crate::kind::ModelKind;
-use crate::layout::ObsSpec;
+use envs::layout::ObsSpec;
 
 /// The option keys [`ModelConfig::parse`] accepts.
 pub const OPTION_KEYS: [&str; 11] = [

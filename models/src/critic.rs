@@ -26,9 +26,10 @@ use tensor::{Activation, Float, Tensor, Var};
 use crate::config::{GravityMode, MpSizes, layer_sizes};
 use crate::entity_mp::{EntityMp, EntityMpConfig};
 use crate::error::{ModelError, Result};
-use crate::input::{EntityAbstraction, EntityInputs, InputProcessor, ObsBatch, ObsElement, Translation};
-use crate::layout::{ENTITY_CENTRE, N_SCALARS, ObsSpec};
+use crate::input::{EntityAbstraction, EntityInputs, InputProcessor, Translation};
 use crate::transformer_head::TransformerHead;
+use envs::layout::{ENTITY_CENTRE, N_SCALARS, ObsSpec};
+use envs::layout::{ObsBatch, ObsElement};
 
 /// Radial-basis features of the release's `DistanceRBF(num_channels=64)`.
 pub const RBF_FEATURES: usize = 64;

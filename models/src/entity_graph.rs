@@ -35,7 +35,7 @@ use tensor::Float;
 use crate::assignment::{Assigner, AssignmentMethod, UNASSIGNED};
 use crate::error::{ModelError, Result};
 use crate::input::EntityInputs;
-use crate::layout::{ENTITY_CENTRE, ENTITY_GOAL, ObsSpec};
+use envs::layout::{ENTITY_CENTRE, ENTITY_GOAL, ObsSpec};
 
 /// The task of a scene, as far as the graph is concerned.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -122,7 +122,7 @@ impl GraphBuilder {
         }
         let ball_type = |j: usize| {
             let node = spec.entity_root_node[na + j];
-            let s = &spec.static_scalars[node * crate::layout::N_SCALARS..];
+            let s = &spec.static_scalars[node * envs::layout::N_SCALARS..];
             (s[ENTITY_GOAL] == 1.0, s[ENTITY_CENTRE] == 1.0)
         };
         let sumo = spec.n_teams == 2 && nm == 1 && ball_type(0).1;

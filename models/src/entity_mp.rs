@@ -28,8 +28,9 @@ use tensor::{Float, Tensor, Var};
 use crate::entity_graph::EntityGraph;
 use crate::error::{ModelError, Result};
 use crate::frame::local_frame;
-use crate::input::{ENTITY_SCALARS, EntityInputs, NODE_VECTORS};
-use crate::layout::ObsSpec;
+use crate::input::{ENTITY_SCALARS, EntityInputs};
+use envs::layout::NODE_VECTORS;
+use envs::layout::ObsSpec;
 
 /// `eps` under the root of the horizontal norm in `OP` (keeps a vertical `u` finite).
 pub const FRAME_EPS: f64 = 1e-12;

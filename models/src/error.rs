@@ -1,5 +1,5 @@
 //! The error type of the model stages: bad options, observations that do not match their
-//! [`crate::layout::ObsSpec`], and failures of the layers underneath.
+//! [`envs::layout::ObsSpec`], and failures of the layers underneath.
 
 use std::fmt;
 
@@ -33,6 +33,12 @@ impl std::error::Error for ModelError {
             ModelError::Nn(e) => Some(e),
             _ => None,
         }
+    }
+}
+
+impl From<envs::layout::LayoutError> for ModelError {
+    fn from(e: envs::layout::LayoutError) -> Self {
+        ModelError::Input(e.0)
     }
 }
 

@@ -23,10 +23,11 @@ use crate::config::{ModelConfig, NeighbourOffset, hidden_widths, layer_sizes};
 use crate::critic::critic_order;
 use crate::entity_graph::GraphBuilder;
 use crate::error::{ModelError, Result};
-use crate::input::{ENTITY_SCALARS, InputProcessor, NODE_VECTOR_LEN, NODE_VECTORS, ObsBatch, ObsElement};
+use crate::input::{ENTITY_SCALARS, InputProcessor};
 use crate::kind::{Frame, ModelKind};
-use crate::layout::{N_SCALARS, ObsSpec};
 use crate::policy::{AgentPolicy, PolicyOutput};
+use envs::layout::{N_SCALARS, ObsSpec};
+use envs::layout::{NODE_VECTOR_LEN, NODE_VECTORS, ObsBatch, ObsElement};
 
 /// The frame the HNN models express vectors in.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -1,6 +1,6 @@
 //! Input processing (paper section 3, "Input Processing" and the node features of "Local
 //! Entity-level Subequivariant Message Passing"): batches of MeBen observations ([`ObsBatch`]
-//! rows laid out by [`ObsSpec`], module [`crate::layout`]) become the tensors the networks
+//! rows laid out by [`ObsSpec`], module [`envs::layout`]) become the tensors the networks
 //! read.
 //!
 //! # Entities
@@ -54,8 +54,7 @@ use crate::assignment::UNASSIGNED;
 use crate::config::NeighbourOffset;
 use crate::entity_graph::{EntityGraph, GraphTask};
 use crate::error::{ModelError, Result};
-use crate::layout::{N_SCALARS, ObsSpec};
-pub use crate::layout::{NODE_VECTOR_LEN, NODE_VECTORS, ObsBatch, ObsElement};
+use envs::layout::{N_SCALARS, NODE_VECTOR_LEN, NODE_VECTORS, ObsBatch, ObsElement, ObsSpec};
 
 /// `eps` of the unit direction `d / (|d| + eps)` (the reference release's `normalize_vector`).
 pub const UNIT_EPS: f64 = 1e-6;

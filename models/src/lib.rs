@@ -1,6 +1,7 @@
 //! `models`: SHNN and its baselines (paper section 3, appendices "Baselines" and
 //! "Ablations"), one module per job:
-//! - the observation layout the models read and the environments fill ([`layout`]);
+//! - they read the environment's observation layout (`envs::layout`: `ObsSpec`,
+//!   `Observation`, `ObsRows`);
 //! - which model and its options ([`kind`]: the eleven models of the paper, [`config`]);
 //! - the policy/critic interface [`Model`] ([`policy`]), built by its family's module:
 //!   [`shnn`] (`shnn`, `shnn_og3`, `shnn_so3`, `shtransformer`, `shgnn`), [`hnn`] (`hnn`,
@@ -24,7 +25,6 @@ pub mod frame;
 pub mod hnn;
 pub mod input;
 pub mod kind;
-pub mod layout;
 pub mod mlp;
 pub mod policy;
 pub mod shnn;
@@ -39,8 +39,5 @@ pub use entity_mp::{EntityFeatures, EntityMp, EntityMpConfig};
 pub use error::{ModelError, Result};
 pub use input::{AgentBody, EntityAbstraction, EntityInputs, InputProcessor, NeighbourRows, Translation};
 pub use kind::ModelKind;
-pub use layout::{
-    N_SCALARS, NODE_VECTOR_LEN, NODE_VECTORS, ObsBatch, ObsElement, ObsRows, ObsSpec, Observation, RowWidths,
-};
 pub use policy::{AgentPolicy, Model, ModelConfig, MpSizes, ParamCounts, PolicyOutput};
 pub use transformer_head::TransformerHead;

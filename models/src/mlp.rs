@@ -35,11 +35,12 @@ use crate::config::{ModelConfig, hidden_widths, layer_sizes};
 use crate::critic::critic_order;
 use crate::entity_graph::GraphBuilder;
 use crate::error::{ModelError, Result};
-use crate::input::{InputProcessor, ObsBatch, ObsElement, Translation};
+use crate::input::{InputProcessor, Translation};
 use crate::kind::{Frame, Head, ModelKind};
-use crate::layout::{N_SCALARS, NODE_VECTOR_LEN, NODE_VECTORS, ObsSpec};
 use crate::policy::{AgentPolicy, PolicyOutput, split_head};
 use crate::transformer_head::TransformerHead;
+use envs::layout::{N_SCALARS, NODE_VECTOR_LEN, NODE_VECTORS, ObsSpec};
+use envs::layout::{ObsBatch, ObsElement};
 
 /// Per-node features: the [`NODE_VECTOR_LEN`] vector components and the scalars.
 pub const NODE_FEATURES: usize = NODE_VECTOR_LEN + N_SCALARS;

@@ -49,9 +49,9 @@ use crate::entity_mp::EntityMp;
 use crate::error::{ModelError, Result};
 use crate::hnn::Hnn;
 use crate::kind::{Family, ModelKind};
-use crate::layout::{ObsBatch, ObsElement, ObsRows, ObsSpec, Observation};
 use crate::mlp::{FlatMlp, ReleaseMlp, no_assignment};
 use crate::shnn::Shnn;
+use envs::layout::{ObsBatch, ObsElement, ObsRows, ObsSpec, Observation};
 
 /// One agent's action-distribution parameters.
 #[derive(Clone, Copy, Debug)]

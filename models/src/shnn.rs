@@ -30,11 +30,12 @@ use crate::entity_graph::GraphBuilder;
 use crate::entity_mp::{EntityMp, EntityMpConfig};
 use crate::error::{ModelError, Result};
 use crate::frame::to_frame;
-use crate::input::{InputProcessor, ObsBatch, ObsElement, Translation};
+use crate::input::{InputProcessor, Translation};
 use crate::kind::{Critic as KindCritic, Frame, Head, ModelKind};
-use crate::layout::{N_SCALARS, ObsSpec};
 use crate::policy::{AgentPolicy, PolicyOutput, split_head};
 use crate::transformer_head::TransformerHead;
+use envs::layout::{N_SCALARS, ObsSpec};
+use envs::layout::{ObsBatch, ObsElement};
 
 /// How the head expresses the body vectors.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

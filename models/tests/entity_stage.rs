@@ -4,11 +4,10 @@
 mod common;
 
 use common::{max_diff, rng, transform};
-use envs::tasks::{ObsSpec, StartMode, VecEnv};
+use envs::layout::{NODE_VECTOR_LEN, ObsBatch, ObsSpec};
+use envs::tasks::{StartMode, VecEnv};
 use models::entity_graph::GraphTask;
 use models::frame::to_frame;
-use models::input::ObsBatch;
-use models::layout::NODE_VECTOR_LEN;
 use models::{
     AssignmentMethod, EntityAbstraction, EntityGraph, EntityInputs, EntityMp, EntityMpConfig, GraphBuilder,
     InputProcessor, Translation, UNASSIGNED,

@@ -9,10 +9,10 @@ mod common;
 use common::{max_diff, rng};
 use std::cell::RefCell;
 
-use envs::tasks::{BUILTIN_NAMES, ObsSpec, StartMode, VecEnv};
-use models::input::{InputProcessor, ObsBatch};
+use envs::layout::{N_SCALARS, NODE_VECTOR_LEN, ObsBatch, ObsRows, ObsSpec};
+use envs::tasks::{BUILTIN_NAMES, StartMode, VecEnv};
+use models::input::InputProcessor;
 use models::kind::Head;
-use models::layout::{N_SCALARS, NODE_VECTOR_LEN, ObsRows};
 use models::{
     AssignmentMethod, EntityAbstraction, GraphBuilder, Model, ModelConfig, ModelKind, MpSizes, PolicyOutput,
     Translation,

@@ -3,7 +3,7 @@
 //! in, checked for dtype and shape ([`read_f32`]) and finiteness ([`check_finite`]) with
 //! errors that name the argument.
 
-use envs::tasks::{N_SCALARS, Observation};
+use envs::layout::{N_SCALARS, Observation};
 use numpy::{PyArray1, PyArrayMethods, PyUntypedArray, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;

@@ -188,7 +188,7 @@ impl PyVecEnv {
             translation: [translation.0, translation.1],
             ..EvalOptions::new(b, true, s, mode)
         };
-        let env = pool::detach(py, || rl::evaluate::eval_envs(name, &options))?.map_err(rl_error)?;
+        let env = pool::detach(py, || rl::mappo::evaluate::eval_envs(name, &options))?.map_err(rl_error)?;
         Ok(PyVecEnv::wrap(env, false, record))
     }
 

@@ -1,5 +1,5 @@
 //! `meben.read_metrics`: a run's `metrics.csv` as numpy columns, read by the Rust reader
-//! that `meben report` uses (`rl::metrics::parse_columns`).
+//! that `meben report` uses (`rl::app::metrics::parse_columns`).
 
 use std::path::PathBuf;
 
@@ -19,8 +19,8 @@ pub fn read_metrics(py: Python<'_>, path: PathBuf) -> PyResult<Bound<'_, PyDict>
     let file = if path.is_dir() { rl::RunDir::new(&path).metrics() } else { path };
     let text = std::fs::read_to_string(&file)
         .map_err(|e| PyOSError::new_err(format!("{}: cannot read the metrics: {e}", file.display())))?;
-    let columns =
-        rl::metrics::parse_columns(&text).map_err(|e| PyValueError::new_err(format!("{}: {e}", file.display())))?;
+    let columns = rl::app::metrics::parse_columns(&text)
+        .map_err(|e| PyValueError::new_err(format!("{}: {e}", file.display())))?;
     let out = PyDict::new(py);
     for (name, values) in columns {
         out.set_item(name, array(py, &values, &[values.len()])?)?;

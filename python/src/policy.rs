@@ -8,12 +8,12 @@
 
 use std::sync::Mutex;
 
-use envs::tasks::{N_SCALARS, ObsSpec};
+use envs::layout::{N_SCALARS, ObsSpec};
 use numpy::PyUntypedArrayMethods;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
-use rl::actor::{ActMode, Actor, JointAction};
-use rl::evaluate::{evaluate_unless_stopped, evaluation_actors};
+use rl::mappo::actor::{ActMode, Actor, JointAction};
+use rl::mappo::evaluate::{evaluate_unless_stopped, evaluation_actors};
 use rl::{EvalRequest, RunDir, StopFlag, Team, TrainConfig};
 
 use crate::arrays::{array, check_finite, py_repr, read_f32};
@@ -62,7 +62,7 @@ impl PyPolicy {
     #[pyo3(signature = (run, seed=0))]
     fn load(py: Python<'_>, run: std::path::PathBuf, seed: u64) -> PyResult<PyPolicy> {
         let (config, teams) =
-            pool::detach(py, || rl::checkpoint::load_policies(&RunDir::new(&run)))?.map_err(rl_error)?;
+            pool::detach(py, || rl::app::run_dir::load_policies(&RunDir::new(&run)))?.map_err(rl_error)?;
         let scene =
             pool::detach(py, || envs::tasks::Scene::from_name(&config.env))?.map_err(crate::errors::task_error)?;
         let players = evaluation_actors(&teams, seed, ActMode::Sample);
@@ -113,7 +113,7 @@ impl PyPolicy {
         check_finite(scalars, "obs[\"scalars\"]", &ss)?;
         check_finite(head, "obs[\"heading\"]", &hs)?;
         let mode = if deterministic { ActMode::Mean } else { ActMode::Sample };
-        let raw = models::ObsRows::new(n, a, vectors.as_slice(), scalars.as_slice(), head.as_slice())
+        let raw = envs::layout::ObsRows::new(n, a, vectors.as_slice(), scalars.as_slice(), head.as_slice())
             .map_err(|e| bad_argument("obs", "arrays".to_string(), &e.to_string()))?;
         let mut joint = JointAction::new(b, self.n_actions, self.teams.len());
         let teams = &self.teams;
@@ -137,7 +137,7 @@ impl PyPolicy {
     /// the fixed start of the run's seed, moved (the paper's equivariance test). The
     /// policy's own noise streams (`act`) are untouched. The GIL is released while playing;
     /// a `KeyboardInterrupt` abandons the evaluation and is raised.
-    #[pyo3(signature = (episodes=1024, seed=rl::evaluate::DEFAULT_EVAL_SEED, deterministic=None, fixed=false, rotation_deg=None, translation=None))]
+    #[pyo3(signature = (episodes=1024, seed=rl::mappo::evaluate::DEFAULT_EVAL_SEED, deterministic=None, fixed=false, rotation_deg=None, translation=None))]
     #[allow(clippy::too_many_arguments)]
     fn evaluate<'py>(
         &self,

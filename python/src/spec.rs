@@ -1,8 +1,9 @@
 //! `env.spec`: what a scene is made of, as a plain dict (nodes, agents, teams, each agent's
 //! action slice), read from the Rust `Scene` and its `ObsSpec`.
 
+use envs::layout::N_SCALARS;
 use envs::tasks::spec::CONTROL_DT;
-use envs::tasks::{N_SCALARS, Scene, TaskKind};
+use envs::tasks::{Scene, TaskKind};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 

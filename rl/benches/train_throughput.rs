@@ -29,8 +29,8 @@ use std::time::Instant;
 #[global_allocator]
 static ALLOC: mimalloc::MiMalloc = mimalloc::MiMalloc;
 
-use rl::minibatch::Minibatch;
-use rl::ppo::{self, PpoParams};
+use rl::mappo::minibatch::Minibatch;
+use rl::mappo::ppo::{self, PpoParams};
 use rl::{Preset, TrainConfig, Trainer};
 use tensor::{Tape, Tensor};
 
@@ -87,7 +87,7 @@ fn minibatch_flops(t: &Trainer, c: &TrainConfig, reps: usize) -> Result<(u64, f6
     let pass = |tape: &Tape<f32>| -> Result<(), Box<dyn std::error::Error>> {
         let p = team.store.bind(tape);
         let mut model = team.model.clone();
-        let mut noise = rl::seeding::minibatch_stream(c.seed, "entropy", 0, 0, 0, 0);
+        let mut noise = rl::mappo::seeding::minibatch_stream(c.seed, "entropy", 0, 0, 0, 0);
         let (loss, _) = ppo::loss(&mut model, &p, &mb, &hp, &mut noise)?;
         std::hint::black_box(tape.backward(loss)?);
         Ok(())

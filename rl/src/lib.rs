@@ -12,10 +12,6 @@
 //! normaliser, evaluation, checkpoints), and [`app`], the application around it (presets,
 //! the run directory, metrics, progress, curves and plots, sweeps, reports, export, render,
 //! the command line); [`error`] and [`stop`] (stopping on request) are shared. `app` uses `mappo`, never the other way.
-//!
-//! The modules are also reachable under their paths from before this split (`rl::config`,
-//! `rl::checkpoint`, `rl::train`, `rl::normalizer`, `rl::sweep`, ...), so that code written
-//! against them keeps building.
 
 pub mod app;
 pub mod error;
@@ -34,29 +30,3 @@ pub use mappo::evaluate::{EvalOptions, EvalRequest, EvalSummary, evaluate};
 pub use mappo::team::Team;
 pub use mappo::trainer::Trainer;
 pub use stop::StopFlag;
-
-// The paths from before the split into `mappo` and `app`.
-pub use app::{curve, export, info, lock, metrics, plot, progress, report, run_dir, status, sweep};
-pub use mappo::{actor, checksum, evaluate, gae, memory, minibatch, normalizer, ppo, rollout, seeding, team};
-
-/// The configuration (path from before the split): [`mappo::config`] and the presets of
-/// [`app::presets`].
-pub mod config {
-    pub use crate::app::presets::Preset;
-    pub use crate::mappo::config::*;
-}
-
-/// Checkpoints (path from before the split): [`mappo::checkpoint`] and
-/// [`app::run_dir::load_policies`].
-pub mod checkpoint {
-    pub use crate::app::run_dir::load_policies;
-    pub use crate::mappo::checkpoint::*;
-}
-
-/// Training (path from before the split): [`mappo::trainer`], [`app::run`] and
-/// [`mappo::evaluate::EvalSummary`].
-pub mod train {
-    pub use crate::app::run::*;
-    pub use crate::mappo::evaluate::EvalSummary;
-    pub use crate::mappo::trainer::*;
-}

@@ -4,8 +4,8 @@
 
 mod common;
 
-use rl::checkpoint::Checkpoint;
-use rl::checksum::{Unsealed, seal, unseal};
+use rl::mappo::checkpoint::Checkpoint;
+use rl::mappo::checksum::{Unsealed, seal, unseal};
 use rl::{RlError, RunDir, TrainOptions, train};
 
 /// A run of 2 iterations stopped after the first: a good checkpoint.
@@ -80,7 +80,7 @@ fn changed_bytes_and_inconsistent_counters_are_refused() {
         .unwrap();
     let e = train(&config, &run, &TrainOptions::default()).unwrap_err().to_string();
     assert!(e.contains("checkpoint.json") && e.contains("checksum mismatch"), "{e}");
-    let e = rl::checkpoint::load_policies(&run).unwrap_err().to_string();
+    let e = rl::app::run_dir::load_policies(&run).unwrap_err().to_string();
     assert!(e.contains("checksum mismatch"), "{e}");
 
     // A version 2 payload without its envelope was edited.

@@ -52,10 +52,10 @@ impl Drop for TempDir {
     }
 }
 
-/// A run's metrics rows without the wall-clock columns (`rl::metrics::WALL_TIME_COLUMNS`),
+/// A run's metrics rows without the wall-clock columns (`rl::app::metrics::WALL_TIME_COLUMNS`),
 /// for comparing runs row by row.
 pub fn metrics(run: &rl::RunDir) -> Vec<Vec<(String, f64)>> {
-    let rows = rl::metrics::read_csv(&run.metrics()).unwrap();
-    let wall = rl::metrics::WALL_TIME_COLUMNS;
+    let rows = rl::app::metrics::read_csv(&run.metrics()).unwrap();
+    let wall = rl::app::metrics::WALL_TIME_COLUMNS;
     rows.into_iter().map(|r| r.into_iter().filter(|(k, _)| !wall.contains(&k.as_str())).collect()).collect()
 }

@@ -3,7 +3,7 @@
 //! its mean over many samples is the entropy of `a = tanh(x)` found by integration.
 
 use models::distribution::{normal_entropy, tanh_normal_entropy, tanh_normal_log_prob};
-use rl::seeding::{standard_normal, stream};
+use rl::mappo::seeding::{standard_normal, stream};
 use tensor::{Tape, Tensor};
 
 #[test]

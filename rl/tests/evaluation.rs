@@ -6,10 +6,11 @@
 
 mod common;
 
-use envs::tasks::{Observation, StartMode};
+use envs::layout::Observation;
+use envs::tasks::StartMode;
 use rl::Team;
-use rl::actor::{ActMode, Actor, JointAction};
-use rl::evaluate::{EvalOptions, episode_start, eval_envs};
+use rl::mappo::actor::{ActMode, Actor, JointAction};
+use rl::mappo::evaluate::{EvalOptions, episode_start, eval_envs};
 use rl::{RunDir, TrainOptions, train};
 
 /// Largest deviation of `moved` from `base` rotated by `deg` about the vertical through the
@@ -130,7 +131,7 @@ fn periodic_evaluation_at_several_rotations_has_its_columns_and_resumes_exactly(
     let run = RunDir::new(dir.join("run"));
     let s = train(&config, &run, &TrainOptions::default()).unwrap();
     let text = std::fs::read_to_string(run.metrics()).unwrap();
-    let rows = rl::metrics::parse_csv(&text).unwrap();
+    let rows = rl::app::metrics::parse_csv(&text).unwrap();
     assert_eq!(rows.len(), 2);
     for r in &rows {
         assert_eq!(r["eval_sampled"], 1.0);
@@ -152,7 +153,7 @@ fn periodic_evaluation_at_several_rotations_has_its_columns_and_resumes_exactly(
     train(&config, &parts, &TrainOptions { stop_after: Some(1), ..Default::default() }).unwrap();
     let resumed = train(&config, &parts, &TrainOptions::default()).unwrap();
     let strip = |text: &str| -> Vec<Vec<(String, f64)>> {
-        let rows = rl::metrics::parse_csv(text).unwrap();
+        let rows = rl::app::metrics::parse_csv(text).unwrap();
         rows.into_iter().map(|r| r.into_iter().filter(|(k, _)| k != "wall_s" && k != "steps_per_s").collect()).collect()
     };
     assert_eq!(strip(&std::fs::read_to_string(parts.metrics()).unwrap()), strip(&text));

@@ -44,7 +44,7 @@ fn the_checkpoint_corpus_loads_or_fails_cleanly() {
     let (mut loaded, mut restored) = (0, 0);
     for (path, data) in corpus("checkpoint") {
         std::fs::write(&file, &data).unwrap();
-        let outcome = std::panic::catch_unwind(|| match rl::checkpoint::Checkpoint::load(&file) {
+        let outcome = std::panic::catch_unwind(|| match rl::mappo::checkpoint::Checkpoint::load(&file) {
             Ok(c) if c.config.num_envs <= 64 && c.config.steps_per_iteration() <= 4096 => {
                 (true, rl::Trainer::from_checkpoint(&c, &c.config, &file).is_ok())
             }

@@ -22,7 +22,7 @@ mod common;
 use std::path::Path;
 
 use common::{TempDir, metrics};
-use rl::checkpoint::Checkpoint;
+use rl::mappo::checkpoint::Checkpoint;
 use rl::{RunDir, TrainConfig, TrainOptions, Trainer, train};
 use tensor::Device;
 

@@ -12,7 +12,7 @@ use std::path::Path;
 use std::process::Command;
 use std::time::{Duration, Instant};
 
-use rl::checkpoint::Checkpoint;
+use rl::mappo::checkpoint::Checkpoint;
 use rl::{RlError, RunDir, RunSelection, StopFlag, Sweep, TrainOptions, run_sweep, train};
 
 /// Data rows of a metrics file (0 if it does not exist yet).
@@ -150,12 +150,12 @@ fn the_program_stops_with_a_checkpoint_on_sigint_and_sigterm() {
 
 #[test]
 fn a_stopped_evaluation_returns_no_summary_and_an_unstopped_one_the_same_as_evaluate() {
-    use rl::evaluate::{evaluate, evaluate_unless_stopped};
+    use rl::mappo::evaluate::{evaluate, evaluate_unless_stopped};
     let dir = common::TempDir::new("interrupt-eval");
     let config = common::tiny("team_reach/1_ant", "mlp_hn", 1, &[]);
     let run = RunDir::new(dir.0.join("run"));
     train(&config, &run, &TrainOptions::default()).unwrap();
-    let (config, teams) = rl::checkpoint::load_policies(&run).unwrap();
+    let (config, teams) = rl::app::run_dir::load_policies(&run).unwrap();
     let request = rl::EvalRequest {
         episodes: 6,
         seed: 3,

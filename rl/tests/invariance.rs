@@ -10,12 +10,14 @@
 //! of a `VecEnv` in its layout (`[B, N, 3, 3]` vectors: position, velocity, angular
 //! velocity per node; `[B, N, N_SCALARS]` scalars; `[B, A]` headings).
 
-use envs::tasks::{ObsSpec, StartMode, VecEnv};
-use models::{Model, ModelConfig, ModelKind, ObsRows};
+use envs::layout::ObsRows;
+use envs::layout::ObsSpec;
+use envs::tasks::{StartMode, VecEnv};
+use models::{Model, ModelConfig, ModelKind};
 use nn::ParamStore;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use rl::normalizer::{CLIP, ObsNormalizer};
+use rl::mappo::normalizer::{CLIP, ObsNormalizer};
 use rl::{ObsNormKind, Preset, TrainConfig};
 use tensor::Tape;
 

@@ -6,7 +6,7 @@
 
 mod common;
 
-use rl::metrics::parse_csv;
+use rl::app::metrics::parse_csv;
 use rl::{RunDir, TrainConfig, TrainOptions, train};
 
 /// Trains `model` (quick preset, seed 0) and checks that the evaluation success rises.

@@ -5,10 +5,10 @@
 mod common;
 
 use models::distribution::std_from_scale;
-use rl::gae::gae;
-use rl::minibatch::Minibatch;
-use rl::ppo::{self, PpoParams};
-use rl::seeding::{minibatch_stream, standard_normal};
+use rl::mappo::gae::gae;
+use rl::mappo::minibatch::Minibatch;
+use rl::mappo::ppo::{self, PpoParams};
+use rl::mappo::seeding::{minibatch_stream, standard_normal};
 use rl::{EntropyKind, TrainConfig, Trainer};
 use tensor::Tape;
 
@@ -29,7 +29,7 @@ fn first_minibatch(config: &TrainConfig) -> (Trainer, Minibatch) {
 }
 
 /// The loss statistics of team 0 on `mb` under the trainer's current parameters.
-fn loss_stats(t: &mut Trainer, mb: &Minibatch, config: &TrainConfig) -> rl::ppo::LossStats {
+fn loss_stats(t: &mut Trainer, mb: &Minibatch, config: &TrainConfig) -> rl::mappo::ppo::LossStats {
     let team = &mut t.teams[0];
     let tape = Tape::<f32>::new();
     let p = team.store.bind(&tape);

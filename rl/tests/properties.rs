@@ -11,8 +11,8 @@ use std::sync::OnceLock;
 use common::TempDir;
 use envs::tasks::BUILTIN_NAMES;
 use proptest::prelude::*;
-use rl::checkpoint::Checkpoint;
-use rl::normalizer::RunningStats;
+use rl::mappo::checkpoint::Checkpoint;
+use rl::mappo::normalizer::RunningStats;
 use rl::{EntropyKind, NormStart, ObsNormKind, Preset, RunDir, TrainConfig, TrainOptions};
 
 /// Model specifications valid for every environment (options of `models::ModelConfig`).

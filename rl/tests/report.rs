@@ -3,7 +3,7 @@
 
 use std::path::Path;
 
-use rl::metrics::{MetricsLayout, MetricsRow};
+use rl::app::metrics::{MetricsLayout, MetricsRow};
 use rl::{Preset, RunDir, RunSelection, RunSummary, Sweep, TrainConfig, report, run_sweep};
 
 mod common;
@@ -151,7 +151,7 @@ fn report_of_synthetic_runs() {
     let (lm, ls) = sumo.lose.unwrap();
     assert!(close(lm, 25.0) && close(ls, 25.0));
     // Win, loss and draw curves over training.
-    let at = |c: &[rl::report::CurvePoint]| c.iter().map(|p| (p.env_steps, p.mean)).collect::<Vec<_>>();
+    let at = |c: &[rl::app::report::CurvePoint]| c.iter().map(|p| (p.env_steps, p.mean)).collect::<Vec<_>>();
     assert_eq!(at(&sumo.curve), [(2500.0, 0.0), (5000.0, 55.0)]);
     assert_eq!(at(&sumo.curve_lose), [(2500.0, 100.0), (5000.0, 25.0)]);
     assert!(close(sumo.curve_draw[1].mean, 20.0));

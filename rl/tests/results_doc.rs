@@ -102,7 +102,7 @@ fn read_report(path: &Path) -> Vec<HashMap<String, String>> {
 
 /// A run's `metrics.csv` rows (the project's reader: empty cells absent).
 fn read_metrics(run: &Path) -> Vec<MetricsRow> {
-    rl::metrics::read_csv(&run.join("metrics.csv")).unwrap()
+    rl::app::metrics::read_csv(&run.join("metrics.csv")).unwrap()
 }
 
 /// One row of `metrics.csv`.
@@ -115,7 +115,10 @@ fn last(rows: &[MetricsRow], column: &str) -> f64 {
 
 /// The run directories of the experiments under `results/`.
 fn runs_of(experiments: &[String]) -> Vec<PathBuf> {
-    experiments.iter().flat_map(|exp| rl::report::find_run_dirs(&root().join("results").join(exp)).unwrap()).collect()
+    experiments
+        .iter()
+        .flat_map(|exp| rl::app::report::find_run_dirs(&root().join("results").join(exp)).unwrap())
+        .collect()
 }
 
 /// Whether the figure `shown`, as written, is `value` rounded to its decimals.

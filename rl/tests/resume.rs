@@ -7,8 +7,8 @@ mod common;
 
 use common::metrics;
 
-use rl::checkpoint::Checkpoint;
-use rl::normalizer::{NormKind, ObsNormalizer};
+use rl::mappo::checkpoint::Checkpoint;
+use rl::mappo::normalizer::{NormKind, ObsNormalizer};
 use rl::{RunDir, TrainConfig, TrainOptions, train};
 
 fn params(run: &RunDir) -> Vec<Vec<f64>> {
@@ -106,13 +106,15 @@ fn bad_checkpoints_and_changed_configurations_are_refused() {
     c.save(&run.checkpoint()).unwrap();
     let e = train(&config, &run, &TrainOptions::default()).unwrap_err().to_string();
     assert!(e.contains("checkpoint.json") && e.contains("normaliser") && e.contains("elementwise"), "{e}");
-    let e = rl::checkpoint::load_policies(&run).unwrap_err().to_string();
+    let e = rl::app::run_dir::load_policies(&run).unwrap_err().to_string();
     assert!(e.contains("checkpoint.json") && e.contains("normaliser"), "{e}");
     let text = String::from_utf8(good.clone()).unwrap();
     assert!(text.contains("\"kind\":\"Invariant\""));
-    let rl::checksum::Unsealed::Checked(payload) = rl::checksum::unseal(&good).unwrap() else { panic!("unsealed") };
+    let rl::mappo::checksum::Unsealed::Checked(payload) = rl::mappo::checksum::unseal(&good).unwrap() else {
+        panic!("unsealed")
+    };
     let renamed = payload.replace("\"kind\":\"Invariant\"", "\"kind\":\"Rotation\"");
-    std::fs::write(run.checkpoint(), rl::checksum::seal(renamed.as_bytes())).unwrap();
+    std::fs::write(run.checkpoint(), rl::mappo::checksum::seal(renamed.as_bytes())).unwrap();
     let e = train(&config, &run, &TrainOptions::default()).unwrap_err().to_string();
     assert!(e.contains("checkpoint.json") && e.contains("Rotation"), "{e}");
     // The checkpoint of another model.
@@ -150,11 +152,11 @@ fn damaged_metrics_config_and_done_files_are_repaired_or_refused_by_name() {
 
     // The run is finished; its config.toml is damaged.
     std::fs::write(run.config(), "env = [broken").unwrap();
-    let e = rl::checkpoint::load_policies(&run).unwrap_err().to_string();
+    let e = rl::app::run_dir::load_policies(&run).unwrap_err().to_string();
     assert!(e.contains("config.toml") && e.contains("line 1"), "{e}");
     assert_eq!(train(&config, &run, &TrainOptions::default()).unwrap().iterations, 2);
     assert_eq!(TrainConfig::load(&run.config()).unwrap(), config);
-    rl::checkpoint::load_policies(&run).unwrap();
+    rl::app::run_dir::load_policies(&run).unwrap();
 
     std::fs::write(run.done(), "{\"iterations\": 2, broken").unwrap();
     assert_eq!(train(&config, &run, &TrainOptions::default()).unwrap().iterations, 2);

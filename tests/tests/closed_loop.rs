@@ -1,13 +1,13 @@
 //! Cross-crate smoke test: MeBen environments (`envs`) driven by policies (`models`, on the
-//! `tensor`/`nn` autodiff) through the trainer's act step (`rl::actor::Actor`: sampled
+//! `tensor`/`nn` autodiff) through the trainer's act step (`rl::mappo::actor::Actor`: sampled
 //! Tanh-Normal actions and their log-probabilities), with every value finite.
 
 use envs::tasks::{StartMode, VecEnv};
 use models::{Model, ModelConfig};
 use nn::ParamStore;
-use rl::actor::{ActMode, Actor, JointAction};
-use rl::normalizer::{NormKind, ObsNormalizer};
-use rl::seeding::stream;
+use rl::mappo::actor::{ActMode, Actor, JointAction};
+use rl::mappo::normalizer::{NormKind, ObsNormalizer};
+use rl::mappo::seeding::stream;
 use tensor::Tape;
 
 /// Runs `steps` control steps of `env_name` with one `model` per team; returns the summed

@@ -13,7 +13,7 @@
 //! One module per job: [`spec`] (names, compositions), [`scene`] (one model per
 //! composition), [`placement`] (random starts), [`eval_modes`] (fixed and rotated starts),
 //! [`reach`] and [`sumo`] (rewards, outcomes), [`outcome`], [`observation`] (filling
-//! the observation layout of `models::layout`), [`vec_env`] (batched stepping), [`render`] (trajectories to CSV, HTML and GIF), [`error`].
+//! the observation layout of [`crate::layout`]), [`vec_env`] (batched stepping), [`render`] (trajectories to CSV, HTML and GIF), [`error`].
 
 pub mod error;
 pub mod eval_modes;
@@ -29,7 +29,6 @@ pub mod vec_env;
 
 pub use error::TaskError;
 pub use eval_modes::{FixedStart, StartMode};
-pub use observation::{N_SCALARS, ObsSpec, Observation};
 pub use outcome::{Outcome, RootState};
 pub use placement::Start;
 pub use scene::Scene;

@@ -1,6 +1,6 @@
-//! Filling the observation layout ([`models::layout`], re-exported here: [`ObsSpec`],
-//! [`Observation`], [`N_SCALARS`], the entity-type columns) from the simulator: the
-//! [`ObsSpec`] of a scene ([`obs_spec`]) and one environment's row ([`write_row`]).
+//! Filling the observation layout ([`crate::layout`]: [`ObsSpec`], [`Observation`](crate::layout::Observation),
+//! [`N_SCALARS`], the entity-type columns) from the simulator: the [`ObsSpec`] of a scene
+//! ([`obs_spec`]) and one environment's row ([`write_row`]).
 //!
 //! # What each part holds here
 //! - `vectors`: per node the world-frame position (m), the linear velocity of the body
@@ -21,7 +21,7 @@
 //! | 1 [`ENTITY_GOAL`] / [`ENTITY_OPPONENT`] | goal ball | agent of the other team |
 //! | 2 [`ENTITY_CENTRE`] | unused | centre ball |
 //!
-//! One [`Observation`] serves both teams, so its arrays hold team 0's view;
+//! One [`Observation`](crate::layout::Observation) serves both teams, so its arrays hold team 0's view;
 //! [`ObsSpec::to_team_view`] turns them into team 1's (swaps columns 0 and 1 of the agent
 //! nodes). This follows the release's Sumo observer (alpc91/SMERL,
 //! `mix_colla_compe_team_tasks/procedural_envs/misc/observers.py`, `GraphObserver`:
@@ -49,9 +49,7 @@
 //! axis), the scalars do not change and the headings shift by the angle. Non-finite values
 //! (a diverged simulation) are written as 0.
 
-pub use models::layout::{
-    ENTITY_AGENT, ENTITY_CENTRE, ENTITY_GOAL, ENTITY_OPPONENT, N_SCALARS, NODE_VECTOR_LEN, ObsSpec, Observation,
-};
+use crate::layout::{ENTITY_AGENT, ENTITY_CENTRE, ENTITY_GOAL, ENTITY_OPPONENT, N_SCALARS, NODE_VECTOR_LEN, ObsSpec};
 
 use super::error::TaskError;
 use super::scene::{AgentLayout, BALL_RADIUS};
@@ -244,7 +242,7 @@ pub fn obs_spec(spec: &TaskSpec, model: &Model, agents: &[AgentLayout]) -> Resul
 /// Writes one environment's observation row of a scene laid out by `spec`. `data` must have
 /// its kinematics and velocities computed for the current state (`kinematics`, `com_pos`,
 /// `com_vel`); `balls` are the ball positions (x, y) of the episode. Slices are this
-/// environment's parts of [`Observation`]'s arrays (`N * NODE_VECTOR_LEN`, `N * N_SCALARS`,
+/// environment's parts of [`Observation`](crate::layout::Observation)'s arrays (`N * NODE_VECTOR_LEN`, `N * N_SCALARS`,
 /// `A` long; shorter slices or fewer balls than the scene has panic: this is the
 /// environment's internal writer).
 pub fn write_row(

@@ -22,11 +22,11 @@ pub use gif_writer::GifOptions;
 
 use super::error::TaskError;
 use super::eval_modes::StartMode;
-use super::observation::Observation;
 use super::scene::{BALL_RADIUS, Scene};
 use super::spec::TaskKind;
 use super::vec_env::VecEnv;
 use crate::data::Data;
+use crate::layout::Observation;
 use crate::math::{add, mat_vec, quat_to_mat, sub};
 use crate::model::Shape;
 use std::fmt::Write;

@@ -9,11 +9,11 @@
 //! in the observation, the rewards and the rendered trajectories.
 
 use super::error::TaskError;
-use super::observation::ObsSpec;
 use super::spec::{TaskKind, TaskSpec};
 use crate::brax::rotation::{add, quat_rotate};
 use crate::brax::tree::TreeShape;
 use crate::brax::{AgentTree, BraxPhysics, add_agent, brax_options, load_config_file, load_morphology};
+use crate::layout::ObsSpec;
 use crate::mjcf_agent::load_agent_file;
 use crate::model::{JointKind, Model, ModelError};
 use crate::{BodyId, GeomSpec, ModelBuilder};

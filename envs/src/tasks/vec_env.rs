@@ -24,7 +24,6 @@
 
 use super::error::TaskError;
 use super::eval_modes::{StartMode, fixed_start};
-use super::observation::{N_SCALARS, NODE_VECTOR_LEN, Observation};
 use super::outcome::{Outcome, RootState};
 use super::placement::{Start, sample_start};
 use super::scene::Scene;
@@ -32,6 +31,7 @@ use super::spec::{TaskKind, TaskSpec};
 use super::{reach, sumo};
 use crate::data::Data;
 use crate::kinematics::{com_pos, com_vel, kinematics};
+use crate::layout::{N_SCALARS, NODE_VECTOR_LEN, Observation};
 use crate::step;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;

@@ -2,7 +2,7 @@
 //! run (`curve.svg`) and of a sweep (`meben report`).
 //!
 //! ```
-//! use rl::plot::LinePlot;
+//! use rl::app::plot::LinePlot;
 //! let svg = LinePlot::new("team_reach/1_ant")
 //!     .x_label("env steps")
 //!     .y_label("success %")

@@ -6,9 +6,9 @@
 //! through an [`Actor`], which holds the team's action-noise streams (one per agent,
 //! MEBEN.md section 8) and its scratch.
 
+use envs::layout::{ObsRows, Observation};
 use models::Model;
 use models::distribution::{normal_log_prob, std_from_scale};
-use models::layout::{ObsRows, Observation};
 use nn::ParamStore;
 use rand_chacha::ChaCha8Rng;
 use tensor::{Tape, Tensor};

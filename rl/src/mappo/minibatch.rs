@@ -7,7 +7,7 @@
 //! for `K` truncated transitions; [`Minibatch::final_row`] points a truncated transition at
 //! its row.
 
-use models::layout::{ObsRows, Observation};
+use envs::layout::{ObsRows, Observation};
 
 use crate::mappo::normalizer::ObsNormalizer;
 

@@ -12,7 +12,7 @@
 //! **Invariant** ([`NormKind::Invariant`], the default for every model). An observation has,
 //! per node `n`, a position `p_n`, a velocity `v_n`, an angular velocity `w_n` and scalars
 //! `h_n`; let `c = (1/|E|) sum_{r in E} p_r` be the mean position of the entity roots `E`
-//! (agents' roots and balls, [`envs::tasks::ObsSpec::entity_root_node`]). The statistics are
+//! (agents' roots and balls, [`envs::layout::ObsSpec::entity_root_node`]). The statistics are
 //!
 //! - one position scale for the whole observation, `sigma_p = sqrt(E[(1/N) sum_n |p_n - c|^2])`
 //!   (the expectation over every observation seen);
@@ -55,7 +55,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use tensor::Float;
 
-use models::layout::{N_SCALARS, NODE_VECTOR_LEN, ObsRows, ObsSpec, Observation};
+use envs::layout::{N_SCALARS, NODE_VECTOR_LEN, ObsRows, ObsSpec, Observation};
 
 /// Normalised values (element-wise) or norms (velocities) are clipped to this bound.
 pub const CLIP: f32 = 10.0;

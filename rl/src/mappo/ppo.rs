@@ -27,8 +27,9 @@
 //!         - c_H mean(H)`, with `rho = exp(log pi(u | s) - log pi_old(u | s))`;
 //! 5. **statistics** ([`LossStats`]), in f64 from the same tensors.
 
+use envs::layout::ObsSpec;
 use models::distribution::{normal_entropy, normal_log_prob, std_from_scale, tanh_normal_entropy};
-use models::{AgentPolicy, Model, ObsSpec};
+use models::{AgentPolicy, Model};
 use nn::Bound;
 use rand_chacha::ChaCha8Rng;
 use tensor::{Tensor, Var};

@@ -14,8 +14,8 @@
 //! through [`Rollout::gather`] and [`Rollout::visited_obs`]. Nothing else indexes its
 //! arrays.
 
+use envs::layout::{ObsRows, Observation, RowWidths};
 use envs::tasks::StepOutput;
-use models::layout::{ObsRows, Observation, RowWidths};
 
 use crate::mappo::actor::JointAction;
 use crate::mappo::minibatch::{Minibatch, NO_FINAL};

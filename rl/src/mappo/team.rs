@@ -2,7 +2,7 @@
 //! normaliser, its [`Actor`] (the act step with the team's action-noise streams: MEBEN.md
 //! section 8, every agent and team has its own) and its minibatch-shuffling stream.
 
-use models::layout::{ObsRows, ObsSpec};
+use envs::layout::{ObsRows, ObsSpec};
 use models::{Model, ModelConfig};
 use nn::{Adam, AdamConfig, LrSchedule, ParamStore};
 use rand_chacha::ChaCha8Rng;

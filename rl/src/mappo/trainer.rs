@@ -35,8 +35,8 @@
 
 use std::time::Instant;
 
+use envs::layout::ObsSpec;
 use envs::tasks::{Outcome, StepOutput, TaskKind, TaskSpec, VecEnv};
-use models::layout::ObsSpec;
 use nn::ParamStore;
 use tensor::{Device, Tape};
 

@@ -26,9 +26,9 @@
 
 use super::{VecEnv, refresh, write_obs};
 use crate::data::DataState;
+use crate::layout::{N_SCALARS, NODE_VECTOR_LEN};
 use crate::tasks::error::TaskError;
 use crate::tasks::eval_modes::{StartMode, fixed_start};
-use crate::tasks::observation::{N_SCALARS, NODE_VECTOR_LEN};
 use crate::tasks::outcome::Outcome;
 use crate::tasks::spec::TaskSpec;
 use rand::SeedableRng;

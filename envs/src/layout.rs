@@ -3,8 +3,9 @@
 //! node is (the same for every environment and every step), and views of whole observation
 //! rows ([`ObsRows`], [`ObsBatch`]) so that no caller recomputes a stride.
 //!
-//! `models` owns this layout; `envs` fills it (`envs::tasks::observation`, which builds the
-//! [`ObsSpec`] of a scene and writes the rows) and re-exports it under its old paths.
+//! The environment owns its observations, as in Gymnasium: `envs` declares this layout and
+//! fills it (`envs::tasks::observation` builds the [`ObsSpec`] of a scene and writes the
+//! rows); the models (crate `models`) and the learner read it from here.
 //!
 //! # Nodes (MEBEN.md section 4, one global list per environment)
 //! For each agent `a` in order (team 0's agents, then team 1's): its root node, then one node
@@ -40,7 +41,21 @@
 
 use std::ops::Range;
 
-use crate::error::{ModelError, Result};
+/// An observation, spec or assignment whose shapes or contents do not fit together (the
+/// message says how).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct LayoutError(pub String);
+
+impl std::fmt::Display for LayoutError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for LayoutError {}
+
+/// `Result` with [`LayoutError`].
+pub type Result<T> = std::result::Result<T, LayoutError>;
 
 /// Scalars per node.
 pub const N_SCALARS: usize = 10;
@@ -134,18 +149,18 @@ impl ObsSpec {
     /// Reach (one team), it changes nothing. Applying team 1's view twice gives the raw view
     /// back. No allocation; one swap per agent node and row.
     ///
-    /// Errors ([`ModelError::Input`], nothing changed): `team` not below
+    /// Errors ([`LayoutError`], nothing changed): `team` not below
     /// [`ObsSpec::n_teams`], or a length that is not a whole number of `N * N_SCALARS` rows.
     pub fn to_team_view<S>(&self, team: usize, scalars: &mut [S]) -> Result<()> {
         if team >= self.n_teams {
-            return Err(ModelError::Input(format!(
+            return Err(LayoutError(format!(
                 "bad team = {team}: this scene has {} team(s), numbered from 0",
                 self.n_teams
             )));
         }
         let row = self.n_nodes * N_SCALARS;
         if row == 0 || !scalars.len().is_multiple_of(row) {
-            return Err(ModelError::Input(format!(
+            return Err(LayoutError(format!(
                 "bad scalars length = {}: expected a multiple of N * N_SCALARS = {} * {N_SCALARS}",
                 scalars.len(),
                 self.n_nodes
@@ -313,7 +328,7 @@ impl<'a, S: Copy> ObsRows<'a, S> {
         let w = RowWidths::new(nodes, agents);
         let rows = vectors.len().checked_div(w.vectors).unwrap_or(0);
         if rows * w.vectors != vectors.len() || rows * w.scalars != scalars.len() || rows * w.heading != heading.len() {
-            return Err(ModelError::Input(format!(
+            return Err(LayoutError(format!(
                 "observation arrays of {} vectors, {} scalars and {} headings are not whole rows of {nodes} nodes \
                  and {agents} agents ({} + {} + {} per row)",
                 vectors.len(),
@@ -390,7 +405,7 @@ impl<'a, S: ObsElement> ObsBatch<'a, S> {
     pub fn new(batch: usize, nodes: usize, vectors: &'a [S], scalars: &'a [S]) -> Result<Self> {
         let w = RowWidths::new(nodes, 0);
         if vectors.len() != batch * w.vectors || scalars.len() != batch * w.scalars {
-            return Err(ModelError::Input(format!(
+            return Err(LayoutError(format!(
                 "observation arrays of {} vectors and {} scalars do not hold {batch} x {nodes} nodes \
                  (expected {} and {})",
                 vectors.len(),
@@ -431,10 +446,10 @@ impl<'a, S: ObsElement> ObsBatch<'a, S> {
     }
 
     /// Checks the arrays against `spec`: whole rows of its nodes, at least one.
-    pub(crate) fn check(&self, spec: &ObsSpec) -> Result<()> {
+    pub fn check(&self, spec: &ObsSpec) -> Result<()> {
         Self::new(self.batch, self.nodes, self.vectors, self.scalars)?;
         if self.nodes != spec.n_nodes || self.batch == 0 {
-            return Err(ModelError::Input(format!(
+            return Err(LayoutError(format!(
                 "observations of {} environments x {} nodes for a scene of {} nodes",
                 self.batch, self.nodes, spec.n_nodes
             )));
