@@ -106,6 +106,18 @@ pub struct VecEnv {
     auto_reset: bool,
 }
 
+impl Row<'_> {
+    /// Whether the observation and rewards written to this row are all finite.
+    fn is_finite(&self) -> bool {
+        self.vectors
+            .iter()
+            .chain(self.scalars.iter())
+            .chain(self.heading.iter())
+            .chain(self.reward.iter())
+            .all(|x| x.is_finite())
+    }
+}
+
 /// Recomputes poses and velocities for the observation and rewards (the step pipeline
 /// computes them before integrating, so they are stale after a step).
 fn refresh(scene: &Scene, d: &mut Data) {
@@ -206,9 +218,17 @@ fn step_env(
             }
         }
     } else {
-        row.reward.iter_mut().for_each(|r| *r = 0.0);
         Outcome::Diverged
     };
+    write_obs(scene, slot, row.vectors, row.scalars, row.heading);
+    // A state finite in f64 can still overflow the f32 observation or reward (a position
+    // of 1e39 m): that step diverged, not the next one (issue 44 item 4).
+    if outcome != Outcome::Diverged && !row.is_finite() {
+        outcome = Outcome::Diverged;
+    }
+    if outcome == Outcome::Diverged {
+        row.reward.iter_mut().for_each(|r| *r = 0.0);
+    }
     *row.terminated = outcome.is_terminal();
     *row.truncated = !*row.terminated && slot.step >= scene.spec.episode_steps;
     if *row.truncated {
@@ -216,7 +236,6 @@ fn step_env(
     }
     *row.outcome = outcome;
     *row.episode_len = slot.step as u32;
-    write_obs(scene, slot, row.vectors, row.scalars, row.heading);
     if *row.terminated || *row.truncated {
         row.final_vectors.copy_from_slice(row.vectors);
         row.final_scalars.copy_from_slice(row.scalars);
