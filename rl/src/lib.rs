@@ -36,7 +36,9 @@ pub use mappo::trainer::Trainer;
 pub use stop::StopFlag;
 
 // The paths from before the split into `mappo` and `app`.
-pub use app::{curve, export, info, lock, metrics, plot, progress, report, run_dir, status, sweep};
+pub use app::{
+    config_match, curve, export, info, lock, metrics, morphology, plot, progress, report, run_dir, status, sweep,
+};
 pub use mappo::{actor, checksum, evaluate, gae, memory, normalizer, ppo, rollout, seeding, team};
 
 /// The configuration (path from before the split): [`mappo::config`] and the presets of

@@ -33,5 +33,5 @@ pub use observation::{N_SCALARS, ObsSpec, Observation};
 pub use outcome::{Outcome, RootState};
 pub use placement::Start;
 pub use scene::Scene;
-pub use spec::{BUILTIN_NAMES, TaskKind, TaskSpec};
+pub use spec::{BUILTIN_NAMES, TaskKind, TaskSpec, is_morphology_file};
 pub use vec_env::{MAX_ENVS, StepOutput, VecEnv, VecEnvState};

@@ -241,6 +241,9 @@ fn train_in_pool(config: &TrainConfig, run: &RunDir, options: &TrainOptions) -> 
     // Held until training returns: a second training of this directory is refused.
     let lock = RunLock::acquire(run.root())?;
     remove_stale_temporaries(run.root(), &lock)?;
+    // The morphology files the environment names: recorded with a copy by a new run,
+    // checked unchanged by a resumed one ([`crate::app::morphology`]).
+    crate::app::morphology::record_or_verify(run, &config.env, ckpt_path.is_file())?;
     let (mut trainer, wall_before, mut last_evals) = if ckpt_path.is_file() {
         let c = Checkpoint::load(&ckpt_path)?;
         check_budget(&c, config, &ckpt_path)?;
