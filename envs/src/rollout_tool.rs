@@ -149,11 +149,9 @@ pub fn check_qpos(model: &crate::model::Model, q: &[f64]) -> Result<(), String> 
         let at = |i: usize, m: String| format!("qpos[{i}] (joint {name}): {m}");
         match j.kind {
             crate::model::JointKind::Free => {
-                for i in a..a + 3 {
-                    limits::LENGTH.check(q[i]).map_err(|m| at(i, m))?;
-                }
-                for i in a + 3..a + 7 {
-                    limits::QUATERNION.check(q[i]).map_err(|m| at(i, m))?;
+                for (i, x) in q.iter().enumerate().skip(a).take(7) {
+                    let limit = if i < a + 3 { &limits::LENGTH } else { &limits::QUATERNION };
+                    limit.check(*x).map_err(|m| at(i, m))?;
                 }
                 if q[a + 3..a + 7].iter().all(|x| *x == 0.0) {
                     return Err(format!(
