@@ -20,6 +20,7 @@ pub mod integrator;
 pub mod kinematics;
 pub mod limits;
 pub mod math;
+pub mod memory;
 pub mod mjcf;
 pub mod mjcf_agent;
 pub mod model;

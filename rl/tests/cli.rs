@@ -274,3 +274,56 @@ fn two_sweeps_on_one_directory_share_the_runs_and_both_succeed() {
         assert!(out.join(format!("team_reach_1_ant/mlp_hn/seed{seed}/done.json")).is_file(), "seed {seed}");
     }
 }
+
+/// Issue 44 item 2: `meben eval --episodes 1048576`, `--set eval_episodes=1048576` and
+/// `--num-envs 1048576 --set batch_size=1048576 --set num_minibatches=1 --set
+/// unroll_length=1` were accepted (2^20 environments whatever the scene needs), then aborted
+/// in the allocator (exit 134); the `eval_episodes` case only at its first evaluation, after
+/// training, with no checkpoint. Each is refused now before anything is built, with the
+/// estimate and the machine's memory; no run directory is created.
+#[test]
+fn sizes_beyond_the_machines_memory_are_refused_before_anything_is_built() {
+    let Some(memory) = envs::memory::machine_memory() else { return };
+    let scene = envs::tasks::Scene::from_name("team_sumo/3_ants").unwrap();
+    let per_env = envs::tasks::VecEnv::bytes_per_env(&scene) as u128;
+    if per_env << 20 <= memory.bytes {
+        eprintln!("this machine holds 2^20 environments of team_sumo/3_ants: nothing to refuse");
+        return;
+    }
+    let dir = common::TempDir::new("cli-memory");
+    let out = dir.0.join("r");
+    let out_s = out.to_str().unwrap();
+    let memory_words = ["GB, more than this machine's", "/proc/meminfo", "1048576"];
+    let train = |extra: &[&str], field: &str| {
+        let mut args = vec!["train", "--env", "team_sumo/3_ants", "--model", "mlp_hn", "--out", out_s, "--quiet"];
+        args.extend_from_slice(extra);
+        let t0 = std::time::Instant::now();
+        fails_with(&args, &memory_words);
+        fails_with(&args, &[&format!("field `{field}` = \"1048576\"")]);
+        assert!(t0.elapsed().as_secs() < 60, "refused only after {:?}", t0.elapsed());
+        assert!(!out.exists(), "a run directory was created for a training that cannot fit");
+    };
+    train(&["--set", "eval_episodes=1048576"], "eval_episodes");
+    train(
+        &[
+            "--num-envs",
+            "1048576",
+            "--set",
+            "batch_size=1048576",
+            "--set",
+            "num_minibatches=1",
+            "--set",
+            "unroll_length=1",
+        ],
+        "num_envs",
+    );
+    let mut args = vec!["train", "--env", "team_sumo/3_ants", "--model", "mlp_hn", "--out", out_s];
+    args.extend_from_slice(TINY);
+    let (ok, _, stderr) = meben(&args);
+    assert!(ok, "{stderr}");
+    let mut eval = vec!["eval", "--run", out_s, "--episodes", "1048576"];
+    fails_with(&eval, &memory_words);
+    fails_with(&eval, &["field `episodes` = \"1048576\"", "environments of team_sumo/3_ants at about"]);
+    eval[4] = "2";
+    assert!(meben(&eval).0);
+}

@@ -34,4 +34,4 @@ pub use outcome::{Outcome, RootState};
 pub use placement::Start;
 pub use scene::Scene;
 pub use spec::{BUILTIN_NAMES, TaskKind, TaskSpec, is_morphology_file};
-pub use vec_env::{MAX_ENVS, StepOutput, VecEnv, VecEnvState};
+pub use vec_env::{MAX_ENVS, StepOutput, VecEnv, VecEnvState, check_batch_fits};

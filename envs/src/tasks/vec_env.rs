@@ -37,7 +37,9 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 
+mod footprint;
 mod state;
+pub use footprint::{PROBE_STEPS, check_batch_fits};
 pub use state::{EnvState, FinalObsRow, LastOutput, RngState, VEC_ENV_STATE_VERSION, VecEnvState};
 
 /// The random stream of environment `env` in a run seeded with `seed`.
@@ -254,7 +256,8 @@ pub const MAX_ENVS: usize = 1 << 20;
 impl VecEnv {
     /// `batch` environments (1 to [`MAX_ENVS`]) of `spec` whose random streams derive from
     /// `seed`, starting as `mode` says. Every environment begins an episode; [`VecEnv::obs`]
-    /// is ready.
+    /// is ready. A batch whose estimated size is more than the machine's memory is refused
+    /// before it is allocated ([`check_batch_fits`]).
     pub fn new(spec: &TaskSpec, batch: usize, seed: u64, mode: StartMode) -> Result<VecEnv, TaskError> {
         if !(1..=MAX_ENVS).contains(&batch) {
             return Err(TaskError::BadArgument {
@@ -265,6 +268,9 @@ impl VecEnv {
         }
         mode.validate()?;
         let scene = Scene::build(spec)?;
+        // Before anything of the batch is allocated: a batch the machine cannot hold is an
+        // error with the estimate, not an aborted process.
+        check_batch_fits(&scene, batch)?;
         let fixed = match &mode {
             StartMode::Random | StartMode::PerSlot => None,
             StartMode::Fixed(f) => Some(fixed_start(&scene, f)),

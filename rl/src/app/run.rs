@@ -233,6 +233,9 @@ fn train_in_pool(config: &TrainConfig, run: &RunDir, options: &TrainOptions) -> 
         // Asked to stop before it began (a sweep between runs): nothing is created or changed.
         return Err(RlError::Interrupted { run: run.root().to_path_buf(), iteration: None });
     }
+    // Everything the training holds at once (environments, rollout, an evaluation's
+    // environments) against the machine's memory, before any of it is built.
+    crate::mappo::memory::check_run_fits(config)?;
     let ckpt_path = run.checkpoint();
     // A new run is built before its directory is created: building checks what validation
     // cannot (model options that do not apply to the model, the rollout's memory).
