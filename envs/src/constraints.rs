@@ -175,6 +175,19 @@ pub(crate) struct Efc {
     pub f: Vec<f64>,
 }
 
+impl Efc {
+    /// Bytes its buffers hold (their capacities), for memory estimates.
+    pub(crate) fn heap_bytes(&self) -> usize {
+        use std::mem::size_of_val;
+        let f64s = [&self.j, &self.y, &self.dinv, &self.wd, &self.a, &self.aref, &self.r, &self.a0, &self.f];
+        f64s.iter().map(|v| v.capacity() * 8).sum::<usize>()
+            + self.limit_joint.capacity() * size_of_val(&0usize)
+            + self.span.capacity() * size_of_val(&(0usize, 0usize))
+            + self.nbr.capacity() * 4
+            + self.nbr_adr.capacity() * size_of_val(&0usize)
+    }
+}
+
 /// Assembles and solves the constraints of the current state into `d.qfrc_constraint`, in
 /// MuJoCo's stages. Needs the kinematics, `cdof`, the factor of `M` (`d.qlm`),
 /// `d.qacc_smooth` and `d.contacts`.

@@ -206,6 +206,52 @@ impl Data {
         Ok(())
     }
 
+    /// Bytes this state holds beyond its own struct: the capacities of its buffers,
+    /// including the constraint scratch, which grows with the most simultaneous contacts
+    /// seen so far. For memory estimates ([`crate::tasks::VecEnv::bytes_per_env`]).
+    pub fn heap_bytes(&self) -> usize {
+        fn cap<T>(v: &Vec<T>) -> usize {
+            v.capacity() * std::mem::size_of::<T>()
+        }
+        let f64s = [
+            &self.qpos,
+            &self.qvel,
+            &self.ctrl,
+            &self.qacc,
+            &self.qfrc_applied,
+            &self.tree_rbound,
+            &self.qm,
+            &self.qh,
+            &self.qfrc_bias,
+            &self.qfrc_actuator,
+            &self.qfrc_passive,
+            &self.qfrc_smooth,
+            &self.qacc_smooth,
+            &self.qlm,
+            &self.qfrc_constraint,
+            &self.qk,
+            &self.qtmp,
+            &self.qk_cols,
+            &self.warm_limit,
+        ];
+        let vec3s = [&self.xpos, &self.xipos, &self.geom_xpos, &self.xaxis, &self.xanchor, &self.tree_ref];
+        let vec6s = [&self.cdof, &self.cdof_dot, &self.cvel, &self.cacc, &self.cfrc];
+        f64s.iter().map(|v| cap(v)).sum::<usize>()
+            + vec3s.iter().map(|v| cap(v)).sum::<usize>()
+            + vec6s.iter().map(|v| cap(v)).sum::<usize>()
+            + cap(&self.xquat)
+            + cap(&self.xmat)
+            + cap(&self.geom_xmat)
+            + cap(&self.cinert)
+            + cap(&self.crb)
+            + cap(&self.qk_piv)
+            + cap(&self.qk_tan)
+            + cap(&self.contacts)
+            + cap(&self.warm)
+            + cap(&self.warm_used)
+            + self.efc.heap_bytes()
+    }
+
     /// Whether every entry of the state (qpos, qvel) is finite.
     pub fn is_finite(&self) -> bool {
         self.qpos.iter().chain(self.qvel.iter()).all(|x| x.is_finite())

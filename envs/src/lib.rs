@@ -23,6 +23,7 @@ pub mod kinematics;
 pub mod layout;
 pub mod limits;
 pub mod math;
+pub mod memory;
 pub mod mjcf;
 pub mod mjcf_agent;
 pub mod model;

@@ -56,6 +56,18 @@ pub const FRICTION: Limit = Limit { what: "a friction coefficient", unit: "", mi
 /// needs at most 180 degrees; beyond ~1e15 degrees an angle has lost every digit to the
 /// period and its sine means nothing.
 pub const ANGLE_DEGREES: Limit = Limit { what: "an angle", unit: "degrees", min: -3600.0, max: 3600.0, zero: true };
+/// Hinge angles in a state (rad, `qpos`): the same ten turns either way as
+/// [`ANGLE_DEGREES`], `+-20 pi`.
+pub const HINGE_ANGLE: Limit = Limit {
+    what: "a hinge angle",
+    unit: "rad",
+    min: -20.0 * std::f64::consts::PI,
+    max: 20.0 * std::f64::consts::PI,
+    zero: true,
+};
+/// Quaternion components in a state (`qpos` of a free joint; normalised before use): within
+/// +-1000, so that the norm stays finite and meaningful. A zero quaternion is refused apart.
+pub const QUATERNION: Limit = Limit { what: "a quaternion component", unit: "", min: -1e3, max: 1e3, zero: true };
 /// The physics time step (s): 1 us to 1 s.
 pub const TIMESTEP: Limit = Limit { what: "a time step", unit: "s", min: 1e-6, max: 1.0, zero: false };
 /// Gravity components (m/s^2): 100 g.

@@ -13,7 +13,8 @@
 //! `--frames` physics steps and writes OUT.csv: a header line `q0,q1,...`, then one row of
 //! qpos per control step (`{:e}`, exact), the initial state first. It prints nothing on
 //! success; every bad input is a [`RolloutError`] naming the flag or file, line and column
-//! (the programs print it on stderr and exit with a non-zero code).
+//! (the programs print it on stderr and exit with a non-zero code): `--qpos` and the controls
+//! must lie within [`crate::limits`], `--frames` in `1..=`[`MAX_FRAMES`].
 
 use crate::data::Data;
 use crate::limits;
@@ -33,10 +34,12 @@ pub struct RolloutArgs {
     /// Output CSV of qpos, one row per control step (initial state first).
     #[arg(long)]
     pub out: PathBuf,
-    /// Physics steps per control step.
+    /// Physics steps per control step (1 to 10000).
     #[arg(long, default_value_t = 5)]
     pub frames: usize,
-    /// Initial qpos, comma-separated (default: the model's initial pose).
+    /// Initial qpos, comma-separated (default: the model's initial pose): positions within
+    /// +-1000 m, hinge angles within +-20 pi rad, quaternion components within +-1000, not all
+    /// zero (envs/src/limits.rs).
     #[arg(long)]
     pub qpos: Option<String>,
 }
@@ -128,17 +131,63 @@ pub fn parse_controls(text: &str, source: &str, actuators: usize) -> Result<Vec<
     Ok(controls)
 }
 
+/// The most physics steps per control step (`--frames`): 100 s of simulated time at a
+/// time step of 0.01 s, where MuJoCo's frame skips are 1 to 50. Beyond it a rollout could
+/// run for days (`--frames 18446744073709551615` never ended).
+pub const MAX_FRAMES: usize = 10_000;
+
+/// Checks an initial `qpos` for `model` against [`limits`]: a free joint's position
+/// ([`limits::LENGTH`]) and quaternion ([`limits::QUATERNION`], not all zero), a hinge's
+/// angle ([`limits::HINGE_ANGLE`]). The message names the entry, the joint and the range.
+pub fn check_qpos(model: &crate::model::Model, q: &[f64]) -> Result<(), String> {
+    if q.len() != model.nq {
+        return Err(format!("qpos has {} entries, the model has nq = {}", q.len(), model.nq));
+    }
+    for j in &model.joints {
+        let a = j.qpos_adr;
+        let name = if j.name.is_empty() { "(unnamed)" } else { j.name.as_str() };
+        let at = |i: usize, m: String| format!("qpos[{i}] (joint {name}): {m}");
+        match j.kind {
+            crate::model::JointKind::Free => {
+                for (i, x) in q.iter().enumerate().skip(a).take(7) {
+                    let limit = if i < a + 3 { &limits::LENGTH } else { &limits::QUATERNION };
+                    limit.check(*x).map_err(|m| at(i, m))?;
+                }
+                if q[a + 3..a + 7].iter().all(|x| *x == 0.0) {
+                    return Err(format!(
+                        "qpos[{}..{}] (joint {name}): a zero quaternion is no orientation (the identity is 1,0,0,0)",
+                        a + 3,
+                        a + 7
+                    ));
+                }
+            }
+            crate::model::JointKind::Hinge => {
+                limits::HINGE_ANGLE.check(q[a]).map_err(|m| at(a, m))?;
+            }
+        }
+    }
+    Ok(())
+}
+
 /// Runs the rollout `args` describes (module docs), writing `args.out`.
 pub fn run(args: &RolloutArgs) -> Result<(), RolloutError> {
     let arg = |flag: &str, message: String| RolloutError::Argument { flag: flag.into(), message };
-    if args.frames == 0 {
-        return Err(arg("--frames", "must be at least 1".into()));
+    if !(1..=MAX_FRAMES).contains(&args.frames) {
+        return Err(arg(
+            "--frames",
+            format!(
+                "{} physics steps per control step: must be at least 1 and at most {MAX_FRAMES} (100 s at a time \
+                 step of 0.01 s)",
+                args.frames
+            ),
+        ));
     }
     check_not_an_input(&args.out, &[("--mjcf", &args.mjcf), ("--controls", &args.controls)])?;
     let model = mjcf::load_file(&args.mjcf)?;
     let mut data = Data::new(&model);
     if let Some(q) = &args.qpos {
         let q = parse_row(q).map_err(|e| arg("--qpos", e))?;
+        check_qpos(&model, &q).map_err(|e| arg("--qpos", e))?;
         data.reset_to(&model, &q).map_err(|e| arg("--qpos", e))?;
     }
     let controls_path = args.controls.display().to_string();

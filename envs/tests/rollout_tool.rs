@@ -147,3 +147,36 @@ fn the_output_never_overwrites_an_input() {
     assert_eq!(std::fs::read(&mjcf).unwrap(), before);
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// Issue 44 item 12: `--qpos 1e300,...` went past `envs/src/limits.rs` (a position of
+/// 1e300 m, a hinge at 1e300 rad, a quaternion of 1e300 silently read as the identity), and
+/// `--frames 18446744073709551615` was taken and never ended. Both are refused, naming the
+/// flag, the entry and the bound, before anything is written.
+#[test]
+fn qpos_and_frames_outside_their_limits_are_refused() {
+    let dir = scratch("limits");
+    std::fs::write(dir.join("controls.csv"), "0,0,0,0,0,0,0,0\n").unwrap();
+    let err = |extra: &[&str]| run(&args(&dir, extra)).unwrap_err().to_string();
+    let ok = "0,0,0.75,1,0,0,0,0,1,0,-1,0,-1,0,1";
+    let with = |i: usize, v: &str| {
+        let mut q: Vec<&str> = ok.split(',').collect();
+        q[i] = v;
+        q.join(",")
+    };
+    let e = err(&["--qpos", &with(0, "1e300")]);
+    assert!(e.contains("--qpos") && e.contains("qpos[0]") && e.contains("1e300") && e.contains("1000 m"), "{e}");
+    let e = err(&["--qpos", &with(7, "1e300")]);
+    assert!(e.contains("qpos[7]") && e.contains("hip_1") && e.contains("rad"), "{e}");
+    let e = err(&["--qpos", &with(4, "1e300")]);
+    assert!(e.contains("qpos[4]") && e.contains("quaternion"), "{e}");
+    let e = err(&["--qpos", "0,0,0.75,0,0,0,0,0,1,0,-1,0,-1,0,1"]);
+    assert!(e.contains("qpos[3..7]") && e.contains("zero"), "{e}");
+    // At the bounds, accepted.
+    run(&args(&dir, &["--qpos", &with(0, "1000")])).unwrap();
+    run(&args(&dir, &["--qpos", &with(7, "-62.8")])).unwrap();
+
+    let e = err(&["--frames", "18446744073709551615"]);
+    assert!(e.contains("--frames") && e.contains("at most 10000"), "{e}");
+    run(&args(&dir, &["--frames", "10000"])).unwrap();
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -155,7 +155,15 @@ impl PyVecEnv {
             }
             None => StartMode::Random,
         };
-        let mut env = pool::detach(py, || VecEnv::new(&TaskSpec::from_name(name)?, b, s, mode))?.map_err(task_error)?;
+        let mut env = pool::detach(py, || VecEnv::new(&TaskSpec::from_name(name)?, b, s, mode))?.map_err(|e| {
+            // A batch beyond the machine's memory is refused by its argument's name.
+            task_error(match e {
+                envs::tasks::TaskError::BadArgument { what, value, message } if what == "batch" => {
+                    envs::tasks::TaskError::BadArgument { what: "num_envs".into(), value, message }
+                }
+                e => e,
+            })
+        })?;
         env.set_auto_reset(auto_reset);
         Ok(PyVecEnv::wrap(env, auto_reset, record))
     }

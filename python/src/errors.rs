@@ -24,7 +24,7 @@ pub fn rl_error(e: RlError) -> PyErr {
     match e {
         RlError::Env(t) => task_error(t),
         RlError::Config { .. } | RlError::Checkpoint { .. } => PyValueError::new_err(e.to_string()),
-        RlError::File { .. } => PyOSError::new_err(e.to_string()),
+        RlError::File { .. } | RlError::RunInUse { .. } => PyOSError::new_err(e.to_string()),
         RlError::Interrupted { .. } => PyKeyboardInterrupt::new_err(e.to_string()),
         RlError::NonFinite { .. } | RlError::Model(_) | RlError::Nn(_) => PyRuntimeError::new_err(e.to_string()),
     }

@@ -39,6 +39,16 @@ pub enum RlError {
         /// What was non-finite (e.g. `team 0 loss at iteration 12, epoch 1, minibatch 3`).
         message: String,
     },
+    /// A run directory whose lock another process holds ([`crate::app::lock`]): it is
+    /// training there. A sweep reports such a run as taken, not failed.
+    RunInUse {
+        /// The run directory.
+        run: PathBuf,
+        /// Its lock file.
+        lock: PathBuf,
+        /// The holder as the lock file names it (`process <pid> on host <host>`).
+        holder: String,
+    },
     /// A training stopped on request ([`crate::stop::StopFlag`]): after a finished
     /// iteration, whose checkpoint it wrote, so that the same command resumes it; or before
     /// it began, having changed nothing.
@@ -86,6 +96,13 @@ impl fmt::Display for RlError {
             RlError::File { path, message } => write!(f, "{}: {message}", path.display()),
             RlError::Checkpoint { path, message } => write!(f, "checkpoint {}: {message}", path.display()),
             RlError::NonFinite { message } => write!(f, "non-finite value: {message}"),
+            RlError::RunInUse { run, lock, holder } => write!(
+                f,
+                "{}: the run directory is in use by {holder} (lock file {}); wait for it to finish, stop it, or \
+                 choose another --out",
+                run.display(),
+                lock.display()
+            ),
             RlError::Interrupted { run, iteration: Some(i) } => write!(
                 f,
                 "{}: interrupted after iteration {i}, which its checkpoint holds (the same command resumes the run)",

@@ -232,3 +232,98 @@ fn impossible_sizes_are_clear_errors_not_panics() {
     assert!(ok, "{stderr}");
     assert!(out.join("eval_rotate1e308_translate1e-300_0.json").is_file(), "{stderr}");
 }
+
+/// Issue 44 item 11: two `meben ablate` on one sweep directory shared the runs but both
+/// exited 1 with "2 of 4 runs failed" (a run the other held counted as failed), and the last
+/// line was `SweepOutcome { runs: 4, trained: 2, ... }`. Both succeed now, every run is
+/// done, and the last line is a sentence.
+#[test]
+fn two_sweeps_on_one_directory_share_the_runs_and_both_succeed() {
+    let dir = common::TempDir::new("cli-two-sweeps");
+    let sweep = dir.0.join("sweep.toml");
+    std::fs::write(
+        &sweep,
+        "envs = [\"team_reach/1_ant\"]\nmodels = [\"mlp_hn\"]\nseeds = [0, 1, 2, 3]\npreset = \"quick\"\n[config]\n\
+         num_envs = 8\nbatch_size = 4\nnum_minibatches = 4\nepochs = 1\nnum_evals = 2\neval_episodes = 2\nsteps = 320\n",
+    )
+    .unwrap();
+    let out = dir.0.join("out");
+    let args = ["ablate", "--sweep", sweep.to_str().unwrap(), "--out", out.to_str().unwrap(), "--quiet"];
+    let spawn = || {
+        Command::new(env!("CARGO_BIN_EXE_meben"))
+            .args(args)
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap()
+    };
+    let (a, b) = (spawn(), spawn());
+    let mut trained = 0;
+    for child in [a, b] {
+        let o = child.wait_with_output().unwrap();
+        let (stdout, stderr) = (String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr));
+        assert!(o.status.success(), "a sweep failed: {stderr}");
+        let last = stdout.lines().last().unwrap_or("");
+        assert!(last.starts_with("meben: sweep ") && last.contains("4 runs: "), "{last}");
+        assert!(!stdout.contains("SweepOutcome"), "{stdout}");
+        trained += last.split(": ").nth(2).and_then(|t| t.split(' ').next()).unwrap().parse::<u32>().unwrap();
+    }
+    // Every run is trained by one of them (the other may then find it done and count it too).
+    assert!(trained >= 4, "{trained} runs trained");
+    for seed in 0..4 {
+        assert!(out.join(format!("team_reach_1_ant/mlp_hn/seed{seed}/done.json")).is_file(), "seed {seed}");
+    }
+}
+
+/// Issue 44 item 2: `meben eval --episodes 1048576`, `--set eval_episodes=1048576` and
+/// `--num-envs 1048576 --set batch_size=1048576 --set num_minibatches=1 --set
+/// unroll_length=1` were accepted (2^20 environments whatever the scene needs), then aborted
+/// in the allocator (exit 134); the `eval_episodes` case only at its first evaluation, after
+/// training, with no checkpoint. Each is refused now before anything is built, with the
+/// estimate and the machine's memory; no run directory is created.
+#[test]
+fn sizes_beyond_the_machines_memory_are_refused_before_anything_is_built() {
+    let Some(memory) = envs::memory::machine_memory() else { return };
+    let scene = envs::tasks::Scene::from_name("team_sumo/3_ants").unwrap();
+    let per_env = envs::tasks::VecEnv::bytes_per_env(&scene) as u128;
+    if per_env << 20 <= memory.bytes {
+        eprintln!("this machine holds 2^20 environments of team_sumo/3_ants: nothing to refuse");
+        return;
+    }
+    let dir = common::TempDir::new("cli-memory");
+    let out = dir.0.join("r");
+    let out_s = out.to_str().unwrap();
+    let memory_words = ["GB, more than this machine's", "/proc/meminfo", "1048576"];
+    let train = |extra: &[&str], field: &str| {
+        let mut args = vec!["train", "--env", "team_sumo/3_ants", "--model", "mlp_hn", "--out", out_s, "--quiet"];
+        args.extend_from_slice(extra);
+        let t0 = std::time::Instant::now();
+        fails_with(&args, &memory_words);
+        fails_with(&args, &[&format!("field `{field}` = \"1048576\"")]);
+        assert!(t0.elapsed().as_secs() < 60, "refused only after {:?}", t0.elapsed());
+        assert!(!out.exists(), "a run directory was created for a training that cannot fit");
+    };
+    train(&["--set", "eval_episodes=1048576"], "eval_episodes");
+    train(
+        &[
+            "--num-envs",
+            "1048576",
+            "--set",
+            "batch_size=1048576",
+            "--set",
+            "num_minibatches=1",
+            "--set",
+            "unroll_length=1",
+        ],
+        "num_envs",
+    );
+    let mut args = vec!["train", "--env", "team_sumo/3_ants", "--model", "mlp_hn", "--out", out_s];
+    args.extend_from_slice(TINY);
+    let (ok, _, stderr) = meben(&args);
+    assert!(ok, "{stderr}");
+    let mut eval = vec!["eval", "--run", out_s, "--episodes", "1048576"];
+    fails_with(&eval, &memory_words);
+    fails_with(&eval, &["field `episodes` = \"1048576\"", "environments of team_sumo/3_ants at about"]);
+    eval[4] = "2";
+    assert!(meben(&eval).0);
+}

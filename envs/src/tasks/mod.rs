@@ -32,5 +32,5 @@ pub use eval_modes::{FixedStart, StartMode};
 pub use outcome::{Outcome, RootState};
 pub use placement::Start;
 pub use scene::Scene;
-pub use spec::{BUILTIN_NAMES, TaskKind, TaskSpec};
-pub use vec_env::{MAX_ENVS, StepOutput, VecEnv, VecEnvState};
+pub use spec::{BUILTIN_NAMES, TaskKind, TaskSpec, is_morphology_file};
+pub use vec_env::{MAX_ENVS, StepOutput, VecEnv, VecEnvState, check_batch_fits};

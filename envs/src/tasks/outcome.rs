@@ -18,7 +18,8 @@ pub enum Outcome {
     Draw,
     /// The episode reached its length (truncated); for Sumo this is also a draw.
     TimeLimit,
-    /// The simulation produced a non-finite state (terminated, zero reward); should not
+    /// The simulation produced a non-finite state, or one whose observation or reward is
+    /// not finite in f32 (beyond 3.4e38), at this step (terminated, zero reward); should not
     /// happen, reported so that training can count it.
     Diverged,
 }

@@ -79,7 +79,7 @@ pub struct Scene {
 /// as a file that cannot be read, not as an unknown name.
 fn load_tree(name: &str, physics: &BraxPhysics) -> Result<AgentTree, TaskError> {
     let bad = |message: String| TaskError::Morphology { name: name.to_string(), message };
-    let is_file = name.ends_with(".txt") || name.ends_with(".xml");
+    let is_file = super::spec::is_morphology_file(name);
     if is_file {
         let path = std::path::Path::new(name);
         if !path.is_file() {

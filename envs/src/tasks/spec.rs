@@ -92,6 +92,12 @@ fn builtin(name: &str) -> Option<TaskSpec> {
     spec.ok().map(|s| TaskSpec { name: name.to_string(), ..s })
 }
 
+/// Whether a morphology name names a file, a Brax config (`.txt`) or an MJCF file (`.xml`),
+/// rather than a built-in morphology: the scene builder reads such a name as a path.
+pub fn is_morphology_file(name: &str) -> bool {
+    name.ends_with(".txt") || name.ends_with(".xml")
+}
+
 fn bad(what: &str, value: &str, message: &str) -> TaskError {
     TaskError::BadSpec { what: what.to_string(), value: value.to_string(), message: message.to_string() }
 }
@@ -188,6 +194,44 @@ impl TaskSpec {
         Ok(TaskSpec { name: name.to_string(), ..spec })
     }
 
+    /// The morphology files the composition names ([`is_morphology_file`]), each once, in
+    /// order of first appearance (team 0's agents first).
+    pub fn morphology_files(&self) -> Vec<&str> {
+        let mut files: Vec<&str> = Vec::new();
+        for name in self.teams.iter().flatten().filter(|n| is_morphology_file(n)) {
+            if !files.contains(&name.as_str()) {
+                files.push(name);
+            }
+        }
+        files
+    }
+
+    /// This composition with every morphology file name replaced by `rename(name)` (another
+    /// path to the same file, say), the rest as it is; its `name` is the composition string
+    /// that builds it. Errors when a new path cannot stand in a composition string (it holds
+    /// `+` or `;`, or does not end in the same `.txt` or `.xml`).
+    pub fn with_files_renamed(&self, rename: impl Fn(&str) -> String) -> Result<TaskSpec, TaskError> {
+        let mut teams = self.teams.clone();
+        for name in teams.iter_mut().flatten().filter(|n| is_morphology_file(n)) {
+            let new = rename(name);
+            if new.contains(['+', ';']) || new.trim() != new || new.rsplit('.').next() != name.rsplit('.').next() {
+                return Err(bad(
+                    "morphology path",
+                    &new,
+                    &format!(
+                        "cannot stand for {name} in a composition string (no '+', ';' or surrounding spaces, the same extension)"
+                    ),
+                ));
+            }
+            *name = new;
+        }
+        let spec = match self.kind {
+            TaskKind::Reach => TaskSpec::reach(&teams[0], self.radius, self.balls)?,
+            TaskKind::Sumo => TaskSpec::sumo(&teams[0], &teams[1], self.radius)?,
+        };
+        Ok(TaskSpec { episode_steps: self.episode_steps, physics_steps: self.physics_steps, ..spec })
+    }
+
     /// Checks the numbers: teams not empty, `R` finite and positive (Sumo: above 2 m, so
     /// that the start ring of radii 1 ..= min(2, R - 1) exists), Reach ball count in
     /// 1 ..= agents, Sumo exactly one ball. Morphology names are checked when the scene is
@@ -242,6 +286,30 @@ impl TaskSpec {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn morphology_files_are_listed_once_and_renamed_into_a_composition_that_parses() {
+        let spec = TaskSpec::from_name("team_sumo:team1=a/b.xml+ant+a/b.xml;team2=c.txt;R=3.25").unwrap();
+        assert_eq!(spec.morphology_files(), ["a/b.xml", "c.txt"]);
+        let moved = spec.with_files_renamed(|n| format!("/run/copies/{}", n.replace('/', "_"))).unwrap();
+        assert_eq!(
+            moved.name,
+            "team_sumo:team1=/run/copies/a_b.xml+ant+/run/copies/a_b.xml;team2=/run/copies/c.txt;R=3.25"
+        );
+        let again = TaskSpec::from_name(&moved.name).unwrap();
+        assert_eq!(again, moved);
+        assert_eq!((again.radius, again.balls), (spec.radius, spec.balls));
+        let reach = TaskSpec::from_name("team_reach:agents=x.xml+ant;R=4;balls=1").unwrap();
+        assert_eq!(
+            reach.with_files_renamed(|_| "y.xml".into()).unwrap().name,
+            "team_reach:agents=y.xml+ant;R=4;balls=1"
+        );
+        assert!(TaskSpec::from_name("team_reach/1_ant").unwrap().morphology_files().is_empty());
+        for bad in ["/a+b/x.xml", "/a;b/x.xml", "x.txt", " x.xml"] {
+            let e = reach.with_files_renamed(|_| bad.to_string()).unwrap_err().to_string();
+            assert!(e.contains(bad.trim()) && e.contains("x.xml"), "{e}");
+        }
+    }
 
     #[test]
     fn arena_radii_beyond_the_limit_are_refused_naming_r() {

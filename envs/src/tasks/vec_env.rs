@@ -37,7 +37,9 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 
+mod footprint;
 mod state;
+pub use footprint::{PROBE_STEPS, check_batch_fits};
 pub use state::{EnvState, FinalObsRow, LastOutput, RngState, VEC_ENV_STATE_VERSION, VecEnvState};
 
 /// The random stream of environment `env` in a run seeded with `seed`.
@@ -104,6 +106,18 @@ pub struct VecEnv {
     fixed: Option<Start>,
     alpha: f64,
     auto_reset: bool,
+}
+
+impl Row<'_> {
+    /// Whether the observation and rewards written to this row are all finite.
+    fn is_finite(&self) -> bool {
+        self.vectors
+            .iter()
+            .chain(self.scalars.iter())
+            .chain(self.heading.iter())
+            .chain(self.reward.iter())
+            .all(|x| x.is_finite())
+    }
 }
 
 /// Recomputes poses and velocities for the observation and rewards (the step pipeline
@@ -206,9 +220,17 @@ fn step_env(
             }
         }
     } else {
-        row.reward.iter_mut().for_each(|r| *r = 0.0);
         Outcome::Diverged
     };
+    write_obs(scene, slot, row.vectors, row.scalars, row.heading);
+    // A state finite in f64 can still overflow the f32 observation or reward (a position
+    // of 1e39 m): that step diverged, not the next one (issue 44 item 4).
+    if outcome != Outcome::Diverged && !row.is_finite() {
+        outcome = Outcome::Diverged;
+    }
+    if outcome == Outcome::Diverged {
+        row.reward.iter_mut().for_each(|r| *r = 0.0);
+    }
     *row.terminated = outcome.is_terminal();
     *row.truncated = !*row.terminated && slot.step >= scene.spec.episode_steps;
     if *row.truncated {
@@ -216,7 +238,6 @@ fn step_env(
     }
     *row.outcome = outcome;
     *row.episode_len = slot.step as u32;
-    write_obs(scene, slot, row.vectors, row.scalars, row.heading);
     if *row.terminated || *row.truncated {
         row.final_vectors.copy_from_slice(row.vectors);
         row.final_scalars.copy_from_slice(row.scalars);
@@ -235,7 +256,8 @@ pub const MAX_ENVS: usize = 1 << 20;
 impl VecEnv {
     /// `batch` environments (1 to [`MAX_ENVS`]) of `spec` whose random streams derive from
     /// `seed`, starting as `mode` says. Every environment begins an episode; [`VecEnv::obs`]
-    /// is ready.
+    /// is ready. A batch whose estimated size is more than the machine's memory is refused
+    /// before it is allocated ([`check_batch_fits`]).
     pub fn new(spec: &TaskSpec, batch: usize, seed: u64, mode: StartMode) -> Result<VecEnv, TaskError> {
         if !(1..=MAX_ENVS).contains(&batch) {
             return Err(TaskError::BadArgument {
@@ -246,6 +268,9 @@ impl VecEnv {
         }
         mode.validate()?;
         let scene = Scene::build(spec)?;
+        // Before anything of the batch is allocated: a batch the machine cannot hold is an
+        // error with the estimate, not an aborted process.
+        check_batch_fits(&scene, batch)?;
         let fixed = match &mode {
             StartMode::Random | StartMode::PerSlot => None,
             StartMode::Fixed(f) => Some(fixed_start(&scene, f)),

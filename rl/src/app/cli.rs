@@ -497,7 +497,7 @@ fn cmd_ablate(a: AblateArgs) -> Result<(), String> {
         crate::app::run::train(&c, r, &options)
     })
     .map_err(|e| e.to_string())?;
-    println!("{outcome:?}");
+    println!("meben: sweep {}: {outcome}", a.out.display());
     Ok(())
 }
 

@@ -24,7 +24,8 @@ pub struct RunLock {
 
 impl RunLock {
     /// Takes the lock of the run directory `root` (which must exist), or fails at once
-    /// naming the holder (process id and host) if another process holds it.
+    /// naming the holder (process id and host) if another process holds it
+    /// ([`RlError::RunInUse`]).
     pub fn acquire(root: &Path) -> Result<RunLock> {
         let path = root.join(LOCK_FILE);
         let io = |what: &str, e: std::io::Error| RlError::file(&path, format!("cannot {what} the lock file: {e}"));
@@ -39,14 +40,7 @@ impl RunLock {
             Ok(()) => {}
             Err(TryLockError::WouldBlock) => {
                 let holder = read_holder(&mut file);
-                return Err(RlError::file(
-                    root,
-                    format!(
-                        "the run directory is in use by {holder} (lock file {}); wait for it to finish, stop it, \
-                         or choose another --out",
-                        path.display()
-                    ),
-                ));
+                return Err(RlError::RunInUse { run: root.to_path_buf(), lock: path, holder });
             }
             Err(TryLockError::Error(e)) => return Err(io("lock", e)),
         }

@@ -1,6 +1,7 @@
 //! The application around the algorithm ([`crate::mappo`]): configuration presets and
 //! layers ([`presets`]), training in a run directory ([`run`], [`run_dir`], [`lock`],
-//! [`metrics`], [`build_info`], [`progress`], [`curve`], [`plot`]) and stopping it on
+//! [`config_match`], [`morphology`], [`metrics`], [`build_info`], [`progress`], [`curve`],
+//! [`plot`]) and stopping it on
 //! Ctrl-C or SIGTERM ([`signals`]), sweeps ([`sweep`], `meben ablate`),
 //! reports ([`report`](mod@report), `meben report`), evidence export
 //! ([`export`](mod@export), `meben export`), the progress of runs ([`status`](mod@status),
@@ -9,11 +10,13 @@
 
 pub mod build_info;
 pub mod cli;
+pub mod config_match;
 pub mod curve;
 pub mod export;
 pub mod info;
 pub mod lock;
 pub mod metrics;
+pub mod morphology;
 pub mod plot;
 pub mod presets;
 pub mod progress;

@@ -231,15 +231,27 @@ fn train_in_pool(config: &TrainConfig, run: &RunDir, options: &TrainOptions) -> 
     }
     let ckpt_path = run.checkpoint();
     // A new run is built before its directory is created: building checks what validation
-    // cannot (model options that do not apply to the model, the rollout's memory).
-    let fresh = if ckpt_path.is_file() { None } else { Some(Trainer::new(config)?) };
+    // cannot (model options that do not apply to the model, the rollout's memory). First,
+    // everything the training holds at once (environments, rollout, an evaluation's
+    // environments) against the machine's memory, before any of it is built; a resumed run
+    // is checked once its morphology files are (a missing one is then named with its copy).
+    let fresh = if ckpt_path.is_file() {
+        None
+    } else {
+        crate::mappo::memory::check_run_fits(config)?;
+        Some(Trainer::new(config)?)
+    };
     std::fs::create_dir_all(run.root()).map_err(|e| RlError::file(run.root(), format!("cannot create: {e}")))?;
     // Held until training returns: a second training of this directory is refused.
     let lock = RunLock::acquire(run.root())?;
     remove_stale_temporaries(run.root(), &lock)?;
+    // The morphology files the environment names: recorded with a copy by a new run,
+    // checked unchanged by a resumed one ([`crate::app::morphology`]).
+    crate::app::morphology::record_or_verify(run, &config.env, ckpt_path.is_file())?;
     let (mut trainer, wall_before, mut last_evals) = if ckpt_path.is_file() {
         let c = Checkpoint::load(&ckpt_path)?;
         check_budget(&c, config, &ckpt_path)?;
+        crate::mappo::memory::check_run_fits(config)?;
         let t = Trainer::from_checkpoint(&c, config, &ckpt_path)?;
         let evals: Vec<EvalSummary> = c.last_eval.iter().chain(&c.last_eval_rotated).cloned().collect();
         (t, c.wall_s, evals)

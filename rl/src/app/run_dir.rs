@@ -9,6 +9,7 @@
 //! | `curve.svg` | after every evaluation | the learning curve |
 //! | `done.json` | at the end | the [`crate::RunSummary`]; a run with it is finished |
 //! | `builds.csv` | at the start and at each resume | a row per training session: the iteration it went on from, the program's version and git commit ([`crate::app::build_info`]) |
+//! | `morphology.toml`, `morphologies/` | at the start, if the environment names morphology files | each file's name, source, SHA-256 and the run's copy of it ([`crate::app::morphology`]) |
 //! | `lock` | at the start | the process id and host of the training that holds the directory's lock ([`crate::app::lock`]) |
 //!
 //! [`load_policies`] reads the trained teams of a run directory back.
@@ -97,8 +98,9 @@ impl RunDir {
 
 /// The names of the files a run directory keeps (module docs), which no other output may
 /// take: `eval*.json` (`meben eval`'s results) besides these.
-pub const RUN_FILES: [&str; 7] = [
+pub const RUN_FILES: [&str; 8] = [
     "config.toml",
+    crate::app::morphology::MORPHOLOGY_RECORD,
     "metrics.csv",
     "checkpoint.json",
     "curve.svg",
@@ -129,11 +131,22 @@ pub fn check_not_a_run_file(option: &str, out: &Path) -> Result<()> {
     let (Some(dir), Some(name)) = (target.parent(), target.file_name().and_then(|n| n.to_str())) else {
         return Ok(());
     };
-    let run = RunDir::new(dir);
-    if is_run_file_name(name) && (run.config().is_file() || run.checkpoint().is_file()) {
+    let is_run = |d: &Path| RunDir::new(d).config().is_file() || RunDir::new(d).checkpoint().is_file();
+    if is_run_file_name(name) && is_run(dir) {
         return Err(RlError::file(
             out,
             format!("{option} would overwrite the run directory {}'s own {name}; write to another file", dir.display()),
+        ));
+    }
+    // The run's copies of its morphology files (`morphologies/`, [`crate::app::morphology`]).
+    if let Some(run) = dir.parent().filter(|r| dir.ends_with(crate::app::morphology::COPIES_DIR) && is_run(r)) {
+        return Err(RlError::file(
+            out,
+            format!(
+                "{option} would overwrite the run directory {}'s own copy of a morphology file it was trained on; \
+                 write to another file",
+                run.display()
+            ),
         ));
     }
     Ok(())
@@ -141,7 +154,11 @@ pub fn check_not_a_run_file(option: &str, out: &Path) -> Result<()> {
 
 /// The trained teams of a run directory (its `config.toml` and `checkpoint.json`): the
 /// models with their parameters and normalisers, ready for [`crate::mappo::evaluate::evaluate`] or
-/// rendering.
+/// rendering. A `config.toml` that disagrees with the checkpoint's configuration is refused,
+/// naming the fields ([`crate::app::config_match`]). For a run trained on morphology files,
+/// the configuration's `env` names the run's own checked copies of them, by absolute path
+/// ([`crate::app::morphology::env_with_copies`]), so that it evaluates the same bodies from
+/// any directory.
 pub fn load_policies(run: &RunDir) -> Result<(TrainConfig, Vec<Team>)> {
     if !run.config().is_file() {
         return Err(RlError::file(
@@ -152,6 +169,9 @@ pub fn load_policies(run: &RunDir) -> Result<(TrainConfig, Vec<Team>)> {
     let config = TrainConfig::load(&run.config())?;
     let path = run.checkpoint();
     let c = Checkpoint::load(&path)?;
+    crate::app::config_match::check_config_matches_checkpoint(&run.config(), &config, &path, &c.config)?;
+    // The scene from the run's own copies of its morphology files.
+    let config = TrainConfig { env: crate::app::morphology::env_with_copies(run, &config.env)?, ..config };
     let spec = envs::tasks::Scene::from_name(&config.env)?.obs_spec;
     if c.teams.len() != spec.n_teams {
         return Err(RlError::Checkpoint {
@@ -196,6 +216,8 @@ mod tests {
             refused(&run.join(name));
         }
         refused(&run.join("sub").join("..").join("metrics.csv"));
+        std::fs::create_dir_all(run.join("morphologies")).unwrap();
+        refused(&run.join("morphologies").join("0_body.xml"));
         #[cfg(unix)]
         {
             let link = dir.0.join("poses.csv");

@@ -170,6 +170,32 @@ pub struct SweepOutcome {
     pub resumed: usize,
     /// Runs already done.
     pub skipped: usize,
+    /// Runs another process was training ([`RlError::RunInUse`]): left to it, not failed.
+    pub taken: usize,
+}
+
+impl fmt::Display for SweepOutcome {
+    /// `4 runs: 1 trained, 1 resumed, 1 already done, 1 taken by another process`, for
+    /// the sweep's last line.
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "{}: {} trained, {} resumed, {} already done",
+            crate::app::report::count(self.runs, "run"),
+            self.trained,
+            self.resumed,
+            self.skipped
+        )?;
+        if self.taken > 0 {
+            write!(
+                f,
+                ", {} taken by another process (training there; `meben status` shows {})",
+                self.taken,
+                if self.taken == 1 { "it" } else { "them" }
+            )?;
+        }
+        Ok(())
+    }
 }
 
 impl Shard {
@@ -336,7 +362,8 @@ impl Sweep {
 ///
 /// A run that fails (its `train_fn` returns an error, or its checkpoint was made with a
 /// different configuration) does not stop the others; the error then lists every failed
-/// run. A run interrupted on request ([`RlError::Interrupted`], [`crate::stop`]) stops
+/// run. A run another process holds ([`RlError::RunInUse`]: a second `meben ablate` on the
+/// same directory) is no failure: it is counted as taken and left to that process. A run interrupted on request ([`RlError::Interrupted`], [`crate::stop`]) stops
 /// the sweep: that error is returned at once, and the same command goes on from there. Progress is printed to standard error, one line per run.
 pub fn run_sweep(
     sweep: &Sweep,
@@ -403,6 +430,11 @@ pub fn run_sweep(
             Err(e @ RlError::Interrupted { .. }) => return Err(e),
             Ok(_) if status == RunStatus::Partial => outcome.resumed += 1,
             Ok(_) => outcome.trained += 1,
+            // Another `meben ablate` on this directory holds the run: it is being trained.
+            Err(RlError::RunInUse { holder, .. }) => {
+                eprintln!("{head}: taken by {holder}, left to it");
+                outcome.taken += 1;
+            }
             Err(e) => {
                 eprintln!("{head}: failed: {e}");
                 failed.push(format!("{}: {e}", run.name));
@@ -413,12 +445,14 @@ pub fn run_sweep(
         return Err(RlError::file(
             out,
             format!(
-                "{} of {} runs{shard_text} failed ({} trained, {} resumed, {} skipped):\n  {}",
+                "{} of {} runs{shard_text} failed ({} trained, {} resumed, {} skipped, {} taken by another \
+                 process):\n  {}",
                 failed.len(),
                 runs.len(),
                 outcome.trained,
                 outcome.resumed,
                 outcome.skipped,
+                outcome.taken,
                 failed.join("\n  ")
             ),
         ));
@@ -863,7 +897,7 @@ config = { entropy_coef = 0.0 }
             Ok(RunSummary::default())
         };
         let outcome = run_sweep(&sweep, &tmp.0, &RunSelection::all(), fake_train).unwrap();
-        assert_eq!(outcome, SweepOutcome { runs: 4, trained: 2, resumed: 1, skipped: 1 });
+        assert_eq!(outcome, SweepOutcome { runs: 4, trained: 2, resumed: 1, skipped: 1, taken: 0 });
         let called: Vec<(String, u64)> = calls.borrow().iter().map(|(m, s, _)| (m.clone(), *s)).collect();
         assert_eq!(called, [("mlp_hn".to_string(), 1), ("shnn".into(), 0), ("shnn".into(), 1)]);
         assert_eq!(calls.borrow()[0].2, tmp.0.join("team_reach_1_ant/mlp_hn/seed1"));
@@ -872,8 +906,45 @@ config = { entropy_coef = 0.0 }
         // Everything is done now.
         calls.borrow_mut().clear();
         let outcome = run_sweep(&sweep, &tmp.0, &RunSelection::all(), fake_train).unwrap();
-        assert_eq!(outcome, SweepOutcome { runs: 4, trained: 0, resumed: 0, skipped: 4 });
+        assert_eq!(outcome, SweepOutcome { runs: 4, trained: 0, resumed: 0, skipped: 4, taken: 0 });
         assert!(calls.borrow().is_empty());
+    }
+
+    /// Issue 44 item 11: two `meben ablate` on one directory shared the work but both
+    /// exited 1 with "2 of 4 runs failed": a run whose lock another process holds is taken,
+    /// not failed, and the sweep succeeds; its last line is written for a person.
+    #[test]
+    fn a_run_another_process_holds_is_taken_not_failed() {
+        let tmp = TempDir::new("sweep-taken");
+        let text = "envs = [\"team_reach/1_ant\"]\nmodels = [\"mlp_hn\"]\nseeds = [0, 1, 2]\npreset = \"quick\"";
+        let sweep = Sweep::parse(text, "s.toml").unwrap();
+        let runs = sweep.runs().unwrap();
+        let held = RunDir::new(tmp.0.join(&runs[1].name));
+        std::fs::create_dir_all(held.root()).unwrap();
+        // As another `meben ablate` holds it (an flock on its own open file).
+        let other = crate::app::lock::RunLock::acquire(held.root()).unwrap();
+        let mut trained = Vec::new();
+        let outcome = run_sweep(&sweep, &tmp.0, &RunSelection::all(), |c, r| {
+            let _lock = crate::app::lock::RunLock::acquire(r.root())?;
+            trained.push(c.seed);
+            fake_run(r, c, true);
+            Ok(RunSummary::default())
+        })
+        .unwrap();
+        assert_eq!(trained, [0, 2]);
+        assert_eq!(outcome, SweepOutcome { runs: 3, trained: 2, resumed: 0, skipped: 0, taken: 1 });
+        assert_eq!(
+            outcome.to_string(),
+            "3 runs: 2 trained, 0 resumed, 0 already done, 1 taken by another process (training there; `meben \
+             status` shows it)"
+        );
+        drop(other);
+        let outcome = run_sweep(&sweep, &tmp.0, &RunSelection::all(), |c, r| {
+            fake_run(r, c, true);
+            Ok(RunSummary::default())
+        })
+        .unwrap();
+        assert_eq!(outcome.to_string(), "3 runs: 1 trained, 0 resumed, 2 already done");
     }
 
     #[test]
@@ -927,7 +998,7 @@ config = { entropy_coef = 0.0 }
         })
         .unwrap();
         assert_eq!(called, [("mlp_hn".to_string(), 0), ("shnn".into(), 0), ("shnn".into(), 1)]);
-        assert_eq!(outcome, SweepOutcome { runs: 3, trained: 2, resumed: 1, skipped: 0 });
+        assert_eq!(outcome, SweepOutcome { runs: 3, trained: 2, resumed: 1, skipped: 0, taken: 0 });
 
         // A pattern that matches nothing is an error naming it, not a silent no-op.
         let none = RunSelection { shard: Some(Shard::parse("2/2").unwrap()), only: vec!["2_ants".into()] };

@@ -147,7 +147,13 @@ pub fn eval_envs(env: &str, options: &EvalOptions) -> Result<VecEnv> {
     options.mode.validate()?;
     options.motion().validate()?;
     let spec = TaskSpec::from_name(env)?;
-    let mut venv = VecEnv::new(&spec, options.episodes, options.seed, options.mode)?;
+    let mut venv = VecEnv::new(&spec, options.episodes, options.seed, options.mode).map_err(|e| match e {
+        // More episodes than the machine holds environments ([`envs::tasks::check_batch_fits`]).
+        envs::tasks::TaskError::BadArgument { what, message, .. } if what == "batch" => {
+            crate::RlError::config("evaluation", "episodes", options.episodes, message)
+        }
+        e => e.into(),
+    })?;
     venv.set_auto_reset(false);
     let starts: Vec<Start> = (0..options.episodes).map(|e| episode_start(venv.scene(), options, e)).collect();
     for (e, s) in starts.iter().enumerate() {
