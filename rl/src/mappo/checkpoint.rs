@@ -265,8 +265,11 @@ pub fn remove_stale_tensor_files(json: &Path) -> Result<Vec<PathBuf>> {
                 });
             };
             match serde_json::from_str::<Peek>(payload) {
-                Ok(p) => p.tensors.map(|t| t.file),
-                Err(_) => return Ok(Vec::new()),
+                Ok(Peek { tensors: Some(t), .. }) if is_tensors_file_name(json, &t.file) => Some(t.file),
+                // A version 2 JSON names no tensors file.
+                Ok(Peek { version: JSON_VERSION, tensors: None }) => None,
+                // Anything else is damaged: keep every file.
+                _ => return Ok(Vec::new()),
             }
         }
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => None,
