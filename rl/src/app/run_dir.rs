@@ -149,6 +149,13 @@ pub fn check_not_a_run_file(option: &str, out: &Path) -> Result<()> {
 /// models with their parameters and normalisers, ready for [`crate::mappo::evaluate::evaluate`] or
 /// rendering.
 pub fn load_policies(run: &RunDir) -> Result<(TrainConfig, Vec<Team>)> {
+    let (config, c) = load_run(run)?;
+    let teams = teams_of(&config, &c, &run.checkpoint())?;
+    Ok((config, teams))
+}
+
+/// A run directory's configuration (`config.toml`) and checkpoint.
+pub fn load_run(run: &RunDir) -> Result<(TrainConfig, Checkpoint)> {
     if !run.config().is_file() {
         return Err(RlError::file(
             run.config(),
@@ -156,29 +163,34 @@ pub fn load_policies(run: &RunDir) -> Result<(TrainConfig, Vec<Team>)> {
         ));
     }
     let config = TrainConfig::load(&run.config())?;
-    let path = run.checkpoint();
-    let c = Checkpoint::load(&path)?;
+    let c = Checkpoint::load(&run.checkpoint())?;
+    Ok((config, c))
+}
+
+/// The teams of `config` with the parameters and normalisers of the checkpoint `c` (read
+/// from `path`, which errors name).
+pub fn teams_of(config: &TrainConfig, c: &Checkpoint, path: &Path) -> Result<Vec<Team>> {
     let spec = envs::tasks::Scene::from_name(&config.env)?.obs_spec;
     if c.teams.len() != spec.n_teams {
         return Err(RlError::Checkpoint {
-            path,
+            path: path.to_path_buf(),
             message: format!("{} teams for a scene of {} teams", c.teams.len(), spec.n_teams),
         });
     }
     let mut teams = Vec::new();
     for (k, s) in c.teams.iter().enumerate() {
-        let mut t = Team::build(&config, &spec, k)?;
+        let mut t = Team::build(config, &spec, k)?;
         s.params
             .load_into(&mut t.store)
-            .map_err(|e| RlError::Checkpoint { path: path.clone(), message: e.to_string() })?;
+            .map_err(|e| RlError::Checkpoint { path: path.to_path_buf(), message: e.to_string() })?;
         s.normalizer.check_fits(&t.norm).map_err(|e| RlError::Checkpoint {
-            path: path.clone(),
+            path: path.to_path_buf(),
             message: format!("the observation normaliser of team {k} does not fit: {e}"),
         })?;
         t.norm = s.normalizer.clone();
         teams.push(t);
     }
-    Ok((config, teams))
+    Ok(teams)
 }
 
 #[cfg(test)]
