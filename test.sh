@@ -10,9 +10,10 @@ if [ ! -x "$venv/bin/python" ]; then
 fi
 export PATH="$PWD/$venv/bin:$PATH"
 # The build backend and the test dependencies (gymnasium and pettingzoo: the adapters' API
-# checks; mypy: the type stubs' and annotations' checks).
+# checks; mypy: the type stubs' and annotations' checks; safetensors: reading policy files
+# and checkpoint tensors as other tools do).
 python -m pip install --quiet --disable-pip-version-check "maturin>=1.9.4,<2" "numpy>=1.21" "pytest>=7" \
-    "gymnasium>=1.0" "pettingzoo>=1.24" "mypy>=1.10,<3"
+    "gymnasium>=1.0" "pettingzoo>=1.24" "mypy>=1.10,<3" "safetensors>=0.4"
 # The HTML player's test runs its page in headless Chromium; here a missing browser is a
 # failure, not a skip (MEBEN_REQUIRE_BROWSER), so install Debian's package when it is absent.
 if ! command -v chromium >/dev/null 2>&1 && ! command -v chromium-browser >/dev/null 2>&1; then

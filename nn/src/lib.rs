@@ -59,5 +59,5 @@ pub use norm::LayerNorm;
 pub use optim::{Adam, AdamConfig, LrSchedule, clip_elementwise, clip_global_norm};
 pub use params::{Bound, ParamId, ParamStore, Scope, init_rng};
 pub use rbf::RadialBasis;
-pub use state::StateDict;
+pub use state::{SavedTensor, StateDict};
 pub use transformer::{TransformerConfig, TransformerEncoder, TransformerEncoderLayer};

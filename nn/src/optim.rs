@@ -197,6 +197,20 @@ impl Adam {
         Ok(())
     }
 
+    /// The host moments: first and second, one buffer per parameter in store order (stale
+    /// while the moments are on the GPU: [`Adam::sync_to_host`] first). What a checkpoint
+    /// saves besides the configuration and the update count.
+    pub fn moments(&self) -> (&[Vec<f64>], &[Vec<f64>]) {
+        (&self.m, &self.v)
+    }
+
+    /// An optimiser restored from saved parts: its configuration, update count and host
+    /// moments ([`Adam::moments`]). Nothing is checked here: [`Adam::check_fits`] checks the
+    /// moments against a store.
+    pub fn from_moments(config: AdamConfig, t: u64, m: Vec<Vec<f64>>, v: Vec<Vec<f64>>) -> Self {
+        Self { config, t, m, v, device_m: Vec::new(), device_v: Vec::new() }
+    }
+
     /// Checks a loaded state against `store`: one first and one second moment buffer per
     /// parameter, each with the parameter's number of elements, all finite. Errors name the
     /// parameter.

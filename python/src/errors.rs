@@ -23,7 +23,9 @@ pub fn task_error(e: TaskError) -> PyErr {
 pub fn rl_error(e: RlError) -> PyErr {
     match e {
         RlError::Env(t) => task_error(t),
-        RlError::Config { .. } | RlError::Checkpoint { .. } => PyValueError::new_err(e.to_string()),
+        RlError::Config { .. } | RlError::Checkpoint { .. } | RlError::Policy { .. } => {
+            PyValueError::new_err(e.to_string())
+        }
         RlError::File { .. } | RlError::RunInUse { .. } => PyOSError::new_err(e.to_string()),
         RlError::Interrupted { .. } => PyKeyboardInterrupt::new_err(e.to_string()),
         RlError::NonFinite { .. } | RlError::Model(_) | RlError::Nn(_) => PyRuntimeError::new_err(e.to_string()),

@@ -1,4 +1,5 @@
-//! `meben.Policy`: the trained teams of a run directory acting on observation dicts, with
+//! `meben.Policy`: the trained teams of a run directory or a policy file (`meben
+//! export-policy`, `rl::app::policy_file`) acting on observation dicts, with
 //! the random streams of the Rust evaluation (`rl::evaluate`), so that a policy loaded with
 //! seed `s` acts as `meben eval --seed s` does.
 //!
@@ -28,8 +29,10 @@ pub const POLICY_IN_USE: &str = "this Policy is in use by another thread (Policy
 /// A trained run's policies (see `meben.Policy.load`).
 #[pyclass(name = "Policy", module = "meben._core", frozen)]
 pub struct PyPolicy {
-    /// The run directory it was loaded from.
+    /// The run directory or policy file it was loaded from.
     run: std::path::PathBuf,
+    /// The run's last evaluation as recorded (its checkpoint's, or the policy file's).
+    recorded_eval: Option<rl::EvalSummary>,
     config: TrainConfig,
     teams: Vec<Team>,
     /// What acting changes (one thread at a time: module docs).
@@ -55,25 +58,46 @@ fn item<'py>(obs: &Bound<'py, PyDict>, key: &str) -> PyResult<Bound<'py, PyAny>>
 
 #[pymethods]
 impl PyPolicy {
-    /// Loads the trained teams of the run directory `run` (its `config.toml` and
-    /// `checkpoint.json`, as the `meben` program writes them). `seed` seeds the action noise
-    /// and stochastic assignments as `meben eval --seed` does.
+    /// Loads the trained teams of `run`: a run directory (its `config.toml` and checkpoint,
+    /// as the `meben` program writes them) or a policy file (`meben export-policy`,
+    /// `.safetensors`). `seed` seeds the action noise and stochastic assignments as `meben
+    /// eval --seed` does. A damaged, truncated or foreign file raises `ValueError` naming it.
     #[staticmethod]
     #[pyo3(signature = (run, seed=0))]
     fn load(py: Python<'_>, run: std::path::PathBuf, seed: u64) -> PyResult<PyPolicy> {
-        let (config, teams) =
-            pool::detach(py, || rl::app::run_dir::load_policies(&RunDir::new(&run)))?.map_err(rl_error)?;
-        let scene =
-            pool::detach(py, || envs::tasks::Scene::from_name(&config.env))?.map_err(crate::errors::task_error)?;
-        let players = evaluation_actors(&teams, seed, ActMode::Sample);
-        Ok(PyPolicy {
-            run,
-            config,
-            teams,
-            acting: Mutex::new(Acting { players, obs: Default::default() }),
-            spec: scene.obs_spec,
-            n_actions: scene.n_actions,
-        })
+        let (config, teams, recorded_eval) = pool::detach(py, || -> rl::Result<_> {
+            if run.is_file() {
+                let f = rl::app::policy_file::load_policy(&run)?;
+                Ok((f.config, f.teams, f.eval))
+            } else {
+                let rd = RunDir::new(&run);
+                let (config, c) = rl::app::run_dir::load_run(&rd)?;
+                let teams = rl::app::run_dir::teams_of(&config, &c, &rd.checkpoint())?;
+                Ok((config, teams, c.last_eval))
+            }
+        })?
+        .map_err(rl_error)?;
+        Self::new(py, run, config, teams, recorded_eval, seed)
+    }
+
+    /// The shipped pretrained policy of `model` on `env` (`policies/index.toml` in the
+    /// package, e.g. `Policy.pretrained("team_reach/2_ants", "shnn")`); a name that is not
+    /// shipped raises `ValueError` listing the shipped ones.
+    #[staticmethod]
+    #[pyo3(signature = (env, model, seed=0))]
+    fn pretrained(py: Python<'_>, env: &str, model: &str, seed: u64) -> PyResult<PyPolicy> {
+        let dir = shipped_dir(py)?;
+        let path = rl::app::policy_file::find_pretrained(&dir, &format!("{env}/{model}")).map_err(rl_error)?;
+        Self::load(py, path, seed)
+    }
+
+    /// The last evaluation recorded with the policy (the run's checkpoint, or the policy
+    /// file's metadata) as the dict `meben eval` writes, or `None` before the first.
+    #[getter]
+    fn recorded_eval<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let text = serde_json::to_string(&self.recorded_eval)
+            .map_err(|e| pyo3::exceptions::PyRuntimeError::new_err(e.to_string()))?;
+        py.import("json")?.call_method1("loads", (text,))
     }
 
     /// Actions `[B, total_dof]` (float32 in [-1, 1]) of every team for observations `obs` (a
@@ -174,7 +198,7 @@ impl PyPolicy {
         py.import("json")?.call_method1("loads", (text,))
     }
 
-    /// The run directory the policy was loaded from.
+    /// The run directory or policy file the policy was loaded from.
     #[getter]
     fn run(&self) -> std::path::PathBuf {
         self.run.clone()
@@ -210,5 +234,41 @@ impl PyPolicy {
             py_repr(py, &self.config.env)?,
             py_repr(py, &self.config.model)?
         ))
+    }
+}
+
+/// The directory of shipped policies: the package's `meben/policies` (the wheel carries
+/// it), else the repository's `policies/` this module was built from.
+fn shipped_dir(py: Python<'_>) -> PyResult<std::path::PathBuf> {
+    let file: std::path::PathBuf = py.import("meben")?.getattr("__file__")?.extract()?;
+    let packaged = file.parent().map(|d| d.join("policies"));
+    Ok(match packaged {
+        Some(d) if d.join(rl::app::policy_file::MANIFEST).is_file() => d,
+        _ => rl::app::policy_file::policies_dir(),
+    })
+}
+
+impl PyPolicy {
+    /// A policy of `teams` acting with the noise streams of `seed`.
+    fn new(
+        py: Python<'_>,
+        run: std::path::PathBuf,
+        config: TrainConfig,
+        teams: Vec<Team>,
+        recorded_eval: Option<rl::EvalSummary>,
+        seed: u64,
+    ) -> PyResult<PyPolicy> {
+        let scene =
+            pool::detach(py, || envs::tasks::Scene::from_name(&config.env))?.map_err(crate::errors::task_error)?;
+        let players = evaluation_actors(&teams, seed, ActMode::Sample);
+        Ok(PyPolicy {
+            run,
+            recorded_eval,
+            config,
+            teams,
+            acting: Mutex::new(Acting { players, obs: Default::default() }),
+            spec: scene.obs_spec,
+            n_actions: scene.n_actions,
+        })
     }
 }

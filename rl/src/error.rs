@@ -34,6 +34,14 @@ pub enum RlError {
         /// What does not fit.
         message: String,
     },
+    /// A policy file (`meben export-policy`) that cannot be used: damaged, truncated, not a
+    /// policy file, or not fitting its model; or a pretrained policy that is not shipped.
+    Policy {
+        /// The policy file (or the manifest of shipped policies).
+        path: PathBuf,
+        /// What is wrong.
+        message: String,
+    },
     /// A loss or a network output became NaN or infinite; the last good checkpoint is kept.
     NonFinite {
         /// What was non-finite (e.g. `team 0 loss at iteration 12, epoch 1, minibatch 3`).
@@ -95,6 +103,7 @@ impl fmt::Display for RlError {
             }
             RlError::File { path, message } => write!(f, "{}: {message}", path.display()),
             RlError::Checkpoint { path, message } => write!(f, "checkpoint {}: {message}", path.display()),
+            RlError::Policy { path, message } => write!(f, "policy file {}: {message}", path.display()),
             RlError::NonFinite { message } => write!(f, "non-finite value: {message}"),
             RlError::RunInUse { run, lock, holder } => write!(
                 f,

@@ -73,7 +73,16 @@ fn changed_bytes_and_inconsistent_counters_are_refused() {
     let path = run.checkpoint();
     let good = std::fs::read(&path).unwrap();
     let text = payload(&good);
-    assert!(text.starts_with("{\"version\":2,") && text.contains("\"iteration\":1,"), "{}", &text[..40]);
+    // The tensors file the checkpoint names (removed as stale by a training that finds a
+    // version 1 checkpoint.json, which names none; put back below).
+    let tensors: Vec<(std::path::PathBuf, Vec<u8>)> = std::fs::read_dir(run.root())
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|x| x == "safetensors"))
+        .map(|p| (p.clone(), std::fs::read(&p).unwrap()))
+        .collect();
+    assert_eq!(tensors.len(), 1);
+    assert!(text.starts_with("{\"version\":3,") && text.contains("\"iteration\":1,"), "{}", &text[..40]);
 
     // One changed digit: found by the checksum, in training and in evaluation.
     std::fs::write(&path, String::from_utf8(good.clone()).unwrap().replacen("\"iteration\":1,", "\"iteration\":9,", 1))
@@ -83,19 +92,31 @@ fn changed_bytes_and_inconsistent_counters_are_refused() {
     let e = rl::app::run_dir::load_policies(&run).unwrap_err().to_string();
     assert!(e.contains("checksum mismatch"), "{e}");
 
-    // A version 2 payload without its envelope was edited.
+    // A version 3 payload without its envelope was edited.
     std::fs::write(&path, &text).unwrap();
     let e = Checkpoint::load(&path).unwrap_err().to_string();
     assert!(e.contains("without its checksum"), "{e}");
 
+    // The same for a version 2 file (one JSON file, as the old writer wrote it).
+    let json_only = dir.0.join("v2.json");
+    std::fs::write(&path, &good).unwrap();
+    Checkpoint::load(&path).unwrap().save_json(&json_only).unwrap();
+    let v2_text = payload(&std::fs::read(&json_only).unwrap());
+    assert!(v2_text.starts_with("{\"version\":2,"), "{}", &v2_text[..40]);
+    std::fs::write(&json_only, &v2_text).unwrap();
+    let e = Checkpoint::load(&json_only).unwrap_err().to_string();
+    assert!(e.contains("without its checksum"), "{e}");
+
     // A version 1 file (written before checksums) loads, and its counters are still checked.
-    let v1 = text.replacen("{\"version\":2,", "{\"version\":1,", 1);
+    let v1 = v2_text.replacen("{\"version\":2,", "{\"version\":1,", 1);
     std::fs::write(&path, &v1).unwrap();
     Checkpoint::load(&path).unwrap();
     std::fs::write(&path, v1.replacen("\"iteration\":1,", "\"iteration\":1000000,", 1)).unwrap();
     let e = train(&config, &run, &TrainOptions::default()).unwrap_err().to_string();
     assert!(e.contains("iteration 1000000 and env_steps 80 disagree"), "{e}");
     assert!(!run.done().exists());
+    assert!(!tensors[0].0.exists(), "a tensors file no checkpoint names was kept");
+    std::fs::write(&tensors[0].0, &tensors[0].1).unwrap();
 
     // Counters that disagree, sealed anew (as a tool that rewrites checkpoints would).
     let adam_t = format!("\"t\":{}", 2 * 4);
@@ -116,8 +137,9 @@ fn changed_bytes_and_inconsistent_counters_are_refused() {
         assert!(e.contains("checkpoint.json") && e.contains(needle), "{to}: {e}");
     }
 
-    // Adam moments one element short: refused on resume, naming the parameter.
-    let v: serde_json::Value = serde_json::from_str(&text).unwrap();
+    // Adam moments one element short in a version 2 file: refused on resume, naming the
+    // parameter (the tensors file's checks: rl/tests/checkpoint_format.rs).
+    let v: serde_json::Value = serde_json::from_str(&v2_text).unwrap();
     let mut v = v;
     let name = v["teams"][0]["params"]["tensors"][1]["name"].as_str().unwrap().to_string();
     v["teams"][0]["adam"]["v"][1].as_array_mut().unwrap().pop();
@@ -127,6 +149,7 @@ fn changed_bytes_and_inconsistent_counters_are_refused() {
 
     // The untouched checkpoint resumes.
     std::fs::write(&path, &good).unwrap();
+    std::fs::write(&tensors[0].0, &tensors[0].1).unwrap();
     let s = train(&config, &run, &TrainOptions::default()).unwrap();
     assert_eq!(s.iterations, 2);
 }

@@ -205,12 +205,26 @@ proptest! {
         }
         c.wall_s = wall_s;
         let dir = TempDir::new("prop-checkpoint");
-        let (first, second) = (dir.0.join("a.json"), dir.0.join("b.json"));
+        // Two directories: the JSON names its tensors file after its own name.
+        let (first, second) = (dir.0.join("a/checkpoint.json"), dir.0.join("b/checkpoint.json"));
+        for d in ["a", "b"] {
+            std::fs::create_dir_all(dir.0.join(d)).unwrap();
+        }
         c.save(&first).unwrap();
         let loaded = Checkpoint::load(&first).unwrap();
         prop_assert_eq!(changed_bits(&loaded), changed_bits(&c));
         loaded.save(&second).unwrap();
         prop_assert!(std::fs::read(&first).unwrap() == std::fs::read(&second).unwrap(), "the second save differs");
+        let tensors = |d: &str| {
+            let files: Vec<Vec<u8>> = std::fs::read_dir(dir.0.join(d))
+                .unwrap()
+                .map(|e| e.unwrap().path())
+                .filter(|p| p.extension().is_some_and(|x| x == "safetensors"))
+                .map(|p| std::fs::read(p).unwrap())
+                .collect();
+            files
+        };
+        prop_assert!(tensors("a").len() == 1 && tensors("a") == tensors("b"), "the tensors files differ");
     }
 }
 

@@ -9,7 +9,11 @@ training, backed by the Rust crates of meben-rs (the extension module ``meben._c
 
 A trained run: ``meben.Policy.load(run)`` acts (``policy.act(obs)``) and evaluates
 (``policy.evaluate(episodes=1024, rotation_deg=180)``: the summary ``meben eval`` writes);
-``meben.read_metrics(run)`` gives its ``metrics.csv`` as float64 numpy columns.
+``run`` is a run directory or a policy file (``meben export-policy --run DIR --out
+FILE.safetensors``: the weights as safetensors, which ``safetensors.numpy.load_file`` also
+reads). ``meben.Policy.pretrained("team_reach/2_ants", "shnn")`` loads a shipped pretrained
+policy (``meben/policies/index.toml``). ``meben.read_metrics(run)`` gives a run's
+``metrics.csv`` as float64 numpy columns.
 
 Adapters: ``meben.gymnasium.GymVecEnv`` (Gymnasium's vector-env API), ``GymEnv`` (one
 ``gymnasium.Env``; both take ``seed=``, and ``flatten=True`` for one flat ``Box``

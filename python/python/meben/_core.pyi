@@ -88,7 +88,15 @@ class VecEnv:
 @final
 class Policy:
     @staticmethod
-    def load(run: _Path, seed: int = 0) -> Policy: ...
+    def load(run: _Path, seed: int = 0) -> Policy:
+        """The trained teams of ``run``: a run directory (``config.toml`` and checkpoint) or
+        a policy file (``meben export-policy``, ``.safetensors``). A damaged, truncated or
+        foreign file raises ``ValueError`` naming it."""
+    @staticmethod
+    def pretrained(env: str, model: str, seed: int = 0) -> Policy:
+        """A shipped pretrained policy (``meben/policies/index.toml``), e.g.
+        ``Policy.pretrained("team_reach/2_ants", "shnn")``; one not shipped raises
+        ``ValueError`` listing the shipped ones."""
     def act(self, obs: Observation, deterministic: bool = True) -> NDArray[np.float32]:
         """Actions ``[B, total_dof]`` for ``obs``: the means if ``deterministic``, else
         samples. Arrays of the wrong dtype or shape, with no row, or holding NaN or infinity
@@ -104,7 +112,11 @@ class Policy:
         translation: Optional[Tuple[float, float]] = None,
     ) -> EvalSummary: ...
     @property
-    def run(self) -> pathlib.Path: ...
+    def run(self) -> pathlib.Path:
+        """The run directory or policy file it was loaded from."""
+    @property
+    def recorded_eval(self) -> Optional[EvalSummary]:
+        """The run's last evaluation as its checkpoint or policy file records it."""
     @property
     def env(self) -> str: ...
     @property

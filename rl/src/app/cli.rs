@@ -19,13 +19,14 @@ use crate::error::RlError;
 use crate::mappo::config::TrainConfig;
 use crate::mappo::evaluate::EvalRequest;
 use crate::stop::StopFlag;
-use clap::{Args, Parser, Subcommand};
+use clap::{ArgGroup, Args, Parser, Subcommand};
 
 #[derive(Parser)]
 #[command(
     name = "meben",
     version = crate::app::build_info::LONG_VERSION,
-    about = "Subequivariant multi-entity RL on MeBen: train, eval, ablate, report, status, export, render, sim, info"
+    about = "Subequivariant multi-entity RL on MeBen: train, eval, ablate, report, status, export, export-policy, render, \
+             sim, info"
 )]
 struct Cli {
     #[command(subcommand)]
@@ -39,7 +40,7 @@ enum Command {
     /// Ctrl-C or SIGTERM stops after the current iteration with a checkpoint (exit status
     /// 130); the same command resumes the run. A second Ctrl-C quits at once.
     Train(Box<TrainArgs>),
-    /// Evaluate a trained run on N episodes.
+    /// Evaluate a trained run, or a policy file, on N episodes.
     Eval(EvalArgs),
     /// Run a sweep of models x envs x seeds x variants (skips finished runs, resumes others).
     ///
@@ -56,8 +57,13 @@ enum Command {
     /// curve.svg, builds.csv, the sweep file) to another, without checkpoints: for
     /// committing results.
     Export(ExportArgs),
-    /// Record an episode of a trained run: .html (animation), .gif, or .csv (body poses).
+    /// Record an episode of a trained run or policy file: .html (animation), .gif, or .csv
+    /// (body poses).
     Render(RenderArgs),
+    /// Write what acting needs (the policy weights, model, observation normaliser,
+    /// environment, configuration and last evaluation) to one safetensors file, for
+    /// eval/render --policy, Python's meben.Policy.load and any safetensors reader.
+    ExportPolicy(ExportPolicyArgs),
     /// The simulator's rollout tool (random actions, timing, trajectories).
     Sim(envs::rollout_tool::RolloutArgs),
     /// Parameter counts by part, one line per model and team:
@@ -143,10 +149,19 @@ struct TrainArgs {
 }
 
 #[derive(Args)]
+#[command(group(ArgGroup::new("source").required(true).args(["run", "policy"])))]
 struct EvalArgs {
     /// Run directory (with config.toml and checkpoint.json).
     #[arg(long)]
-    run: PathBuf,
+    run: Option<PathBuf>,
+    /// A policy file (meben export-policy), or pretrained:<env>/<model> for a shipped one
+    /// (e.g. pretrained:team_reach/2_ants/shnn), instead of --run.
+    #[arg(long)]
+    policy: Option<String>,
+    /// Also write the summary (JSON) to this file. With --run it goes to the run directory
+    /// anyway (eval.json, eval_rotate<deg>.json, ...).
+    #[arg(long)]
+    out: Option<PathBuf>,
     /// Episodes.
     #[arg(long, default_value_t = 1024)]
     episodes: usize,
@@ -238,10 +253,25 @@ struct ReportArgs {
 }
 
 #[derive(Args)]
+struct ExportPolicyArgs {
+    /// Run directory (with config.toml and checkpoint.json).
+    #[arg(long)]
+    run: PathBuf,
+    /// The policy file to write (.safetensors).
+    #[arg(long)]
+    out: PathBuf,
+}
+
+#[derive(Args)]
+#[command(group(ArgGroup::new("source").required(true).args(["run", "policy"])))]
 struct RenderArgs {
     /// Run directory.
     #[arg(long)]
-    run: PathBuf,
+    run: Option<PathBuf>,
+    /// A policy file (meben export-policy), or pretrained:<env>/<model> for a shipped one,
+    /// instead of --run.
+    #[arg(long)]
+    policy: Option<String>,
     /// Output file: .html (interactive animation), .gif (animated image) or .csv (body poses per frame).
     /// A run directory's own files (metrics.csv, config.toml, ...) are refused.
     #[arg(long)]
@@ -269,6 +299,7 @@ pub fn main() -> ExitCode {
         Some(Command::Export(a)) => cmd_export(a),
         Some(Command::Status(a)) => cmd_status(a),
         Some(Command::Render(a)) => cmd_render(a),
+        Some(Command::ExportPolicy(a)) => cmd_export_policy(a),
         Some(Command::Sim(a)) => envs::rollout_tool::run(&a).map_err(|e| e.to_string()),
         Some(Command::Info(a)) => cmd_info(a),
     };
@@ -420,9 +451,21 @@ fn print_eval(sumo: bool, e: &crate::mappo::evaluate::EvalSummary) {
     }
 }
 
+/// The teams to act: those of `--run` or of `--policy` (a file or `pretrained:...`).
+fn load_teams(run: Option<&PathBuf>, policy: Option<&str>) -> Result<(TrainConfig, Vec<crate::Team>), String> {
+    match (run, policy) {
+        (_, Some(p)) => {
+            let path = crate::app::policy_file::resolve_policy(p).map_err(|e| e.to_string())?;
+            let f = crate::app::policy_file::load_policy(&path).map_err(|e| e.to_string())?;
+            Ok((f.config, f.teams))
+        }
+        (Some(r), None) => crate::app::run_dir::load_policies(&RunDir::new(r)).map_err(|e| e.to_string()),
+        (None, None) => Err("give --run DIR or --policy FILE".into()),
+    }
+}
+
 fn cmd_eval(a: EvalArgs) -> Result<(), String> {
-    let run = RunDir::new(&a.run);
-    let (config, teams) = crate::app::run_dir::load_policies(&run).map_err(|e| e.to_string())?;
+    let (config, teams) = load_teams(a.run.as_ref(), a.policy.as_deref())?;
     if a.episodes == 0 {
         return Err("--episodes must be at least 1".into());
     }
@@ -449,11 +492,12 @@ fn cmd_eval(a: EvalArgs) -> Result<(), String> {
     .options(&config);
     let e = crate::mappo::evaluate::evaluate(&config.env, &teams, &options).map_err(|e| e.to_string())?;
     print_eval(config.is_sumo(), &e);
-    let name = eval_file_name(a.rotate, a.translate, a.fixed);
-    let path = a.run.join(name);
     let text = serde_json::to_string_pretty(&e).map_err(|e| e.to_string())?;
-    nn::write_atomic(&path, text.as_bytes()).map_err(|e| e.to_string())?;
-    eprintln!("meben: wrote {}", path.display());
+    let in_run = a.run.as_ref().map(|r| r.join(eval_file_name(a.rotate, a.translate, a.fixed)));
+    for path in in_run.iter().chain(&a.out) {
+        nn::write_atomic(path, text.as_bytes()).map_err(|e| e.to_string())?;
+        eprintln!("meben: wrote {}", path.display());
+    }
     Ok(())
 }
 
@@ -552,10 +596,26 @@ fn cmd_info(a: InfoArgs) -> Result<(), String> {
     Ok(())
 }
 
-fn cmd_render(a: RenderArgs) -> Result<(), String> {
+fn cmd_export_policy(a: ExportPolicyArgs) -> Result<(), String> {
     let run = RunDir::new(&a.run);
+    let s = crate::app::policy_file::export_policy(&run, &a.out).map_err(|e| e.to_string())?;
+    let eval = match &s.eval {
+        Some(e) if s.sumo => format!("team 0 win rate {:.4} on {} episodes", e.win_rate[0], e.episodes),
+        Some(e) => format!("success rate {:.4} on {} episodes", e.success_rate, e.episodes),
+        None => "not evaluated yet".into(),
+    };
+    println!(
+        "meben: wrote {} ({} bytes): the policy after {} env steps; last evaluation: {eval}",
+        a.out.display(),
+        s.bytes,
+        s.env_steps
+    );
+    Ok(())
+}
+
+fn cmd_render(a: RenderArgs) -> Result<(), String> {
     crate::app::run_dir::check_not_a_run_file("--out", &a.out).map_err(|e| e.to_string())?;
-    let (config, mut teams) = crate::app::run_dir::load_policies(&run).map_err(|e| e.to_string())?;
+    let (config, mut teams) = load_teams(a.run.as_ref(), a.policy.as_deref())?;
     let ext = a.out.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
     if !["html", "gif", "csv"].contains(&ext.as_str()) {
         return Err(format!("{}: unsupported output format {ext:?}; use .html, .gif or .csv", a.out.display()));

@@ -4,8 +4,8 @@
 //! For every run directory under `<runs>` ([`crate::app::report::find_run_dirs`]) the files
 //! [`EVIDENCE_FILES`] that exist are copied to the same relative path under `<results>`
 //! (each written atomically, so an interrupted export leaves whole files); a sweep's copy of
-//! its file (`sweep.toml` at the root) comes along. Checkpoints and anything else stay
-//! behind. A run still training is exported as far as it got (it has no `done.json`);
+//! its file (`sweep.toml` at the root) comes along. Checkpoints (`checkpoint.json` and the
+//! `checkpoint.<digest>.safetensors` it names) and anything else stay behind. A run still training is exported as far as it got (it has no `done.json`);
 //! exporting again later brings its newer rows. `meben report <results>` then works from the
 //! exported files alone.
 //!
@@ -163,6 +163,7 @@ mod tests {
             write(&d.join("metrics.csv"), "iteration\n1\n");
             write(&d.join("checkpoint.json"), "{\"big\": 1}");
             write(&d.join("checkpoint.json.tmp"), "partial");
+            write(&d.join("checkpoint.0123456789abcdef.safetensors"), "tensors");
             if done {
                 write(&d.join("done.json"), "{}");
                 write(&d.join("builds.csv"), "b\n");
@@ -178,9 +179,12 @@ mod tests {
         assert_eq!(std::fs::read_to_string(d0.join("builds.csv")).unwrap(), "b\n");
         assert!(!results.join("team_reach_1_ant/shnn/seed1/done.json").exists());
         assert_eq!(std::fs::read_to_string(results.join("sweep.toml")).unwrap(), "seeds = [0]");
-        for stray in
-            ["team_reach_1_ant/shnn/seed0/checkpoint.json", "team_reach_1_ant/shnn/seed0/checkpoint.json.tmp", "notes"]
-        {
+        for stray in [
+            "team_reach_1_ant/shnn/seed0/checkpoint.json",
+            "team_reach_1_ant/shnn/seed0/checkpoint.json.tmp",
+            "team_reach_1_ant/shnn/seed0/checkpoint.0123456789abcdef.safetensors",
+            "notes",
+        ] {
             assert!(!results.join(stray).exists(), "{stray} was exported");
         }
         // sweep.toml 11 bytes; per run config.toml 27 and metrics.csv 12; one done.json 2

@@ -95,8 +95,12 @@ fn host_name() -> String {
         .unwrap_or_else(|| "unknown".into())
 }
 
-/// Removes the temporary files of interrupted atomic writes ([`nn::is_temporary`]) from a
-/// run directory whose lock the caller holds (no other process can be writing them).
+/// Removes the temporary files of interrupted atomic writes ([`nn::is_temporary`]: the
+/// `.<name>.<pid>.<n>.tmp` of every file, a checkpoint's tensors file's included) from a
+/// run directory whose lock the caller holds (no other process can be writing them), and
+/// the checkpoint tensors files (`checkpoint.<digest>.safetensors`) that its
+/// `checkpoint.json` does not name, which a crash between a save's steps leaves
+/// ([`crate::mappo::checkpoint::remove_stale_tensor_files`]).
 pub fn remove_stale_temporaries(root: &Path, _lock: &RunLock) -> Result<()> {
     let entries = std::fs::read_dir(root).map_err(|e| RlError::file(root, format!("cannot list: {e}")))?;
     for entry in entries.flatten() {
@@ -106,6 +110,7 @@ pub fn remove_stale_temporaries(root: &Path, _lock: &RunLock) -> Result<()> {
                 .map_err(|e| RlError::file(entry.path(), format!("cannot remove a stale temporary file: {e}")))?;
         }
     }
+    crate::mappo::checkpoint::remove_stale_tensor_files(&crate::app::run_dir::RunDir::new(root).checkpoint())?;
     Ok(())
 }
 
@@ -122,12 +127,17 @@ mod tests {
         let e = RunLock::acquire(&dir).unwrap_err().to_string();
         assert!(e.contains(&format!("process {} on host", std::process::id())) && e.contains("in use"), "{e}");
         std::fs::write(dir.join(".checkpoint.json.77.0.tmp"), "half").unwrap();
+        std::fs::write(dir.join(".checkpoint.0123456789abcdef.safetensors.77.1.tmp"), "half").unwrap();
         std::fs::write(dir.join("config.toml.tmp"), "").unwrap();
+        // A tensors file without the checkpoint.json that would name it (a first save that
+        // crashed between its two files); other safetensors files are not the run's.
+        std::fs::write(dir.join("checkpoint.0123456789abcdef.safetensors"), "orphan").unwrap();
+        std::fs::write(dir.join("policy.safetensors"), "mine").unwrap();
         remove_stale_temporaries(&dir, &first).unwrap();
         let mut left: Vec<String> =
             std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
         left.sort();
-        assert_eq!(left, [LOCK_FILE]);
+        assert_eq!(left, [LOCK_FILE, "policy.safetensors"]);
         drop(first);
         RunLock::acquire(&dir).unwrap();
         let _ = std::fs::remove_dir_all(&dir);

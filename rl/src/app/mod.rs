@@ -6,7 +6,8 @@
 //! reports ([`report`](mod@report), `meben report`), evidence export
 //! ([`export`](mod@export), `meben export`), the progress of runs ([`status`](mod@status),
 //! `meben status`), parameter counts ([`info`], `meben info`),
-//! episode recordings ([`render`], `meben render`) and the command line ([`cli`]).
+//! episode recordings ([`render`], `meben render`), policy files and the shipped pretrained
+//! policies ([`policy_file`], `meben export-policy`, `--policy`) and the command line ([`cli`]).
 
 pub mod build_info;
 pub mod cli;
@@ -18,6 +19,7 @@ pub mod lock;
 pub mod metrics;
 pub mod morphology;
 pub mod plot;
+pub mod policy_file;
 pub mod presets;
 pub mod progress;
 pub mod render;

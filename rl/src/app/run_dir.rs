@@ -5,7 +5,8 @@
 //! |---|---|---|
 //! | `config.toml` | at the start | the resolved [`crate::TrainConfig`] |
 //! | `metrics.csv` | every iteration | one row per iteration (the columns of [`crate::app::metrics::MetricsLayout`]) |
-//! | `checkpoint.json` | every `checkpoint_every` iterations, after evaluations, at the end | everything needed to resume exactly ([`crate::mappo::checkpoint`]) |
+//! | `checkpoint.json` | every `checkpoint_every` iterations, after evaluations, at the end | with the tensors file it names, everything needed to resume exactly ([`crate::mappo::checkpoint`]): the configuration, counters, normaliser statistics, random streams and environment states, sealed with a SHA-256 that covers the tensors file's too |
+//! | `checkpoint.<digest>.safetensors` | with `checkpoint.json`, before it | every team's parameters and Adam moments (safetensors: PyTorch, JAX, numpy read it); `<digest>` is the start of its SHA-256 |
 //! | `curve.svg` | after every evaluation | the learning curve |
 //! | `done.json` | at the end | the [`crate::RunSummary`]; a run with it is finished |
 //! | `builds.csv` | at the start and at each resume | a row per training session: the iteration it went on from, the program's version and git commit ([`crate::app::build_info`]) |
@@ -15,8 +16,10 @@
 //! [`load_policies`] reads the trained teams of a run directory back.
 //!
 //! Every file is written atomically (a temporary file, then a rename), so an interrupted run
-//! leaves either the old or the new version; the temporary files of a killed run are removed
-//! when training resumes. `metrics.csv` and `builds.csv` grow by appended rows, one write a
+//! leaves either the old or the new version; the checkpoint's two files are atomic as a
+//! pair (the tensors first under a new name, then the JSON that names them, then the old
+//! tensors file removed). The temporary files of a killed run, and a tensors file that no
+//! `checkpoint.json` names, are removed when training resumes. `metrics.csv` and `builds.csv` grow by appended rows, one write a
 //! row (a resumed run rewrites `metrics.csv` atomically up to its checkpoint first).
 
 use std::path::{Path, PathBuf};
@@ -109,10 +112,13 @@ pub const RUN_FILES: [&str; 8] = [
     crate::app::lock::LOCK_FILE,
 ];
 
-/// Whether `name` is the name of one of a run directory's own files: [`RUN_FILES`] or an
-/// evaluation's `eval*.json`.
+/// Whether `name` is the name of one of a run directory's own files: [`RUN_FILES`], a
+/// checkpoint's tensors file (`checkpoint.<digest>.safetensors`) or an evaluation's
+/// `eval*.json`.
 pub fn is_run_file_name(name: &str) -> bool {
-    RUN_FILES.contains(&name) || (name.starts_with("eval") && name.ends_with(".json"))
+    RUN_FILES.contains(&name)
+        || crate::mappo::checkpoint::is_tensors_file_name(Path::new("checkpoint.json"), name)
+        || (name.starts_with("eval") && name.ends_with(".json"))
 }
 
 /// Refuses `out` as the output of another command (`meben render --out`) when it is one of
@@ -160,6 +166,13 @@ pub fn check_not_a_run_file(option: &str, out: &Path) -> Result<()> {
 /// ([`crate::app::morphology::env_with_copies`]), so that it evaluates the same bodies from
 /// any directory.
 pub fn load_policies(run: &RunDir) -> Result<(TrainConfig, Vec<Team>)> {
+    let (config, c) = load_run(run)?;
+    let teams = teams_of(&config, &c, &run.checkpoint())?;
+    Ok((config, teams))
+}
+
+/// A run directory's configuration (`config.toml`) and checkpoint.
+pub fn load_run(run: &RunDir) -> Result<(TrainConfig, Checkpoint)> {
     if !run.config().is_file() {
         return Err(RlError::file(
             run.config(),
@@ -172,27 +185,33 @@ pub fn load_policies(run: &RunDir) -> Result<(TrainConfig, Vec<Team>)> {
     crate::app::config_match::check_config_matches_checkpoint(&run.config(), &config, &path, &c.config)?;
     // The scene from the run's own copies of its morphology files.
     let config = TrainConfig { env: crate::app::morphology::env_with_copies(run, &config.env)?, ..config };
+    Ok((config, c))
+}
+
+/// The teams of `config` with the parameters and normalisers of the checkpoint `c` (read
+/// from `path`, which errors name).
+pub fn teams_of(config: &TrainConfig, c: &Checkpoint, path: &Path) -> Result<Vec<Team>> {
     let spec = envs::tasks::Scene::from_name(&config.env)?.obs_spec;
     if c.teams.len() != spec.n_teams {
         return Err(RlError::Checkpoint {
-            path,
+            path: path.to_path_buf(),
             message: format!("{} teams for a scene of {} teams", c.teams.len(), spec.n_teams),
         });
     }
     let mut teams = Vec::new();
     for (k, s) in c.teams.iter().enumerate() {
-        let mut t = Team::build(&config, &spec, k)?;
+        let mut t = Team::build(config, &spec, k)?;
         s.params
             .load_into(&mut t.store)
-            .map_err(|e| RlError::Checkpoint { path: path.clone(), message: e.to_string() })?;
+            .map_err(|e| RlError::Checkpoint { path: path.to_path_buf(), message: e.to_string() })?;
         s.normalizer.check_fits(&t.norm).map_err(|e| RlError::Checkpoint {
-            path: path.clone(),
+            path: path.to_path_buf(),
             message: format!("the observation normaliser of team {k} does not fit: {e}"),
         })?;
         t.norm = s.normalizer.clone();
         teams.push(t);
     }
-    Ok((config, teams))
+    Ok(teams)
 }
 
 #[cfg(test)]
@@ -212,7 +231,11 @@ mod tests {
             let e = check_not_a_run_file("--out", p).unwrap_err().to_string();
             assert!(e.starts_with(&p.display().to_string()) && e.contains("--out") && e.contains("own"), "{e}");
         };
-        for name in RUN_FILES.iter().copied().chain(["eval.json", "eval_rotate180.json"]) {
+        for name in RUN_FILES.iter().copied().chain([
+            "eval.json",
+            "eval_rotate180.json",
+            "checkpoint.0123456789abcdef.safetensors",
+        ]) {
             refused(&run.join(name));
         }
         refused(&run.join("sub").join("..").join("metrics.csv"));
@@ -226,6 +249,7 @@ mod tests {
         }
         // Other files of the run directory, and a metrics.csv outside any run, are fine.
         check_not_a_run_file("--out", &run.join("episode.csv")).unwrap();
+        check_not_a_run_file("--out", &run.join("policy.safetensors")).unwrap();
         check_not_a_run_file("--out", &run.join("sub").join("metrics.csv")).unwrap();
         check_not_a_run_file("--out", &dir.0.join("metrics.csv")).unwrap();
         check_not_a_run_file("--out", Path::new("/no/such/dir/metrics.csv")).unwrap();

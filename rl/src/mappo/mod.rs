@@ -12,8 +12,8 @@
 //!   and entropy, the loss, its statistics);
 //! - [`normalizer`]: observation statistics; [`seeding`]: the random streams;
 //! - [`evaluate`](mod@evaluate): episodes of the trained teams;
-//! - [`checkpoint`] (the exact training state) with its [`checksum`], and [`memory`] (whether
-//!   an iteration's buffers fit);
+//! - [`checkpoint`] (the exact training state) with its [`checksum`] and its tensors'
+//!   [`tensor_file`] (safetensors), and [`memory`] (whether an iteration's buffers fit);
 //! - [`device`]: where the updates run (`device = "cpu" | "gpu"`) and whether this build and
 //!   machine have it.
 
@@ -31,4 +31,5 @@ pub mod ppo;
 pub mod rollout;
 pub mod seeding;
 pub mod team;
+pub mod tensor_file;
 pub mod trainer;
