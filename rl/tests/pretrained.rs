@@ -50,7 +50,12 @@ fn every_shipped_policy_is_listed_present_and_evaluates_to_its_recorded_figure()
         let path = dir.join(&p.file);
         assert!(dir.join(&p.provenance).is_file(), "{}: no provenance file {}", p.name(), p.provenance);
         let bytes = std::fs::read(&path).unwrap();
-        assert_eq!(rl::mappo::checksum::sha256_hex(&bytes), p.sha256, "{}: the file is not the recorded one", path.display());
+        assert_eq!(
+            rl::mappo::checksum::sha256_hex(&bytes),
+            p.sha256,
+            "{}: the file is not the recorded one",
+            path.display()
+        );
         let f = load_policy(&path).unwrap();
         assert_eq!(
             (f.config.env.as_str(), f.config.model.as_str()),
