@@ -49,3 +49,14 @@ fn no_dependency_cycle_even_through_dev_dependencies() {
     // The models read the environment's observation layout.
     assert!(edges["models"].iter().any(|d| d == "envs"));
 }
+
+/// `docs/ARCHITECTURE.md` names this layout and stays a map: under 15 KB.
+#[test]
+fn the_architecture_map_stays_under_15_kb_and_names_the_layout() {
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../docs/ARCHITECTURE.md");
+    let text = std::fs::read_to_string(path).unwrap();
+    assert!(text.len() < 15_000, "{path}: {} bytes", text.len());
+    for name in ["envs::layout", "envs/src/forward.rs", "ppo::loss", "minibatch"] {
+        assert!(text.contains(name), "{path} does not name {name}");
+    }
+}
