@@ -86,8 +86,12 @@ fn the_same_seed_gives_the_same_bits_on_the_gpu_and_a_gpu_checkpoint_resumes_on_
     train(&gpu, &a, &TrainOptions { stop_after: Some(2), ..Default::default() }).unwrap();
     let on_cpu = RunDir::new(tmp.0.join("on_cpu"));
     std::fs::create_dir_all(on_cpu.root()).unwrap();
-    for f in [a.checkpoint(), a.metrics(), a.config()] {
-        std::fs::copy(&f, on_cpu.root().join(f.file_name().unwrap())).unwrap();
+    // The checkpoint is a pair (checkpoint.json and the tensors file it names).
+    for entry in std::fs::read_dir(a.root()).unwrap() {
+        let name = entry.unwrap().file_name().to_string_lossy().into_owned();
+        if name.starts_with("checkpoint.") || name == "metrics.csv" || name == "config.toml" {
+            std::fs::copy(a.root().join(&name), on_cpu.root().join(&name)).unwrap();
+        }
     }
     // The GPU's checkpoint: the device in its configuration, the moments brought back.
     let saved = Checkpoint::load(&a.checkpoint()).unwrap();
