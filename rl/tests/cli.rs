@@ -6,10 +6,7 @@ mod common;
 use std::path::Path;
 use std::process::Command;
 
-fn meben(args: &[&str]) -> (bool, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_meben")).args(args).output().unwrap();
-    (out.status.success(), String::from_utf8_lossy(&out.stdout).into(), String::from_utf8_lossy(&out.stderr).into())
-}
+use common::meben;
 
 const TINY: &[&str] = &[
     "--set",

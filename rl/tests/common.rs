@@ -59,3 +59,9 @@ pub fn metrics(run: &rl::RunDir) -> Vec<Vec<(String, f64)>> {
     let wall = rl::app::metrics::WALL_TIME_COLUMNS;
     rows.into_iter().map(|r| r.into_iter().filter(|(k, _)| !wall.contains(&k.as_str())).collect()).collect()
 }
+
+/// Runs the `meben` program with `args`: whether it succeeded, its stdout and its stderr.
+pub fn meben(args: &[&str]) -> (bool, String, String) {
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_meben")).args(args).output().unwrap();
+    (out.status.success(), String::from_utf8_lossy(&out.stdout).into(), String::from_utf8_lossy(&out.stderr).into())
+}

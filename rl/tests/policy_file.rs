@@ -7,16 +7,12 @@
 mod common;
 
 use std::path::Path;
-use std::process::Command;
 
 use rl::app::policy_file::{self, keys};
 use rl::mappo::tensor_file::{self, Dtype};
 use rl::{EvalRequest, RunDir, TrainOptions, train};
 
-fn meben(args: &[&str]) -> (bool, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_meben")).args(args).output().unwrap();
-    (out.status.success(), String::from_utf8_lossy(&out.stdout).into(), String::from_utf8_lossy(&out.stderr).into())
-}
+use common::meben;
 
 /// `meben` fails with a message holding every needle, without a panic.
 fn fails_with(args: &[&str], needles: &[&str]) {
