@@ -1,75 +1,154 @@
 #!/usr/bin/env bash
 # The GPU machine's one script (issue 42; docs/PERFORMANCE.md, "On a GPU"): correctness
-# first, then every figure, each line naming the machine and the device. Run it from the
+# first, then the figures, each line naming the machine and the device. Run it from the
 # repository root with gpu-carry/ and .gl/ carried (rl/benches/gpu_build.sh makes them):
 #
-#   rl/benches/gpu.sh                 # the full set (about 8 minutes on an H100 machine)
-#   QUICK=1 rl/benches/gpu.sh         # tiny sizes: a smoke test, e.g. on lavapipe
+#   rl/benches/gpu.sh                          # every section, in the order below
+#   SECTIONS="correct matmul gpu" rl/benches/gpu.sh
+#   QUICK=1 rl/benches/gpu.sh                  # tiny sizes: a smoke test, e.g. on lavapipe
 #
-# Figures: the WGSL matmul rate on the shapes of `shnn` training; env steps/s of `shnn` and
-# `mlp_hn` training on team_reach/1_ant, 2_ants and 3_ant_claw_centipede (paper preset) on
-# the GPU and on the CPU alone at every core; where an iteration goes (collection against
-# update, from the runs' metrics); the simulator's scaling from 1 to all threads.
+# Sections (SECTIONS, space separated; default all):
+#   correct   every op and every model on the GPU against the CPU
+#   matmul    the WGSL matmul rate on the shapes of `shnn` training
+#   gpu       env steps/s of training on the GPU (paper preset), shnn and mlp_hn on
+#             3_ant_claw_centipede, 2_ants, 1_ant, with each iteration's stage timings
+#   profile   one `shnn` minibatch's forward and backward on the GPU, op by op
+#             (GPU_PAIRS="env:model ..." replaces the pairs)
+#   sim       the simulator's scaling from 1 thread to every core
+#   cpu       env steps/s of training on the CPU alone at every core (one iteration each)
+# DEADLINE (seconds, default 540) skips what would start after it, so the machine's time
+# is never overrun; everything printed is also written to $OUT/gpu-bench.log when OUT is set.
 set -uo pipefail
 cd "$(dirname "$0")/../.."
-C=gpu-carry
-OUT=${OUT:-/tmp/gpu-bench}
-mkdir -p "$OUT"
-# The Vulkan loader, if the machine lacks it.
-if ! ldconfig -p | grep -q libvulkan.so.1 && ls .gl/*.deb >/dev/null 2>&1; then
+# The carried binaries (gzipped by gpu_build.sh), unpacked outside the tree.
+C=/tmp/gpu-carry-bin
+mkdir -p $C
+cp gpu-carry/COMMIT gpu-carry/LEVEL $C/
+for f in gpu-carry/*.gz; do gzip -dc "$f" > "$C/$(basename "$f" .gz)" && chmod +x "$C/$(basename "$f" .gz)"; done
+RUNS=${RUNS:-/tmp/gpu-bench}
+SECTIONS=${SECTIONS:-correct matmul gpu profile gpu_more sim cpu}
+DEADLINE=${DEADLINE:-540}
+mkdir -p "$RUNS"
+if [ -n "${OUT:-}" ]; then exec > >(tee "$OUT/gpu-bench.log") 2>&1; fi
+# The Vulkan loader and GLVND (NVIDIA's Vulkan driver, libGLX_nvidia, needs libGLdispatch),
+# and NVIDIA's Vulkan driver manifest.
+if ls .gl/*.deb >/dev/null 2>&1; then
     for f in .gl/*.deb; do dpkg -x "$f" /; done
     ldconfig
 fi
-if [ -e /usr/local/nvidia/share/vulkan/icd.d/nvidia_icd.json ] && [ -z "${VK_DRIVER_FILES:-}" ]; then
-    export VK_DRIVER_FILES=/usr/local/nvidia/share/vulkan/icd.d/nvidia_icd.json
+if [ -z "${VK_DRIVER_FILES:-}" ]; then
+    for f in /usr/local/nvidia/share/vulkan/icd.d/nvidia_icd.json /usr/share/vulkan/icd.d/nvidia_icd.json \
+        /etc/vulkan/icd.d/nvidia_icd.json; do
+        if [ -e "$f" ]; then export VK_DRIVER_FILES=$f; break; fi
+    done
 fi
 CORES=$(nproc)
 MACHINE="$(lscpu | sed -n 's/^Model name: *//p' | head -1), $CORES cores"
 GPU=$(nvidia-smi --query-gpu=name,driver_version --format=csv,noheader 2>/dev/null | head -1)
-echo "machine: $MACHINE; GPU: ${GPU:-none reported}; commit $(cat $C/COMMIT) built for $(cat $C/LEVEL)"
+echo "machine: $MACHINE; GPU: ${GPU:-none reported}; commit $(cat $C/COMMIT) built for $(cat $C/LEVEL);" \
+    "Vulkan driver: ${VK_DRIVER_FILES:-default}"
 grep -o -w 'avx512f' /proc/cpuinfo | head -1 | sed 's/^/cpu flag: /'
+# Stop at once, with the loader's account, if no GPU adapter answers.
+if [ -z "${QUICK:-}" ] && ! timeout 60 $C/meben train --device gpu --env team_reach/1_ant --steps 80 --num-envs 16 \
+    --set batch_size=8 --set num_minibatches=2 --set num_evals=0 --quiet --out "$RUNS/adapter" > "$RUNS/adapter.log" 2>&1
+then
+    cat "$RUNS/adapter.log"
+    VK_LOADER_DEBUG=error,warn,driver timeout 60 $C/meben train --device gpu --env team_reach/1_ant --steps 80 \
+        --num-envs 16 --quiet --out "$RUNS/adapter2" 2>&1 | grep -v '^$' | head -40
+    exit 1
+fi
+grep -o 'training on GPU: .*' "$RUNS/adapter.log" 2>/dev/null
+want() { [ "$SECONDS" -lt "$DEADLINE" ]; }
+# The seconds a step may take: its own limit, or what is left before the deadline.
+limit() { local left=$((DEADLINE - SECONDS)); [ "$left" -lt "$1" ] && echo $((left > 10 ? left : 10)) || echo "$1"; }
 
-echo "== correctness: every op and every model on the GPU against the CPU"
-$C/gpu_ops --test-threads 1 2>&1 | tail -3
-$C/gpu_models 2>&1 | tail -3
-
-echo "== matmul rate (f32, GPU)"
-# QUICK: the first shapes only (lavapipe takes minutes for the large square product).
-MM_LIMIT=300
-[ -n "${QUICK:-}" ] && MM_LIMIT=60
-timeout "$MM_LIMIT" $C/matmul_rate --device gpu 2>&1 | grep -E 'matmul|rate|GPU'
-
-if [ -n "${QUICK:-}" ]; then STEPS=1024; NENVS=16; SET="--set batch_size=8 --set num_minibatches=2"; else STEPS=0; NENVS=0; SET=""; fi
-train() { # <device> <threads> <env> <model>: env steps/s of a short paper-preset training
-  local dir="$OUT/$1-$2-${3//\//_}-$4" steps=${STEPS} extra=()
-  rm -rf "$dir"
-  # Paper preset: 163,840 env steps an iteration; 3 iterations, the first a warm-up.
-  [ "$steps" = 0 ] && steps=491520
-  [ "$NENVS" != 0 ] && extra=(--num-envs "$NENVS")
-  # shellcheck disable=SC2086
-  timeout 300 $C/meben train --preset paper --device "$1" --threads "$2" --env "$3" --model "$4" \
-      --steps "$steps" "${extra[@]}" --set num_evals=0 --set eval_episodes=1 $SET --quiet --out "$dir" > "$dir.log" 2>&1
-  local rc=$?
-  # iteration rows: env_steps (col 2) and wall_s (col 3); the rate after the first iteration.
-  awk -F, -v dev="$1" -v th="$2" -v env="$3" -v model="$4" -v rc=$rc -v m="$MACHINE" -v g="${GPU:-}" '
-    NR > 1 && $1 != "" { s[NR] = $2; w[NR] = $3; n = NR }
-    END {
-      if (n < 3) { printf "train %s %s device=%s threads=%s: no rate (exit %s)\n", env, model, dev, th, rc; exit }
-      printf "train %s %s device=%s threads=%s env_steps_per_s=%.0f (iterations 2..%d; %s; %s)\n",
-        env, model, dev, th, (s[n] - s[2]) / (w[n] - w[2]), n - 1, m, (dev == "gpu" ? g : "CPU only")
-    }' "$dir/metrics.csv" 2>/dev/null || echo "train $3 $4 device=$1: failed (exit $rc), see $dir.log"
+correct() {
+    echo "== correctness: every op and every model on the GPU against the CPU"
+    timeout 120 $C/gpu_ops --test-threads 1 2>&1 | grep -E '^test result|FAILED|panicked|adapter' | head -20
+    timeout 120 $C/gpu_unit gpu:: 2>&1 | grep -E '^test result|FAILED|panicked|adapter' | head -20
+    timeout 120 $C/gpu_models 2>&1 | grep -E '^test result|FAILED|panicked|adapter' | head -20
 }
-echo "== training throughput (paper preset; GPU update with the simulator on $CORES threads, and CPU only)"
-for env in team_reach/1_ant team_reach/2_ants team_reach/3_ant_claw_centipede; do
-    for model in mlp_hn shnn; do
-        train gpu 0 "$env" "$model"
-        train cpu 0 "$env" "$model"
-    done
-done
 
-echo "== the simulator's scaling (random actions, 256 environments)"
-for t in 1 2 4 8 16; do
-    [ "$t" -le "$CORES" ] || continue
-    if [ -n "${QUICK:-}" ]; then sizes=(STEPS=100 NENV=32); else sizes=(); fi
-    env RAYON_NUM_THREADS="$t" "${sizes[@]}" $C/tasks 2>&1 | grep env_steps_per_s | sed "s/\$/ ($MACHINE)/"
+matmul() {
+    echo "== matmul rate (f32, GPU)"
+    # QUICK: the first shapes only (lavapipe takes minutes for the large square product).
+    MM_LIMIT=120
+    [ -n "${QUICK:-}" ] && MM_LIMIT=60
+    timeout -s KILL "$(limit $MM_LIMIT)" $C/matmul_rate --device gpu 2>&1 | grep -E 'matmul|rate|GPU'
+}
+
+if [ -n "${QUICK:-}" ]; then
+    SIZE=(--num-envs 16 --set batch_size=8 --set num_minibatches=2); ITER=320
+else
+    SIZE=(); ITER=163840
+fi
+# train <device> <env> <model> <iterations> <limit_s>: env steps/s of a short paper-preset
+# training: the last iteration's rate (the first is a warm-up when there are two), and every
+# iteration's stage timings (MEBEN_TIMINGS).
+train() {
+    local dir="$RUNS/$1-${2//\//_}-$3"
+    rm -rf "$dir"
+    # SIGKILL: meben takes SIGTERM as "stop after this iteration", which can take minutes.
+    MEBEN_TIMINGS=1 timeout -s KILL "$(limit "$5")" $C/meben train --preset paper --device "$1" --env "$2" --model "$3" \
+        --steps $(($4 * ITER)) "${SIZE[@]}" --set num_evals=0 --set eval_episodes=1 --quiet --out "$dir" \
+        > "$dir.log" 2>&1
+    local rc=$?
+    local where="CPU only, $CORES threads"
+    [ "$1" = gpu ] && where="$(grep -o 'training on GPU: .*' "$dir.log" | head -1 | cut -c18-) + $CORES CPU threads"
+    awk -F, -v dev="$1" -v env="$2" -v model="$3" -v rc=$rc -v m="$MACHINE" -v where="$where" '
+      NR > 1 && $1 != "" { s[NR] = $2; w[NR] = $3; n = NR }
+      END {
+        if (n < 2) { printf "train %s %s device=%s: no iteration finished (exit %s)\n", env, model, dev, rc; exit }
+        p = (n > 2) ? n - 1 : 1; s[1] = 0; w[1] = 0
+        printf "train %s %s device=%s env_steps_per_s=%.0f (iteration %d of %d; %s; %s)\n",
+          env, model, dev, (s[n] - s[p]) / (w[n] - w[p]), n - 1, n - 1, m, where
+      }' "$dir/metrics.csv" 2>/dev/null || echo "train $2 $3 device=$1: failed (exit $rc), see $dir.log"
+    grep -E 'took|error|rror:' "$dir.log" | grep -v XDG_RUNTIME_DIR | sed 's/^/    /' | head -6
+}
+
+# pairs <device> <iterations> <limit_s> <env:model>...: train each while time is left.
+pairs() {
+    local dev=$1 its=$2 lim=$3
+    shift 3
+    for pair in "$@"; do
+        want || break
+        train "$dev" "${pair%%:*}" "${pair##*:}" "$its" "$lim"
+    done
+}
+gpu() {
+    echo "== training on the GPU, 3_ant_claw_centipede (paper preset; simulator and act step on $CORES CPU threads)"
+    pairs gpu 2 120 team_reach/3_ant_claw_centipede:shnn team_reach/3_ant_claw_centipede:mlp_hn
+}
+gpu_more() {
+    echo "== training on the GPU, 2_ants and 1_ant (paper preset; simulator and act step on $CORES CPU threads)"
+    pairs gpu 2 60 team_reach/2_ants:shnn team_reach/1_ant:shnn team_reach/2_ants:mlp_hn team_reach/1_ant:mlp_hn
+}
+
+profile() {
+    echo "== one shnn minibatch on the GPU, op by op (each op waited for; team_reach/3_ant_claw_centipede)"
+    # ITERATIONS=0: one iteration's collection, then the minibatch passes only.
+    DEVICE=gpu ITERATIONS=0 MINIBATCH_REPS=3 TENSOR_PROFILE=1 BENCH_ENVS=team_reach/3_ant_claw_centipede \
+        BENCH_MODELS=shnn timeout -s KILL "$(limit 90)" $C/train_throughput 2>&1 | grep -v '^\s*$' | head -70
+}
+
+sim() {
+    echo "== the simulator's scaling (random actions, 1024 environments, team_reach/3_ant_claw_centipede)"
+    for t in 1 2 4 8 16; do
+        [ "$t" -le "$CORES" ] || continue
+        want sim || break
+        if [ -n "${QUICK:-}" ]; then sizes=(STEPS=10 NENV=32); else sizes=(STEPS=10 NENV=1024); fi
+        env RAYON_NUM_THREADS="$t" ENVS=team_reach/3_ant_claw_centipede "${sizes[@]}" timeout 60 $C/tasks 2>&1 \
+            | grep env_steps_per_s | sed "s/\$/ ($MACHINE)/"
+    done
+}
+
+cpu() {
+    echo "== training on the CPU alone ($CORES threads; one iteration, warm-up included)"
+    pairs cpu 1 120 team_reach/3_ant_claw_centipede:mlp_hn team_reach/1_ant:shnn team_reach/1_ant:mlp_hn \
+        team_reach/3_ant_claw_centipede:shnn
+}
+
+for section in $SECTIONS; do
+    if want; then "$section"; else echo "== $section: skipped (deadline ${DEADLINE} s)"; fi
 done
+echo "== done in ${SECONDS} s"

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Prepares what rl/benches/gpu.sh runs on a GPU machine that has no Rust toolchain and no
 # package registry (docs/PERFORMANCE.md, "On a GPU"): portable release binaries built with
-# the `gpu` feature, stripped, in gpu-carry/ (ignored by git), and the Vulkan loader's
+# the `gpu` feature, stripped and gzipped, in gpu-carry/ (ignored by git), and the Vulkan loader's
 # Debian packages in .gl/ (the machine has NVIDIA's driver but may lack libvulkan).
 #
 #   rl/benches/gpu_build.sh            # x86-64-v3 (AVX2); V=v4 for AVX-512
@@ -16,26 +16,35 @@ export CARGO_TARGET_DIR=$TARGET RUSTFLAGS="-C target-cpu=$LEVEL"
 cargo build --release -p rl --features gpu --bin meben
 cargo bench --no-run -p tensor --features gpu --bench matmul_rate
 cargo bench --no-run -p envs --bench tasks
+cargo bench --no-run -p rl --features gpu --bench train_throughput
 cargo test --no-run --release -p tensor --features gpu --test gpu_ops
+cargo test --no-run --release -p tensor --features gpu --lib
 cargo test --no-run --release -p models --features gpu --test gpu_models
 mkdir -p gpu-carry
 cp "$TARGET/release/meben" gpu-carry/meben
 newest() { ls -t "$TARGET"/release/deps/"$1"-* | grep -v '\.d$' | head -1; }
 cp "$(newest matmul_rate)" gpu-carry/matmul_rate
 cp "$(newest tasks)" gpu-carry/tasks
+cp "$(newest train_throughput)" gpu-carry/train_throughput
 cp "$(newest gpu_ops)" gpu-carry/gpu_ops
+# The library's unit tests (gpu.sh runs those of the device's kernels: `gpu::`).
+cp "$(newest tensor)" gpu-carry/gpu_unit
 cp "$(newest gpu_models)" gpu-carry/gpu_models
-strip gpu-carry/*
-git rev-parse --short HEAD > gpu-carry/COMMIT
+BINS="meben matmul_rate tasks train_throughput gpu_ops gpu_unit gpu_models"
+# Stripped and compressed (about 3x), so they and the tree stay well inside the 64 MiB a
+# call carries; gpu.sh unpacks them.
+for b in $BINS; do strip "gpu-carry/$b"; gzip -9 -f "gpu-carry/$b"; done
+{ git rev-parse --short HEAD; git diff --quiet HEAD || echo "+ uncommitted changes"; } | paste -sd' ' > gpu-carry/COMMIT
 echo "$LEVEL" > gpu-carry/LEVEL
-# The Vulkan loader (and nothing else) as .debs, unpacked there by gpu.sh.
-if ! ls .gl/libvulkan1_*.deb >/dev/null 2>&1; then
+# The Vulkan loader and GLVND as .debs, unpacked there by gpu.sh (NVIDIA's Vulkan driver
+# is libGLX_nvidia, which needs libGLdispatch from libglvnd0: without it no adapter is found).
+if ! ls .gl/libglvnd0_*.deb >/dev/null 2>&1; then
     grep -qx '/.gl/' .git/info/exclude 2>/dev/null || echo /.gl/ >> .git/info/exclude
     mkdir -p .gl /tmp/amd64/partial
     o='-oAPT::Architecture=amd64 -oAPT::Architectures=amd64 -oDir::State::Lists=/tmp/amd64'
     # shellcheck disable=SC2086
     apt-get $o update >/dev/null
     # shellcheck disable=SC2086
-    (cd .gl && apt-get $o download libvulkan1)
+    (cd .gl && apt-get $o download libvulkan1 libegl1 libglvnd0 libopengl0 libgl1 libglx0 libgles2)
 fi
 du -ch gpu-carry .gl | tail -1

@@ -15,7 +15,11 @@
 //! shared VM it moves by a third within minutes (`matmul_rate_gflops=median [min..max]`).
 //! `BENCH_ENVS=team_reach/2_ants BENCH_MODELS=shnn,mlp` replaces the pairs measured.
 //! `minibatch_ms` is the median of `MINIBATCH_REPS` (default 5) forward-and-backward passes of
-//! one minibatch, with its own ratio.
+//! one minibatch, with its own ratio. `DEVICE=gpu` (a build with `--features gpu`) trains and
+//! times the minibatch passes on the GPU (each pass waits for its kernels; the profile waits
+//! after every op, so its times are the kernels'), and prints the launches and transfers of
+//! a pass; the matmul rate and floor stay the CPU's. `PRESET=quick` uses the quick preset's
+//! sizes (256 environments, minibatches of 128 unrolls) instead of the paper's.
 //!
 //! Run: `cargo bench -p rl --bench train_throughput [-- <filter>]` (a substring of
 //! `<env> <model>`). `ITERATIONS=k` measures k iterations (default 2) after one warm-up
@@ -90,17 +94,31 @@ fn minibatch_flops(t: &Trainer, c: &TrainConfig, reps: usize) -> Result<(u64, f6
         let mut noise = rl::mappo::seeding::minibatch_stream(c.seed, "entropy", 0, 0, 0, 0);
         let (loss, _) = ppo::loss(&mut model, &p, &mb, &hp, &mut noise)?;
         std::hint::black_box(tape.backward(loss)?);
+        // A GPU pass has only queued its kernels: wait for them.
+        c.device.synchronize();
         Ok(())
     };
     let mut times = Vec::new();
+    let before = gpu_counts();
     for rep in 0..=reps {
         let start = Instant::now();
-        pass(&Tape::new())?;
+        pass(&Tape::on(c.device))?;
         if rep > 0 {
             times.push(start.elapsed().as_secs_f64());
         }
     }
-    let tape = Tape::<f32>::new();
+    if let (Some(b), Some(a)) = (before, gpu_counts()) {
+        let per = |i: usize| (a[i] - b[i]) as f64 / (reps + 1) as f64;
+        eprintln!(
+            "gpu per minibatch pass: {:.0} launches, {:.0} uploads ({:.1} MB), {:.0} downloads ({:.3} MB)",
+            per(0),
+            per(1),
+            per(2) / 1e6,
+            per(3),
+            per(4) / 1e6
+        );
+    }
+    let tape = Tape::<f32>::on(c.device);
     if std::env::var("TENSOR_PROFILE").is_ok_and(|v| v == "shapes") {
         tape.enable_profiling_by_shape();
     } else {
@@ -113,6 +131,20 @@ fn minibatch_flops(t: &Trainer, c: &TrainConfig, reps: usize) -> Result<(u64, f6
         eprintln!("{r}");
     }
     Ok((tape.profile_flops().map(|f| f.total()).unwrap_or(0), median(&times)))
+}
+
+/// The GPU's counters (launches, uploads, bytes uploaded, downloads, bytes downloaded) when
+/// this build has the device and one answers.
+#[cfg(feature = "gpu")]
+fn gpu_counts() -> Option<[u64; 5]> {
+    let s = tensor::gpu::gpu().ok()?.stats();
+    Some([s.launches, s.uploads, s.upload_bytes, s.downloads, s.download_bytes])
+}
+
+/// The GPU's counters: none in a build without the device.
+#[cfg(not(feature = "gpu"))]
+fn gpu_counts() -> Option<[u64; 5]> {
+    None
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -132,8 +164,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             if filter.as_ref().is_some_and(|f| !label.contains(f.as_str())) {
                 continue;
             }
-            let ov = vec![("env".to_string(), format!("{env:?}")), ("model".to_string(), format!("{model:?}"))];
-            let config = TrainConfig::resolve(Some(Preset::Paper), None, &ov)?;
+            let mut ov = vec![("env".to_string(), format!("{env:?}")), ("model".to_string(), format!("{model:?}"))];
+            if let Ok(device) = std::env::var("DEVICE") {
+                ov.push(("device".to_string(), format!("{device:?}")));
+            }
+            let preset =
+                if std::env::var("PRESET").is_ok_and(|p| p == "quick") { Preset::Quick } else { Preset::Paper };
+            let config = TrainConfig::resolve(Some(preset), None, &ov)?;
             let mut t = Trainer::new(&config)?;
             if iterations == 0 {
                 t.collect()?;

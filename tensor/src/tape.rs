@@ -240,6 +240,8 @@ impl<T: Float> Tape<T> {
     pub(crate) fn push(&self, value: Tensor<T>, op: Op, requires_grad: bool) -> Var<'_, T> {
         let requires_grad = requires_grad && self.grad_enabled.get();
         if let Some(prof) = self.profile.borrow_mut().as_mut() {
+            // On the GPU an op only queues its kernels: wait for them, so the time is theirs.
+            self.device.synchronize();
             let now = Instant::now();
             let f = flops::forward(&self.nodes.borrow(), &op, value.shape());
             let key = profile_key(&self.nodes.borrow(), &op, value.shape(), prof.by_shape);
@@ -291,6 +293,7 @@ impl<T: Float> Tape<T> {
                 let start = Instant::now();
                 propagate(&nodes, id, g, &mut store)?;
                 if let Some(prof) = self.profile.borrow_mut().as_mut() {
+                    self.device.synchronize();
                     let elapsed = start.elapsed();
                     let f = flops::backward(&nodes, id);
                     let key = profile_key(&nodes, &nodes[id].op, nodes[id].value.shape(), prof.by_shape);

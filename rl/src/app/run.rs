@@ -295,6 +295,9 @@ fn train_in_pool(config: &TrainConfig, run: &RunDir, options: &TrainOptions) -> 
         let stats = trainer.iterate()?;
         let dt = t0.elapsed().as_secs_f64();
         let sps = config.steps_per_iteration() as f64 / dt;
+        if timings_wanted() {
+            eprintln!("meben: iteration {} took {dt:.3} s: {}", trainer.iteration, stats.timings.describe());
+        }
         let mut evals = Vec::new();
         if eval_due(trainer.iteration, total, config.num_evals as u64) {
             for options in trainer.scheduled_evals(trainer.evals_done) {
@@ -338,6 +341,12 @@ fn train_in_pool(config: &TrainConfig, run: &RunDir, options: &TrainOptions) -> 
         nn::write_atomic(&run.done(), text.as_bytes())?;
     }
     Ok(summary)
+}
+
+/// Whether `MEBEN_TIMINGS` asks for each iteration's stage timings on standard error
+/// ([`crate::mappo::trainer::Timings`]; docs/PERFORMANCE.md).
+fn timings_wanted() -> bool {
+    std::env::var_os("MEBEN_TIMINGS").is_some_and(|v| !v.is_empty() && v != "0")
 }
 
 #[cfg(test)]

@@ -114,6 +114,62 @@ pub struct IterationStats {
     pub collect_s: f64,
     /// Seconds spent normalising and updating.
     pub update_s: f64,
+    /// Where those seconds went, stage by stage.
+    pub timings: Timings,
+}
+
+/// Wall seconds of an iteration's stages, summed over its steps and minibatches (printed
+/// per iteration with `MEBEN_TIMINGS=1`; docs/PERFORMANCE.md). On the GPU a stage's time
+/// is the host's: kernels run asynchronously until something comes back, so the loss's time
+/// includes the forward pass (GAE reads the values), `backward` includes the gradient pass
+/// (the non-finite check reads its verdict), and `optimizer` only queues clipping and Adam,
+/// whose kernels run during the next minibatch's stages.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Timings {
+    /// The act step: every team's policy on the current observations, actions sampled.
+    pub act_s: f64,
+    /// The simulator's batched step of every environment.
+    pub simulate_s: f64,
+    /// Storing the step in the rollout and the episode statistics.
+    pub store_s: f64,
+    /// Updating the observation normalisers from the iteration's rows.
+    pub normalise_s: f64,
+    /// Gathering and normalising the minibatches on the host.
+    pub minibatch_s: f64,
+    /// The PPO loss (forward pass, GAE, log-probabilities; the upload of the minibatch).
+    pub loss_s: f64,
+    /// The backward pass and the non-finite check of the gradients.
+    pub backward_s: f64,
+    /// Clipping and the Adam step.
+    pub optimizer_s: f64,
+    /// The parameters' copy back to the host for the act step (GPU only).
+    pub parameters_back_s: f64,
+}
+
+impl Timings {
+    /// One line: the stages with their seconds.
+    pub fn describe(&self) -> String {
+        format!(
+            "collect: act {:.3} s, simulate {:.3} s, store {:.3} s; normalisers {:.3} s; update: minibatches \
+             {:.3} s, loss {:.3} s, backward {:.3} s, clip+adam {:.3} s, parameters back {:.3} s",
+            self.act_s,
+            self.simulate_s,
+            self.store_s,
+            self.normalise_s,
+            self.minibatch_s,
+            self.loss_s,
+            self.backward_s,
+            self.optimizer_s,
+            self.parameters_back_s
+        )
+    }
+}
+
+/// Adds the seconds since `*mark` to `slot` and moves the mark to now.
+fn lap(mark: &mut Instant, slot: &mut f64) {
+    let now = Instant::now();
+    *slot += (now - *mark).as_secs_f64();
+    *mark = now;
 }
 
 /// The whole training state (module docs).
@@ -329,18 +385,21 @@ impl Trainer {
             t.model.reseed(derive_seed(self.config.seed, "assign", t.index as u64, self.iteration));
         }
         let t0 = Instant::now();
-        let episodes = self.collect()?;
+        let mut timings = Timings::default();
+        let episodes = self.collect_timed(&mut timings)?;
         let collect_s = t0.elapsed().as_secs_f64();
+        let mut mark = Instant::now();
         for t in &mut self.teams {
             for rows in self.rollout.visited_obs() {
                 t.norm.update(rows.vectors, rows.scalars);
             }
         }
-        let losses = self.update()?;
+        lap(&mut mark, &mut timings.normalise_s);
+        let losses = self.update(&mut timings)?;
         let update_s = t0.elapsed().as_secs_f64() - collect_s;
         self.iteration += 1;
         self.env_steps += self.config.steps_per_iteration();
-        Ok(IterationStats { episodes, losses, alpha, collect_s, update_s })
+        Ok(IterationStats { episodes, losses, alpha, collect_s, update_s, timings })
     }
 
     /// The current iteration's data (after [`Trainer::collect`]).
@@ -351,23 +410,32 @@ impl Trainer {
     /// Step 1 of [`Trainer::iterate`]: plays one iteration's unrolls with the current
     /// policies and normalisers, storing them in [`Trainer::rollout`].
     pub fn collect(&mut self) -> Result<EpisodeStats> {
+        self.collect_timed(&mut Timings::default())
+    }
+
+    /// [`Trainer::collect`], adding its stages' seconds to `timings`.
+    fn collect_timed(&mut self, timings: &mut Timings) -> Result<EpisodeStats> {
         let scale = self.config.reward_scaling as f32;
         let mut stats = EpisodeStats::new(self.spec.n_teams);
         self.rollout.begin(self.env.obs());
+        let mut mark = Instant::now();
         while !self.rollout.is_full() {
             for team in &mut self.teams {
                 team.act(self.env.obs().rows(), &mut self.joint)?;
             }
+            lap(&mut mark, &mut timings.act_s);
             let out = self.env.step(&self.joint.actions)?;
+            lap(&mut mark, &mut timings.simulate_s);
             self.rollout.push(&self.joint, out, scale);
             stats.record(out, &mut self.episode_returns);
+            lap(&mut mark, &mut timings.store_s);
         }
         Ok(stats)
     }
 
     /// Step 3 of [`Trainer::iterate`]: `epochs` passes of minibatch updates of every team,
     /// on the configuration's device (module docs).
-    fn update(&mut self) -> Result<Vec<LossStats>> {
+    fn update(&mut self, timings: &mut Timings) -> Result<Vec<LossStats>> {
         let c = &self.config;
         let hp = PpoParams::from_config(c);
         let mut all = Vec::with_capacity(self.teams.len());
@@ -383,10 +451,12 @@ impl Trainer {
             for epoch in 0..c.epochs {
                 let perm = permutation(self.rollout.unrolls(), &mut team.shuffle);
                 for (k, ids) in perm.chunks_exact(c.batch_size).enumerate() {
+                    let mut mark = Instant::now();
                     let at = Where { team: team.index, iteration: self.iteration, epoch, minibatch: k };
                     // Gather the minibatch's unrolls (time-major) and normalise them.
                     self.rollout.gather(ids, team.index, &mut self.mb);
                     self.mb.normalise(&team.norm);
+                    lap(&mut mark, &mut timings.minibatch_s);
                     // The PPO loss; the entropy estimate draws from the minibatch's stream.
                     let tape = Tape::<f32>::on(c.device);
                     let p = store.bind(&tape);
@@ -398,6 +468,7 @@ impl Trainer {
                             message: format!("loss {} of {}", stats.loss, at.describe(&stats)),
                         });
                     }
+                    lap(&mut mark, &mut timings.loss_s);
                     // Backward, every gradient element clipped, one Adam step.
                     let mut grads = p.grads(&tape.backward(loss)?);
                     if let Some(i) = tensor::first_non_finite(&grads)? {
@@ -405,10 +476,12 @@ impl Trainer {
                             message: format!("gradient of {} of {}", store.names()[i], at.describe(&stats)),
                         });
                     }
+                    lap(&mut mark, &mut timings.backward_s);
                     if c.grad_clip > 0.0 {
                         nn::clip_elementwise(&mut grads, c.grad_clip);
                     }
                     team.adam.step(store, &grads)?;
+                    lap(&mut mark, &mut timings.optimizer_s);
                     sum.add(&stats);
                     count += 1.0;
                 }
@@ -416,11 +489,13 @@ impl Trainer {
             all.push(sum.scaled(1.0 / count));
         }
         // The act step reads host parameters: each team's come back once (one transfer).
+        let mut mark = Instant::now();
         for (team, on_device) in self.teams.iter_mut().zip(&self.device_stores) {
             let mut host = on_device.clone();
             host.to_device(Device::Cpu)?;
             team.store = host;
         }
+        lap(&mut mark, &mut timings.parameters_back_s);
         Ok(all)
     }
 

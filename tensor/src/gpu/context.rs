@@ -13,6 +13,9 @@ pub(crate) const WORKGROUP: u32 = 256;
 const LAUNCHES_PER_SUBMIT: usize = 64;
 /// 32-bit words of the parameter arena one batch of launches reads its parameters from.
 const ARENA_WORDS: usize = 1 << 16;
+/// Bytes of one chunk of the upload staging belt (a larger upload gets a chunk of its own
+/// size, kept for reuse like the others).
+const STAGING_CHUNK_BYTES: u64 = 16 << 20;
 /// The most workgroups along one dimension of a dispatch (WebGPU's guaranteed limit).
 const MAX_GROUPS_PER_DIM: u32 = 65_535;
 
@@ -73,15 +76,23 @@ pub struct Gpu {
 /// Launches recorded but not yet submitted. Ordering rules that keep a batch correct:
 /// commands inside one command buffer run in order (wgpu inserts the barriers), so a buffer
 /// freed to the pool may be reused at once as a later kernel's output; `queue.write_buffer`
-/// runs before the next submit's commands, so writes into pooled buffers (uploads) flush the
-/// batch first, and every launch's parameters go into this batch's own arena, written just
-/// before it is submitted.
+/// runs before the next submit's commands, so it must never write a pooled buffer that a
+/// recorded launch still reads: an upload is written into mapped staging memory (wgpu's
+/// `StagingBelt`: chunks allocated once and reused, where `queue.write_buffer` would
+/// allocate and pin fresh host memory for every large write) and copied into its buffer by
+/// a command recorded in order. Every launch's parameters go into this batch's own arena,
+/// written just before the batch is submitted.
 struct Pending {
     encoder: Option<wgpu::CommandEncoder>,
     /// The parameters of the recorded launches, each at a 256-byte-aligned offset.
     params: Vec<u32>,
     /// The buffer `params` is written to when the batch is submitted.
     arena: wgpu::Buffer,
+    /// Staging memory of the batch's uploads.
+    belt: wgpu::util::StagingBelt,
+    /// Whether the batch has staged an upload (the belt is closed before the submit and
+    /// recalled after it).
+    staged: bool,
     launches: usize,
 }
 
@@ -144,6 +155,7 @@ impl Gpu {
             usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
+        let belt = wgpu::util::StagingBelt::new(device.clone(), STAGING_CHUNK_BYTES);
         Ok(Gpu {
             device,
             queue,
@@ -152,7 +164,7 @@ impl Gpu {
             pipelines: Mutex::new(HashMap::new()),
             free: Mutex::new(HashMap::new()),
             stats: Mutex::new(GpuStats::default()),
-            pending: Mutex::new(Pending { encoder: None, params: Vec::new(), arena, launches: 0 }),
+            pending: Mutex::new(Pending { encoder: None, params: Vec::new(), arena, belt, staged: false, launches: 0 }),
         })
     }
 
@@ -225,7 +237,17 @@ impl Gpu {
             if !pending.params.is_empty() {
                 self.queue.write_buffer(&pending.arena, 0, bytemuck::cast_slice(&pending.params));
             }
+            if pending.staged {
+                pending.belt.finish();
+            }
             self.queue.submit([enc.finish()]);
+            if pending.staged {
+                // The chunks come back for reuse once the GPU has copied them (the map
+                // callbacks run at a poll: this one, or the next wait).
+                pending.belt.recall();
+                pending.staged = false;
+                let _ = self.device.poll(wgpu::PollType::Poll);
+            }
             pending.params.clear();
             pending.launches = 0;
         }
@@ -248,11 +270,14 @@ impl Gpu {
     /// A buffer holding `words` (32-bit values: f32 bits or u32 indices).
     pub(crate) fn upload_words(&self, words: &[u32]) -> wgpu::Buffer {
         let b = self.alloc(words.len());
-        // The buffer may come from the pool while a recorded launch still reads it, and a
-        // queue write runs before the next submit: submit the batch first.
-        self.flush();
-        if !words.is_empty() {
-            self.queue.write_buffer(&b, 0, bytemuck::cast_slice(words));
+        if let Some(size) = wgpu::BufferSize::new((words.len() * 4) as u64) {
+            // Staged, and copied by a command recorded in the batch's order (Pending).
+            let mut guard = self.pending.lock().expect("gpu batch lock");
+            let pending = &mut *guard;
+            let encoder =
+                pending.encoder.get_or_insert_with(|| self.device.create_command_encoder(&Default::default()));
+            pending.belt.write_buffer(encoder, &b, 0, size).copy_from_slice(bytemuck::cast_slice(words));
+            pending.staged = true;
         }
         self.count(|s| {
             s.uploads += 1;

@@ -94,3 +94,29 @@ impl std::fmt::Debug for DeviceBuffer {
 pub(crate) fn device() -> &'static Gpu {
     gpu().expect("a tensor is on the GPU, so the device was created")
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::op::UnaryOp;
+
+    /// An upload may land in a pooled buffer that a recorded, not yet submitted launch still
+    /// reads: the staged copy runs after that launch, in the batch's order. Small uploads
+    /// share a staging chunk; one larger than a chunk gets its own; each size twice, so the
+    /// second goes through recycled staging memory.
+    #[test]
+    fn uploads_into_recycled_buffers_keep_the_batch_order() {
+        for (round, len) in [1000usize, 1000, 5 << 20, 5 << 20].into_iter().enumerate() {
+            let first: Vec<f32> = (0..len).map(|i| (i % 251) as f32 + round as f32).collect();
+            let x = DeviceBuffer::upload(&first);
+            let y = ops::elementwise::unary(&x, UnaryOp::Neg);
+            drop(x);
+            // The pool hands x's buffer to this upload while the negation still reads it.
+            let second = vec![-7.0f32; len];
+            let z = DeviceBuffer::upload(&second);
+            let want: Vec<f32> = first.iter().map(|v| -v).collect();
+            assert!(y.download() == want, "length {len}: the negation read the later upload's values");
+            assert!(z.download() == second, "length {len}: the upload's values");
+        }
+    }
+}

@@ -6,7 +6,11 @@
 //! One tiled kernel (`wgsl/matmul.wgsl`): 64 x 64 output tiles per workgroup of 16 x 16
 //! threads, 4 x 4 outputs per thread, the inner dim in steps of 16 through workgroup memory.
 //! Each output element is summed by one thread over k in increasing order, so a product has
-//! the same bits on every run (on the same GPU and driver).
+//! the same bits on every run (on the same GPU and driver). A product of few output tiles
+//! over a long inner dim (the weight gradients `x^T g`: a 256 x 256 output over 5120 rows is
+//! 16 tiles for a GPU of 132 multiprocessors) splits k into slices ([`split_k`], a function
+//! of the shapes alone), each a workgroup per tile writing partial sums, then
+//! `matmul_reduce.wgsl` adds the slices in order and applies the epilogue.
 
 use super::{kernel, u};
 use crate::gpu::context::Kernel;
@@ -14,12 +18,34 @@ use crate::gpu::{DeviceBuffer, device};
 use crate::kernels::matmul::MatMulPlan;
 use crate::op::Activation;
 
-const MATMUL: Kernel = kernel!("matmul", "matmul.wgsl");
+const MATMUL: Kernel = kernel!("matmul", "matmul_activation.wgsl", "matmul.wgsl");
+const MATMUL_REDUCE: Kernel = kernel!("matmul_reduce", "matmul_activation.wgsl", "matmul_reduce.wgsl");
 
 /// Output rows of the tile one workgroup computes (`TILE_M` in `matmul.wgsl`).
 const TILE_M: usize = 64;
 /// Output columns of the tile one workgroup computes (`TILE_N` in `matmul.wgsl`).
 const TILE_N: usize = 64;
+
+/// Workgroups a product should launch to fill a large GPU (about two per multiprocessor of
+/// the biggest ones): a product of fewer output tiles over a long inner dim splits k.
+const TARGET_GROUPS: usize = 256;
+/// The shortest run of k one slice of a split product sums (16 steps of `TILE_K`).
+const MIN_K_PER_SLICE: usize = 256;
+/// `TILE_K` in `matmul.wgsl`: slices start at multiples of it.
+const TILE_K: usize = 16;
+
+/// The split of the inner dim of a product of `groups` output tiles: `(slices,
+/// k_per_slice)`, one slice (no split) unless the tiles are too few to fill the GPU and k is
+/// long enough to give each slice at least [`MIN_K_PER_SLICE`]. A function of the shapes
+/// alone, so a product's order of summation, and its bits, are the same on every run.
+fn split_k(groups: usize, k: usize) -> (usize, usize) {
+    let want = TARGET_GROUPS.div_ceil(groups.max(1)).min(k / MIN_K_PER_SLICE);
+    if want <= 1 {
+        return (1, k.max(1));
+    }
+    let per = k.div_ceil(want).next_multiple_of(TILE_K);
+    (k.div_ceil(per), per)
+}
 
 /// The kernel's code of an activation (`activation` in `matmul.wgsl`).
 fn activation_code(act: Activation) -> u32 {
@@ -55,14 +81,19 @@ pub(crate) fn matmul_into(
     if let Some(bias) = bias {
         assert_eq!(bias.len(), n, "matmul: the bias holds one value per output column");
     }
+    let has_bias = bias.is_some();
     let tiles_n = n.div_ceil(TILE_N);
     let per_batch = m.div_ceil(TILE_M) * tiles_n;
     let groups = per_batch * batches;
     if groups == 0 {
         return;
     }
+    // One batch entry (every layer's product) passes its offsets in the parameters: an
+    // upload would end the batch of launches being recorded (Gpu::upload_words).
     let offsets: Vec<u32> = plan.offsets.iter().flat_map(|&(oa, ob)| [u(oa), u(ob)]).collect();
-    let offsets = DeviceBuffer::upload_u32(&offsets);
+    let offsets = if batches == 1 { None } else { Some(DeviceBuffer::upload_u32(&offsets)) };
+    let (oa, ob) = plan.offsets[0];
+    let (slices, k_per_slice) = split_k(groups, k);
     let params = [
         u(m),
         u(k),
@@ -75,15 +106,35 @@ pub(crate) fn matmul_into(
         u(tiles_n),
         u(per_batch),
         u(batches),
+        u(slices),
+        u(k_per_slice),
+        u(oa),
+        u(ob),
     ];
-    // Without a bias the kernel reads none: any buffer that is not the output fills the slot.
-    let bias = bias.unwrap_or(&offsets);
+    // Without a bias (or offsets) the kernel reads none: any buffer that is not the output
+    // fills the slot.
+    let offsets = offsets.as_ref().unwrap_or(a);
+    let bias = bias.unwrap_or(a);
+    if slices == 1 {
+        device().launch(
+            &MATMUL,
+            &params,
+            &[a.buffer(), b.buffer(), offsets.buffer(), bias.buffer(), out.buffer()],
+            u(groups),
+        );
+        return;
+    }
+    // Split k: the slices' partial sums, then their sum in order with the epilogue.
+    let total = batches * m * n;
+    let parts = DeviceBuffer::uninit(slices * total);
     device().launch(
         &MATMUL,
         &params,
-        &[a.buffer(), b.buffer(), offsets.buffer(), bias.buffer(), out.buffer()],
-        u(groups),
+        &[a.buffer(), b.buffer(), offsets.buffer(), bias.buffer(), parts.buffer()],
+        u(groups * slices),
     );
+    let params = [u(total), u(n), u(slices), u32::from(accumulate), u32::from(has_bias), activation_code(act)];
+    device().launch_1d(&MATMUL_REDUCE, &params, &[parts.buffer(), bias.buffer(), out.buffer()], total);
 }
 
 /// `op(a) @ op(b)` following `plan`, as a new buffer of `plan.out_shape()` values.
@@ -327,6 +378,49 @@ mod tests {
             check(&format!("linear_sum {ks:?} bias={bias} {act:?}"), &got, want.data(), &mag);
             let again = linear_sum(&dparts, &dw, rows, n, bd.as_ref(), act).download();
             assert_eq!(bits(&got), bits(&again), "linear_sum {ks:?}: a second run gives other bits");
+        }
+    }
+
+    /// Few output tiles over a long inner dim split k ([`split_k`]); the slices' sum, with
+    /// accumulation, bias and activation after it, matches the CPU and repeats its bits.
+    #[test]
+    fn split_k_products_match_the_cpu() {
+        assert_eq!(split_k(320, 256), (1, 256), "enough tiles: no split");
+        assert_eq!(split_k(16, 5120), (16, 320), "a 256 x 256 weight gradient over 5120 rows");
+        assert_eq!(split_k(2, 3000), (11, 288));
+        assert_eq!(split_k(1, 300), (1, 300), "too short to split");
+        for (ta, tb) in [(false, false), (true, false), (false, true), (true, true)] {
+            let (m, k, n) = (70usize, 3000, 33usize);
+            assert!(split_k(m.div_ceil(TILE_M) * n.div_ceil(TILE_N), k).0 > 1);
+            let (a, b) = (tensor(&stored(m, k, ta), 91), tensor(&stored(k, n, tb), 92));
+            compare("split", &a, ta, &b, tb, true);
+            // Accumulating into the old values.
+            let plan = MatMulPlan::new(a.shape(), b.shape(), ta, tb).unwrap();
+            let old = values(m * n, 93);
+            let mut want = old.clone();
+            cpu::matmul_into(&mut want, true, a.data(), ta, b.data(), tb, &plan);
+            let mag = cpu::matmul(&abs(&a), &abs(&b), ta, tb).unwrap();
+            let mag: Vec<f32> = mag.data().iter().zip(&old).map(|(s, o)| s + o.abs()).collect();
+            let out = DeviceBuffer::upload(&old);
+            let (ad, bd) = (DeviceBuffer::upload(a.data()), DeviceBuffer::upload(b.data()));
+            matmul_into(&out, true, &ad, ta, &bd, tb, &plan, None, Activation::Identity);
+            check(&format!("split accumulate ta={ta} tb={tb}"), &out.download(), &want, &mag);
+        }
+        // Bias and activation after the slices' sum (one tile, two slices).
+        let (rows, k, n) = (20, 600, 30);
+        let (x, w, bias) = (tensor(&[rows, k], 94), tensor(&[k, n], 95), tensor(&[n], 96));
+        assert_eq!(split_k(1, k).0, 2);
+        let mag = cpu::matmul(&abs(&x), &abs(&w), false, false).unwrap();
+        let mag: Vec<f32> =
+            mag.data().chunks(n).flat_map(|r| r.iter().zip(bias.data()).map(|(s, c)| s + c.abs())).collect();
+        let plan = MatMulPlan::new(x.shape(), w.shape(), false, false).unwrap();
+        let (xd, wd, bd) =
+            (DeviceBuffer::upload(x.data()), DeviceBuffer::upload(w.data()), DeviceBuffer::upload(bias.data()));
+        for act in [Activation::Identity, Activation::Relu, Activation::Tanh] {
+            let want = nnops::linear(&x, &w, Some(&bias), act).unwrap();
+            let out = DeviceBuffer::uninit(rows * n);
+            matmul_into(&out, false, &xd, false, &wd, false, &plan, Some(&bd), act);
+            check(&format!("split bias + {act:?}"), &out.download(), want.data(), &mag);
         }
     }
 

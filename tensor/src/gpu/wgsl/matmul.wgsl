@@ -3,7 +3,14 @@
 // (likewise with tb), all row-major; the output is [batches, m, n].
 //
 // p = [m, k, n, ta, tb, accumulate, has_bias, act (0 identity, 1 relu, 2 tanh), tiles_n,
-//      tiles_per_batch, batches]
+//      tiles_per_batch, batches, slices, k_per_slice, a_offset, b_offset]
+// (the last two for a single batch entry; several read theirs from `offsets`)
+//
+// Split k (slices > 1, ops/matmul.rs: few output tiles over a long inner dim): slice s sums
+// k in [s * k_per_slice, (s + 1) * k_per_slice) and writes its partial sums, with no
+// epilogue, to out[s * batches * m * n ..]; matmul_reduce.wgsl then adds the slices in
+// order and applies the epilogue. The order of the sum is fixed by the shapes, so a product
+// still has the same bits on every run.
 //
 // Tiling: a workgroup of 16 x 16 threads computes a 64 x 64 tile of one batch entry's output,
 // each thread a 4 x 4 micro-tile (rows 4*ty.., columns 4*tx..). The inner dim goes in steps of
@@ -13,7 +20,11 @@
 // increasing order (no atomics, no split of k), so the result has the same bits on every run.
 //
 // The workgroups are numbered linearly (wg.x + wg.y * num_workgroups.x, see Gpu::launch): the
-// batch entry, then the tile row, then the tile column.
+// slice, the batch entry, then the tile row, then the tile column.
+//
+// The accumulators are four vec4 registers (c0..c3), never indexed by a runtime value: an
+// array indexed at run time is placed in (slow) local memory by GPU compilers. Full steps of
+// k run a loop of constant length (unrolled); only the last, partial step loops over fewer.
 @group(0) @binding(1) var<storage, read> a: array<f32>;
 @group(0) @binding(2) var<storage, read> b: array<f32>;
 // (offset of A_b, offset of B_b) in elements, per batch entry (MatMulPlan::offsets).
@@ -34,15 +45,38 @@ var<workgroup> tile_a: array<vec4<f32>, 272>;
 // tile_b[kk * ROW_VEC4 + c / 4][c % 4] = op(B)[k0 + kk, col0 + c]
 var<workgroup> tile_b: array<vec4<f32>, 272>;
 
-fn activation(code: u32, v: f32) -> f32 {
-    switch code {
-        case 1u: { return max(v, 0.0); }
-        case 2u: {
-            // tanh through exp(-2|v|) <= 1: no overflow for large |v| (as unary_fns.wgsl).
-            let e = exp(-2.0 * abs(v));
-            return sign(v) * (1.0 - e) / (1.0 + e);
+// acc rows: output (row0 + 4 ty + i, col0 + 4 tx ..) for i = 0..3.
+var<private> c0: vec4<f32>;
+var<private> c1: vec4<f32>;
+var<private> c2: vec4<f32>;
+var<private> c3: vec4<f32>;
+
+// The products of one k of the workgroup tiles.
+fn mac(kk: u32, tx: u32, ty: u32) {
+    let av = tile_a[kk * ROW_VEC4 + ty];
+    let bv = tile_b[kk * ROW_VEC4 + tx];
+    c0 = fma(vec4<f32>(av.x), bv, c0);
+    c1 = fma(vec4<f32>(av.y), bv, c1);
+    c2 = fma(vec4<f32>(av.z), bv, c2);
+    c3 = fma(vec4<f32>(av.w), bv, c3);
+}
+
+// Epilogue of one output row: (+ the current value) + bias, activation; one store per element.
+fn store_row(r: u32, c: u32, n: u32, base: u32, v: vec4<f32>, accumulate: bool, has_bias: bool, code: u32) {
+    for (var j = 0u; j < 4u; j++) {
+        if c + j >= n {
+            break;
         }
-        default: { return v; }
+        let idx = base + r * n + c + j;
+        var x = v.x;
+        if j == 1u { x = v.y; } else if j == 2u { x = v.z; } else if j == 3u { x = v.w; }
+        if accumulate {
+            x = out[idx] + x;
+        }
+        if has_bias {
+            x = x + bias[c + j];
+        }
+        out[idx] = activation(code, x);
     }
 }
 
@@ -56,24 +90,36 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) nwg: vec3
     let tb = p[4] != 0u;
     let tiles_n = p[8];
     let per_batch = p[9];
+    let batches = p[10];
+    let slices = p[11];
+    let k_per_slice = p[12];
     let wid = wg.x + wg.y * nwg.x;
     // The grid may hold a few more workgroups than tiles (Gpu::launch rounds up to a
     // rectangle); the test is the same for the whole workgroup.
-    if wid >= per_batch * p[10] {
+    if wid >= per_batch * batches * slices {
         return;
     }
-    let batch = wid / per_batch;
+    let slice = wid / (per_batch * batches);
+    let batch = (wid / per_batch) % batches;
     let tile = wid % per_batch;
     let row0 = (tile / tiles_n) * TILE_M;
     let col0 = (tile % tiles_n) * TILE_N;
-    let a_off = offsets[2u * batch];
-    let b_off = offsets[2u * batch + 1u];
+    var a_off = p[13];
+    var b_off = p[14];
+    if batches > 1u {
+        a_off = offsets[2u * batch];
+        b_off = offsets[2u * batch + 1u];
+    }
     let tx = lid.x;
     let ty = lid.y;
+    let k_begin = slice * k_per_slice;
+    let k_end = min(k, k_begin + k_per_slice);
 
-    // acc[i][j] = output (row0 + 4 ty + i, col0 + 4 tx + j)
-    var acc: array<vec4<f32>, 4>;
-    for (var k0 = 0u; k0 < k; k0 += TILE_K) {
+    c0 = vec4<f32>(0.0);
+    c1 = vec4<f32>(0.0);
+    c2 = vec4<f32>(0.0);
+    c3 = vec4<f32>(0.0);
+    for (var k0 = k_begin; k0 < k_end; k0 += TILE_K) {
         // Cooperative loads, 4 values of each block per thread; consecutive threads read
         // consecutive addresses of the stored matrix, whichever way it is stored.
         for (var t = 0u; t < 4u; t++) {
@@ -91,7 +137,7 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) nwg: vec3
             let gr = row0 + r;
             let gk = k0 + kk;
             var v = 0.0;
-            if gr < m && gk < k {
+            if gr < m && gk < k_end {
                 if ta {
                     v = a[a_off + gk * m + gr];
                 } else {
@@ -115,7 +161,7 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) nwg: vec3
             let gc = col0 + c;
             let gk = k0 + kk;
             var v = 0.0;
-            if gc < n && gk < k {
+            if gc < n && gk < k_end {
                 if tb {
                     v = b[b_off + gc * k + gk];
                 } else {
@@ -126,42 +172,31 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) nwg: vec3
         }
         workgroupBarrier();
         // Only the k that exist: no additions of padding zeros.
-        let steps = min(TILE_K, k - k0);
-        for (var kk = 0u; kk < steps; kk++) {
-            let av = tile_a[kk * ROW_VEC4 + ty];
-            let bv = tile_b[kk * ROW_VEC4 + tx];
-            acc[0] = fma(vec4<f32>(av.x), bv, acc[0]);
-            acc[1] = fma(vec4<f32>(av.y), bv, acc[1]);
-            acc[2] = fma(vec4<f32>(av.z), bv, acc[2]);
-            acc[3] = fma(vec4<f32>(av.w), bv, acc[3]);
+        if k0 + TILE_K <= k_end {
+            for (var kk = 0u; kk < TILE_K; kk++) {
+                mac(kk, tx, ty);
+            }
+        } else {
+            for (var kk = 0u; kk < k_end - k0; kk++) {
+                mac(kk, tx, ty);
+            }
         }
         workgroupBarrier();
     }
 
-    // Epilogue: (+ the current value) + bias, activation; one store per element.
-    let accumulate = p[5] != 0u;
-    let has_bias = p[6] != 0u;
-    let code = p[7];
-    let base = batch * m * n;
-    for (var i = 0u; i < 4u; i++) {
-        let r = row0 + 4u * ty + i;
-        if r >= m {
-            break;
-        }
-        for (var j = 0u; j < 4u; j++) {
-            let c = col0 + 4u * tx + j;
-            if c >= n {
-                break;
-            }
-            let idx = base + r * n + c;
-            var v = acc[i][j];
-            if accumulate {
-                v = out[idx] + v;
-            }
-            if has_bias {
-                v = v + bias[c];
-            }
-            out[idx] = activation(code, v);
-        }
+    // A slice of a split product writes its partial sums bare; otherwise the epilogue.
+    let split = slices > 1u;
+    let accumulate = p[5] != 0u && !split;
+    let has_bias = p[6] != 0u && !split;
+    var code = p[7];
+    if split {
+        code = 0u;
     }
+    let base = (slice * batches + batch) * m * n;
+    let r = row0 + 4u * ty;
+    let c = col0 + 4u * tx;
+    if r < m { store_row(r, c, n, base, c0, accumulate, has_bias, code); }
+    if r + 1u < m { store_row(r + 1u, c, n, base, c1, accumulate, has_bias, code); }
+    if r + 2u < m { store_row(r + 2u, c, n, base, c2, accumulate, has_bias, code); }
+    if r + 3u < m { store_row(r + 3u, c, n, base, c3, accumulate, has_bias, code); }
 }
