@@ -5,6 +5,11 @@
 //!
 //! One tiled kernel (`wgsl/matmul.wgsl`): 64 x 64 output tiles per workgroup of 16 x 16
 //! threads, 4 x 4 outputs per thread, the inner dim in steps of 16 through workgroup memory.
+//! Batched products of small matrices (each entry's output at most a quarter of a tile, k at
+//! most 64: the subequivariant layers' Gram matrices and vector mixings) go to
+//! `wgsl/matmul_small.wgsl`, one thread per output, which gives the tiled kernel's bits.
+//! Batch entries at regular offsets (every product of the models) pass them as two strides
+//! in the parameters instead of an uploaded list.
 //! Each output element is summed by one thread over k in increasing order, so a product has
 //! the same bits on every run (on the same GPU and driver). A product of few output tiles
 //! over a long inner dim (the weight gradients `x^T g`: a 256 x 256 output over 5120 rows is
@@ -20,6 +25,7 @@ use crate::op::Activation;
 
 const MATMUL: Kernel = kernel!("matmul", "matmul_activation.wgsl", "matmul.wgsl");
 const MATMUL_REDUCE: Kernel = kernel!("matmul_reduce", "matmul_activation.wgsl", "matmul_reduce.wgsl");
+const MATMUL_SMALL: Kernel = kernel!("matmul_small", "matmul_activation.wgsl", "matmul_small.wgsl");
 
 /// Output rows of the tile one workgroup computes (`TILE_M` in `matmul.wgsl`).
 const TILE_M: usize = 64;
@@ -47,6 +53,35 @@ fn split_k(groups: usize, k: usize) -> (usize, usize) {
     (k.div_ceil(per), per)
 }
 
+/// The largest output of one batch entry (`m * n`) the small-matrix kernel takes: a quarter
+/// of a tile (fewer would leave most of a tile's threads idle).
+const SMALL_OUTPUT: usize = TILE_M * TILE_N / 4;
+/// The longest inner dim the small-matrix kernel takes (one thread sums all of k).
+const SMALL_K: usize = 64;
+
+/// Whether a product of `m x k` by `k x n` matrices goes to `matmul_small.wgsl` (one thread
+/// per output) rather than the tiled kernel.
+fn is_small(m: usize, k: usize, n: usize) -> bool {
+    m * n <= SMALL_OUTPUT && k <= SMALL_K
+}
+
+/// Where each batch entry's matrices start, for the kernels: `(a_base, b_base, a_stride,
+/// b_stride)` when the offsets are regular (`base + b * stride`: every batched product of
+/// the models, broadcast or not), with no buffer; otherwise the listed offsets, uploaded.
+fn batch_offsets(offsets: &[(usize, usize)]) -> ([u32; 4], Option<DeviceBuffer>) {
+    let (a0, b0) = offsets[0];
+    let (sa, sb) = offsets.get(1).map_or((0, 0), |&(a1, b1)| (a1.wrapping_sub(a0), b1.wrapping_sub(b0)));
+    let regular =
+        offsets.iter().enumerate().all(|(i, &(oa, ob))| {
+            oa == a0.wrapping_add(i.wrapping_mul(sa)) && ob == b0.wrapping_add(i.wrapping_mul(sb))
+        }) && offsets.len().checked_mul(sa.max(sb)).is_some_and(|end| end < u32::MAX as usize);
+    if regular {
+        return ([u(a0), u(b0), u(sa), u(sb)], None);
+    }
+    let list: Vec<u32> = offsets.iter().flat_map(|&(oa, ob)| [u(oa), u(ob)]).collect();
+    ([0; 4], Some(DeviceBuffer::upload_u32(&list)))
+}
+
 /// The kernel's code of an activation (`activation` in `matmul.wgsl`).
 fn activation_code(act: Activation) -> u32 {
     match act {
@@ -62,6 +97,24 @@ fn activation_code(act: Activation) -> u32 {
 /// applied to the final sum. `out` holds `plan.out_shape()` values.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn matmul_into(
+    out: &DeviceBuffer,
+    accumulate: bool,
+    a: &DeviceBuffer,
+    ta: bool,
+    b: &DeviceBuffer,
+    tb: bool,
+    plan: &MatMulPlan,
+    bias: Option<&DeviceBuffer>,
+    act: Activation,
+) {
+    let small = is_small(plan.m, plan.k, plan.n);
+    matmul_into_with(small, out, accumulate, a, ta, b, tb, plan, bias, act);
+}
+
+/// [`matmul_into`] on the small-matrix kernel (`small`) or the tiled one.
+#[allow(clippy::too_many_arguments)]
+fn matmul_into_with(
+    small: bool,
     out: &DeviceBuffer,
     accumulate: bool,
     a: &DeviceBuffer,
@@ -88,11 +141,33 @@ pub(crate) fn matmul_into(
     if groups == 0 {
         return;
     }
-    // One batch entry (every layer's product) passes its offsets in the parameters: an
-    // upload would end the batch of launches being recorded (Gpu::upload_words).
-    let offsets: Vec<u32> = plan.offsets.iter().flat_map(|&(oa, ob)| [u(oa), u(ob)]).collect();
-    let offsets = if batches == 1 { None } else { Some(DeviceBuffer::upload_u32(&offsets)) };
-    let (oa, ob) = plan.offsets[0];
+    // Regular offsets (always, in the models) go in the parameters: no upload.
+    let (regular, listed) = batch_offsets(&plan.offsets);
+    // Without a bias (or listed offsets) the kernel reads none: any buffer that is not the
+    // output fills the slot.
+    let offsets = listed.as_ref().unwrap_or(a);
+    let bias_buf = bias.unwrap_or(a);
+    if small {
+        let params = [
+            u(m),
+            u(k),
+            u(n),
+            u32::from(ta),
+            u32::from(tb),
+            u32::from(accumulate),
+            u32::from(has_bias),
+            activation_code(act),
+            u(batches),
+            regular[0],
+            regular[1],
+            regular[2],
+            regular[3],
+            u32::from(listed.is_some()),
+        ];
+        let buffers = [a.buffer(), b.buffer(), offsets.buffer(), bias_buf.buffer(), out.buffer()];
+        device().launch_1d(&MATMUL_SMALL, &params, &buffers, batches * m * n);
+        return;
+    }
     let (slices, k_per_slice) = split_k(groups, k);
     let params = [
         u(m),
@@ -101,20 +176,20 @@ pub(crate) fn matmul_into(
         u32::from(ta),
         u32::from(tb),
         u32::from(accumulate),
-        u32::from(bias.is_some()),
+        u32::from(has_bias),
         activation_code(act),
         u(tiles_n),
         u(per_batch),
         u(batches),
         u(slices),
         u(k_per_slice),
-        u(oa),
-        u(ob),
+        regular[0],
+        regular[1],
+        regular[2],
+        regular[3],
+        u32::from(listed.is_some()),
     ];
-    // Without a bias (or offsets) the kernel reads none: any buffer that is not the output
-    // fills the slot.
-    let offsets = offsets.as_ref().unwrap_or(a);
-    let bias = bias.unwrap_or(a);
+    let bias = bias_buf;
     if slices == 1 {
         device().launch(
             &MATMUL,
@@ -422,6 +497,39 @@ mod tests {
             matmul_into(&out, false, &xd, false, &wd, false, &plan, Some(&bd), act);
             check(&format!("split bias + {act:?}"), &out.download(), want.data(), &mag);
         }
+    }
+
+    /// The subequivariant layers' batched products of small matrices go to the one-thread-
+    /// per-output kernel, which matches the CPU and gives the tiled kernel's bits (the same
+    /// fused multiply-adds in the same order), with and without the epilogue.
+    #[test]
+    fn small_matrix_kernel_matches_the_cpu_and_the_tiled_kernel() {
+        let batch = 300;
+        for (m, k, n) in [(3, 32, 32), (32, 3, 32), (3, 32, 3), (3, 3, 3), (1, 64, 16)] {
+            assert!(is_small(m, k, n));
+            for (ta, tb) in [(false, false), (true, false), (false, true), (true, true)] {
+                let a = tensor(&[[batch].as_slice(), &stored(m, k, ta)].concat(), 101);
+                let b = tensor(&[[batch].as_slice(), &stored(k, n, tb)].concat(), 102);
+                compare("small", &a, ta, &b, tb, false);
+                let plan = MatMulPlan::new(a.shape(), b.shape(), ta, tb).unwrap();
+                let (ad, bd) = (DeviceBuffer::upload(a.data()), DeviceBuffer::upload(b.data()));
+                let bias = DeviceBuffer::upload(&values(n, 103));
+                let old = values(batch * m * n, 104);
+                let run = |small: bool, act: Activation| {
+                    let out = DeviceBuffer::upload(&old);
+                    matmul_into_with(small, &out, true, &ad, ta, &bd, tb, &plan, Some(&bias), act);
+                    bits(&out.download())
+                };
+                for act in [Activation::Identity, Activation::Tanh] {
+                    assert_eq!(run(true, act), run(false, act), "m={m} k={k} n={n} ta={ta} tb={tb} {act:?}");
+                }
+            }
+        }
+        // A weight shared by every batch entry (stride 0) and a tall product stay tiled.
+        assert!(!is_small(5120, 256, 256) && !is_small(3, 300, 3));
+        let a = tensor(&[batch, 3, 32], 105);
+        let w = tensor(&[32, 32], 106);
+        compare("shared weight", &a, false, &w, false, true);
     }
 
     /// The model's tall, skinny layer products and their backward products.

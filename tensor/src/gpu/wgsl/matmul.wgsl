@@ -3,8 +3,9 @@
 // (likewise with tb), all row-major; the output is [batches, m, n].
 //
 // p = [m, k, n, ta, tb, accumulate, has_bias, act (0 identity, 1 relu, 2 tanh), tiles_n,
-//      tiles_per_batch, batches, slices, k_per_slice, a_offset, b_offset]
-// (the last two for a single batch entry; several read theirs from `offsets`)
+//      tiles_per_batch, batches, slices, k_per_slice, a_base, b_base, a_stride, b_stride,
+//      offsets_listed]: batch entry b's matrices start at `offsets` (when listed) or at
+//      base + b * stride (ops/matmul.rs: no upload when the offsets are regular)
 //
 // Split k (slices > 1, ops/matmul.rs: few output tiles over a long inner dim): slice s sums
 // k in [s * k_per_slice, (s + 1) * k_per_slice) and writes its partial sums, with no
@@ -104,9 +105,9 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) nwg: vec3
     let tile = wid % per_batch;
     let row0 = (tile / tiles_n) * TILE_M;
     let col0 = (tile % tiles_n) * TILE_N;
-    var a_off = p[13];
-    var b_off = p[14];
-    if batches > 1u {
+    var a_off = p[13] + batch * p[15];
+    var b_off = p[14] + batch * p[16];
+    if p[17] != 0u {
         a_off = offsets[2u * batch];
         b_off = offsets[2u * batch + 1u];
     }

@@ -1,0 +1,54 @@
+// Batched products of small matrices (ops/matmul.rs chooses it when each batch entry's
+// output is at most a quarter of matmul.wgsl's 64 x 64 tile and k is short: the Gram
+// matrices, vector mixings and frames of the subequivariant layers, [B, 3, 32] x [B, 32, 32]
+// and the like). One thread per output element sums over k in increasing order with the
+// same fused multiply-adds as matmul.wgsl, so the two kernels give the same bits.
+//
+// p = [m, k, n, ta, tb, accumulate, has_bias, act, batches, a_base, b_base, a_stride,
+//      b_stride, offsets_listed]: batch entry b's matrices start at `offsets` (when listed)
+//      or at base + b * stride.
+@group(0) @binding(1) var<storage, read> a: array<f32>;
+@group(0) @binding(2) var<storage, read> b: array<f32>;
+@group(0) @binding(3) var<storage, read> offsets: array<u32>;
+@group(0) @binding(4) var<storage, read> bias: array<f32>;
+@group(0) @binding(5) var<storage, read_write> out: array<f32>;
+
+@compute @workgroup_size(256)
+fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>,
+        @builtin(local_invocation_index) li: u32) {
+    let id = linear_id(wg, nwg, li);
+    let m = p[0];
+    let k = p[1];
+    let n = p[2];
+    let ta = p[3] != 0u;
+    let tb = p[4] != 0u;
+    let mn = m * n;
+    if id >= mn * p[8] {
+        return;
+    }
+    let batch = id / mn;
+    let i = (id % mn) / n;
+    let j = id % n;
+    var a_off = p[9] + batch * p[11];
+    var b_off = p[10] + batch * p[12];
+    if p[13] != 0u {
+        a_off = offsets[2u * batch];
+        b_off = offsets[2u * batch + 1u];
+    }
+    var acc = 0.0;
+    for (var kk = 0u; kk < k; kk++) {
+        var av: f32;
+        var bv: f32;
+        if ta { av = a[a_off + kk * m + i]; } else { av = a[a_off + i * k + kk]; }
+        if tb { bv = b[b_off + j * k + kk]; } else { bv = b[b_off + kk * n + j]; }
+        acc = fma(av, bv, acc);
+    }
+    var v = acc;
+    if p[5] != 0u {
+        v = out[id] + v;
+    }
+    if p[6] != 0u {
+        v = v + bias[j];
+    }
+    out[id] = activation(p[7], v);
+}
