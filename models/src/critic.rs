@@ -21,7 +21,7 @@
 //! message passing is subequivariant, so the value is invariant.
 
 use nn::{Aggregation, Bound, EdgeDistance, EdgeList, Mlp, Scope, TransformerConfig};
-use tensor::{Activation, Float, Tensor, Var};
+use tensor::{Activation, Device, Float, Tape, Tensor, Var};
 
 use crate::config::{GravityMode, MpSizes, layer_sizes};
 use crate::entity_mp::{EntityMp, EntityMpConfig};
@@ -39,10 +39,7 @@ pub const EDGE_TYPES: usize = 2;
 /// The release's `DistanceRBF` of a distance `d` (module docs): `[10 d < 0, exp(coeff (10 d -
 /// o_k)^2) for the 62 offsets o_k = 20 k / 61, 10 d >= 20]`, `coeff = -0.5 / (20/61)^2`.
 pub fn release_rbf(d: f64) -> [f64; RBF_FEATURES] {
-    let n = RBF_FEATURES - 2;
-    let (start, stop) = (0.0, 20.0);
-    let spacing = (stop - start) / (n - 1) as f64;
-    let coeff = -0.5 / (spacing * spacing);
+    let (n, (start, stop), spacing, coeff) = rbf_parameters();
     let x = 10.0 * d;
     let mut out = [0.0; RBF_FEATURES];
     out[0] = f64::from(u8::from(x < start));
@@ -52,6 +49,20 @@ pub fn release_rbf(d: f64) -> [f64; RBF_FEATURES] {
     }
     out[n + 1] = f64::from(u8::from(x >= stop));
     out
+}
+
+/// [`release_rbf`]'s constants: the number of Gaussians, the span `(start, stop)` of their
+/// centres on `10 d`, the spacing of the centres and `coeff = -0.5 / spacing^2`.
+fn rbf_parameters() -> (usize, (f64, f64), f64, f64) {
+    let n = RBF_FEATURES - 2;
+    let (start, stop) = (0.0, 20.0);
+    let spacing = (stop - start) / (n - 1) as f64;
+    (n, (start, stop), spacing, -0.5 / (spacing * spacing))
+}
+
+/// The Euclidean distance between two points.
+fn distance(pi: [f64; 3], pj: [f64; 3]) -> f64 {
+    ((pj[0] - pi[0]).powi(2) + (pj[1] - pi[1]).powi(2) + (pj[2] - pi[2]).powi(2)).sqrt()
 }
 
 /// `σ_V` of a critic: an MLP on the concatenated token features, or a Transformer over the
@@ -170,32 +181,72 @@ impl SubeqCritic {
         let inputs: EntityInputs<T> = self.proc.entities(obs)?;
         let (nb, ne) = (inputs.batch, inputs.entities);
         let edges = EdgeList::fully_connected(nb, ne);
-        let scalars = self.edge_scalars(&inputs, &edges)?;
         let tape = p.tape();
+        let scalars = self.edge_scalars_on(tape, &inputs, &edges)?;
         let f = self.mp.forward(
             p,
             tape.constant(inputs.z.clone()),
             tape.constant(inputs.h.clone()),
             &edges,
-            Some(tape.constant(scalars)),
+            Some(scalars),
         )?;
         let rows: Vec<usize> = (0..nb).flat_map(|b| self.order.iter().map(move |&e| b * ne + e)).collect();
         let s = f.h.shape()[1];
         self.head.forward(p, f.h.index_select(0, &rows)?.reshape(&[nb, ne, s])?)
     }
 
-    /// Radial-basis features and edge types of every edge `[E, RBF_FEATURES + EDGE_TYPES]`.
-    fn edge_scalars<T: Float>(&self, inputs: &EntityInputs<T>, edges: &EdgeList) -> Result<Tensor<T>> {
-        let ne = inputs.entities;
+    /// [`SubeqCritic::edge_scalars`] as a constant of `tape`. On a GPU tape the host computes only
+    /// `10 d`, the two flags and the edge types of each edge (5 values where the features
+    /// are 66), and the 62 Gaussians of [`release_rbf`] are computed on the device, in f32:
+    /// the features of every edge of a paper-size minibatch were its largest upload (about
+    /// 40 MB; docs/PERFORMANCE.md, "On a GPU"). The CPU keeps the host path, bit for bit.
+    fn edge_scalars_on<'t, T: Float>(
+        &self,
+        tape: &'t Tape<T>,
+        inputs: &EntityInputs<T>,
+        edges: &EdgeList,
+    ) -> Result<Var<'t, T>> {
+        if tape.device() == Device::Cpu {
+            return Ok(tape.constant(self.edge_scalars(inputs, edges)?));
+        }
+        self.check_entities(inputs.entities)?;
+        let (n_edges, ne) = (edges.len(), inputs.entities);
+        let (gaussians, (start, stop), spacing, coeff) = rbf_parameters();
+        let (mut x, mut flags, mut types) =
+            (Vec::with_capacity(n_edges), Vec::with_capacity(2 * n_edges), Vec::with_capacity(2 * n_edges));
+        for (&i, &j) in edges.src.iter().zip(&edges.dst) {
+            let xd = 10.0 * distance(inputs.positions[i], inputs.positions[j]);
+            x.push(T::from_f64(xd));
+            flags.extend([xd < start, xd >= stop].map(|f| T::from_f64(f64::from(u8::from(f)))));
+            let same = self.kinds[i % ne] == self.kinds[j % ne];
+            types.extend([T::from_f64(f64::from(u8::from(!same))), T::from_f64(f64::from(u8::from(same)))]);
+        }
+        let centres: Vec<T> = (0..gaussians).map(|k| T::from_f64(start + spacing * k as f64)).collect();
+        let flags = tape.constant(Tensor::new(flags, &[n_edges, 2])?);
+        let x = tape.constant(Tensor::new(x, &[n_edges, 1])?);
+        let gauss = x.sub(tape.constant(Tensor::new(centres, &[1, gaussians])?))?.square().scale(coeff).exp();
+        Ok(tape.cat(
+            &[flags.narrow(1, 0, 1)?, gauss, flags.narrow(1, 1, 1)?, tape.constant(Tensor::new(types, &[n_edges, 2])?)],
+            1,
+        )?)
+    }
+
+    /// An error unless the critic was built for `ne` entities.
+    fn check_entities(&self, ne: usize) -> Result<()> {
         if ne == 0 || self.kinds.len() != ne {
             return Err(ModelError::Input(format!("critic of {} entities got {ne}", self.kinds.len())));
         }
+        Ok(())
+    }
+
+    /// Radial-basis features and edge types of every edge `[E, RBF_FEATURES + EDGE_TYPES]`.
+    fn edge_scalars<T: Float>(&self, inputs: &EntityInputs<T>, edges: &EdgeList) -> Result<Tensor<T>> {
+        let ne = inputs.entities;
+        self.check_entities(ne)?;
         let width = RBF_FEATURES + EDGE_TYPES;
         let mut out = tensor::pool::with_capacity(edges.len() * width);
         for (&i, &j) in edges.src.iter().zip(&edges.dst) {
-            let (pi, pj) = (inputs.positions[i], inputs.positions[j]);
-            let d = ((pj[0] - pi[0]).powi(2) + (pj[1] - pi[1]).powi(2) + (pj[2] - pi[2]).powi(2)).sqrt();
-            out.extend(release_rbf(d).map(T::from_f64));
+            out.extend(release_rbf(distance(inputs.positions[i], inputs.positions[j])).map(T::from_f64));
             let same = self.kinds[i % ne] == self.kinds[j % ne];
             out.extend([T::from_f64(f64::from(u8::from(!same))), T::from_f64(f64::from(u8::from(same)))]);
         }

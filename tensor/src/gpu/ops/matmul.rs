@@ -147,29 +147,9 @@ fn matmul_into_with(
     // output fills the slot.
     let offsets = listed.as_ref().unwrap_or(a);
     let bias_buf = bias.unwrap_or(a);
-    if small {
-        let params = [
-            u(m),
-            u(k),
-            u(n),
-            u32::from(ta),
-            u32::from(tb),
-            u32::from(accumulate),
-            u32::from(has_bias),
-            activation_code(act),
-            u(batches),
-            regular[0],
-            regular[1],
-            regular[2],
-            regular[3],
-            u32::from(listed.is_some()),
-        ];
-        let buffers = [a.buffer(), b.buffer(), offsets.buffer(), bias_buf.buffer(), out.buffer()];
-        device().launch_1d(&MATMUL_SMALL, &params, &buffers, batches * m * n);
-        return;
-    }
-    let (slices, k_per_slice) = split_k(groups, k);
-    let params = [
+    // The parameters both kernels share (matmul_small.wgsl's whole list, the head of
+    // matmul.wgsl's).
+    let shared = [
         u(m),
         u(k),
         u(n),
@@ -178,17 +158,20 @@ fn matmul_into_with(
         u32::from(accumulate),
         u32::from(has_bias),
         activation_code(act),
-        u(tiles_n),
-        u(per_batch),
         u(batches),
-        u(slices),
-        u(k_per_slice),
         regular[0],
         regular[1],
         regular[2],
         regular[3],
         u32::from(listed.is_some()),
     ];
+    if small {
+        let buffers = [a.buffer(), b.buffer(), offsets.buffer(), bias_buf.buffer(), out.buffer()];
+        device().launch_1d(&MATMUL_SMALL, &shared, &buffers, batches * m * n);
+        return;
+    }
+    let (slices, k_per_slice) = split_k(groups, k);
+    let params = [&shared[..], &[u(tiles_n), u(per_batch), u(slices), u(k_per_slice)]].concat();
     let bias = bias_buf;
     if slices == 1 {
         device().launch(

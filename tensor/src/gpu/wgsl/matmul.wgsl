@@ -2,10 +2,11 @@
 // activation (ops/matmul.rs). op(A) is m x k (`a` holds A, or A^T when ta), op(B) is k x n
 // (likewise with tb), all row-major; the output is [batches, m, n].
 //
-// p = [m, k, n, ta, tb, accumulate, has_bias, act (0 identity, 1 relu, 2 tanh), tiles_n,
-//      tiles_per_batch, batches, slices, k_per_slice, a_base, b_base, a_stride, b_stride,
-//      offsets_listed]: batch entry b's matrices start at `offsets` (when listed) or at
-//      base + b * stride (ops/matmul.rs: no upload when the offsets are regular)
+// p = [m, k, n, ta, tb, accumulate, has_bias, act (0 identity, 1 relu, 2 tanh), batches,
+//      a_base, b_base, a_stride, b_stride, offsets_listed, tiles_n, tiles_per_batch, slices,
+//      k_per_slice]: batch entry b's matrices start at `offsets` (when listed) or at
+//      base + b * stride (ops/matmul.rs: no upload when the offsets are regular); the first
+//      14 are matmul_small.wgsl's.
 //
 // Split k (slices > 1, ops/matmul.rs: few output tiles over a long inner dim): slice s sums
 // k in [s * k_per_slice, (s + 1) * k_per_slice) and writes its partial sums, with no
@@ -89,11 +90,11 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) nwg: vec3
     let n = p[2];
     let ta = p[3] != 0u;
     let tb = p[4] != 0u;
-    let tiles_n = p[8];
-    let per_batch = p[9];
-    let batches = p[10];
-    let slices = p[11];
-    let k_per_slice = p[12];
+    let batches = p[8];
+    let tiles_n = p[14];
+    let per_batch = p[15];
+    let slices = p[16];
+    let k_per_slice = p[17];
     let wid = wg.x + wg.y * nwg.x;
     // The grid may hold a few more workgroups than tiles (Gpu::launch rounds up to a
     // rectangle); the test is the same for the whole workgroup.
@@ -105,9 +106,9 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) nwg: vec3
     let tile = wid % per_batch;
     let row0 = (tile / tiles_n) * TILE_M;
     let col0 = (tile % tiles_n) * TILE_N;
-    var a_off = p[13] + batch * p[15];
-    var b_off = p[14] + batch * p[16];
-    if p[17] != 0u {
+    var a_off = p[9] + batch * p[11];
+    var b_off = p[10] + batch * p[12];
+    if p[13] != 0u {
         a_off = offsets[2u * batch];
         b_off = offsets[2u * batch + 1u];
     }
