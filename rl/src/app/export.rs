@@ -2,8 +2,9 @@
 //! for committing (`results/<experiment>/`, docs/RESULTS.md).
 //!
 //! For every run directory under `<runs>` ([`crate::app::report::find_run_dirs`]) the files
-//! [`EVIDENCE_FILES`] that exist are copied to the same relative path under `<results>`
-//! (each written atomically, so an interrupted export leaves whole files); a sweep's copy of
+//! [`EVIDENCE_FILES`] that exist, and its morphology record and copies (`morphology.toml`,
+//! `morphologies/`: [`crate::app::morphology`]), are copied to the same relative path under
+//! `<results>` (each written atomically, so an interrupted export leaves whole files); a sweep's copy of
 //! its file (`sweep.toml` at the root) comes along. Checkpoints (`checkpoint.json` and the
 //! `checkpoint.<digest>.safetensors` it names) and anything else stay behind. A run still training is exported as far as it got (it has no `done.json`);
 //! exporting again later brings its newer rows. `meben report <results>` then works from the
@@ -84,6 +85,9 @@ pub fn export(from: &Path, to: &Path) -> Result<ExportSummary> {
                     summary.bytes += copy_file(&src, &target.join(name))?;
                 }
             }
+            for rel in morphology_files(&dir)? {
+                summary.bytes += copy_file(&dir.join(&rel), &target.join(&rel))?;
+            }
         }
         summary.runs.push(rel);
     }
@@ -132,6 +136,33 @@ fn compare_with_exported(run: &Path, exported: &Path) -> Result<Option<(usize, u
 }
 
 /// Copies `src` to `dst` atomically (creating `dst`'s directory); returns the bytes copied.
+/// The morphology files of run directory `dir`, relative to it: its record
+/// (`morphology.toml`) and its copies of the files its environment names (`morphologies/`,
+/// [`crate::app::morphology`]), in name order. They are evidence too: the bodies the run
+/// was trained on, where its `config.toml` names them only by a path on the machine that
+/// trained it.
+fn morphology_files(dir: &Path) -> Result<Vec<PathBuf>> {
+    use crate::app::morphology::{COPIES_DIR, MORPHOLOGY_RECORD};
+    let mut files = Vec::new();
+    if dir.join(MORPHOLOGY_RECORD).is_file() {
+        files.push(PathBuf::from(MORPHOLOGY_RECORD));
+    }
+    let copies = dir.join(COPIES_DIR);
+    if copies.is_dir() {
+        let entries = std::fs::read_dir(&copies).map_err(|e| RlError::file(&copies, format!("cannot list: {e}")))?;
+        let mut names = Vec::new();
+        for entry in entries {
+            let entry = entry.map_err(|e| RlError::file(&copies, format!("cannot list: {e}")))?;
+            if entry.path().is_file() {
+                names.push(Path::new(COPIES_DIR).join(entry.file_name()));
+            }
+        }
+        names.sort();
+        files.extend(names);
+    }
+    Ok(files)
+}
+
 fn copy_file(src: &Path, dst: &Path) -> Result<u64> {
     let bytes = std::fs::read(src).map_err(|e| RlError::file(src, format!("cannot read: {e}")))?;
     if let Some(parent) = dst.parent() {
@@ -167,6 +198,8 @@ mod tests {
             if done {
                 write(&d.join("done.json"), "{}");
                 write(&d.join("builds.csv"), "b\n");
+                write(&d.join("morphology.toml"), "[[files]]");
+                write(&d.join("morphologies/0_body.xml"), "<mujoco/>");
             }
         }
         write(&runs.join("notes/scratch.txt"), "not a run");
@@ -177,6 +210,8 @@ mod tests {
         assert_eq!(std::fs::read_to_string(d0.join("config.toml")).unwrap(), "team_reach_1_ant/shnn/seed0");
         assert!(d0.join("done.json").is_file() && d0.join("metrics.csv").is_file());
         assert_eq!(std::fs::read_to_string(d0.join("builds.csv")).unwrap(), "b\n");
+        assert_eq!(std::fs::read_to_string(d0.join("morphology.toml")).unwrap(), "[[files]]");
+        assert_eq!(std::fs::read_to_string(d0.join("morphologies/0_body.xml")).unwrap(), "<mujoco/>");
         assert!(!results.join("team_reach_1_ant/shnn/seed1/done.json").exists());
         assert_eq!(std::fs::read_to_string(results.join("sweep.toml")).unwrap(), "seeds = [0]");
         for stray in [
@@ -187,9 +222,9 @@ mod tests {
         ] {
             assert!(!results.join(stray).exists(), "{stray} was exported");
         }
-        // sweep.toml 11 bytes; per run config.toml 27 and metrics.csv 12; one done.json 2
-        // and one builds.csv 2.
-        assert_eq!(s.bytes, 11 + 2 * (27 + 12) + 2 + 2);
+        // sweep.toml 11 bytes; per run config.toml 27 and metrics.csv 12; one done.json 2,
+        // one builds.csv 2, one morphology.toml 9 and its copy 9.
+        assert_eq!(s.bytes, 11 + 2 * (27 + 12) + 2 + 2 + 9 + 9);
     }
 
     const HEADER: &str = "iteration,env_steps,wall_s,steps_per_s,loss";
