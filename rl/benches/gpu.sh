@@ -127,7 +127,9 @@ gpu_more() {
 profile() {
     echo "== one shnn minibatch on the GPU, op by op (each op waited for; team_reach/3_ant_claw_centipede)"
     # ITERATIONS=0: one iteration's collection, then the minibatch passes only.
-    DEVICE=gpu ITERATIONS=0 MINIBATCH_REPS=3 TENSOR_PROFILE=1 BENCH_ENVS=team_reach/3_ant_claw_centipede \
+    local env=team_reach/3_ant_claw_centipede preset=paper
+    [ -n "${QUICK:-}" ] && env=team_reach/1_ant preset=quick
+    DEVICE=gpu PRESET=$preset ITERATIONS=0 MINIBATCH_REPS=3 TENSOR_PROFILE=1 BENCH_ENVS=$env \
         BENCH_MODELS=shnn timeout -s KILL "$(limit 90)" $C/train_throughput 2>&1 | grep -v '^\s*$' | head -70
 }
 
