@@ -11,7 +11,7 @@ use std::time::{Duration, Instant};
 
 use crate::backprop::{GradStore, propagate};
 use crate::element::Float;
-use crate::error::{Result, invalid};
+use crate::error::{Result, TensorError, invalid};
 use crate::flops::{self, FlopCount, OpFlops};
 use crate::op::{NodeId, Op};
 use crate::tensor::Tensor;
@@ -31,6 +31,8 @@ pub struct Tape<T: Float> {
     device: crate::device::Device,
     grad_enabled: Cell<bool>,
     profile: RefCell<Option<Profile>>,
+    /// Why the first leaf that could not be placed on the tape's device stayed on the host.
+    misplaced: RefCell<Option<String>>,
 }
 
 /// Time and flops per op, forward and backward (see [`Tape::enable_profiling`]).
@@ -121,11 +123,24 @@ impl<T: Float> Tape<T> {
     /// An empty tape whose leaves ([`Tape::var`], [`Tape::constant`]) are placed on `device`
     /// when they are recorded: a host tensor given to a GPU tape is uploaded once there, so
     /// every op of the forward and backward pass runs on the GPU. (On any tape an op runs on
-    /// the GPU when one of its inputs is there.) (An upload that fails, for
-    /// an `f64` tape or a tensor too large for a device buffer, leaves the leaf on the host;
-    /// the first op that uses it then reports the error.)
+    /// the GPU when one of its inputs is there.) An upload that fails (no GPU adapter, an
+    /// `f64` tape, a tensor too large for a device buffer) leaves the leaf on the host, where
+    /// its ops would run unnoticed: [`Tape::backward`] then refuses with the upload's error,
+    /// and [`Tape::misplaced`] says it at any time.
     pub fn on(device: crate::device::Device) -> Self {
-        Self { nodes: RefCell::new(Vec::new()), device, grad_enabled: Cell::new(true), profile: RefCell::new(None) }
+        Self {
+            nodes: RefCell::new(Vec::new()),
+            device,
+            grad_enabled: Cell::new(true),
+            profile: RefCell::new(None),
+            misplaced: RefCell::new(None),
+        }
+    }
+
+    /// Why a leaf of this tape stayed on the host instead of its device (the first such
+    /// upload's error), if one did.
+    pub fn misplaced(&self) -> Option<String> {
+        self.misplaced.borrow().clone()
     }
 
     /// The device this tape places its leaves on.
@@ -141,7 +156,10 @@ impl<T: Float> Tape<T> {
         }
         match value.to_device(self.device) {
             Ok(v) => v,
-            Err(_) => value,
+            Err(e) => {
+                self.misplaced.borrow_mut().get_or_insert_with(|| e.to_string());
+                value
+            }
         }
     }
 
@@ -272,6 +290,12 @@ impl<T: Float> Tape<T> {
     /// with [`Tape::var`] that it depends on.
     pub fn backward(&self, loss: Var<'_, T>) -> Result<Gradients<T>> {
         self.check_same(loss);
+        if let Some(why) = self.misplaced() {
+            return Err(TensorError::Device {
+                op: "backward",
+                detail: format!("a leaf of this {} tape stayed on the host, so its ops ran there: {why}", self.device),
+            });
+        }
         let nodes: Ref<'_, Vec<Node<T>>> = self.nodes.borrow();
         let root = &nodes[loss.id];
         if root.value.numel() != 1 {

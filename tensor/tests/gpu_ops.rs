@@ -261,6 +261,25 @@ fn host_constants_join_gpu_ops_and_f64_stays_on_the_host() {
     assert!(!info.is_empty());
 }
 
+/// A leaf a GPU tape cannot place there (f64 stays on the host) would have its ops run on
+/// the host unnoticed: the tape says so, and its backward pass refuses with the reason.
+#[test]
+fn a_gpu_tape_refuses_to_differentiate_what_stayed_on_the_host() {
+    let _serial = serial();
+    let tape = Tape::<f64>::on(Device::Gpu);
+    let x = tape.var(Tensor::<f64>::new(vec![1.0, 2.0], &[2]).unwrap());
+    assert_eq!(x.value().device(), Device::Cpu);
+    let why = tape.misplaced().expect("the f64 leaf is recorded as misplaced");
+    assert!(why.contains("f64"), "{why}");
+    let err = tape.backward(x.square().sum_all()).unwrap_err().to_string();
+    assert!(err.contains("backward") && err.contains("stayed on the host") && err.contains("f64"), "{err}");
+    // An f32 tape on the GPU places everything and says nothing.
+    let tape = Tape::<f32>::on(Device::Gpu);
+    let y = tape.var(randn(24, &[2, 3]));
+    assert!(tape.misplaced().is_none());
+    assert!(tape.backward(y.sum_all()).is_ok());
+}
+
 #[test]
 fn a_gpu_tape_uploads_its_leaves_once() {
     let _serial = serial();
