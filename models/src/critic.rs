@@ -60,6 +60,11 @@ fn rbf_parameters() -> (usize, (f64, f64), f64, f64) {
     (n, (start, stop), spacing, -0.5 / (spacing * spacing))
 }
 
+/// 1 for true, 0 for false.
+fn flag<T: Float>(f: bool) -> T {
+    T::from_f64(f64::from(u8::from(f)))
+}
+
 /// The Euclidean distance between two points.
 fn distance(pi: [f64; 3], pj: [f64; 3]) -> f64 {
     ((pj[0] - pi[0]).powi(2) + (pj[1] - pi[1]).powi(2) + (pj[2] - pi[2]).powi(2)).sqrt()
@@ -217,9 +222,8 @@ impl SubeqCritic {
         for (&i, &j) in edges.src.iter().zip(&edges.dst) {
             let xd = 10.0 * distance(inputs.positions[i], inputs.positions[j]);
             x.push(T::from_f64(xd));
-            flags.extend([xd < start, xd >= stop].map(|f| T::from_f64(f64::from(u8::from(f)))));
-            let same = self.kinds[i % ne] == self.kinds[j % ne];
-            types.extend([T::from_f64(f64::from(u8::from(!same))), T::from_f64(f64::from(u8::from(same)))]);
+            flags.extend([xd < start, xd >= stop].map(flag::<T>));
+            types.extend(self.edge_type::<T>(i, j, ne));
         }
         let centres: Vec<T> = (0..gaussians).map(|k| T::from_f64(start + spacing * k as f64)).collect();
         let flags = tape.constant(Tensor::new(flags, &[n_edges, 2])?);
@@ -229,6 +233,13 @@ impl SubeqCritic {
             &[flags.narrow(1, 0, 1)?, gauss, flags.narrow(1, 1, 1)?, tape.constant(Tensor::new(types, &[n_edges, 2])?)],
             1,
         )?)
+    }
+
+    /// The edge type of `i -> j` (rows of scenes of `ne` entities) as its one-hot
+    /// `[different kind, same kind]`.
+    fn edge_type<T: Float>(&self, i: usize, j: usize, ne: usize) -> [T; EDGE_TYPES] {
+        let same = self.kinds[i % ne] == self.kinds[j % ne];
+        [!same, same].map(flag::<T>)
     }
 
     /// An error unless the critic was built for `ne` entities.
@@ -247,8 +258,7 @@ impl SubeqCritic {
         let mut out = tensor::pool::with_capacity(edges.len() * width);
         for (&i, &j) in edges.src.iter().zip(&edges.dst) {
             out.extend(release_rbf(distance(inputs.positions[i], inputs.positions[j])).map(T::from_f64));
-            let same = self.kinds[i % ne] == self.kinds[j % ne];
-            out.extend([T::from_f64(f64::from(u8::from(!same))), T::from_f64(f64::from(u8::from(same)))]);
+            out.extend(self.edge_type::<T>(i, j, ne));
         }
         Ok(Tensor::new(out, &[edges.len(), width])?)
     }

@@ -185,8 +185,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 let s = Instant::now();
                 let st = t.iterate()?;
                 sps.push(config.steps_per_iteration() as f64 / s.elapsed().as_secs_f64());
-                collect.push(st.collect_s);
-                update.push(st.update_s);
+                collect.push(st.timings.collect_s());
+                update.push(st.timings.update_s());
                 rates.push(matmul_rate()?);
             }
             let (flops, mb_s) = minibatch_flops(&t, &config, reps)?;

@@ -258,8 +258,9 @@ impl<T: Float> Tape<T> {
     pub(crate) fn push(&self, value: Tensor<T>, op: Op, requires_grad: bool) -> Var<'_, T> {
         let requires_grad = requires_grad && self.grad_enabled.get();
         if let Some(prof) = self.profile.borrow_mut().as_mut() {
-            // On the GPU an op only queues its kernels: wait for them, so the time is theirs.
-            self.device.synchronize();
+            // On the GPU an op only queues its kernels: wait for them, so the time is theirs
+            // (the output's device: a CPU tape runs an op on the GPU when an input is there).
+            value.device().synchronize();
             let now = Instant::now();
             let f = flops::forward(&self.nodes.borrow(), &op, value.shape());
             let key = profile_key(&self.nodes.borrow(), &op, value.shape(), prof.by_shape);
@@ -317,7 +318,7 @@ impl<T: Float> Tape<T> {
                 let start = Instant::now();
                 propagate(&nodes, id, g, &mut store)?;
                 if let Some(prof) = self.profile.borrow_mut().as_mut() {
-                    self.device.synchronize();
+                    nodes[id].value.device().synchronize();
                     let elapsed = start.elapsed();
                     let f = flops::backward(&nodes, id);
                     let key = profile_key(&nodes, &nodes[id].op, nodes[id].value.shape(), prof.by_shape);

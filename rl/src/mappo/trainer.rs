@@ -110,11 +110,7 @@ pub struct IterationStats {
     pub losses: Vec<LossStats>,
     /// The curriculum factor used.
     pub alpha: f64,
-    /// Seconds spent collecting (acting and stepping the environments).
-    pub collect_s: f64,
-    /// Seconds spent normalising and updating.
-    pub update_s: f64,
-    /// Where those seconds went, stage by stage.
+    /// Where the iteration's seconds went, stage by stage.
     pub timings: Timings,
 }
 
@@ -147,6 +143,16 @@ pub struct Timings {
 }
 
 impl Timings {
+    /// Seconds spent collecting (acting, stepping the environments, storing the steps).
+    pub fn collect_s(&self) -> f64 {
+        self.act_s + self.simulate_s + self.store_s
+    }
+
+    /// Seconds spent normalising and updating.
+    pub fn update_s(&self) -> f64 {
+        self.normalise_s + self.minibatch_s + self.loss_s + self.backward_s + self.optimizer_s + self.parameters_back_s
+    }
+
     /// One line: the stages with their seconds.
     pub fn describe(&self) -> String {
         format!(
@@ -384,10 +390,8 @@ impl Trainer {
         for t in &mut self.teams {
             t.model.reseed(derive_seed(self.config.seed, "assign", t.index as u64, self.iteration));
         }
-        let t0 = Instant::now();
         let mut timings = Timings::default();
         let episodes = self.collect_timed(&mut timings)?;
-        let collect_s = t0.elapsed().as_secs_f64();
         let mut mark = Instant::now();
         for t in &mut self.teams {
             for rows in self.rollout.visited_obs() {
@@ -396,10 +400,9 @@ impl Trainer {
         }
         lap(&mut mark, &mut timings.normalise_s);
         let losses = self.update(&mut timings)?;
-        let update_s = t0.elapsed().as_secs_f64() - collect_s;
         self.iteration += 1;
         self.env_steps += self.config.steps_per_iteration();
-        Ok(IterationStats { episodes, losses, alpha, collect_s, update_s, timings })
+        Ok(IterationStats { episodes, losses, alpha, timings })
     }
 
     /// The current iteration's data (after [`Trainer::collect`]).

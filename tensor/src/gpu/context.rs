@@ -78,9 +78,9 @@ pub struct Gpu {
 /// freed to the pool may be reused at once as a later kernel's output; `queue.write_buffer`
 /// runs before the next submit's commands, so it must never write a pooled buffer that a
 /// recorded launch still reads: an upload is written into mapped staging memory (wgpu's
-/// `StagingBelt`: chunks allocated once and reused, where `queue.write_buffer` would
-/// allocate and pin fresh host memory for every large write) and copied into its buffer by
-/// a command recorded in order. Every launch's parameters go into this batch's own arena,
+/// `StagingBelt`: chunks allocated once and reused, where `queue.write_buffer` stages each
+/// write in a staging buffer of its own) and copied into its buffer by a command recorded
+/// in order. Every launch's parameters go into this batch's own arena,
 /// written just before the batch is submitted.
 struct Pending {
     encoder: Option<wgpu::CommandEncoder>,
@@ -220,15 +220,13 @@ impl Gpu {
     pub(crate) fn alloc_zeroed(&self, n: usize) -> wgpu::Buffer {
         let b = self.alloc(n);
         let mut pending = self.pending.lock().expect("gpu batch lock");
-        self.encoder(&mut pending).clear_buffer(&b, 0, None);
+        self.encoder(&mut pending.encoder).clear_buffer(&b, 0, None);
         b
     }
 
-    /// The batch's command encoder (a new one when none is open).
-    fn encoder<'p>(&self, pending: &'p mut Pending) -> &'p mut wgpu::CommandEncoder {
-        pending
-            .encoder
-            .get_or_insert_with(|| self.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None }))
+    /// The batch's command encoder in `slot` (a new one when none is open).
+    fn encoder<'p>(&self, slot: &'p mut Option<wgpu::CommandEncoder>) -> &'p mut wgpu::CommandEncoder {
+        slot.get_or_insert_with(|| self.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None }))
     }
 
     /// Submits the recorded launches (their parameters first).
@@ -274,8 +272,7 @@ impl Gpu {
             // Staged, and copied by a command recorded in the batch's order (Pending).
             let mut guard = self.pending.lock().expect("gpu batch lock");
             let pending = &mut *guard;
-            let encoder =
-                pending.encoder.get_or_insert_with(|| self.device.create_command_encoder(&Default::default()));
+            let encoder = self.encoder(&mut pending.encoder);
             pending.belt.write_buffer(encoder, &b, 0, size).copy_from_slice(bytemuck::cast_slice(words));
             pending.staged = true;
         }
@@ -301,7 +298,7 @@ impl Gpu {
         });
         {
             let mut pending = self.pending.lock().expect("gpu batch lock");
-            self.encoder(&mut pending).copy_buffer_to_buffer(b, 0, &staging, 0, bytes);
+            self.encoder(&mut pending.encoder).copy_buffer_to_buffer(b, 0, &staging, 0, bytes);
             self.flush_locked(&mut pending);
         }
         let slice = staging.slice(..);
@@ -385,7 +382,7 @@ impl Gpu {
         let x = groups.min(MAX_GROUPS_PER_DIM);
         let y = groups.div_ceil(x);
         {
-            let enc = self.encoder(&mut pending);
+            let enc = self.encoder(&mut pending.encoder);
             let mut pass = enc
                 .begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some(kernel.name), timestamp_writes: None });
             pass.set_pipeline(&pipeline);

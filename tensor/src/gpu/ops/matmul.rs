@@ -82,6 +82,12 @@ fn batch_offsets(offsets: &[(usize, usize)]) -> ([u32; 4], Option<DeviceBuffer>)
     ([0; 4], Some(DeviceBuffer::upload_u32(&list)))
 }
 
+/// A product kernel's buffers: its four inputs, then `dst`, the one it writes.
+fn with_output<'a>(inputs: [&'a wgpu::Buffer; 4], dst: &'a DeviceBuffer) -> [&'a wgpu::Buffer; 5] {
+    let [a, b, offsets, bias] = inputs;
+    [a, b, offsets, bias, dst.buffer()]
+}
+
 /// The kernel's code of an activation (`activation` in `matmul.wgsl`).
 fn activation_code(act: Activation) -> u32 {
     match act {
@@ -146,7 +152,9 @@ fn matmul_into_with(
     // Without a bias (or listed offsets) the kernel reads none: any buffer that is not the
     // output fills the slot.
     let offsets = listed.as_ref().unwrap_or(a);
-    let bias_buf = bias.unwrap_or(a);
+    let bias = bias.unwrap_or(a);
+    // The kernels' buffers: these inputs, then the one they write.
+    let inputs = [a.buffer(), b.buffer(), offsets.buffer(), bias.buffer()];
     // The parameters both kernels share (matmul_small.wgsl's whole list, the head of
     // matmul.wgsl's).
     let shared = [
@@ -165,32 +173,20 @@ fn matmul_into_with(
         regular[3],
         u32::from(listed.is_some()),
     ];
+    let total = batches * m * n;
     if small {
-        let buffers = [a.buffer(), b.buffer(), offsets.buffer(), bias_buf.buffer(), out.buffer()];
-        device().launch_1d(&MATMUL_SMALL, &shared, &buffers, batches * m * n);
+        device().launch_1d(&MATMUL_SMALL, &shared, &with_output(inputs, out), total);
         return;
     }
     let (slices, k_per_slice) = split_k(groups, k);
     let params = [&shared[..], &[u(tiles_n), u(per_batch), u(slices), u(k_per_slice)]].concat();
-    let bias = bias_buf;
     if slices == 1 {
-        device().launch(
-            &MATMUL,
-            &params,
-            &[a.buffer(), b.buffer(), offsets.buffer(), bias.buffer(), out.buffer()],
-            u(groups),
-        );
+        device().launch(&MATMUL, &params, &with_output(inputs, out), u(groups));
         return;
     }
     // Split k: the slices' partial sums, then their sum in order with the epilogue.
-    let total = batches * m * n;
     let parts = DeviceBuffer::uninit(slices * total);
-    device().launch(
-        &MATMUL,
-        &params,
-        &[a.buffer(), b.buffer(), offsets.buffer(), bias.buffer(), parts.buffer()],
-        u(groups * slices),
-    );
+    device().launch(&MATMUL, &params, &with_output(inputs, &parts), u(groups * slices));
     let params = [u(total), u(n), u(slices), u32::from(accumulate), u32::from(has_bias), activation_code(act)];
     device().launch_1d(&MATMUL_REDUCE, &params, &[parts.buffer(), bias.buffer(), out.buffer()], total);
 }
@@ -350,19 +346,22 @@ mod tests {
     #[test]
     fn accumulate_adds_to_the_output() {
         for (ta, tb) in [(false, false), (true, false), (false, true), (true, true)] {
-            let (m, k, n) = (37, 45, 70);
-            let (a, b) = (tensor(&stored(m, k, ta), 21), tensor(&stored(k, n, tb), 22));
-            let plan = MatMulPlan::new(a.shape(), b.shape(), ta, tb).unwrap();
-            let old = values(m * n, 23);
-            let mut want = old.clone();
-            cpu::matmul_into(&mut want, true, a.data(), ta, b.data(), tb, &plan);
-            let mag = cpu::matmul(&abs(&a), &abs(&b), ta, tb).unwrap();
-            let mag: Vec<f32> = mag.data().iter().zip(&old).map(|(s, o)| s + o.abs()).collect();
-            let out = DeviceBuffer::upload(&old);
-            let (ad, bd) = (DeviceBuffer::upload(a.data()), DeviceBuffer::upload(b.data()));
-            matmul_into(&out, true, &ad, ta, &bd, tb, &plan, None, Activation::Identity);
-            check(&format!("accumulate ta={ta} tb={tb}"), &out.download(), &want, &mag);
+            check_accumulate("accumulate", &tensor(&stored(37, 45, ta), 21), ta, &tensor(&stored(45, 70, tb), 22), tb);
         }
+    }
+
+    /// `op(a) @ op(b)` accumulated into old values on the GPU, against the CPU's.
+    fn check_accumulate(what: &str, a: &Tensor<f32>, ta: bool, b: &Tensor<f32>, tb: bool) {
+        let plan = MatMulPlan::new(a.shape(), b.shape(), ta, tb).unwrap();
+        let old = values(plan.m * plan.n, 23);
+        let mut want = old.clone();
+        cpu::matmul_into(&mut want, true, a.data(), ta, b.data(), tb, &plan);
+        let mag = cpu::matmul(&abs(a), &abs(b), ta, tb).unwrap();
+        let mag: Vec<f32> = mag.data().iter().zip(&old).map(|(s, o)| s + o.abs()).collect();
+        let out = DeviceBuffer::upload(&old);
+        let (ad, bd) = (DeviceBuffer::upload(a.data()), DeviceBuffer::upload(b.data()));
+        matmul_into(&out, true, &ad, ta, &bd, tb, &plan, None, Activation::Identity);
+        check(&format!("{what} ta={ta} tb={tb}"), &out.download(), &want, &mag);
     }
 
     /// k = 0: the product is zeros, so the output is the old values or the epilogue of 0.
@@ -386,23 +385,41 @@ mod tests {
     #[test]
     fn bias_and_activation_epilogues_match_the_cpu() {
         let (rows, k, n) = (70, 40, 67);
-        let (x, w) = (tensor(&[rows, k], 41), tensor(&[k, n], 42));
-        let bias = tensor(&[n], 43);
-        let mag = cpu::matmul(&abs(&x), &abs(&w), false, false).unwrap();
+        let (x, w, bias) = (tensor(&[rows, k], 41), tensor(&[k, n], 42), tensor(&[n], 43));
+        let (xd, wd, bd) =
+            (DeviceBuffer::upload(x.data()), DeviceBuffer::upload(w.data()), DeviceBuffer::upload(bias.data()));
+        for (act, got) in check_bias_and_activations("bias", &x, &w, &bias) {
+            let again = linear_sum(&[(&xd, k)], &[&wd], rows, n, Some(&bd), act).download();
+            assert_eq!(bits(&got), bits(&again), "{act:?}: linear_sum gives other bits than matmul_into");
+        }
+    }
+
+    /// `act(x @ w + bias)` on the GPU for each activation, against the CPU's `linear`; the
+    /// GPU's outputs, per activation.
+    fn check_bias_and_activations(
+        what: &str,
+        x: &Tensor<f32>,
+        w: &Tensor<f32>,
+        bias: &Tensor<f32>,
+    ) -> Vec<(Activation, Vec<f32>)> {
+        let (rows, n) = (x.shape()[0], w.shape()[1]);
+        let mag = cpu::matmul(&abs(x), &abs(w), false, false).unwrap();
         let mag: Vec<f32> =
             mag.data().chunks(n).flat_map(|r| r.iter().zip(bias.data()).map(|(s, c)| s + c.abs())).collect();
         let plan = MatMulPlan::new(x.shape(), w.shape(), false, false).unwrap();
         let (xd, wd, bd) =
             (DeviceBuffer::upload(x.data()), DeviceBuffer::upload(w.data()), DeviceBuffer::upload(bias.data()));
-        for act in [Activation::Identity, Activation::Relu, Activation::Tanh] {
-            let want = nnops::linear(&x, &w, Some(&bias), act).unwrap();
-            let out = DeviceBuffer::uninit(rows * n);
-            matmul_into(&out, false, &xd, false, &wd, false, &plan, Some(&bd), act);
-            let got = out.download();
-            check(&format!("bias + {act:?}"), &got, want.data(), &mag);
-            let again = linear_sum(&[(&xd, k)], &[&wd], rows, n, Some(&bd), act).download();
-            assert_eq!(bits(&got), bits(&again), "{act:?}: linear_sum gives other bits than matmul_into");
-        }
+        [Activation::Identity, Activation::Relu, Activation::Tanh]
+            .into_iter()
+            .map(|act| {
+                let want = nnops::linear(x, w, Some(bias), act).unwrap();
+                let out = DeviceBuffer::uninit(rows * n);
+                matmul_into(&out, false, &xd, false, &wd, false, &plan, Some(&bd), act);
+                let got = out.download();
+                check(&format!("{what} + {act:?}"), &got, want.data(), &mag);
+                (act, got)
+            })
+            .collect()
     }
 
     /// Sums of 2 and 3 products, with and without bias, against the CPU's `linear_sum`.
@@ -452,34 +469,12 @@ mod tests {
             assert!(split_k(m.div_ceil(TILE_M) * n.div_ceil(TILE_N), k).0 > 1);
             let (a, b) = (tensor(&stored(m, k, ta), 91), tensor(&stored(k, n, tb), 92));
             compare("split", &a, ta, &b, tb, true);
-            // Accumulating into the old values.
-            let plan = MatMulPlan::new(a.shape(), b.shape(), ta, tb).unwrap();
-            let old = values(m * n, 93);
-            let mut want = old.clone();
-            cpu::matmul_into(&mut want, true, a.data(), ta, b.data(), tb, &plan);
-            let mag = cpu::matmul(&abs(&a), &abs(&b), ta, tb).unwrap();
-            let mag: Vec<f32> = mag.data().iter().zip(&old).map(|(s, o)| s + o.abs()).collect();
-            let out = DeviceBuffer::upload(&old);
-            let (ad, bd) = (DeviceBuffer::upload(a.data()), DeviceBuffer::upload(b.data()));
-            matmul_into(&out, true, &ad, ta, &bd, tb, &plan, None, Activation::Identity);
-            check(&format!("split accumulate ta={ta} tb={tb}"), &out.download(), &want, &mag);
+            check_accumulate("split accumulate", &a, ta, &b, tb);
         }
         // Bias and activation after the slices' sum (one tile, two slices).
         let (rows, k, n) = (20, 600, 30);
-        let (x, w, bias) = (tensor(&[rows, k], 94), tensor(&[k, n], 95), tensor(&[n], 96));
         assert_eq!(split_k(1, k).0, 2);
-        let mag = cpu::matmul(&abs(&x), &abs(&w), false, false).unwrap();
-        let mag: Vec<f32> =
-            mag.data().chunks(n).flat_map(|r| r.iter().zip(bias.data()).map(|(s, c)| s + c.abs())).collect();
-        let plan = MatMulPlan::new(x.shape(), w.shape(), false, false).unwrap();
-        let (xd, wd, bd) =
-            (DeviceBuffer::upload(x.data()), DeviceBuffer::upload(w.data()), DeviceBuffer::upload(bias.data()));
-        for act in [Activation::Identity, Activation::Relu, Activation::Tanh] {
-            let want = nnops::linear(&x, &w, Some(&bias), act).unwrap();
-            let out = DeviceBuffer::uninit(rows * n);
-            matmul_into(&out, false, &xd, false, &wd, false, &plan, Some(&bd), act);
-            check(&format!("split bias + {act:?}"), &out.download(), want.data(), &mag);
-        }
+        check_bias_and_activations("split bias", &tensor(&[rows, k], 94), &tensor(&[k, n], 95), &tensor(&[n], 96));
     }
 
     /// The subequivariant layers' batched products of small matrices go to the one-thread-
