@@ -24,8 +24,8 @@ use crate::critic::critic_order;
 use crate::entity_graph::GraphBuilder;
 use crate::error::{ModelError, Result};
 use crate::input::{ENTITY_SCALARS, InputProcessor};
+use crate::interface::{AgentPolicy, PolicyOutput};
 use crate::kind::{Frame, ModelKind};
-use crate::policy::{AgentPolicy, PolicyOutput};
 use envs::layout::{N_SCALARS, ObsSpec};
 use envs::layout::{NODE_VECTOR_LEN, NODE_VECTORS, ObsBatch, ObsElement};
 

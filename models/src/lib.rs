@@ -3,7 +3,10 @@
 //! - they read the environment's observation layout (`envs::layout`: `ObsSpec`,
 //!   `Observation`, `ObsRows`);
 //! - which model and its options ([`kind`]: the eleven models of the paper, [`config`]);
-//! - the policy/critic interface [`Model`] ([`policy`]), built by its family's module:
+//! - the interface the trainer uses: a team's actor and critic [`Policy`], built by a
+//!   [`PolicyFactory`] ([`interface`]; bring your own model by implementing them);
+//! - the model zoo [`Model`] ([`zoo`]), the eleven models as one [`Policy`], built by its
+//!   family's module:
 //!   [`shnn`] (`shnn`, `shnn_og3`, `shnn_so3`, `shtransformer`, `shgnn`), [`hnn`] (`hnn`,
 //!   `hnn_hn`, `hnn_dn`), [`mlp`] (`mlp`, `mlp_hn`, `transformer_hn`);
 //! - their stages: input processing ([`input`]), the task assignment (Algorithm 1 and the
@@ -24,20 +27,22 @@ pub mod error;
 pub mod frame;
 pub mod hnn;
 pub mod input;
+pub mod interface;
 pub mod kind;
 pub mod mlp;
-pub mod policy;
 pub mod shnn;
 pub mod transformer_head;
+pub mod zoo;
 
 pub use assignment::{Assigner, AssignmentMethod, UNASSIGNED, distance_matrix};
 pub use body_gnn::{BodyGnn, BodyGnnConfig};
-pub use config::{CriticKind, GravityMode, MlpVariant, NeighbourOffset, OPTION_KEYS};
+pub use config::{CriticKind, GravityMode, MlpVariant, ModelConfig, MpSizes, NeighbourOffset, OPTION_KEYS};
 pub use critic::{SubeqCritic, ValueHead};
 pub use entity_graph::{EntityGraph, GraphBuilder, GraphTask, NO_AGENT};
 pub use entity_mp::{EntityFeatures, EntityMp, EntityMpConfig};
 pub use error::{ModelError, Result};
 pub use input::{AgentBody, EntityAbstraction, EntityInputs, InputProcessor, NeighbourRows, Translation};
+pub use interface::{AgentPolicy, Policy, PolicyFactory, PolicyOutput};
 pub use kind::ModelKind;
-pub use policy::{AgentPolicy, Model, ModelConfig, MpSizes, ParamCounts, PolicyOutput};
 pub use transformer_head::TransformerHead;
+pub use zoo::{Model, ParamCounts};

@@ -36,9 +36,10 @@ use crate::critic::critic_order;
 use crate::entity_graph::GraphBuilder;
 use crate::error::{ModelError, Result};
 use crate::input::{InputProcessor, Translation};
+use crate::interface::{AgentPolicy, PolicyOutput};
 use crate::kind::{Frame, Head, ModelKind};
-use crate::policy::{AgentPolicy, PolicyOutput, split_head};
 use crate::transformer_head::TransformerHead;
+use crate::zoo::split_head;
 use envs::layout::{N_SCALARS, NODE_VECTOR_LEN, NODE_VECTORS, ObsSpec};
 use envs::layout::{ObsBatch, ObsElement};
 

@@ -31,9 +31,10 @@ use crate::entity_mp::{EntityMp, EntityMpConfig};
 use crate::error::{ModelError, Result};
 use crate::frame::to_frame;
 use crate::input::{InputProcessor, Translation};
+use crate::interface::{AgentPolicy, PolicyOutput};
 use crate::kind::{Critic as KindCritic, Frame, Head, ModelKind};
-use crate::policy::{AgentPolicy, PolicyOutput, split_head};
 use crate::transformer_head::TransformerHead;
+use crate::zoo::split_head;
 use envs::layout::{N_SCALARS, ObsSpec};
 use envs::layout::{ObsBatch, ObsElement};
 

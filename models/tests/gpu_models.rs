@@ -45,7 +45,7 @@ fn loss<'t>(out: &PolicyOutput<'t, f32>) -> Var<'t, f32> {
 fn pass(model: &mut Model, store: &ParamStore<f32>, env: &VecEnv, device: Device) -> (Vec<f64>, Vec<Tensor<f32>>) {
     let tape = Tape::on(device);
     let p = store.bind(&tape);
-    let out = model.forward(&p, env.obs()).unwrap();
+    let out = model.forward_batch(&p, &env.obs().rows()).unwrap();
     let mut flat = Vec::new();
     for a in &out.agents {
         assert_eq!(a.loc.value().device(), device, "an output left the device");

@@ -226,7 +226,7 @@ fn forward_on_every_builtin_environment_for_every_model() {
                 assert_eq!(model.num_params(&store), store.num_elements());
                 let tape = Tape::new();
                 let p = store.bind(&tape);
-                let out = model.forward(&p, venv.obs()).unwrap();
+                let out = model.forward_batch(&p, &venv.obs().rows()).unwrap();
                 let own: Vec<usize> = (0..spec.n_agents).filter(|&a| spec.agent_team[a] == team).collect();
                 assert_eq!(model.agents(), own.as_slice());
                 assert_eq!(out.agents.len(), own.len(), "{name} on {env}");

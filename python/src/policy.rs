@@ -44,7 +44,7 @@ pub struct PyPolicy {
 /// The state `act` changes.
 struct Acting {
     /// Per team a copy of its model and its actor, in sampling mode; `act` sets the mode.
-    players: Vec<(models::Model, Actor)>,
+    players: Vec<(Box<dyn models::Policy>, Actor)>,
     /// The observation arrays read from Python (vectors, scalars, heading).
     obs: [Vec<f32>; 3],
 }
@@ -144,7 +144,7 @@ impl PyPolicy {
         pool::detach(py, || {
             for (team, (model, actor)) in teams.iter().zip(players.iter_mut()) {
                 actor.mode = mode;
-                actor.act(model, &team.store, &team.norm, raw, &mut joint)?;
+                actor.act(model.as_mut(), &team.store, &team.norm, raw, &mut joint)?;
             }
             Ok(())
         })?

@@ -92,7 +92,7 @@ fn minibatch_flops(t: &Trainer, c: &TrainConfig, reps: usize) -> Result<(u64, f6
         let p = team.store.bind(tape);
         let mut model = team.model.clone();
         let mut noise = rl::mappo::seeding::minibatch_stream(c.seed, "entropy", 0, 0, 0, 0);
-        let (loss, _) = ppo::loss(&mut model, &p, &mb, &hp, &mut noise)?;
+        let (loss, _) = ppo::loss(model.as_mut(), &p, &mb, &hp, &mut noise)?;
         std::hint::black_box(tape.backward(loss)?);
         // A GPU pass has only queued its kernels: wait for them.
         c.device.synchronize();

@@ -87,7 +87,7 @@ fn an_invariant_policy_plays_the_moved_scene_as_the_unmoved_one() {
     let mut actor = Actor::new(ActMode::Mean, Vec::new());
     let mut actions = |team: &mut Team, o: &Observation| {
         let mut joint = JointAction::new(2, na, 1);
-        actor.act(&mut team.model, &team.store, &team.norm, o.rows(), &mut joint).unwrap();
+        actor.act(team.model.as_mut(), &team.store, &team.norm, o.rows(), &mut joint).unwrap();
         joint.actions
     };
     // f32 observations and policy: the two scenes differ by round-off (about 1e-7 of a few

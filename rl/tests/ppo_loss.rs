@@ -34,7 +34,7 @@ fn loss_stats(t: &mut Trainer, mb: &Minibatch, config: &TrainConfig) -> rl::mapp
     let tape = Tape::<f32>::new();
     let p = team.store.bind(&tape);
     let mut noise = minibatch_stream(config.seed, "entropy", 0, 0, 0, 0);
-    ppo::loss(&mut team.model, &p, mb, &params(config), &mut noise).unwrap().1
+    ppo::loss(team.model.as_mut(), &p, mb, &params(config), &mut noise).unwrap().1
 }
 
 #[test]
@@ -98,14 +98,14 @@ fn loss_matches_a_hand_computation(kind: EntropyKind) {
     let tape = Tape::<f32>::new();
     let p = team.store.bind(&tape);
     let noise = minibatch_stream(config.seed, "entropy", 0, 3, 1, 2);
-    let (loss, st) = ppo::loss(&mut team.model.clone(), &p, &mb, &hp, &mut noise.clone()).unwrap();
+    let (loss, st) = ppo::loss(team.model.clone().as_mut(), &p, &mb, &hp, &mut noise.clone()).unwrap();
     // The noise the Tanh-Normal estimate draws: per agent a [T M, dof] block in row order.
     let mut draws = noise;
 
     // The same model outputs, then every term by hand in f64.
     let tape2 = Tape::<f32>::new();
     let p2 = team.store.bind(&tape2);
-    let out = team.model.forward_batch(&p2, &mb.obs.rows()).unwrap();
+    let out = team.model.forward(&p2, &mb.obs.rows(), None, true).unwrap();
     let n = mb.transitions();
     let values = out.team_value().unwrap().value().to_vec();
     let (adv, targets) = gae(&mb, &values, hp.discount, hp.gae_lambda);
@@ -181,7 +181,7 @@ fn the_entropy_estimate_is_reproducible_from_the_minibatch_stream() {
         let p = team.store.bind(&tape);
         let hp = PpoParams { entropy: kind, ..params(&config) };
         let mut noise = minibatch_stream(config.seed, "entropy", 0, 0, 0, minibatch);
-        let (loss, st) = ppo::loss(&mut team.model, &p, &mb, &hp, &mut noise).unwrap();
+        let (loss, st) = ppo::loss(team.model.as_mut(), &p, &mb, &hp, &mut noise).unwrap();
         (loss.value().item().unwrap().to_bits(), st.entropy.to_bits())
     };
     let a = run(EntropyKind::TanhNormal, 0);

@@ -37,7 +37,7 @@ fn run(env_name: &str, model: &str, batch: usize, steps: usize) -> (Vec<f64>, us
             // The value too is finite (acting skips it).
             let tape = Tape::new();
             let _no_grad = tape.no_grad();
-            let out = m.forward(&store.bind(&tape), env.obs()).unwrap();
+            let out = m.forward_batch(&store.bind(&tape), &env.obs().rows()).unwrap();
             assert!(out.team_value().unwrap().value().all_finite(), "{model}: value");
             actor.act(m, store, &identity, env.obs().rows(), &mut joint).unwrap();
             // u ~ Normal(loc, std), a = tanh(u); its log-probability is finite.
@@ -86,7 +86,7 @@ fn the_value_loss_reaches_every_parameter_of_an_shnn_critic() {
     let mut m = Model::new(&mut store.scope("team0", &mut init), &ModelConfig::new("shnn"), &spec, 0).unwrap();
     let tape = Tape::new();
     let p = store.bind(&tape);
-    let out = m.forward(&p, env.obs()).unwrap();
+    let out = m.forward_batch(&p, &env.obs().rows()).unwrap();
     let loss = out.team_value().unwrap().square().mean_all().unwrap();
     let grads = p.grads(&tape.backward(loss).unwrap());
     let mut reached = 0;

@@ -33,7 +33,7 @@ pub fn record_episode(
             return;
         }
         for (actor, t) in actors.iter_mut().zip(teams.iter_mut()) {
-            if let Err(e) = actor.act(&mut t.model, &t.store, &t.norm, obs.rows(), &mut joint) {
+            if let Err(e) = actor.act(t.model.as_mut(), &t.store, &t.norm, obs.rows(), &mut joint) {
                 *failure = Some(e);
                 actions.iter_mut().for_each(|a| *a = 0.0);
                 return;

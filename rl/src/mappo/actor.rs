@@ -1,5 +1,5 @@
 //! A team's act step, the one place where a policy chooses actions: normalise the raw
-//! observation rows -> the policy forward without gradients ([`Model::forward_policy_batch`],
+//! observation rows -> the policy forward without gradients ([`Policy::forward`] with `value = false`,
 //! the value network skipped) -> sample `u ~ Normal(loc, std)` (or take `u = loc`) ->
 //! the log-probability of `u`; the action sent to the environment is `tanh(u)`. Training
 //! (collection), evaluation, rendering, the Python policy and the closed-loop test all act
@@ -7,7 +7,7 @@
 //! MEBEN.md section 8) and its scratch.
 
 use envs::layout::{ObsRows, Observation};
-use models::Model;
+use models::Policy;
 use models::distribution::{normal_log_prob, std_from_scale};
 use nn::ParamStore;
 use rand_chacha::ChaCha8Rng;
@@ -66,7 +66,7 @@ impl JointAction {
 pub struct Actor {
     /// Sampled or mean actions.
     pub mode: ActMode,
-    /// Action noise, one stream per agent of the team (in [`Model::agents`] order).
+    /// Action noise, one stream per agent of the team (in [`Policy::agents`] order).
     pub noise: Vec<ChaCha8Rng>,
     /// The normalised observation rows of the last step.
     normalised: Observation,
@@ -85,7 +85,7 @@ impl Actor {
     /// output and on a joint action of another shape.
     pub fn act(
         &mut self,
-        model: &mut Model,
+        model: &mut dyn Policy,
         store: &ParamStore<f32>,
         norm: &ObsNormalizer,
         obs: ObsRows<'_, f32>,
@@ -106,7 +106,7 @@ impl Actor {
         let tape = Tape::<f32>::new();
         let _no_grad = tape.no_grad();
         let p = store.bind(&tape);
-        let out = model.forward_policy_batch(&p, &self.normalised.rows())?;
+        let out = model.forward(&p, &self.normalised.rows(), None, false)?;
         let spec = model.spec();
         let logp = &mut joint.logp[team];
         logp.clear();

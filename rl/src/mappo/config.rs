@@ -280,16 +280,23 @@ impl TrainConfig {
 
     /// Checks every value; errors name `source`, the field and the value.
     pub fn validate(&self, source: &str) -> Result<()> {
-        let err =
-            |field: &str, value: &dyn ToString, msg: &str| Err(RlError::config(source, field, value.to_string(), msg));
-        envs::tasks::TaskSpec::from_name(&self.env)
-            .map_err(|e| RlError::config(source, "env", &self.env, e.to_string()))?;
         for (field, spec) in [("model", &self.model), ("opponent", &self.opponent)] {
             if field == "opponent" && spec.is_empty() {
                 continue;
             }
             models::ModelConfig::parse(spec).map_err(|e| RlError::config(source, field, spec, e.to_string()))?;
         }
+        self.validate_except_models(source)
+    }
+
+    /// [`TrainConfig::validate`] but for `model` and `opponent` naming models of the zoo: a
+    /// run whose policies a `models::PolicyFactory` builds
+    /// ([`crate::mappo::trainer::Trainer::with_policies`]) names its own.
+    pub fn validate_except_models(&self, source: &str) -> Result<()> {
+        let err =
+            |field: &str, value: &dyn ToString, msg: &str| Err(RlError::config(source, field, value.to_string(), msg));
+        envs::tasks::TaskSpec::from_name(&self.env)
+            .map_err(|e| RlError::config(source, "env", &self.env, e.to_string()))?;
         if !self.opponent.is_empty() && !self.is_sumo() {
             return err("opponent", &self.opponent, "only Team Sumo has a second team");
         }

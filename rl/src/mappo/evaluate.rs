@@ -14,7 +14,7 @@ use envs::tasks::eval_modes::{SceneMotion, fixed_start};
 use envs::tasks::placement::sample_start;
 use envs::tasks::vec_env::env_rng;
 use envs::tasks::{Outcome, Scene, Start, StartMode, TaskSpec, VecEnv};
-use models::Model;
+use models::Policy;
 use serde::{Deserialize, Serialize};
 
 use crate::error::Result;
@@ -199,7 +199,7 @@ pub fn evaluate_unless_stopped(
             return Ok(None);
         }
         for (team, (model, actor)) in teams.iter().zip(&mut players) {
-            actor.act(model, &team.store, &team.norm, venv.obs().rows(), &mut joint)?;
+            actor.act(model.as_mut(), &team.store, &team.norm, venv.obs().rows(), &mut joint)?;
         }
         let out = venv.step(&joint.actions)?;
         for e in 0..b {
@@ -229,7 +229,7 @@ pub fn evaluate_unless_stopped(
 /// team's own random streams are untouched) with its stochastic assignment reseeded, and an
 /// actor with the evaluation's noise streams. The Python policy acts through the same, so
 /// that `meben.Policy.load(run, seed=s)` acts as `meben eval --seed s` does.
-pub fn evaluation_actors(teams: &[Team], seed: u64, mode: ActMode) -> Vec<(Model, Actor)> {
+pub fn evaluation_actors(teams: &[Team], seed: u64, mode: ActMode) -> Vec<(Box<dyn Policy>, Actor)> {
     teams
         .iter()
         .enumerate()

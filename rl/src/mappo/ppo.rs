@@ -29,7 +29,7 @@
 
 use envs::layout::ObsSpec;
 use models::distribution::{normal_entropy, normal_log_prob, std_from_scale, tanh_normal_entropy};
-use models::{AgentPolicy, Model};
+use models::{AgentPolicy, Policy};
 use nn::Bound;
 use rand_chacha::ChaCha8Rng;
 use tensor::{Tensor, Var};
@@ -147,7 +147,7 @@ loss_statistics! {
 /// `mb` (module docs, steps 1 to 5), and its statistics; the Tanh-Normal entropy estimate
 /// draws its samples from `entropy_noise`. The loss is on `p`'s tape, ready for backward.
 pub fn loss<'t>(
-    model: &mut Model,
+    model: &mut dyn Policy,
     p: &Bound<'t, f32>,
     mb: &Minibatch,
     hp: &PpoParams,
@@ -197,7 +197,7 @@ struct Forward<'t> {
 
 /// Step 1 (module docs): the transitions on the tape of `p`, with the task assignment they
 /// were acted on when the minibatch carries it; the bootstrap rows in a no-grad pass.
-fn forward<'t>(model: &mut Model, p: &Bound<'t, f32>, mb: &Minibatch) -> Result<Forward<'t>> {
+fn forward<'t>(model: &mut dyn Policy, p: &Bound<'t, f32>, mb: &Minibatch) -> Result<Forward<'t>> {
     let spec = model.spec();
     let (n, rows) = (mb.transitions(), mb.obs.batch);
     if rows <= n || mb.obs.nodes != spec.n_nodes || mb.obs.agents != spec.n_agents {
@@ -209,10 +209,10 @@ fn forward<'t>(model: &mut Model, p: &Bound<'t, f32>, mb: &Minibatch) -> Result<
         .into());
     }
     let assigned = if mb.assignment.is_empty() { None } else { Some(mb.assignment.as_slice()) };
-    let out = model.forward_batch_with(p, &mb.obs_rows(0..n), assigned)?;
+    let out = model.forward(p, &mb.obs_rows(0..n), assigned, true)?;
     let bootstrap = {
         let _no_grad = p.tape().no_grad();
-        model.forward_batch(p, &mb.obs_rows(n..rows))?.team_value()?.value().to_vec()
+        model.forward(p, &mb.obs_rows(n..rows), None, true)?.team_value()?.value().to_vec()
     };
     Ok(Forward { value: out.team_value()?, policy: out.agents, bootstrap })
 }

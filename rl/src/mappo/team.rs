@@ -1,10 +1,11 @@
-//! One team's learner: its model (policy and critic), parameters, optimiser, observation
+//! One team's learner: its policy and critic (a [`Policy`]: the model zoo's [`Model`], or one
+//! a [`PolicyFactory`] brings), parameters, optimiser, observation
 //! normaliser, its [`Actor`] (the act step with the team's action-noise streams: MEBEN.md
 //! section 8, every agent and team has its own) and its minibatch-shuffling stream.
 
 use envs::layout::{ObsRows, ObsSpec};
-use models::{Model, ModelConfig};
-use nn::{Adam, AdamConfig, LrSchedule, ParamStore};
+use models::{Model, ModelConfig, Policy, PolicyFactory};
+use nn::{Adam, AdamConfig, LrSchedule, ParamStore, Scope};
 use rand_chacha::ChaCha8Rng;
 
 use crate::error::{Result, RlError};
@@ -19,7 +20,7 @@ pub struct Team {
     /// Team index in the scene.
     pub index: usize,
     /// The policy and critic.
-    pub model: Model,
+    pub model: Box<dyn Policy>,
     /// Its parameters (names under `team<k>.`), on the host: what the act step reads and a
     /// checkpoint saves. With `device = "gpu"` the trainer's updates work on a copy on the
     /// GPU and refresh this one after each update phase ([`crate::mappo::trainer`]).
@@ -29,7 +30,7 @@ pub struct Team {
     /// Its observation normaliser.
     pub norm: ObsNormalizer,
     /// The act step of collection, with the team's action noise (one stream per agent, in
-    /// [`Model::agents`] order).
+    /// [`Policy::agents`] order).
     pub actor: Actor,
     /// Minibatch shuffling.
     pub shuffle: ChaCha8Rng,
@@ -37,19 +38,44 @@ pub struct Team {
 
 impl Team {
     /// Builds team `team`'s learner for scenes laid out by `spec`, initialised from the run
-    /// seed.
+    /// seed, with the model zoo's model that `config` names for the team
+    /// ([`TrainConfig::team_model`]).
     pub fn build(config: &TrainConfig, spec: &ObsSpec, team: usize) -> Result<Team> {
         let field = if team == 1 && !config.opponent.is_empty() { "opponent" } else { "model" };
         let spec_str = config.team_model(team);
-        let mut mc =
-            ModelConfig::parse(spec_str).map_err(|e| RlError::config("config", field, spec_str, e.to_string()))?;
+        let bad = |e: models::ModelError| RlError::config("config", field, spec_str, e.to_string());
+        let mut mc = ModelConfig::parse(spec_str).map_err(bad)?;
         if !spec_str.contains("seed=") {
             mc.seed = derive_seed(config.seed, "assign", team as u64, u64::MAX);
         }
+        Self::assemble(config, spec, team, |s| Ok(Box::new(Model::new(s, &mc, spec, team).map_err(bad)?)))
+    }
+
+    /// [`Team::build`] with the policy and critic that `factory` builds instead of the zoo's.
+    pub fn build_with(config: &TrainConfig, spec: &ObsSpec, team: usize, factory: &dyn PolicyFactory) -> Result<Team> {
+        Self::assemble(config, spec, team, |s| Ok(factory.build(s, spec, team)?))
+    }
+
+    /// The learner around the policy `build` makes in the team's scope: its parameters come
+    /// from the run's `init` stream of the team, the optimiser, normaliser and streams from
+    /// the configuration.
+    fn assemble(
+        config: &TrainConfig,
+        spec: &ObsSpec,
+        team: usize,
+        build: impl FnOnce(&mut Scope<'_, f32>) -> Result<Box<dyn Policy>>,
+    ) -> Result<Team> {
         let mut store = ParamStore::<f32>::new();
         let mut init = stream(config.seed, "init", team as u64, 0);
-        let model = Model::new(&mut store.scope(&format!("team{team}"), &mut init), &mc, spec, team)
-            .map_err(|e| RlError::config("config", field, spec_str, e.to_string()))?;
+        let model = build(&mut store.scope(&format!("team{team}"), &mut init))?;
+        if model.team() != team || model.spec().n_agents != spec.n_agents {
+            return Err(RlError::Model(models::ModelError::Input(format!(
+                "a policy built for team {team} of a scene of {} agents acts for team {} of {} agents",
+                spec.n_agents,
+                model.team(),
+                model.spec().n_agents
+            ))));
+        }
         let adam_config = AdamConfig { lr: lr_schedule(config), ..AdamConfig::default() };
         let adam = Adam::new(adam_config, &store);
         let norm = ObsNormalizer::new(config.obs_norm.resolve(), spec);
@@ -61,7 +87,7 @@ impl Team {
     /// The team's actions for raw observation rows `obs`, with its own model, parameters,
     /// normaliser and noise ([`Actor::act`]).
     pub fn act(&mut self, obs: ObsRows<'_, f32>, joint: &mut JointAction) -> Result<()> {
-        self.actor.act(&mut self.model, &self.store, &self.norm, obs, joint)
+        self.actor.act(self.model.as_mut(), &self.store, &self.norm, obs, joint)
     }
 }
 

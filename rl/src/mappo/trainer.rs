@@ -37,6 +37,7 @@ use std::time::Instant;
 
 use envs::layout::ObsSpec;
 use envs::tasks::{Outcome, StepOutput, TaskKind, TaskSpec, VecEnv};
+use models::PolicyFactory;
 use nn::ParamStore;
 use tensor::{Device, Tape};
 
@@ -206,16 +207,43 @@ pub struct Trainer {
 }
 
 impl Trainer {
-    /// A fresh run of `config`.
+    /// A fresh run of `config`, its teams played by the model zoo's models that `config`
+    /// names.
     pub fn new(config: &TrainConfig) -> Result<Trainer> {
         config.validate("config")?;
+        Self::build(config, None)
+    }
+
+    /// A fresh run of `config` whose teams' policies and critics `factory` builds (bring your
+    /// own model: `rl/examples/custom_policy.rs`). The run's `model` (and Team Sumo's
+    /// `opponent`) become the names of the policies built.
+    pub fn with_policies(config: &TrainConfig, factory: &dyn PolicyFactory) -> Result<Trainer> {
+        config.validate_except_models("config")?;
+        Self::build(config, Some(factory))
+    }
+
+    fn build(config: &TrainConfig, factory: Option<&dyn PolicyFactory>) -> Result<Trainer> {
         check_device(config.device)?;
         let spec = TaskSpec::from_name(&config.env)?;
         let env_seed = derive_seed(config.seed, "envs", 0, 0);
         let mut env = VecEnv::new(&spec, config.num_envs, env_seed, config.train_start_mode())?;
         env.reset();
         let obs_spec = env.scene().obs_spec.clone();
-        let mut teams = (0..obs_spec.n_teams).map(|k| Team::build(config, &obs_spec, k)).collect::<Result<Vec<_>>>()?;
+        let mut teams = (0..obs_spec.n_teams)
+            .map(|k| match factory {
+                None => Team::build(config, &obs_spec, k),
+                Some(f) => Team::build_with(config, &obs_spec, k, f),
+            })
+            .collect::<Result<Vec<_>>>()?;
+        let mut config = config.clone();
+        if factory.is_some() {
+            config.model = teams[0].model.name().to_string();
+            config.opponent = match teams.get(1) {
+                Some(t) if t.model.name() != config.model => t.model.name().to_string(),
+                _ => String::new(),
+            };
+        }
+        let config = &config;
         // `obs_norm_start`: empty statistics (the release), or those of the starts.
         if config.obs_norm_start == NormStart::FirstObservation {
             for t in &mut teams {
@@ -278,7 +306,33 @@ impl Trainer {
     /// `checkpoint_every` and `threads`, which may be changed to extend a run, and `device`:
     /// a run resumes on either device).
     pub fn from_checkpoint(c: &Checkpoint, config: &TrainConfig, path: &std::path::Path) -> Result<Trainer> {
+        config.validate("config")?;
+        Self::restore(c, config, path, None)
+    }
+
+    /// [`Trainer::from_checkpoint`] of a run started by [`Trainer::with_policies`]: `factory`
+    /// builds the same policies again (the checkpoint's parameters are loaded into them by
+    /// name).
+    pub fn from_checkpoint_with_policies(
+        c: &Checkpoint,
+        config: &TrainConfig,
+        path: &std::path::Path,
+        factory: &dyn PolicyFactory,
+    ) -> Result<Trainer> {
+        config.validate_except_models("config")?;
+        Self::restore(c, config, path, Some(factory))
+    }
+
+    fn restore(
+        c: &Checkpoint,
+        config: &TrainConfig,
+        path: &std::path::Path,
+        factory: Option<&dyn PolicyFactory>,
+    ) -> Result<Trainer> {
         let bad = |m: String| RlError::Checkpoint { path: path.to_path_buf(), message: m };
+        let mut t = Trainer::build(config, factory)?;
+        // The configuration as the run records it (a factory's policies name the models).
+        let config = &t.config.clone();
         let mut fixed = c.config.clone();
         fixed.steps = config.steps;
         fixed.num_evals = config.num_evals;
@@ -297,7 +351,6 @@ impl Trainer {
                 .collect();
             return Err(bad(format!("was written by another configuration: {}", diff.join("; "))));
         }
-        let mut t = Trainer::new(config)?;
         if c.teams.len() != t.teams.len() || c.episode_returns.len() != t.episode_returns.len() {
             return Err(bad(format!(
                 "{} teams and {} returns do not fit the scene",
@@ -465,7 +518,7 @@ impl Trainer {
                     let p = store.bind(&tape);
                     let mut noise =
                         minibatch_stream(c.seed, "entropy", at.team as u64, at.iteration, epoch as u64, k as u64);
-                    let (loss, stats) = ppo::loss(&mut team.model, &p, &self.mb, &hp, &mut noise)?;
+                    let (loss, stats) = ppo::loss(team.model.as_mut(), &p, &self.mb, &hp, &mut noise)?;
                     if !stats.loss.is_finite() {
                         return Err(RlError::NonFinite {
                             message: format!("loss {} of {}", stats.loss, at.describe(&stats)),

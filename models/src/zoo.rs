@@ -1,6 +1,6 @@
-//! The policy/critic interface the trainer uses (paper section 3 "Body-level Control",
-//! eqs. (pi) and (value); appendix "Baselines"): [`Model`], built for a [`ModelKind`] by its
-//! family's module.
+//! The model zoo: the eleven models of the paper (section 3 "Body-level Control", eqs. (pi)
+//! and (value); appendices "Baselines" and "Ablations") as one [`Policy`] implementation,
+//! [`Model`], built for a [`ModelKind`] by its family's module.
 //!
 //! A [`Model`] is built from a [`ModelConfig`] for one scene layout ([`ObsSpec`]) and one
 //! team: it creates its parameters in a [`Scope`] (so the trainer keeps every team's
@@ -41,56 +41,16 @@ use nn::{Bound, Mlp, ParamStore, Scope};
 use tensor::{Float, Var};
 
 use crate::assignment::AssignmentMethod;
-use crate::config::MlpVariant;
-pub use crate::config::{ModelConfig, MpSizes};
-use crate::distribution::std_from_scale;
+use crate::config::{MlpVariant, ModelConfig};
 use crate::entity_graph::GraphBuilder;
 use crate::entity_mp::EntityMp;
 use crate::error::{ModelError, Result};
 use crate::hnn::Hnn;
+use crate::interface::{AgentPolicy, Policy, PolicyOutput};
 use crate::kind::{Family, ModelKind};
 use crate::mlp::{FlatMlp, ReleaseMlp, no_assignment};
 use crate::shnn::Shnn;
-use envs::layout::{ObsBatch, ObsElement, ObsRows, ObsSpec, Observation};
-
-/// One agent's action-distribution parameters.
-#[derive(Clone, Copy, Debug)]
-pub struct AgentPolicy<'t, T: Float> {
-    /// The agent (scene agent index; its actions are at [`ObsSpec::agent_action_offset`]).
-    pub agent: usize,
-    /// Mean of the pre-squash Normal, `[B, dof_a]`.
-    pub loc: Var<'t, T>,
-    /// Raw scale, `[B, dof_a]`; the standard deviation is [`AgentPolicy::std`].
-    pub scale: Var<'t, T>,
-}
-
-impl<'t, T: Float> AgentPolicy<'t, T> {
-    /// `std = softplus(scale) + 0.001` (eq. (pi), [`crate::distribution::std_from_scale`]).
-    pub fn std(&self) -> Var<'t, T> {
-        std_from_scale(self.scale)
-    }
-}
-
-/// What a model returns for a batch.
-#[derive(Clone, Debug)]
-pub struct PolicyOutput<'t, T: Float> {
-    /// One entry per agent of the team, in scene order ([`Model::agents`]).
-    pub agents: Vec<AgentPolicy<'t, T>>,
-    /// The team's value `[B]` (eq. (value)); `None` from [`Model::forward_policy_batch`],
-    /// which skips the value network.
-    pub value: Option<Var<'t, T>>,
-    /// The task assignment the batch was processed with, `[B * Model::assignment_width]`
-    /// ([`crate::EntityGraph::assignment`]; empty for models without one).
-    pub assignment: Vec<u32>,
-}
-
-impl<'t, T: Float> PolicyOutput<'t, T> {
-    /// The team's value `[B]`; an error if this output was made without it
-    /// ([`Model::forward_policy_batch`]).
-    pub fn team_value(&self) -> Result<Var<'t, T>> {
-        self.value.ok_or_else(|| ModelError::Input("the value was not computed (forward_policy_batch skips it)".into()))
-    }
-}
+use envs::layout::{ObsBatch, ObsElement, ObsRows, ObsSpec};
 
 /// A model's parameter count by part (`meben info`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -232,11 +192,6 @@ impl Model {
         ParamCounts { policy: self.num_params(store) - critic, critic }
     }
 
-    /// Policy and value for a batch of environment observations.
-    pub fn forward<'t, T: Float>(&mut self, p: &Bound<'t, T>, obs: &Observation) -> Result<PolicyOutput<'t, T>> {
-        self.forward_batch(p, &obs.rows())
-    }
-
     /// Policy and value for borrowed observation rows (`f32` or `f64`).
     pub fn forward_batch<'t, T: Float, S: ObsElement>(
         &mut self,
@@ -308,6 +263,50 @@ impl Model {
                 m.forward(p, obs, heading, &self.agents, &self.spec, with_value)
             }
         }
+    }
+}
+
+impl Policy for Model {
+    fn name(&self) -> &str {
+        Model::name(self)
+    }
+
+    fn team(&self) -> usize {
+        self.team
+    }
+
+    fn agents(&self) -> &[usize] {
+        &self.agents
+    }
+
+    fn spec(&self) -> &ObsSpec {
+        &self.spec
+    }
+
+    fn forward<'t>(
+        &mut self,
+        p: &Bound<'t, f32>,
+        obs: &ObsRows<'_, f32>,
+        assignment: Option<&[u32]>,
+        value: bool,
+    ) -> Result<PolicyOutput<'t, f32>> {
+        self.forward_parts(p, obs, assignment, value)
+    }
+
+    fn assignment_width(&self) -> usize {
+        Model::assignment_width(self)
+    }
+
+    fn assignment_is_random(&self) -> bool {
+        Model::assignment_is_random(self)
+    }
+
+    fn reseed(&mut self, seed: u64) {
+        Model::reseed(self, seed)
+    }
+
+    fn clone_box(&self) -> Box<dyn Policy> {
+        Box::new(self.clone())
     }
 }
 

@@ -1,0 +1,134 @@
+//! The interface between a model and the library's MAPPO: a [`Policy`] (one team's actor and
+//! critic, paper section 3 "Body-level Control", eqs. (pi) and (value)) and the
+//! [`PolicyFactory`] that builds one per team.
+//!
+//! The trainer, the evaluator, the act step and Python's `meben.Policy` see a model only
+//! through [`Policy`]; the eleven models of the paper ([`crate::Model`], module
+//! [`crate::zoo`]) are one implementation of it. To try your own architecture on MeBen,
+//! implement [`Policy`] for it and [`PolicyFactory`] for its builder, and hand the factory to
+//! `rl::mappo::Trainer::with_policies` (`rl/examples/custom_policy.rs`, `docs/MODELS.md`).
+//!
+//! What a policy promises:
+//! - it maps a batch of **normalised** observation rows (`B` scenes, the layout of
+//!   [`ObsSpec`]) to, for each agent of its team in scene order, the Tanh-Normal parameters
+//!   `loc` and `scale` `[B, dof_a]` of the agent's actuated DoF (`std = softplus(scale) +
+//!   0.001`, [`crate::distribution::std_from_scale`]), and, when asked, the team's value
+//!   `V(s)` `[B]` ([`PolicyOutput`]);
+//! - its parameters live in the [`ParamStore`](nn::ParamStore) it was built in, under the
+//!   [`Scope`] the factory was given (the trainer's optimiser, clipping and checkpoints work
+//!   on that store by name); parameters whose names start with `critic.` under the scope are
+//!   the value network, everything else the policy;
+//! - the policy part does not read the value network: [`Policy::forward`] with `value =
+//!   false` gives the same policy, to the bit, as with `value = true`.
+
+use nn::{Bound, Scope};
+use tensor::{Float, Var};
+
+use crate::distribution::std_from_scale;
+use crate::error::{ModelError, Result};
+use envs::layout::{ObsRows, ObsSpec};
+
+/// One agent's action-distribution parameters.
+#[derive(Clone, Copy, Debug)]
+pub struct AgentPolicy<'t, T: Float> {
+    /// The agent (scene agent index; its actions are at [`ObsSpec::agent_action_offset`]).
+    pub agent: usize,
+    /// Mean of the pre-squash Normal, `[B, dof_a]`.
+    pub loc: Var<'t, T>,
+    /// Raw scale, `[B, dof_a]`; the standard deviation is [`AgentPolicy::std`].
+    pub scale: Var<'t, T>,
+}
+
+impl<'t, T: Float> AgentPolicy<'t, T> {
+    /// `std = softplus(scale) + 0.001` (eq. (pi), [`crate::distribution::std_from_scale`]).
+    pub fn std(&self) -> Var<'t, T> {
+        std_from_scale(self.scale)
+    }
+}
+
+/// What a policy returns for a batch.
+#[derive(Clone, Debug)]
+pub struct PolicyOutput<'t, T: Float> {
+    /// One entry per agent of the team, in scene order ([`Policy::agents`]).
+    pub agents: Vec<AgentPolicy<'t, T>>,
+    /// The team's value `[B]` (eq. (value)); `None` when the forward pass was asked for the
+    /// policy only.
+    pub value: Option<Var<'t, T>>,
+    /// The task assignment the batch was processed with, `[B * Policy::assignment_width]`
+    /// ([`crate::EntityGraph::assignment`]; empty for models without one).
+    pub assignment: Vec<u32>,
+}
+
+impl<'t, T: Float> PolicyOutput<'t, T> {
+    /// The team's value `[B]`; an error if this output was made without it.
+    pub fn team_value(&self) -> Result<Var<'t, T>> {
+        self.value.ok_or_else(|| ModelError::Input("the value was not computed (a policy-only forward pass)".into()))
+    }
+}
+
+/// One team's actor and critic, as the library's MAPPO uses it (module docs).
+///
+/// Learning is in `f32` (the models' generic `f64` forms, [`crate::Model::forward_batch`],
+/// serve the gradient checks).
+pub trait Policy: std::fmt::Debug + Send + Sync {
+    /// The model's name (a run trained with a custom factory records it as its `model`).
+    fn name(&self) -> &str;
+
+    /// The team the policy acts for.
+    fn team(&self) -> usize;
+
+    /// The team's agents (scene agent indices), in the order of [`PolicyOutput::agents`].
+    fn agents(&self) -> &[usize];
+
+    /// The observation layout the policy was built for.
+    fn spec(&self) -> &ObsSpec;
+
+    /// Policy and, if `value`, the team's value for normalised observation rows `obs` (whole
+    /// scenes, team 0's view: a team-1 policy of Team Sumo reads the entity types from its
+    /// own side itself, [`ObsSpec::to_team_view`]), on the tape of `p`. `assignment`, when
+    /// given, is the task assignment of every scene (`[B * assignment_width]`, as an earlier
+    /// [`PolicyOutput::assignment`] returned it) to use instead of solving or drawing one.
+    fn forward<'t>(
+        &mut self,
+        p: &Bound<'t, f32>,
+        obs: &ObsRows<'_, f32>,
+        assignment: Option<&[u32]>,
+        value: bool,
+    ) -> Result<PolicyOutput<'t, f32>>;
+
+    /// Entries per scene of [`PolicyOutput::assignment`] (0, the default, for policies
+    /// without a task assignment).
+    fn assignment_width(&self) -> usize {
+        0
+    }
+
+    /// Whether the policy draws its task assignment at random, so that an update must be
+    /// given the assignment the behaviour policy used to see the same graph (default: no).
+    fn assignment_is_random(&self) -> bool {
+        false
+    }
+
+    /// Restarts the policy's own random stream, if it has one, from `seed` (default: no
+    /// stream, nothing to do). The trainer reseeds every iteration so that resumed runs are
+    /// exact.
+    fn reseed(&mut self, seed: u64) {
+        let _ = seed;
+    }
+
+    /// A boxed copy (the evaluator acts with copies).
+    fn clone_box(&self) -> Box<dyn Policy>;
+}
+
+impl Clone for Box<dyn Policy> {
+    fn clone(&self) -> Self {
+        self.clone_box()
+    }
+}
+
+/// Builds one [`Policy`] per team (module docs).
+pub trait PolicyFactory: Sync {
+    /// Builds team `team`'s policy and critic for scenes laid out by `spec`, its parameters
+    /// created in `scope` (names under the scope's prefix; `scope.rng()` is the run's
+    /// initialisation stream of the team).
+    fn build(&self, scope: &mut Scope<'_, f32>, spec: &ObsSpec, team: usize) -> Result<Box<dyn Policy>>;
+}
