@@ -49,10 +49,11 @@ export MEBEN_REQUIRE_TEST_DEPS=1
 cargo test --workspace --release
 # The GPU device (feature `gpu`): every op, every model and short trainings on the GPU
 # against the CPU (docs/TENSOR.md). The tests fail when no adapter is found.
+# (Each crate's integration tests are one binary, `integration`; its GPU modules are named gpu_*.)
 cargo test --release -p tensor --features gpu
-cargo test --release -p models --features gpu --test gpu_models
-cargo test --release -p nn --features gpu --test gpu_optim
-cargo test --release -p rl --features gpu --test gpu_training
+cargo test --release -p models --features gpu --test integration gpu_models::
+cargo test --release -p nn --features gpu --test integration gpu_optim::
+cargo test --release -p rl --features gpu --test integration gpu_training::
 # The Rust programs the Python tests compare with (already built by cargo test; cheap).
 cargo build --release -p rl --bin meben -p envs --example replay_actions
 python -m pip install --quiet --disable-pip-version-check --no-build-isolation --no-deps --force-reinstall ./python

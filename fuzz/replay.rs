@@ -1,4 +1,4 @@
-//! The corpus replay shared by `envs/tests/fuzz_corpus.rs` and `rl/tests/fuzz_corpus.rs`
+//! The corpus replay shared by `envs/tests/integration/fuzz_corpus.rs` and `rl/tests/integration/fuzz_corpus.rs`
 //! (included by path: the two test crates live in different packages).
 
 use std::path::PathBuf;

@@ -34,7 +34,7 @@ def test_an_mjcf_morphology_makes_resets_and_steps():
 
 def test_the_mjcf_ant_has_the_brax_ants_spec_and_first_observation():
     # The same composition with the Brax ant: the same layout, and from the same seed the
-    # same first observation up to f32 rounding (envs/tests/tasks_mjcf.rs holds the models
+    # same first observation up to f32 rounding (envs/tests/integration/tasks_mjcf.rs holds the models
     # equal to 1e-12 and the trajectories equal until an MJCF knee cap touches the ground).
     name = "team_sumo:team1=claw+{};team2={}+ant;R=3"
     brax = meben.make(name.format("ant", "ant"), num_envs=8, seed=3)

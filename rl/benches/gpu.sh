@@ -64,9 +64,9 @@ limit() { local left=$((DEADLINE - SECONDS)); [ "$left" -lt "$1" ] && echo $((le
 
 correct() {
     echo "== correctness: every op and every model on the GPU against the CPU"
-    timeout 120 $C/gpu_ops --test-threads 1 2>&1 | grep -E '^test result|FAILED|panicked|adapter' | head -20
+    timeout 120 $C/gpu_ops gpu_ops:: --test-threads 1 2>&1 | grep -E '^test result|FAILED|panicked|adapter' | head -20
     timeout 120 $C/gpu_unit gpu:: 2>&1 | grep -E '^test result|FAILED|panicked|adapter' | head -20
-    timeout 120 $C/gpu_models 2>&1 | grep -E '^test result|FAILED|panicked|adapter' | head -20
+    timeout 120 $C/gpu_models gpu_models:: 2>&1 | grep -E '^test result|FAILED|panicked|adapter' | head -20
 }
 
 matmul() {

@@ -17,19 +17,23 @@ cargo build --release -p rl --features gpu --bin meben
 cargo bench --no-run -p tensor --features gpu --bench matmul_rate
 cargo bench --no-run -p envs --bench tasks
 cargo bench --no-run -p rl --features gpu --bench train_throughput
-cargo test --no-run --release -p tensor --features gpu --test gpu_ops
-cargo test --no-run --release -p tensor --features gpu --lib
-cargo test --no-run --release -p models --features gpu --test gpu_models
 mkdir -p gpu-carry
-cp "$TARGET/release/meben" gpu-carry/meben
 newest() { ls -t "$TARGET"/release/deps/"$1"-* | grep -v '\.d$' | head -1; }
+# Each crate's integration tests are one binary, `integration` (gpu.sh runs its gpu_*
+# modules); the two crates' share the name, so each is found by what cargo reports.
+test_exe() {
+    cargo test --no-run --release "$@" --message-format=json \
+        | grep -o '"executable":"[^"]*"' | tail -1 | cut -d'"' -f4
+}
+cp "$(test_exe -p tensor --features gpu --test integration)" gpu-carry/gpu_ops
+cargo test --no-run --release -p tensor --features gpu --lib
+cp "$(test_exe -p models --features gpu --test integration)" gpu-carry/gpu_models
+cp "$TARGET/release/meben" gpu-carry/meben
 cp "$(newest matmul_rate)" gpu-carry/matmul_rate
 cp "$(newest tasks)" gpu-carry/tasks
 cp "$(newest train_throughput)" gpu-carry/train_throughput
-cp "$(newest gpu_ops)" gpu-carry/gpu_ops
 # The library's unit tests (gpu.sh runs those of the device's kernels: `gpu::`).
 cp "$(newest tensor)" gpu-carry/gpu_unit
-cp "$(newest gpu_models)" gpu-carry/gpu_models
 BINS="meben matmul_rate tasks train_throughput gpu_ops gpu_unit gpu_models"
 # Stripped and compressed (about 3x), so they and the tree stay well inside the 64 MiB a
 # call carries; gpu.sh unpacks them.

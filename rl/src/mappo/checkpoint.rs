@@ -73,7 +73,7 @@ const NAME_DIGITS: usize = 16;
 /// (as kill -9 would: no clean-up, no destructors) at `<point>` of its `n`-th checkpoint
 /// save, where `<point>` is `checkpoint_after_tensors` (the new tensors file is in place, the
 /// JSON still names the old one) or `checkpoint_after_json` (the JSON names the new file,
-/// the old tensors file is not yet removed). Used by `rl/tests/checkpoint_format.rs`.
+/// the old tensors file is not yet removed). Used by `rl/tests/integration/checkpoint_format.rs`.
 pub const CRASH_ENV: &str = "MEBEN_TEST_CRASH";
 
 /// Checkpoint saves begun in this process (for [`CRASH_ENV`]).

@@ -35,7 +35,7 @@
 //! `g' = (Q, t / sigma_p)`, the same rotation and a scaled translation. A model `f` invariant
 //! under every rotation about the vertical and horizontal translation (its origin
 //! subtraction removes `t / sigma_p`) therefore gives `f(N(g x)) = f(g' N(x)) = f(N(x))`: the
-//! normaliser and the model together are invariant (`rl/tests/invariance.rs`). The statistics
+//! normaliser and the model together are invariant (`rl/tests/integration/invariance.rs`). The statistics
 //! themselves do not depend on where the scene is: `|(Q p_n + t) - (Q c + t)| = |p_n - c|` and
 //! `|Q x| = |x|`, so a rotated or translated copy of the training data gives the same
 //! normaliser. Positions are not clipped because clipping does not commute with translations,

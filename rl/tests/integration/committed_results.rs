@@ -1,0 +1,89 @@
+//! The committed reproduction evidence (`results/<experiment>/`, issue 15) regenerates its
+//! committed reports: `meben report results/<experiment>`, run on a copy of each
+//! experiment's run files alone (`config.toml`, `metrics.csv`, `done.json`, `curve.svg`;
+//! the committed `report.md`, `report.csv` and `curves/` left out of the copy), writes
+//! `report.md`, `report.csv` and every `curves/*.svg` byte for byte as committed. It fails
+//! when a report was edited by hand, when the evidence changed without its report being
+//! redrawn, or when `meben report` changed what it draws without the reports being redrawn.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use crate::common;
+
+use common::TempDir;
+
+/// The files `meben report` writes into an experiment's directory.
+fn is_report_output(rel: &Path) -> bool {
+    rel == Path::new("report.md") || rel == Path::new("report.csv") || rel.starts_with("curves")
+}
+
+/// Every file under `dir`, as paths relative to it, sorted.
+fn files_under(dir: &Path) -> Vec<PathBuf> {
+    let mut out = Vec::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for entry in std::fs::read_dir(&d).unwrap() {
+            let path = entry.unwrap().path();
+            if path.is_dir() {
+                stack.push(path);
+            } else {
+                out.push(path.strip_prefix(dir).unwrap().to_path_buf());
+            }
+        }
+    }
+    out.sort();
+    out
+}
+
+#[test]
+fn every_committed_report_regenerates_from_the_committed_run_files() {
+    let results = Path::new(env!("CARGO_MANIFEST_DIR")).join("../results");
+    let mut experiments: Vec<PathBuf> = std::fs::read_dir(&results)
+        .expect("results/ holds the committed reproduction evidence")
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.is_dir())
+        .collect();
+    experiments.sort();
+    assert!(!experiments.is_empty(), "no experiment under {}", results.display());
+
+    let scratch = TempDir::new("committed-results");
+    for exp in &experiments {
+        let name = exp.file_name().unwrap().to_str().unwrap();
+        let files = files_under(exp);
+        let outputs: Vec<&PathBuf> = files.iter().filter(|f| is_report_output(f)).collect();
+        assert!(
+            outputs.iter().any(|f| f.as_path() == Path::new("report.md")),
+            "results/{name} has no committed report.md"
+        );
+
+        // The run files alone, at the same relative path (the report names the directory it
+        // was given, so it is given `results/<experiment>` from the copy's parent).
+        let copy = scratch.0.join("results").join(name);
+        for rel in files.iter().filter(|f| !is_report_output(f)) {
+            let to = copy.join(rel);
+            std::fs::create_dir_all(to.parent().unwrap()).unwrap();
+            std::fs::copy(exp.join(rel), &to).unwrap();
+        }
+        let out = Command::new(env!("CARGO_BIN_EXE_meben"))
+            .current_dir(&scratch.0)
+            .args(["report", &format!("results/{name}")])
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "meben report results/{name} failed: {}", String::from_utf8_lossy(&out.stderr));
+
+        let regenerated: Vec<PathBuf> = files_under(&copy).into_iter().filter(|f| is_report_output(f)).collect();
+        let committed: Vec<PathBuf> = outputs.into_iter().cloned().collect();
+        assert_eq!(regenerated, committed, "results/{name}: the report files written differ from those committed");
+        for rel in &committed {
+            let want = std::fs::read(exp.join(rel)).unwrap();
+            let got = std::fs::read(copy.join(rel)).unwrap();
+            assert!(
+                want == got,
+                "results/{name}/{}: regenerated from the run files, it differs from the committed file \
+                 (redraw with `meben report results/{name}` from the repository root)",
+                rel.display()
+            );
+        }
+    }
+}

@@ -1,0 +1,74 @@
+//! The `device` field of a training configuration, in any build: its validation, its place
+//! in `config.toml` (absent when `cpu`, so existing files read and compare as before), and
+//! that it is not part of a run's identity (a checkpoint written on one device resumes on
+//! the other).
+
+use crate::common;
+
+use std::path::Path;
+
+use rl::{Preset, TrainConfig, Trainer};
+use tensor::Device;
+
+#[test]
+fn an_unknown_device_is_an_error_naming_the_field_and_the_value() {
+    let ov = [("device".to_string(), "tpu".to_string())];
+    let e = TrainConfig::resolve(Some(Preset::Quick), None, &ov).unwrap_err().to_string();
+    for w in ["command line", "`device`", "tpu", "\"cpu\" or \"gpu\""] {
+        assert!(e.contains(w), "{e} (missing {w})");
+    }
+    let tmp = common::TempDir::new("device-config");
+    let path = tmp.0.join("config.toml");
+    let text = TrainConfig::preset(Preset::Quick, "team_reach/1_ant").to_toml();
+    std::fs::write(&path, format!("{text}device = \"tpu\"\n")).unwrap();
+    let e = TrainConfig::load(&path).unwrap_err().to_string();
+    for w in ["config.toml", "device", "tpu", "\"cpu\" or \"gpu\""] {
+        assert!(e.contains(w), "{e} (missing {w})");
+    }
+}
+
+#[test]
+fn the_device_is_written_only_when_it_is_the_gpu_and_read_in_any_build() {
+    let cpu = TrainConfig::preset(Preset::Quick, "team_reach/1_ant");
+    assert_eq!(cpu.device, Device::Cpu);
+    assert!(!cpu.to_toml().contains("device"), "config.toml of CPU runs is unchanged");
+    assert_eq!(cpu.to_full_table()["device"].as_str(), Some("cpu"), "a field a file or --set may name");
+    let gpu = TrainConfig { device: Device::Gpu, ..cpu.clone() };
+    assert!(gpu.to_toml().contains("device = \"gpu\""));
+    // A GPU run's configuration reads in a build without the GPU (eval, report, render).
+    let tmp = common::TempDir::new("device-load");
+    let path = tmp.0.join("config.toml");
+    gpu.save(&path).unwrap();
+    assert_eq!(TrainConfig::load(&path).unwrap(), gpu);
+    cpu.save(&path).unwrap();
+    assert_eq!(TrainConfig::load(&path).unwrap(), cpu);
+    let set = [("device".to_string(), "gpu".to_string())];
+    assert_eq!(TrainConfig::resolve(Some(Preset::Quick), None, &set).unwrap(), gpu);
+}
+
+/// A checkpoint whose configuration says `gpu` resumes on the CPU (the device is not part
+/// of the run's identity, as `threads` is not).
+#[test]
+fn a_checkpoint_of_the_other_device_resumes() {
+    let config = common::tiny("team_reach/1_ant", "mlp_hn", 2, &[("num_evals", "0")]);
+    let mut t = Trainer::new(&config).unwrap();
+    t.iterate().unwrap();
+    let mut state = t.checkpoint(0.0, &[]).unwrap();
+    state.config.device = Device::Gpu;
+    let mut resumed = Trainer::from_checkpoint(&state, &config, Path::new("checkpoint.json")).unwrap();
+    assert_eq!(resumed.config.device, Device::Cpu);
+    assert_eq!(resumed.iterate().unwrap().losses, t.iterate().unwrap().losses);
+    // Another learning rate is still refused.
+    let other = TrainConfig { learning_rate: 1e-3, ..config };
+    let e = Trainer::from_checkpoint(&state, &other, Path::new("checkpoint.json")).err().unwrap().to_string();
+    assert!(e.contains("learning_rate") && !e.contains("device"), "{e}");
+}
+
+/// Without the feature `gpu`, asking for the GPU says how to get it.
+#[cfg(not(feature = "gpu"))]
+#[test]
+fn a_build_without_the_gpu_says_to_rebuild() {
+    let config = TrainConfig { device: Device::Gpu, ..common::tiny("team_reach/1_ant", "mlp_hn", 1, &[]) };
+    let e = Trainer::new(&config).err().unwrap().to_string();
+    assert!(e.contains("device") && e.contains("rebuild with --features gpu"), "{e}");
+}

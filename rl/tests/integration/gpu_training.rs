@@ -1,0 +1,138 @@
+//! Training on the GPU (feature `gpu`; CI runs these on Mesa's lavapipe, a Vulkan device on
+//! the CPU where a kernel launch costs far more than on a GPU, hence the tiny sizes: 4
+//! environments, 2 minibatches of 4 unrolls of 5 steps, one epoch).
+//!
+//! **Tolerance of GPU against CPU metrics.** The act step runs on the CPU, so from the same
+//! state both devices collect the same rollout (checked exactly); they differ only in the
+//! update's arithmetic: the GPU's kernels round in f32 in another order (sums, matrix
+//! products; the `tensor` crate's GPU tests allow 1e-4 relative per op) and Adam keeps its
+//! moments in f32 there. Each metric is a mean over the iteration's 40 transitions of
+//! functions of those values: measured on lavapipe, they differ by at most 6e-6 relative or
+//! 7e-7 absolute (shnn and mlp_hn, three iterations each). The tests allow
+//! `1e-4 |cpu| + 1e-5`, over ten times that, and for the clip fraction one transition more
+//! or less clipped per minibatch (`1/20`): a ratio exactly at the clip boundary may fall on
+//! either side. Parameters after an iteration may differ by at most `2 lr` per update: an
+//! Adam step moves a parameter by about `lr`, and where a gradient is only rounding noise
+//! the two devices may step in opposite directions (measured: at most 3e-5, a tenth of
+//! `lr = 3e-4`).
+#![cfg(feature = "gpu")]
+
+use crate::common;
+
+use std::path::Path;
+
+use common::{TempDir, metrics};
+use rl::mappo::checkpoint::Checkpoint;
+use rl::{RunDir, TrainConfig, TrainOptions, Trainer, train};
+use tensor::Device;
+
+/// Minibatch updates per iteration of [`tiny`].
+const UPDATES: usize = 2;
+
+/// Three iterations (120 env steps) of 4 environments: [`UPDATES`] minibatches of 4
+/// unrolls of 5 steps, one epoch, no evaluation, a checkpoint every iteration.
+fn tiny(model: &str, device: Device) -> TrainConfig {
+    let mut c = common::tiny(
+        "team_reach/1_ant",
+        model,
+        3,
+        &[("num_envs", "4"), ("num_minibatches", "2"), ("epochs", "1"), ("num_evals", "0"), ("steps", "120")],
+    );
+    c.device = device;
+    c
+}
+
+/// Whether a GPU metric is within the tolerance of the CPU's (module docs).
+fn close(name: &str, gpu: f64, cpu: f64) -> bool {
+    let atol = if name.starts_with("clip_fraction") { 1.0 / 20.0 + 1e-9 } else { 1e-5 };
+    (gpu - cpu).abs() <= atol + 1e-4 * cpu.abs()
+}
+
+/// Three iterations of each model on the CPU; before each, the CPU's state goes to a GPU
+/// trainer that does the same iteration: the same rollout, the update's metrics and the
+/// parameters within the tolerance (module docs).
+#[test]
+fn gpu_iterations_follow_the_cpu_from_the_same_state() {
+    for model in ["shnn", "mlp_hn"] {
+        let mut cpu = Trainer::new(&tiny(model, Device::Cpu)).unwrap();
+        let lr = cpu.config.learning_rate;
+        for i in 0..3 {
+            let state = cpu.checkpoint(0.0, &[]).unwrap();
+            let mut gpu = Trainer::from_checkpoint(&state, &tiny(model, Device::Gpu), Path::new("memory")).unwrap();
+            let g = gpu.iterate().unwrap();
+            let c = cpu.iterate().unwrap();
+            assert_eq!(g.episodes, c.episodes, "{model}, iteration {i}: the act step runs on the CPU");
+            for ((name, a), (_, b)) in g.losses[0].named().iter().zip(c.losses[0].named()) {
+                assert!(close(name, *a, b), "{model}, iteration {i}: {name} {a} on the GPU, {b} on the CPU");
+            }
+            let (pg, pc) = (gpu.teams[0].store.values(), cpu.teams[0].store.values());
+            for (a, b) in pg.iter().zip(pc) {
+                assert_eq!(a.device(), Device::Cpu, "the act step's copy is on the host");
+                assert!(a.all_close(b, 0.0, 2.0 * lr * UPDATES as f64), "{model}, iteration {i}");
+            }
+        }
+    }
+}
+
+/// The same seed twice on the GPU, one run stopped after two iterations and resumed there:
+/// identical metrics rows (wall-time columns aside). The checkpoint of the stopped run,
+/// resumed on the CPU, finishes the run there (not bit-identical: the third iteration's
+/// update rounds on the CPU; within the tolerance).
+#[test]
+fn the_same_seed_gives_the_same_bits_on_the_gpu_and_a_gpu_checkpoint_resumes_on_the_cpu() {
+    let tmp = TempDir::new("gpu-repro");
+    let gpu = tiny("mlp_hn", Device::Gpu);
+    let (a, b) = (RunDir::new(tmp.0.join("a")), RunDir::new(tmp.0.join("b")));
+    train(&gpu, &a, &TrainOptions { stop_after: Some(2), ..Default::default() }).unwrap();
+    let on_cpu = RunDir::new(tmp.0.join("on_cpu"));
+    std::fs::create_dir_all(on_cpu.root()).unwrap();
+    // The checkpoint is a pair (checkpoint.json and the tensors file it names).
+    for entry in std::fs::read_dir(a.root()).unwrap() {
+        let name = entry.unwrap().file_name().to_string_lossy().into_owned();
+        if name.starts_with("checkpoint.") || name == "metrics.csv" || name == "config.toml" {
+            std::fs::copy(a.root().join(&name), on_cpu.root().join(&name)).unwrap();
+        }
+    }
+    // The GPU's checkpoint: the device in its configuration, the moments brought back.
+    let saved = Checkpoint::load(&a.checkpoint()).unwrap();
+    assert_eq!((saved.iteration, saved.config.device), (2, Device::Gpu));
+    let moments = serde_json::to_value(&saved.teams[0].adam).unwrap();
+    let m = moments["m"].as_array().unwrap();
+    assert!(m.iter().flat_map(|b| b.as_array().unwrap()).any(|x| x.as_f64().unwrap() != 0.0));
+    assert!(std::fs::read_to_string(a.config()).unwrap().contains("device = \"gpu\""));
+
+    train(&gpu, &a, &TrainOptions::default()).unwrap();
+    train(&gpu, &b, &TrainOptions::default()).unwrap();
+    let (ma, mb) = (metrics(&a), metrics(&b));
+    assert_eq!(ma.len(), 3);
+    assert_eq!(ma, mb, "the same seed on the GPU, stopped and resumed or not");
+
+    let cpu = TrainConfig { device: Device::Cpu, ..gpu.clone() };
+    train(&cpu, &on_cpu, &TrainOptions::default()).unwrap();
+    let mc = metrics(&on_cpu);
+    assert_eq!(mc[..2], ma[..2]);
+    assert_ne!(mc[2], ma[2], "the CPU's update rounds otherwise");
+    for ((name, x), (name_gpu, y)) in mc[2].iter().zip(&ma[2]) {
+        assert_eq!(name, name_gpu);
+        assert!(close(name, *y, *x), "iteration 3, {name}: {y} on the GPU, {x} on the CPU after the GPU's checkpoint");
+    }
+    assert!(!std::fs::read_to_string(on_cpu.config()).unwrap().contains("device"));
+}
+
+/// `meben train --device gpu` says which adapter it trains on.
+#[test]
+fn the_program_names_the_adapter() {
+    let tmp = TempDir::new("gpu-cli");
+    let out = tmp.0.join("r");
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_meben"))
+        .args(["train", "--model", "mlp_hn", "--device", "gpu", "--steps", "40", "--num-envs", "4", "--quiet"])
+        .args(["--set", "batch_size=4", "--set", "num_minibatches=2", "--set", "epochs=1", "--set", "num_evals=0"])
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{stderr}");
+    let adapter = tensor::gpu::gpu().unwrap().adapter().to_string();
+    assert!(stderr.contains(&format!("meben: training on GPU: {adapter}")), "{stderr}");
+}

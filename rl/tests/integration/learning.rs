@@ -1,0 +1,43 @@
+//! The learning tests (ignored by default: about ten minutes each on 2 cores): `shnn` (what
+//! `cargo run --release` trains) and `mlp_hn` on `team_reach/1_ant` with the built-in
+//! `quick` budget reach a clearly rising evaluation success rate.
+//!
+//! Run: `cargo test --release -p rl --test integration learning:: -- --ignored --nocapture --test-threads 1`.
+
+use crate::common;
+
+use rl::app::metrics::parse_csv;
+use rl::{RunDir, TrainConfig, TrainOptions, train};
+
+/// Trains `model` (quick preset, seed 0) and checks that the evaluation success rises.
+fn learns_team_reach_1_ant(model: &str) {
+    let dir = common::temp_dir(&format!("learning-{model}"));
+    let config = TrainConfig::resolve(None, None, &[("model".into(), model.into())]).unwrap();
+    assert_eq!(config.env.as_str(), "team_reach/1_ant");
+    let run = RunDir::new(dir.join("run"));
+    train(&config, &run, &TrainOptions::default()).unwrap();
+    let rows = parse_csv(&std::fs::read_to_string(run.metrics()).unwrap()).unwrap();
+    let evals: Vec<(f64, f64)> =
+        rows.iter().filter_map(|r| Some((r["env_steps"], *r.get("eval_success_rate")?))).collect();
+    for (s, r) in &evals {
+        println!("{model} env_steps {s} eval_success_rate {r}");
+    }
+    let first = evals.first().unwrap().1;
+    let best_late = evals[evals.len() / 2..].iter().map(|e| e.1).fold(0.0, f64::max);
+    assert!(best_late >= 0.2 && best_late >= first + 0.15, "{model}: success rate did not rise: {evals:?}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+#[ignore]
+fn shnn_learns_team_reach_1_ant_within_the_quick_budget() {
+    let config = TrainConfig::resolve(None, None, &[]).unwrap();
+    assert_eq!(config.model.as_str(), "shnn", "the default run");
+    learns_team_reach_1_ant("shnn");
+}
+
+#[test]
+#[ignore]
+fn mlp_hn_learns_team_reach_1_ant_within_the_quick_budget() {
+    learns_team_reach_1_ant("mlp_hn");
+}

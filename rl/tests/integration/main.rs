@@ -1,0 +1,26 @@
+//! The rl crate's integration tests, one binary (one link on the 2-core CI):
+//! one module per subject, each with its own doc comment.
+
+mod checkpoint_format;
+mod checkpoint_trust;
+mod cli;
+mod committed_results;
+mod common;
+mod custom_policy;
+mod device;
+mod distribution;
+mod evaluation;
+mod fuzz_corpus;
+mod gpu_training;
+mod interrupt;
+mod invariance;
+mod learning;
+mod policy_file;
+mod ppo_loss;
+mod pretrained;
+mod properties;
+mod report;
+mod repro_check;
+mod results_doc;
+mod resume;
+mod run_identity;

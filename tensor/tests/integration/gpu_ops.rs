@@ -1,0 +1,340 @@
+//! Every op of the tape on the GPU against the CPU, forward and backward, in f32 (feature
+//! `gpu`; CI runs these on Mesa's lavapipe, and `test.sh` fails when no adapter is found).
+//!
+//! Each check records the same computation twice, once on host tensors and once on the same
+//! values moved to the GPU, reduces its output with fixed random weights to a scalar loss,
+//! and compares the output and every input's gradient. Tolerances (`|gpu - cpu| <= atol +
+//! rtol |cpu|`), and why:
+//! - `EXACT` (0): copies, selections and sums the GPU kernel performs in the CPU's order.
+//! - `ELEMENTWISE` (rtol 2e-5, atol 1e-6): WGSL's `exp`, `log`, `pow` and `sqrt` are allowed
+//!   a few ulp (more for `exp` of large arguments), and derived functions (tanh, sigmoid,
+//!   softplus) a few more; 2e-5 is about 170 ulp of f32.
+//! - `SUMS` (rtol 1e-4, atol 1e-4): products and reductions over up to a few hundred terms of
+//!   magnitude <= 1 add in another order than the CPU's (tiles, eight-lane partial sums);
+//!   rounding differences grow with the number of terms times f32's 6e-8.
+#![cfg(feature = "gpu")]
+
+use crate::common;
+
+use common::{rng, uniform};
+use rand::RngExt;
+use tensor::{Activation, Device, Result, Tape, Tensor, Var};
+
+/// The tests of this file one at a time: one of them counts the device's uploads, which the
+/// others would change.
+fn serial() -> std::sync::MutexGuard<'static, ()> {
+    static LOCK: std::sync::Mutex<()> = std::sync::Mutex::new(());
+    LOCK.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// A tolerance: `atol + rtol * |cpu|`.
+#[derive(Clone, Copy)]
+struct Tol(f64, f64);
+const EXACT: Tol = Tol(0.0, 0.0);
+const ELEMENTWISE: Tol = Tol(2e-5, 1e-6);
+const SUMS: Tol = Tol(1e-4, 1e-4);
+
+/// Uniform f32 values in [-1, 1].
+fn randn(seed: u64, shape: &[usize]) -> Tensor<f32> {
+    uniform(&mut rng(seed), shape).cast()
+}
+
+/// f32 values in [0.5, 2] (log, sqrt, powf, division).
+fn positive(seed: u64, shape: &[usize]) -> Tensor<f32> {
+    common::positive(&mut rng(seed), shape).cast()
+}
+
+fn close(what: &str, got: &Tensor<f32>, want: &Tensor<f32>, tol: Tol) {
+    assert_eq!(got.shape(), want.shape(), "{what}: shapes");
+    for (i, (g, w)) in got.data().iter().zip(want.data()).enumerate() {
+        let bound = tol.1 + tol.0 * w.abs() as f64;
+        assert!(
+            ((g - w).abs() as f64) <= bound || (g.is_nan() && w.is_nan()),
+            "{what}: element {i}: gpu {g} vs cpu {w} (bound {bound:e})"
+        );
+    }
+}
+
+/// The computation under test: output of the inputs' vars.
+type Body<'a> = dyn for<'t> Fn(&'t Tape<f32>, &[Var<'t, f32>]) -> Result<Var<'t, f32>> + 'a;
+
+/// One run of `f` on `inputs` placed on `device`: the output and the gradients of the loss
+/// `sum(out * weights)` for every input, brought to the host.
+fn run(device: Device, inputs: &[Tensor<f32>], f: &Body<'_>) -> (Tensor<f32>, Vec<Option<Tensor<f32>>>, Device) {
+    let tape = Tape::<f32>::new();
+    let vars: Vec<Var<'_, f32>> = inputs.iter().map(|x| tape.var(x.to_device(device).unwrap())).collect();
+    let out = f(&tape, &vars).unwrap();
+    let weights = randn(99, &out.shape()).to_device(device).unwrap();
+    let loss = out.mul(tape.constant(weights)).unwrap().sum_all();
+    let grads = tape.backward(loss).unwrap();
+    let produced_on = out.value().device();
+    let gs = vars.iter().map(|&v| grads.get(v).map(|g| g.to_device(Device::Cpu).unwrap())).collect();
+    (out.value().to_device(Device::Cpu).unwrap(), gs, produced_on)
+}
+
+/// Checks `f` on the GPU against the CPU: output, every gradient, that the GPU output was
+/// computed on the GPU, and that a second GPU run gives the same bits.
+fn check(name: &str, inputs: &[Tensor<f32>], tol: Tol, f: &Body<'_>) {
+    let (want, want_g, _) = run(Device::Cpu, inputs, f);
+    let (got, got_g, on) = run(Device::Gpu, inputs, f);
+    assert_eq!(on, Device::Gpu, "{name}: the output was not computed on the GPU");
+    close(&format!("{name} forward"), &got, &want, tol);
+    for (i, (g, w)) in got_g.iter().zip(&want_g).enumerate() {
+        match (g, w) {
+            (Some(g), Some(w)) => close(&format!("{name} gradient of input {i}"), g, w, tol),
+            (None, None) => {}
+            _ => panic!("{name}: gradient of input {i} present on one device only"),
+        }
+    }
+    let (again, again_g, _) = run(Device::Gpu, inputs, f);
+    assert_eq!(again.data(), got.data(), "{name}: two GPU runs differ");
+    for (a, b) in again_g.iter().zip(&got_g) {
+        assert_eq!(
+            a.as_ref().map(|t| t.data().to_vec()),
+            b.as_ref().map(|t| t.data().to_vec()),
+            "{name}: two GPU runs' gradients differ"
+        );
+    }
+}
+
+#[test]
+fn unary_ops_forward_and_backward() {
+    let _serial = serial();
+    type U = fn(Var<'_, f32>) -> Var<'_, f32>;
+    let ops: [(&str, U, bool); 15] = [
+        ("neg", |x| x.neg(), false),
+        ("exp", |x| x.exp(), false),
+        ("log", |x| x.log(), true),
+        ("sqrt", |x| x.sqrt(), true),
+        ("square", |x| x.square(), false),
+        ("tanh", |x| x.scale(3.0).tanh(), false),
+        ("sigmoid", |x| x.scale(4.0).sigmoid(), false),
+        ("relu", |x| x.relu(), false),
+        ("softplus", |x| x.scale(20.0).softplus(), false),
+        ("abs", |x| x.abs(), false),
+        ("powf 3", |x| x.powf(3.0), false),
+        ("powf 0.5", |x| x.powf(0.5), true),
+        ("clamp", |x| x.clamp(-0.5, 0.25), false),
+        ("scale", |x| x.scale(-1.5), false),
+        ("add_scalar", |x| x.add_scalar(0.75), false),
+    ];
+    for (i, (name, op, pos)) in ops.into_iter().enumerate() {
+        let x = if pos { positive(i as u64, &[7, 33]) } else { randn(i as u64, &[7, 33]) };
+        check(name, &[x], ELEMENTWISE, &|_, v| Ok(op(v[0])));
+    }
+}
+
+#[test]
+fn binary_ops_with_broadcasting() {
+    let _serial = serial();
+    type B = for<'t> fn(Var<'t, f32>, Var<'t, f32>) -> Result<Var<'t, f32>>;
+    let ops: [(&str, B); 6] = [
+        ("add", |a, b| a.add(b)),
+        ("sub", |a, b| a.sub(b)),
+        ("mul", |a, b| a.mul(b)),
+        ("div", |a, b| a.div(b)),
+        ("minimum", |a, b| a.minimum(b)),
+        ("maximum", |a, b| a.maximum(b)),
+    ];
+    let shapes: [(&[usize], &[usize]); 5] =
+        [(&[4, 5], &[4, 5]), (&[4, 5], &[5]), (&[3, 4, 5], &[4, 1]), (&[4, 1], &[1, 6]), (&[2, 3], &[])];
+    for (name, op) in ops {
+        for (s, (sa, sb)) in shapes.iter().enumerate() {
+            let a = randn(10 + s as u64, sa);
+            let b = if name == "div" { positive(20 + s as u64, sb) } else { randn(20 + s as u64, sb) };
+            check(&format!("{name} {sa:?} {sb:?}"), &[a, b], SUMS, &|_, v| op(v[0], v[1]));
+        }
+    }
+}
+
+#[test]
+fn an_input_used_several_times_accumulates_its_gradient() {
+    let _serial = serial();
+    let x = randn(30, &[5, 6]);
+    check("x * x", std::slice::from_ref(&x), SUMS, &|_, v| v[0].mul(v[0]));
+    check("exp x + x^2 + narrow", &[x], SUMS, &|_, v| {
+        let y = v[0].exp().add(v[0].square())?;
+        y.narrow(1, 0, 3)?.add(v[0].narrow(1, 2, 3)?)
+    });
+}
+
+#[test]
+fn reductions_on_the_gpu_match_the_cpu_forward_and_backward() {
+    let _serial = serial();
+    let x = randn(1, &[3, 70, 5]);
+    for axis in 0..3 {
+        for keep in [false, true] {
+            check(&format!("sum {axis} {keep}"), std::slice::from_ref(&x), SUMS, &|_, v| v[0].sum(axis, keep));
+            check(&format!("mean {axis} {keep}"), std::slice::from_ref(&x), SUMS, &|_, v| v[0].mean(axis, keep));
+            check(&format!("max {axis} {keep}"), std::slice::from_ref(&x), EXACT, &|_, v| v[0].max(axis, keep));
+        }
+    }
+    check("sum_all", std::slice::from_ref(&x), SUMS, &|_, v| Ok(v[0].sum_all()));
+    check("mean_all", std::slice::from_ref(&x), SUMS, &|_, v| v[0].mean_all());
+    check("max_all", std::slice::from_ref(&x), EXACT, &|_, v| v[0].max_all());
+    // A long axis: the two-pass reduction (chunks of 1024, then their sum).
+    let long = randn(2, &[5000]);
+    check("sum of 5000", &[long], Tol(1e-4, 1e-3), &|_, v| Ok(v[0].sum_all()));
+}
+
+#[test]
+fn matrix_products_on_the_gpu_match_the_cpu_forward_and_backward() {
+    let _serial = serial();
+    for (ta, tb) in [(false, false), (true, false), (false, true), (true, true)] {
+        let a = randn(3, if ta { &[2, 17, 9] } else { &[2, 9, 17] });
+        let b = randn(4, if tb { &[13, 17] } else { &[17, 13] });
+        check(&format!("matmul {ta} {tb}"), &[a, b], SUMS, &|_, v| v[0].matmul_t(v[1], ta, tb));
+    }
+    // The same tensor on both sides (a Gram matrix): both gradients go to one input.
+    check("gram", &[randn(5, &[4, 3, 8])], SUMS, &|_, v| v[0].matmul_t(v[0], true, false));
+}
+
+#[test]
+fn layers_on_the_gpu_match_the_cpu_forward_and_backward() {
+    let _serial = serial();
+    let x = randn(6, &[11, 20]);
+    let w = randn(7, &[20, 9]);
+    let b = randn(8, &[9]);
+    for act in [Activation::Identity, Activation::Relu, Activation::Tanh] {
+        check(&format!("linear {act:?}"), &[x.clone(), w.clone(), b.clone()], SUMS, &|_, v| {
+            v[0].linear(v[1], Some(v[2]), act)
+        });
+    }
+    let (x2, w2) = (randn(9, &[11, 5]), randn(10, &[5, 9]));
+    check("linear_sum", &[x, w, x2, w2, b], SUMS, &|t, v| {
+        t.linear_sum(&[(v[0], v[1]), (v[2], v[3])], Some(v[4]), Activation::Relu)
+    });
+    let s = randn(11, &[6, 10]);
+    check("softmax", std::slice::from_ref(&s), SUMS, &|_, v| Ok(v[0].scale(3.0).softmax()));
+    check("norm_last", std::slice::from_ref(&s), SUMS, &|_, v| Ok(v[0].norm_last(1e-8)));
+    check("standardize", &[s], SUMS, &|_, v| Ok(v[0].standardize(1e-5)));
+}
+
+#[test]
+fn layout_ops_on_the_gpu_match_the_cpu_forward_and_backward() {
+    let _serial = serial();
+    let x = randn(12, &[2, 3, 4]);
+    check("reshape", std::slice::from_ref(&x), EXACT, &|_, v| v[0].reshape(&[6, 4]));
+    check("permute", std::slice::from_ref(&x), EXACT, &|_, v| v[0].permute(&[2, 0, 1]));
+    check("transpose", std::slice::from_ref(&x), EXACT, &|_, v| v[0].transpose(0, 2));
+    check("unsqueeze+expand", std::slice::from_ref(&x), SUMS, &|_, v| v[0].unsqueeze(1)?.expand(&[2, 5, 3, 4]));
+    check("narrow", std::slice::from_ref(&x), EXACT, &|_, v| v[0].narrow(1, 1, 2));
+    // Two narrows of one input accumulate into one gradient buffer.
+    check("narrow twice", std::slice::from_ref(&x), EXACT, &|_, v| v[0].narrow(2, 0, 3)?.add(v[0].narrow(2, 1, 3)?));
+    let y = randn(13, &[2, 5, 4]);
+    check("cat", &[x.clone(), y.clone()], EXACT, &|t, v| t.cat(&[v[0], v[1], v[0]], 1));
+    check("stack", &[x.clone(), x.clone()], EXACT, &|t, v| t.stack(&[v[0], v[1]], 0));
+}
+
+#[test]
+fn index_ops_on_the_gpu_match_the_cpu_forward_and_backward() {
+    let _serial = serial();
+    let x = randn(14, &[3, 6, 2]);
+    let idx = [5, 0, 0, 3, 5, 5, 1];
+    check("index_select", std::slice::from_ref(&x), EXACT, &|_, v| v[0].index_select(1, &idx));
+    let src = randn(15, &[3, 7, 2]);
+    check("index_add", &[x.clone(), src.clone()], EXACT, &|_, v| v[0].index_add(1, &idx, v[1]));
+    check("scatter_add", &[src], EXACT, &|_, v| v[0].scatter_add(1, &idx, 6));
+    let mut r = rng(16);
+    let gidx: Vec<usize> = (0..3 * 4 * 2).map(|_| r.random_range(0..6)).collect();
+    check("gather", std::slice::from_ref(&x), EXACT, &|_, v| v[0].gather(1, &[3, 4, 2], &gidx));
+    let rows = randn(17, &[9, 3]);
+    let seg = [0, 0, 1, 3, 3, 3, 4, 4, 4];
+    check("segment_sum", std::slice::from_ref(&rows), EXACT, &|_, v| v[0].segment_sum(&seg, 6));
+    check("segment_mean", &[rows], ELEMENTWISE, &|_, v| v[0].segment_mean(&seg, 6));
+    let (a, b) = (randn(18, &[4, 5]), randn(19, &[5]));
+    let mask: Vec<bool> = (0..20).map(|i| i % 3 != 1).collect();
+    check("where", &[a, b], EXACT, &|t, v| t.where_select(&mask, v[0], v[1]));
+}
+
+#[test]
+fn host_constants_join_gpu_ops_and_f64_stays_on_the_host() {
+    let _serial = serial();
+    let tape = Tape::<f32>::new();
+    let x = tape.var(randn(20, &[3, 4]).to_device(Device::Gpu).unwrap());
+    let c = tape.constant(randn(21, &[4]));
+    let y = x.mul(c).unwrap();
+    assert_eq!(y.value().device(), Device::Gpu);
+    let err = Tensor::<f64>::zeros(&[2]).to_device(Device::Gpu).unwrap_err().to_string();
+    assert!(err.contains("f32") && err.contains("f64"), "{err}");
+    let info = tensor::gpu::gpu().unwrap().adapter().to_string();
+    assert!(!info.is_empty());
+}
+
+/// A leaf a GPU tape cannot place there (f64 stays on the host) would have its ops run on
+/// the host unnoticed: the tape says so, and its backward pass refuses with the reason.
+#[test]
+fn a_gpu_tape_refuses_to_differentiate_what_stayed_on_the_host() {
+    let _serial = serial();
+    let tape = Tape::<f64>::on(Device::Gpu);
+    let x = tape.var(Tensor::<f64>::new(vec![1.0, 2.0], &[2]).unwrap());
+    assert_eq!(x.value().device(), Device::Cpu);
+    let why = tape.misplaced().expect("the f64 leaf is recorded as misplaced");
+    assert!(why.contains("f64"), "{why}");
+    let err = tape.backward(x.square().sum_all()).unwrap_err().to_string();
+    assert!(err.contains("backward") && err.contains("stayed on the host") && err.contains("f64"), "{err}");
+    // An f32 tape on the GPU places everything and says nothing.
+    let tape = Tape::<f32>::on(Device::Gpu);
+    let y = tape.var(randn(24, &[2, 3]));
+    assert!(tape.misplaced().is_none());
+    assert!(tape.backward(y.sum_all()).is_ok());
+}
+
+#[test]
+fn a_gpu_tape_uploads_its_leaves_once() {
+    let _serial = serial();
+    let tape = Tape::<f32>::on(Device::Gpu);
+    let x = tape.var(randn(22, &[2, 3]));
+    let c = tape.constant(randn(23, &[3]));
+    assert_eq!((x.value().device(), c.value().device()), (Device::Gpu, Device::Gpu));
+    let before = tensor::gpu::gpu().unwrap().stats().uploads;
+    let y = x.mul(c).unwrap().add(c).unwrap().sum_all();
+    let g = tape.backward(y).unwrap();
+    assert_eq!(g.get(x).unwrap().device(), Device::Gpu);
+    // The backward seed is the one upload (nothing else crosses: every operand is there).
+    assert_eq!(tensor::gpu::gpu().unwrap().stats().uploads - before, 1);
+}
+
+#[test]
+fn optimiser_kernels_match_the_host_formulas() {
+    let _serial = serial();
+    let x = randn(24, &[300]);
+    let xg = x.to_device(Device::Gpu).unwrap();
+    let clamped = xg.map_unary(tensor::UnaryOp::Clamp(-0.1, 0.1));
+    assert_eq!(clamped.device(), Device::Gpu);
+    assert_eq!(clamped.to_vec(), x.map_unary(tensor::UnaryOp::Clamp(-0.1, 0.1)).to_vec());
+    let (sq_cpu, sq_gpu) = (x.sum_of_squares().unwrap(), xg.sum_of_squares().unwrap());
+    assert!((sq_cpu - sq_gpu).abs() <= 1e-5 * sq_cpu, "{sq_cpu} vs {sq_gpu}");
+    // Non-finite values are found on the device, by index.
+    let mut bad = x.clone();
+    bad.data_mut()[7] = f32::NAN;
+    let ts = [xg.clone(), bad.to_device(Device::Gpu).unwrap()];
+    assert_eq!(tensor::first_non_finite(&ts).unwrap(), Some(1));
+    assert_eq!(tensor::first_non_finite(&ts[..1]).unwrap(), None);
+    assert!(!ts[1].all_finite() && ts[0].all_finite());
+    let mut inf = x.clone();
+    inf.data_mut()[0] = f32::NEG_INFINITY;
+    assert!(!inf.to_device(Device::Gpu).unwrap().all_finite());
+    // Adam: two steps against the formula in f64.
+    let (b1, b2, eps, lr) = (0.9f64, 0.999f64, 1e-8f64, 3e-3f64);
+    let (mut p, mut m, mut v) = (x.clone(), vec![0.0f64; 300], vec![0.0f64; 300]);
+    let mut pd = xg.clone();
+    let (mut md, mut vd) = (
+        Tensor::<f32>::zeros(&[300]).to_device(Device::Gpu).unwrap(),
+        Tensor::<f32>::zeros(&[300]).to_device(Device::Gpu).unwrap(),
+    );
+    for t in 1..=2 {
+        let g = randn(30 + t, &[300]);
+        let (c1, c2) = (1.0 / (1.0 - b1.powi(t as i32)), 1.0 / (1.0 - b2.powi(t as i32)));
+        let step = tensor::gpu::AdamStep { lr, beta1: b1, beta2: b2, c1, c2, eps };
+        (pd, md, vd) = tensor::adam_update(&pd, &g.to_device(Device::Gpu).unwrap(), &md, &vd, step).unwrap();
+        let pv = p.data_mut();
+        for i in 0..300 {
+            let gi = g.data()[i] as f64;
+            m[i] = b1 * m[i] + (1.0 - b1) * gi;
+            v[i] = b2 * v[i] + (1.0 - b2) * gi * gi;
+            pv[i] = (pv[i] as f64 - lr * (m[i] * c1) / ((v[i] * c2).sqrt() + eps)) as f32;
+        }
+    }
+    close("adam parameters", &pd.to_device(Device::Cpu).unwrap(), &p, Tol(1e-6, 1e-6));
+}
