@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
-# The test command of the README (CI runs it through .ci/run): the Rust tests, then the
-# Python package built and installed into a virtual environment under target/ and its
-# pytest tests. Needs a Rust toolchain and Python >= 3.9 (`python3`, or set PYTHON).
+# The test command of the README (CI runs it through .ci/run): the Rust tests, the sweep's
+# Slurm array script on a one-node Slurm cluster, then the Python package built and
+# installed into a virtual environment under target/ and its pytest tests. Needs a Rust
+# toolchain and Python >= 3.9 (`python3`, or set PYTHON).
 set -euo pipefail
 cd "$(dirname "$0")"
 venv=target/pyenv
@@ -56,6 +57,11 @@ cargo test --release -p nn --features gpu --test integration gpu_optim::
 cargo test --release -p rl --features gpu --test integration gpu_training::
 # The Rust programs the Python tests compare with (already built by cargo test; cheap).
 cargo build --release -p rl --bin meben -p envs --example replay_actions
+# The sweep's Slurm array script (rl/sweeps/slurm_array.sh) against a real one-node Slurm on
+# localhost: Debian's slurm-wlm and munge, installed when absent (as root), then required.
+# Three array tasks, one requeued mid-run and resumed; every run finished and reported; every
+# daemon it started stopped again (about 20 s; the README's paragraph on sweeps).
+MEBEN="$PWD/target/release/meben" rl/sweeps/slurm_ci.sh
 python -m pip install --quiet --disable-pip-version-check --no-build-isolation --no-deps --force-reinstall ./python
 # No cache provider: pytest would write .pytest_cache into the source tree.
 python -m pytest -q -p no:cacheprovider python/tests

@@ -12,6 +12,8 @@
 # are skipped and interrupted ones resume from their last checkpoint, so a task that hit the
 # time limit simply continues (`--requeue` below makes Slurm do that after preemption).
 # When every task has finished: `target/release/meben report "$OUT"`.
+# CI submits this script to a real one-node Slurm, requeueing a task mid-run:
+# rl/sweeps/slurm_ci.sh (README, sweeps).
 #
 # Task ids must run from 1 to the array size (1-based shards): keep `--array=1-N`, not 0-based.
 # A 1-8 array has SLURM_ARRAY_TASK_COUNT = 8. More tasks than runs is allowed (the extra
