@@ -127,7 +127,7 @@ case "${1:-}" in
     for exp in $EXPERIMENTS; do
       [ -d "$OUT/$exp" ] || continue
       # The report names the directory it was given: relative, as a reader would type it.
-      "$BIN" export "$OUT/$exp" "$ROOT/results/$exp" && (cd "$ROOT" && "$BIN" report "results/$exp" > /dev/null)
+      "$BIN" export "$OUT/$exp" "$ROOT/results/$exp" && (cd "$ROOT" && "$BIN" report "results/$exp" --paper results/paper.toml > /dev/null)
     done
     du -sh "$ROOT/results"
     ;;

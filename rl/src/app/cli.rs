@@ -250,6 +250,10 @@ struct StatusArgs {
 struct ReportArgs {
     /// Directory holding run directories (a sweep's --out).
     root: PathBuf,
+    /// The paper's figures (`results/paper.toml`): also write ROOT/paper.md, each group
+    /// beside the paper's figure for the same env, model, start and rotation.
+    #[arg(long)]
+    paper: Option<PathBuf>,
 }
 
 #[derive(Args)]
@@ -554,6 +558,10 @@ fn cmd_report(a: ReportArgs) -> Result<(), String> {
     let text = std::fs::read_to_string(&r.markdown).map_err(|e| format!("{}: {e}", r.markdown.display()))?;
     println!("{text}");
     eprintln!("meben: wrote {}", r.markdown.display());
+    if let Some(paper) = &a.paper {
+        let path = crate::app::paper::write_paper_table(&a.root, paper).map_err(|e| e.to_string())?;
+        eprintln!("meben: wrote {}", path.display());
+    }
     Ok(())
 }
 

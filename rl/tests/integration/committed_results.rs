@@ -2,7 +2,8 @@
 //! committed reports: `meben report results/<experiment>`, run on a copy of each
 //! experiment's run files alone (`config.toml`, `metrics.csv`, `done.json`, `curve.svg`;
 //! the committed `report.md`, `report.csv` and `curves/` left out of the copy), writes
-//! `report.md`, `report.csv` and every `curves/*.svg` byte for byte as committed. It fails
+//! `report.md`, `report.csv`, every `curves/*.svg` and, with `--paper results/paper.toml`,
+//! the paper-versus-here table `paper.md` byte for byte as committed. It fails
 //! when a report was edited by hand, when the evidence changed without its report being
 //! redrawn, or when `meben report` changed what it draws without the reports being redrawn.
 
@@ -13,9 +14,9 @@ use crate::common;
 
 use common::TempDir;
 
-/// The files `meben report` writes into an experiment's directory.
+/// The files `meben report --paper` writes into an experiment's directory.
 fn is_report_output(rel: &Path) -> bool {
-    rel == Path::new("report.md") || rel == Path::new("report.csv") || rel.starts_with("curves")
+    ["report.md", "report.csv", "paper.md"].iter().any(|f| rel == Path::new(f)) || rel.starts_with("curves")
 }
 
 /// Every file under `dir`, as paths relative to it, sorted.
@@ -67,7 +68,8 @@ fn every_committed_report_regenerates_from_the_committed_run_files() {
         }
         let out = Command::new(env!("CARGO_BIN_EXE_meben"))
             .current_dir(&scratch.0)
-            .args(["report", &format!("results/{name}")])
+            .args(["report", &format!("results/{name}"), "--paper"])
+            .arg(results.join("paper.toml"))
             .output()
             .unwrap();
         assert!(out.status.success(), "meben report results/{name} failed: {}", String::from_utf8_lossy(&out.stderr));
