@@ -1,6 +1,6 @@
 //! The application around the algorithm ([`crate::mappo`]): configuration presets and
 //! layers ([`presets`]), training in a run directory ([`run`], [`run_dir`], [`lock`],
-//! [`config_match`], [`morphology`], [`metrics`], [`build_info`], [`progress`], [`curve`],
+//! [`morphology`], [`metrics`], [`build_info`], [`progress`], [`curve`],
 //! [`plot`]) and stopping it on
 //! Ctrl-C or SIGTERM ([`signals`]), sweeps ([`sweep`], `meben ablate`),
 //! reports ([`report`](mod@report), `meben report`), evidence export
@@ -11,7 +11,6 @@
 
 pub mod build_info;
 pub mod cli;
-pub mod config_match;
 pub mod curve;
 pub mod export;
 pub mod info;

@@ -57,6 +57,7 @@ use crate::app::run::RunSummary;
 use crate::app::run_dir::{RunDir, RunStatus};
 use crate::error::{Result, RlError};
 use crate::mappo::config::TrainConfig;
+use crate::mappo::config_match;
 
 /// The keys of a sweep file (module docs).
 pub const SWEEP_KEYS: [&str; 7] = ["envs", "models", "seeds", "preset", "include_base", "config", "variants"];
@@ -402,7 +403,7 @@ pub fn run_sweep(
         let result = match status {
             RunStatus::Done => {
                 if let Ok(saved) = TrainConfig::load(&dir.config()) {
-                    let diff = config_differences(&saved, &run.config, true);
+                    let diff = config_differences(&saved, &run.config, &config_match::NEVER_IDENTITY_FIELDS);
                     if !diff.is_empty() {
                         eprintln!(
                             "{head}: warning: finished with a configuration that differs from the sweep's: {}",
@@ -475,10 +476,16 @@ pub fn sanitize_component(s: &str) -> String {
     if out.chars().all(|c| c == '.') { format!("_{out}") } else { out }
 }
 
-/// Checks that a partial run's saved configuration is the sweep's, `steps` aside.
+/// The fields a sweep lets differ between a partial run's saved configuration and the
+/// sweep's when it resumes the run: those no result depends on, and the budget `steps`
+/// (raised to train longer); not `num_evals`, since the sweep file fixes each run's
+/// evaluation schedule ([`crate::mappo::config_match`]).
+const RESUME_MAY_DIFFER: [&str; 4] = ["steps", "checkpoint_every", "threads", "device"];
+
+/// Checks that a partial run's saved configuration is the sweep's ([`RESUME_MAY_DIFFER`]).
 fn check_resumable(dir: &RunDir, wanted: &TrainConfig) -> Result<()> {
     let saved = TrainConfig::load(&dir.config())?;
-    let diff = config_differences(&saved, wanted, false);
+    let diff = config_differences(&saved, wanted, &RESUME_MAY_DIFFER);
     if diff.is_empty() {
         return Ok(());
     }
@@ -492,21 +499,12 @@ fn check_resumable(dir: &RunDir, wanted: &TrainConfig) -> Result<()> {
     ))
 }
 
-/// `field: saved X, sweep Y` for every field that differs (`steps` only if `with_steps`;
-/// never `threads` or `checkpoint_every`, which the results do not depend on, nor `device`,
-/// on which a run may go on either way).
-fn config_differences(saved: &TrainConfig, wanted: &TrainConfig, with_steps: bool) -> Vec<String> {
-    let a = toml::Table::try_from(saved).unwrap_or_default();
-    let b = toml::Table::try_from(wanted).unwrap_or_default();
-    let keys: BTreeSet<&String> = a.keys().chain(b.keys()).collect();
-    keys.into_iter()
-        .filter(|k| !matches!(k.as_str(), "threads" | "checkpoint_every" | "device"))
-        .filter(|k| with_steps || k.as_str() != "steps")
-        .filter(|k| a.get(*k) != b.get(*k))
-        .map(|k| {
-            let show = |v: Option<&toml::Value>| v.map(|v| v.to_string()).unwrap_or_else(|| "(absent)".into());
-            format!("{k}: saved {}, sweep {}", show(a.get(k)), show(b.get(k)))
-        })
+/// `field: saved X, sweep Y` for every field that differs but those of `may_differ`
+/// ([`config_match::differences`], the comparison resuming makes too).
+fn config_differences(saved: &TrainConfig, wanted: &TrainConfig, may_differ: &[&str]) -> Vec<String> {
+    config_match::differences(saved, wanted, may_differ)
+        .into_iter()
+        .map(|d| format!("{}: saved {}, sweep {}", d.field, d.first, d.second))
         .collect()
 }
 
