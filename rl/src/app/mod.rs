@@ -3,6 +3,7 @@
 //! [`morphology`], [`metrics`], [`build_info`], [`progress`], [`curve`],
 //! [`plot`]) and stopping it on
 //! Ctrl-C or SIGTERM ([`signals`]), sweeps ([`sweep`], `meben ablate`),
+//! reading a run directory back ([`record`]: configuration, typed metrics rows, summary),
 //! reports ([`report`](mod@report), `meben report`), evidence export
 //! ([`export`](mod@export), `meben export`), the progress of runs ([`status`](mod@status),
 //! `meben status`), parameter counts ([`info`], `meben info`),
@@ -21,6 +22,7 @@ pub mod plot;
 pub mod policy_file;
 pub mod presets;
 pub mod progress;
+pub mod record;
 pub mod render;
 pub mod report;
 pub mod run;
