@@ -6,7 +6,7 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-use super::stats::mean_and_se;
+use super::stats::{bootstrap_ci, iqm, mean, mean_and_se};
 use crate::app::record::{IterationRow, Rate, RunRecord};
 use crate::app::sweep::sanitize_component;
 use crate::mappo::config::TrainConfig;
@@ -58,6 +58,13 @@ pub struct GroupReport {
     pub mean: f64,
     /// Standard error of the final value, in percent.
     pub se: f64,
+    /// Interquartile mean of the final values, in percent ([`super::stats::iqm`]).
+    pub iqm: f64,
+    /// 95% percentile-bootstrap confidence interval of the mean final value, in percent
+    /// ([`super::stats::bootstrap_ci`]).
+    pub mean_ci: (f64, f64),
+    /// 95% percentile-bootstrap confidence interval of the interquartile mean, in percent.
+    pub iqm_ci: (f64, f64),
     /// Team Sumo: mean and standard error of the final draw rate, in percent.
     pub draw: Option<(f64, f64)>,
     /// Team Sumo: mean and standard error of the final loss rate of team 0 (team 1's win
@@ -273,7 +280,7 @@ fn summarise(variant: String, mut runs: Vec<RunResult>) -> GroupReport {
     let label = if rotation_deg == 0.0 { label } else { format!("{label}, rotated {rotation_deg}°") };
     let finals: Vec<f64> = runs.iter().map(|r| 100.0 * r.final_value).collect();
     let final_steps: Vec<u64> = runs.iter().map(|r| r.curve.last().map_or(0, |&(x, _)| x as u64)).collect();
-    let (mean, se) = mean_and_se(&finals);
+    let (mean_pct, se) = mean_and_se(&finals);
     let draws: Vec<f64> = runs.iter().filter_map(|r| r.final_draw.map(|d| 100.0 * d)).collect();
     let draw = (!draws.is_empty()).then(|| mean_and_se(&draws));
     let loses: Vec<f64> = runs.iter().filter_map(|r| r.final_lose.map(|d| 100.0 * d)).collect();
@@ -301,9 +308,12 @@ fn summarise(variant: String, mut runs: Vec<RunResult>) -> GroupReport {
         from_train,
         runs: runs.iter().map(|r| r.rel.clone()).collect(),
         seed_list: runs.iter().map(|r| r.config.seed).collect(),
+        iqm: iqm(&finals),
+        mean_ci: bootstrap_ci(&finals, mean),
+        iqm_ci: bootstrap_ci(&finals, iqm),
         finals,
         final_steps,
-        mean,
+        mean: mean_pct,
         se,
         draw,
         lose,

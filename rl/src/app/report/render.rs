@@ -6,6 +6,7 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use super::aggregate::{CurvePoint, GroupReport};
+use super::stats::BOOTSTRAP_RESAMPLES;
 use crate::app::plot::LinePlot;
 use crate::app::sweep::sanitize_component;
 
@@ -114,11 +115,15 @@ pub fn render_markdown(root: &Path, groups: &[GroupReport], pending: &[(PathBuf,
         "{} in {}. Final value of a run: its metric in the last row of `metrics.csv` that has it \
          (Team Reach `eval_success_rate`, Team Sumo `eval_win_rate_t0`, `eval_win_rate_t1` and `eval_draw_rate`), \
          in percent; \
-         mean ± standard error over seeds (sample standard deviation / √n; 0 for one seed). Env steps: the last \
+         mean ± standard error over seeds (sample standard deviation / √n; 0 for one seed); IQM: the \
+         interquartile mean over seeds (rliable's: the mean once a quarter of the seeds is cut from each end, \
+         the plain mean below 4 seeds); 95% CI: percentile bootstrap over seeds ({} resamples, a fixed seed). Env \
+         steps: the last \
          row's, over the seeds (\"of N\": runs still short of their budget N). Curves: mean over seeds with a ± s.e. band. Rows \"rotated N°\" are \
          evaluations of the same runs with every start rotated by N degrees about the vertical (`eval_rotations`).\n",
         count(runs, "run"),
-        count(groups.len(), "group")
+        count(groups.len(), "group"),
+        BOOTSTRAP_RESAMPLES
     );
     for env in envs_in_order(groups) {
         let sumo = env.starts_with("team_sumo");
@@ -126,22 +131,26 @@ pub fn render_markdown(root: &Path, groups: &[GroupReport], pending: &[(PathBuf,
         if sumo {
             let _ = writeln!(
                 md,
-                "| run | model | opponent | seeds | win % team 0 (mean ± s.e.) | loss % team 0 (mean ± s.e.) | \
-                 draw % (mean ± s.e.) | env steps | machine h | per seed: win % (at env steps) |"
+                "| run | model | opponent | seeds | win % team 0 (mean ± s.e.) | win % IQM [95% CI] | \
+                 win % mean's 95% CI | loss % team 0 (mean ± s.e.) | draw % (mean ± s.e.) | env steps | machine h | \
+                 per seed: win % (at env steps) |"
             );
-            let _ = writeln!(md, "|---|---|---|---:|---:|---:|---:|---:|---:|---|");
+            let _ = writeln!(md, "|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---|");
         } else {
             let _ = writeln!(
                 md,
-                "| run | model | seeds | success % (mean ± s.e.) | env steps | machine h | per seed: % (at env steps) |"
+                "| run | model | seeds | success % (mean ± s.e.) | IQM [95% CI] | mean's 95% CI | env steps | machine h \
+                 | per seed: % (at env steps) |"
             );
-            let _ = writeln!(md, "|---|---|---:|---:|---:|---:|---|");
+            let _ = writeln!(md, "|---|---|---:|---:|---:|---:|---:|---:|---|");
         }
         let mut any_train = false;
         for g in groups.iter().filter(|g| g.env == env) {
             let mark = if g.from_train { " †" } else { "" };
             any_train |= g.from_train;
             let value = format!("{:.2} ± {:.2}{mark}", g.mean, g.se);
+            let iqm = format!("{:.2} [{:.2}, {:.2}]{mark}", g.iqm, g.iqm_ci.0, g.iqm_ci.1);
+            let ci = format!("[{:.2}, {:.2}]{mark}", g.mean_ci.0, g.mean_ci.1);
             let hours = machine_hours_cell(g);
             let per_seed = per_seed_cell(g);
             if sumo {
@@ -152,7 +161,7 @@ pub fn render_markdown(root: &Path, groups: &[GroupReport], pending: &[(PathBuf,
                 let opponent = if g.opponent.is_empty() { "same".to_string() } else { format!("`{}`", g.opponent) };
                 let _ = writeln!(
                     md,
-                    "| {} | `{}` | {} | {} | {value} | {lose} | {draw} | {} | {hours} | {per_seed} |",
+                    "| {} | `{}` | {} | {} | {value} | {iqm} | {ci} | {lose} | {draw} | {} | {hours} | {per_seed} |",
                     md_cell(&g.label),
                     md_cell(&g.model),
                     md_cell(&opponent),
@@ -162,7 +171,7 @@ pub fn render_markdown(root: &Path, groups: &[GroupReport], pending: &[(PathBuf,
             } else {
                 let _ = writeln!(
                     md,
-                    "| {} | `{}` | {} | {value} | {} | {hours} | {per_seed} |",
+                    "| {} | `{}` | {} | {value} | {iqm} | {ci} | {} | {hours} | {per_seed} |",
                     md_cell(&g.label),
                     md_cell(&g.model),
                     g.runs.len(),
@@ -206,7 +215,8 @@ fn csv_field(s: &str) -> String {
 pub fn render_csv(groups: &[GroupReport]) -> String {
     let mut out = String::from(
         "env,model,opponent,variant,metric,seeds,seed_list,mean_pct,se_pct,draw_mean_pct,draw_se_pct,\
-         env_steps_min,env_steps_max,rotation_deg,lose_mean_pct,lose_se_pct,machine_hours\n",
+         env_steps_min,env_steps_max,rotation_deg,lose_mean_pct,lose_se_pct,machine_hours,iqm_pct,iqm_ci_low_pct,\
+         iqm_ci_high_pct,mean_ci_low_pct,mean_ci_high_pct\n",
     );
     for g in groups {
         let seeds: Vec<String> = g.seed_list.iter().map(|s| s.to_string()).collect();
@@ -214,7 +224,7 @@ pub fn render_csv(groups: &[GroupReport]) -> String {
         let (lm, ls) = g.lose.map(|(m, s)| (m.to_string(), s.to_string())).unwrap_or_default();
         let _ = writeln!(
             out,
-            "{},{},{},{},{},{},{},{},{},{dm},{ds},{},{},{},{lm},{ls},{}",
+            "{},{},{},{},{},{},{},{},{},{dm},{ds},{},{},{},{lm},{ls},{},{},{},{},{},{}",
             csv_field(&g.env),
             csv_field(&g.model),
             csv_field(&g.opponent),
@@ -227,7 +237,12 @@ pub fn render_csv(groups: &[GroupReport]) -> String {
             g.env_steps.0,
             g.env_steps.1,
             g.rotation_deg,
-            g.machine_hours
+            g.machine_hours,
+            g.iqm,
+            g.iqm_ci.0,
+            g.iqm_ci.1,
+            g.mean_ci.0,
+            g.mean_ci.1
         );
     }
     out
