@@ -552,7 +552,7 @@ fn cmd_ablate(a: AblateArgs) -> Result<(), String> {
 fn cmd_report(a: ReportArgs) -> Result<(), String> {
     let r = crate::app::report::report(&a.root).map_err(|e| e.to_string())?;
     // Every run's own learning curve is redrawn too (runs written by older versions).
-    for dir in crate::app::report::find_run_dirs(&a.root).map_err(|e| e.to_string())? {
+    for dir in crate::app::record::find_run_dirs(&a.root).map_err(|e| e.to_string())? {
         crate::app::curve::write_run_curve(&RunDir::new(dir)).map_err(|e| e.to_string())?;
     }
     let text = std::fs::read_to_string(&r.markdown).map_err(|e| format!("{}: {e}", r.markdown.display()))?;

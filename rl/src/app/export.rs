@@ -1,7 +1,7 @@
 //! `meben export <runs> <results>`: the evidence of a tree of runs, without its checkpoints,
 //! for committing (`results/<experiment>/`, docs/RESULTS.md).
 //!
-//! For every run directory under `<runs>` ([`crate::app::report::find_run_dirs`]) the files
+//! For every run directory under `<runs>` ([`crate::app::record::find_run_dirs`]) the files
 //! [`EVIDENCE_FILES`] that exist, and its morphology record and copies (`morphology.toml`,
 //! `morphologies/`: [`crate::app::morphology`]), are copied to the same relative path under
 //! `<results>` (each written atomically, so an interrupted export leaves whole files); a sweep's copy of
@@ -16,12 +16,16 @@
 //! replaced only if the run being exported is at least as far along. A run re-trained from
 //! the start (its machine lost, say) therefore leaves the committed, longer record in place
 //! until it passes it, and export checks on the way that the re-run is the same computation.
-//! Any disagreement is an error, found before anything is written.
+//! Any disagreement is an error, found before anything is written. The rows are compared as
+//! the text the run wrote ([`crate::app::metrics::training_lines`]), not as read back by
+//! [`crate::app::record`]: equal text is equal bits, with no float comparison to get wrong
+//! (a NaN cell equals itself there).
 
 use std::path::{Path, PathBuf};
 
 use crate::app::metrics::training_lines;
-use crate::app::report::find_run_dirs;
+use crate::app::record::find_run_dirs;
+use crate::app::run_dir::RunDir;
 use crate::error::{Result, RlError};
 
 /// The files of a run directory that are evidence: its configuration, its metrics, its
@@ -73,7 +77,7 @@ pub fn export(from: &Path, to: &Path) -> Result<ExportSummary> {
         summary.bytes += copy_file(&sweep, &to.join("sweep.toml"))?;
     }
     for (dir, rel, target, kept) in plans {
-        if !dir.join("done.json").is_file() {
+        if !RunDir::new(&dir).done().is_file() {
             summary.unfinished.push(rel.clone());
         }
         if let Some((rows, kept_rows)) = kept {
@@ -99,7 +103,8 @@ pub fn export(from: &Path, to: &Path) -> Result<ExportSummary> {
 /// if the exported file has more rows and the run's are all equal to its first ones (export
 /// keeps it), an error naming both files and the first differing row otherwise.
 fn compare_with_exported(run: &Path, exported: &Path) -> Result<Option<(usize, usize)>> {
-    let (ours, theirs) = (run.join("metrics.csv"), exported.join("metrics.csv"));
+    let (run, exported) = (RunDir::new(run), RunDir::new(exported));
+    let (ours, theirs) = (run.metrics(), exported.metrics());
     if !theirs.is_file() {
         return Ok(None);
     }
@@ -131,7 +136,7 @@ fn compare_with_exported(run: &Path, exported: &Path) -> Result<Option<(usize, u
         ));
     }
     let (rows, kept_rows) = (a.len() - 1, b.len() - 1);
-    let exported_finished = exported.join("done.json").is_file() && !run.join("done.json").is_file();
+    let exported_finished = exported.done().is_file() && !run.done().is_file();
     Ok((kept_rows > rows || (kept_rows == rows && exported_finished)).then_some((rows, kept_rows)))
 }
 

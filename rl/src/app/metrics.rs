@@ -6,8 +6,8 @@
 //! recorded ones of [`LossStats`] with the suffix `_t0`, then `_t1`), then, for every rotation of the configuration's
 //! `eval_rotations` after the first (which is 0 and uses the plain `eval_*` columns), the
 //! [`EVAL_COLUMNS`] with the suffix `_rot<degrees>` ([`eval_column`]): e.g.
-//! `eval_success_rate_rot180`. The header line names the columns, so readers
-//! ([`parse_csv`], the learning curves, `meben report`) take whatever columns a file has.
+//! `eval_success_rate_rot180`. The header line names the columns, so the reader
+//! ([`crate::app::record::MetricsTable`]) takes whatever columns a file has.
 
 use std::collections::BTreeMap;
 
@@ -167,52 +167,6 @@ impl MetricsRow {
     }
 }
 
-/// Parses a metrics CSV written by a run into rows of `column -> value` (empty cells absent);
-/// unknown columns are kept, so older and newer files both read.
-pub fn parse_csv(text: &str) -> Result<Vec<BTreeMap<String, f64>>, String> {
-    let mut lines = text.lines();
-    let header: Vec<&str> = lines.next().ok_or("empty file (no header line)")?.split(',').collect();
-    let mut rows = Vec::new();
-    for (i, line) in lines.enumerate() {
-        if line.trim().is_empty() {
-            continue;
-        }
-        let cells: Vec<&str> = line.split(',').collect();
-        if cells.len() != header.len() {
-            return Err(format!("line {}: {} cells, the header has {}", i + 2, cells.len(), header.len()));
-        }
-        let mut row = BTreeMap::new();
-        for (name, cell) in header.iter().zip(cells) {
-            if cell.is_empty() {
-                continue;
-            }
-            let v: f64 =
-                cell.parse().map_err(|_| format!("line {}: column {name}: {cell:?} is not a number", i + 2))?;
-            row.insert(name.to_string(), v);
-        }
-        rows.push(row);
-    }
-    Ok(rows)
-}
-
-/// Reads and parses the metrics CSV at `path` ([`parse_csv`]); errors name the file.
-pub fn read_csv(path: &std::path::Path) -> crate::error::Result<Vec<BTreeMap<String, f64>>> {
-    use crate::error::RlError;
-    let text = std::fs::read_to_string(path).map_err(|e| RlError::file(path, format!("cannot read: {e}")))?;
-    parse_csv(&text).map_err(|e| RlError::file(path, e))
-}
-
-/// A metrics CSV as columns in file order, `(name, one value per row)`, an empty cell read
-/// as NaN (a value that does not apply or was not measured in that row); errors as
-/// [`parse_csv`].
-pub fn parse_columns(text: &str) -> Result<Vec<(String, Vec<f64>)>, String> {
-    let rows = parse_csv(text)?;
-    let header = text.lines().next().unwrap_or_default().split(',');
-    Ok(header
-        .map(|name| (name.to_string(), rows.iter().map(|r| r.get(name).copied().unwrap_or(f64::NAN)).collect()))
-        .collect())
-}
-
 /// The columns of a metrics file that measure time rather than training: two runs of one
 /// configuration, on any machine and thread count, agree bit for bit on every other column.
 pub const WALL_TIME_COLUMNS: [&str; 2] = ["wall_s", "steps_per_s"];
@@ -253,10 +207,11 @@ mod tests {
         row.set("iteration", 3.0);
         row.set("eval_success_rate", 0.25);
         row.set(eval_column("eval_success_rate", 180.0), 0.5);
+        row.set("env_steps", 30.0);
         let text = format!("{}\n{}\n", layout.header(), layout.to_csv(&row));
-        let rows = parse_csv(&text).unwrap();
-        assert_eq!(rows[0]["eval_success_rate_rot180"], 0.5);
-        assert_eq!(rows[0]["iteration"], 3.0);
+        let rows = crate::app::record::MetricsTable::parse(&text).unwrap().rows;
+        assert_eq!(rows[0].get("eval_success_rate_rot180"), Some(0.5));
+        assert_eq!(rows[0].iteration, 3);
         let rot = rotations_of("eval_success_rate", layout.columns().iter().map(|c| c.as_str()));
         assert_eq!(rot, [0.0, -45.5, 180.0]);
         // Columns of other bases are not rotations of this one.
@@ -271,17 +226,6 @@ mod tests {
             concat!(env!("CARGO_MANIFEST_DIR"), "/../results/reach_1_ant/team_reach_1_ant/shnn/seed0/metrics.csv");
         let text = std::fs::read_to_string(committed).unwrap();
         assert_eq!(text.lines().next().unwrap(), MetricsLayout::default().header());
-    }
-
-    #[test]
-    fn columns_keep_the_file_order_and_read_empty_cells_as_nan() {
-        let cols = parse_columns("iteration,eval_success_rate,env_steps\n1,,10\n2,0.5,20\n").unwrap();
-        let names: Vec<&str> = cols.iter().map(|(n, _)| n.as_str()).collect();
-        assert_eq!(names, ["iteration", "eval_success_rate", "env_steps"]);
-        assert_eq!(cols[0].1, [1.0, 2.0]);
-        assert!(cols[1].1[0].is_nan() && cols[1].1[1] == 0.5);
-        let msg = parse_columns("a,b\n1,x\n").unwrap_err();
-        assert!(msg.contains("line 2") && msg.contains("column b"), "{msg}");
     }
 
     #[test]

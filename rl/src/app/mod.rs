@@ -1,8 +1,9 @@
 //! The application around the algorithm ([`crate::mappo`]): configuration presets and
 //! layers ([`presets`]), training in a run directory ([`run`], [`run_dir`], [`lock`],
-//! [`config_match`], [`morphology`], [`metrics`], [`build_info`], [`progress`], [`curve`],
+//! [`morphology`], [`metrics`], [`build_info`], [`progress`], [`curve`],
 //! [`plot`]) and stopping it on
 //! Ctrl-C or SIGTERM ([`signals`]), sweeps ([`sweep`], `meben ablate`),
+//! reading a run directory back ([`record`]: configuration, typed metrics rows, summary),
 //! reports ([`report`](mod@report), `meben report`), evidence export
 //! ([`export`](mod@export), `meben export`), the progress of runs ([`status`](mod@status),
 //! `meben status`), parameter counts ([`info`], `meben info`),
@@ -11,7 +12,6 @@
 
 pub mod build_info;
 pub mod cli;
-pub mod config_match;
 pub mod curve;
 pub mod export;
 pub mod info;
@@ -23,6 +23,7 @@ pub mod plot;
 pub mod policy_file;
 pub mod presets;
 pub mod progress;
+pub mod record;
 pub mod render;
 pub mod report;
 pub mod run;

@@ -267,8 +267,7 @@ fn train_in_pool(config: &TrainConfig, run: &RunDir, options: &TrainOptions) -> 
     // damaged config.toml, which evaluation and rendering read.
     config.save(&run.config())?;
     if trainer.iteration >= total
-        && let Ok(text) = std::fs::read_to_string(run.done())
-        && let Ok(s) = serde_json::from_str::<RunSummary>(&text)
+        && let Some(s) = crate::app::record::read_summary(run)
     {
         return Ok(s);
     }

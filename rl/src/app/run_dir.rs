@@ -161,7 +161,7 @@ pub fn check_not_a_run_file(option: &str, out: &Path) -> Result<()> {
 /// The trained teams of a run directory (its `config.toml` and `checkpoint.json`): the
 /// models with their parameters and normalisers, ready for [`crate::mappo::evaluate::evaluate`] or
 /// rendering. A `config.toml` that disagrees with the checkpoint's configuration is refused,
-/// naming the fields ([`crate::app::config_match`]). For a run trained on morphology files,
+/// naming the fields ([`crate::mappo::config_match`]). For a run trained on morphology files,
 /// the configuration's `env` names the run's own checked copies of them, by absolute path
 /// ([`crate::app::morphology::env_with_copies`]), so that it evaluates the same bodies from
 /// any directory.
@@ -182,7 +182,7 @@ pub fn load_run(run: &RunDir) -> Result<(TrainConfig, Checkpoint)> {
     let config = TrainConfig::load(&run.config())?;
     let path = run.checkpoint();
     let c = Checkpoint::load(&path)?;
-    crate::app::config_match::check_config_matches_checkpoint(&run.config(), &config, &path, &c.config)?;
+    crate::mappo::config_match::check_config_matches_checkpoint(&run.config(), &config, &path, &c.config)?;
     // The scene from the run's own copies of its morphology files.
     let config = TrainConfig { env: crate::app::morphology::env_with_copies(run, &config.env)?, ..config };
     Ok((config, c))

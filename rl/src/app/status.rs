@@ -22,10 +22,9 @@ use std::collections::{HashMap, HashSet};
 use std::path::{Path, PathBuf};
 
 use crate::app::lock::holder;
-use crate::app::metrics::read_csv;
-use crate::app::report::{count, find_run_dirs};
+use crate::app::record::{IterationRow, Rate, RunRecord, find_run_dirs};
+use crate::app::report::count;
 use crate::app::run::evals_through;
-use crate::app::run_dir::RunDir;
 use crate::app::sweep::Sweep;
 use crate::error::{Result, RlError};
 use crate::mappo::config::TrainConfig;
@@ -89,8 +88,8 @@ pub fn status(root: &Path) -> Result<Vec<RunProgress>> {
     }
     let mut runs = Vec::new();
     for dir in &dirs {
-        let config = TrainConfig::load(&RunDir::new(dir).config())?;
-        runs.push((run_progress(root, dir, &config)?, config));
+        let record = RunRecord::read(dir)?;
+        runs.push((run_progress(root, &record)?, record.config));
     }
     if let Some(sweep) = sweep {
         // Sets and maps keyed by name and by group, not searches of `runs`: a sweep of 10k
@@ -162,10 +161,10 @@ impl RunProgress {
 /// Seconds an evaluation adds to its iteration: the median, over the rows with an
 /// evaluation, of the row's duration (the difference of its `wall_s` and the previous
 /// row's) less the median duration of the rows without one (`None` before an evaluation).
-fn evaluation_seconds(rows: &[std::collections::BTreeMap<String, f64>]) -> Option<f64> {
+fn evaluation_seconds(rows: &[IterationRow]) -> Option<f64> {
     let durations: Vec<(bool, f64)> = rows
         .windows(2)
-        .filter_map(|w| Some((w[1].contains_key("eval_episodes"), w[1].get("wall_s")? - w[0].get("wall_s")?)))
+        .filter_map(|w| Some((w[1].evaluated(), w[1].wall_s? - w[0].wall_s?)))
         .filter(|(_, d)| d.is_finite() && *d >= 0.0)
         .collect();
     let iteration = median(durations.iter().filter(|(e, _)| !e).map(|(_, d)| *d))?;
@@ -201,33 +200,26 @@ fn queued_run(name: &str, config: &TrainConfig) -> RunProgress {
     }
 }
 
-/// One run's progress, its configuration being `config`.
-fn run_progress(root: &Path, dir: &Path, config: &TrainConfig) -> Result<RunProgress> {
-    let run = RunDir::new(dir);
-    let rows = read_csv(&run.metrics())?;
-    let last = |col: &str| rows.iter().rev().find_map(|r| r.get(col).copied().filter(|v| v.is_finite()));
-    let metric = if config.is_sumo() { "eval_win_rate_t0" } else { "eval_success_rate" };
-    let last_eval = rows.iter().rev().find_map(|r| {
-        let (steps, value) = (r.get("env_steps")?, r.get(metric)?);
-        Some((metric.to_string(), *steps as u64, *value))
-    });
+/// One run's progress, from its record.
+fn run_progress(root: &Path, record: &RunRecord) -> Result<RunProgress> {
+    let (config, rows, dir) = (&record.config, record.rows(), record.dir.root());
+    let rate = if config.is_sumo() { Rate::Win(0) } else { Rate::Success };
+    let last_eval =
+        rows.iter().rev().find_map(|r| Some((rate.eval_column(0.0), r.env_steps, r.eval(0.0)?.rate(rate)?)));
     let steps_per_s = median(
-        rows.iter()
-            .filter(|r| !r.contains_key("eval_episodes"))
-            .filter_map(|r| r.get("steps_per_s").copied())
-            .filter(|v| v.is_finite() && *v > 0.0),
+        rows.iter().filter(|r| !r.evaluated()).filter_map(|r| r.steps_per_s).filter(|v| v.is_finite() && *v > 0.0),
     );
-    let finished = run.done().is_file();
-    let state = if finished {
+    let state = if record.finished {
         RunState::Finished
     } else if let Some(h) = holder(dir)? {
         RunState::Training(h)
-    } else if rows.is_empty() && !run.checkpoint().is_file() {
+    } else if rows.is_empty() && !record.dir.checkpoint().is_file() {
         RunState::NotStarted
     } else {
         RunState::Stopped
     };
-    let iteration = last("iteration").unwrap_or(0.0) as u64;
+    let last = rows.last();
+    let iteration = last.map_or(0, |r| r.iteration);
     let evals_left = config.num_evals as u64
         - evals_through(iteration.min(config.iterations()), config.iterations(), config.num_evals as u64);
     Ok(RunProgress {
@@ -235,15 +227,15 @@ fn run_progress(root: &Path, dir: &Path, config: &TrainConfig) -> Result<RunProg
         run: dir.strip_prefix(root).ok().filter(|r| !r.as_os_str().is_empty()).unwrap_or(dir).to_path_buf(),
         state,
         iteration,
-        env_steps: last("env_steps").unwrap_or(0.0) as u64,
+        env_steps: last.map_or(0, |r| r.env_steps),
         budget_steps: config.iterations() * config.steps_per_iteration(),
-        wall_s: last("wall_s").unwrap_or(0.0),
+        wall_s: rows.iter().rev().find_map(|r| r.wall_s.filter(|w| w.is_finite())).unwrap_or(0.0),
         last_eval,
         steps_per_s,
         speed_estimated: false,
-        eval_s: evaluation_seconds(&rows),
+        eval_s: evaluation_seconds(rows),
         eval_estimated: false,
-        evals_left: if finished { 0 } else { evals_left },
+        evals_left: if record.finished { 0 } else { evals_left },
     })
 }
 

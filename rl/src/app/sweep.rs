@@ -18,7 +18,7 @@
 //! config = { entropy_coef = 0.0 }
 //! ```
 //!
-//! Keys: [`SWEEP_KEYS`]. `env`, `model` and `seed` come from the lists and cannot be set in
+//! Keys: the fields of [`SweepFile`] (any other key is refused). `env`, `model` and `seed` come from the lists and cannot be set in
 //! `[config]` or a variant. Each run's configuration is
 //! `TrainConfig::resolve(Some(preset), None, overrides)` with the overrides of `[config]`,
 //! then of the variant, then the run's env, model and seed.
@@ -44,25 +44,65 @@
 //!
 //! **Restarts.** A run that is done (`done.json`) is skipped; one with a checkpoint is
 //! resumed, after checking that it was started with the same configuration (except
-//! `steps`, which may be raised to train longer); any other is trained from scratch. So a
-//! sweep is restarted by running the same command again.
+//! `steps`, which may be raised to train longer, and the fields above; `num_evals` must
+//! match: [`crate::mappo::config_match`]); any other is trained from scratch. So a sweep is
+//! restarted by running the same command again.
 
 use std::collections::BTreeSet;
 use std::fmt;
 use std::path::Path;
 use std::str::FromStr;
 
+use serde::Deserialize;
+
 use crate::app::presets::Preset;
 use crate::app::run::RunSummary;
 use crate::app::run_dir::{RunDir, RunStatus};
 use crate::error::{Result, RlError};
 use crate::mappo::config::TrainConfig;
+use crate::mappo::config_match;
 
-/// The keys of a sweep file (module docs).
-pub const SWEEP_KEYS: [&str; 7] = ["envs", "models", "seeds", "preset", "include_base", "config", "variants"];
+/// A sweep file as written (module docs), read by serde: an unknown key, at the top or in a
+/// `[[variants]]` table, is refused, naming it and the keys there are. [`Sweep::parse`] then
+/// checks what the types cannot say (non-empty lists without repeats, variant names, the
+/// override tables' fields).
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SweepFile {
+    /// Environment names.
+    pub envs: Vec<String>,
+    /// Model specifications (`models::ModelConfig::parse` syntax).
+    pub models: Vec<String>,
+    /// Seeds.
+    pub seeds: Vec<u64>,
+    /// The preset every run starts from, `paper` (default) or `quick`.
+    #[serde(default)]
+    pub preset: Option<String>,
+    /// Whether the runs without a variant are part of the sweep (default true).
+    #[serde(default = "yes")]
+    pub include_base: bool,
+    /// `TrainConfig` fields set for every run.
+    #[serde(default)]
+    pub config: toml::Table,
+    /// The `[[variants]]` tables.
+    #[serde(default)]
+    pub variants: Vec<VariantFile>,
+}
 
-/// The keys of a `[[variants]]` table.
-pub const VARIANT_KEYS: [&str; 2] = ["name", "config"];
+/// A `[[variants]]` table of a sweep file.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct VariantFile {
+    /// The variant's name (required: [`Sweep::parse`] names the table that lacks it).
+    pub name: Option<String>,
+    /// `TrainConfig` fields the variant sets.
+    #[serde(default)]
+    pub config: toml::Table,
+}
+
+fn yes() -> bool {
+    true
+}
 
 /// Fields that the sweep's lists set and `[config]` or a variant must not.
 const LIST_FIELDS: [(&str, &str); 4] =
@@ -249,47 +289,21 @@ impl Sweep {
 
     /// Parses a sweep file's text; `source` (its path) is named in errors.
     pub fn parse(text: &str, source: &str) -> Result<Sweep> {
-        let table: toml::Table = text.parse().map_err(|e| RlError::file(source, format!("invalid TOML: {e}")))?;
-        for (k, v) in &table {
-            if !SWEEP_KEYS.contains(&k.as_str()) {
-                return Err(RlError::config(
-                    source,
-                    k,
-                    v,
-                    format!("unknown key; known keys: {}", SWEEP_KEYS.join(", ")),
-                ));
-            }
-        }
-        let envs = string_list(&table, "envs", source)?;
-        let models = string_list(&table, "models", source)?;
-        let seeds = seed_list(&table, source)?;
-        let preset = match table.get("preset") {
+        let file: SweepFile = toml::from_str(text)
+            .map_err(|e| RlError::file(source, format!("invalid sweep file: {}", e.to_string().trim_end())))?;
+        let envs = string_list(file.envs, "envs", source)?;
+        let models = string_list(file.models, "models", source)?;
+        let seeds = seed_list(file.seeds, source)?;
+        let preset = match &file.preset {
             None => Preset::Paper,
-            Some(toml::Value::String(s)) => Preset::parse(s, source)?,
-            Some(v) => return Err(RlError::config(source, "preset", v, "expected `quick` or `paper`")),
+            Some(s) => Preset::parse(s, source)?,
         };
-        let include_base = match table.get("include_base") {
-            None => true,
-            Some(toml::Value::Boolean(b)) => *b,
-            Some(v) => return Err(RlError::config(source, "include_base", v, "expected true or false")),
-        };
-        let config = match table.get("config") {
-            None => Vec::new(),
-            Some(v) => overrides(v, "config", source)?,
-        };
+        let config = overrides(&file.config, "config", source)?;
         let mut variants = Vec::new();
-        match table.get("variants") {
-            None => {}
-            Some(toml::Value::Array(items)) => {
-                for (i, item) in items.iter().enumerate() {
-                    variants.push(parse_variant(item, i, source, &variants)?);
-                }
-            }
-            Some(v) => {
-                return Err(RlError::config(source, "variants", v, "expected [[variants]] tables (name, config)"));
-            }
+        for (i, v) in file.variants.iter().enumerate() {
+            variants.push(check_variant(v, i, source, &variants)?);
         }
-        if !include_base && variants.is_empty() {
+        if !file.include_base && variants.is_empty() {
             return Err(RlError::config(
                 source,
                 "include_base",
@@ -306,7 +320,7 @@ impl Sweep {
             preset,
             config,
             variants,
-            include_base,
+            include_base: file.include_base,
         })
     }
 
@@ -402,7 +416,7 @@ pub fn run_sweep(
         let result = match status {
             RunStatus::Done => {
                 if let Ok(saved) = TrainConfig::load(&dir.config()) {
-                    let diff = config_differences(&saved, &run.config, true);
+                    let diff = config_differences(&saved, &run.config, &config_match::NEVER_IDENTITY_FIELDS);
                     if !diff.is_empty() {
                         eprintln!(
                             "{head}: warning: finished with a configuration that differs from the sweep's: {}",
@@ -475,10 +489,16 @@ pub fn sanitize_component(s: &str) -> String {
     if out.chars().all(|c| c == '.') { format!("_{out}") } else { out }
 }
 
-/// Checks that a partial run's saved configuration is the sweep's, `steps` aside.
+/// The fields a sweep lets differ between a partial run's saved configuration and the
+/// sweep's when it resumes the run: those no result depends on, and the budget `steps`
+/// (raised to train longer); not `num_evals`, since the sweep file fixes each run's
+/// evaluation schedule ([`crate::mappo::config_match`]).
+const RESUME_MAY_DIFFER: [&str; 4] = ["steps", "checkpoint_every", "threads", "device"];
+
+/// Checks that a partial run's saved configuration is the sweep's ([`RESUME_MAY_DIFFER`]).
 fn check_resumable(dir: &RunDir, wanted: &TrainConfig) -> Result<()> {
     let saved = TrainConfig::load(&dir.config())?;
-    let diff = config_differences(&saved, wanted, false);
+    let diff = config_differences(&saved, wanted, &RESUME_MAY_DIFFER);
     if diff.is_empty() {
         return Ok(());
     }
@@ -492,21 +512,12 @@ fn check_resumable(dir: &RunDir, wanted: &TrainConfig) -> Result<()> {
     ))
 }
 
-/// `field: saved X, sweep Y` for every field that differs (`steps` only if `with_steps`;
-/// never `threads` or `checkpoint_every`, which the results do not depend on, nor `device`,
-/// on which a run may go on either way).
-fn config_differences(saved: &TrainConfig, wanted: &TrainConfig, with_steps: bool) -> Vec<String> {
-    let a = toml::Table::try_from(saved).unwrap_or_default();
-    let b = toml::Table::try_from(wanted).unwrap_or_default();
-    let keys: BTreeSet<&String> = a.keys().chain(b.keys()).collect();
-    keys.into_iter()
-        .filter(|k| !matches!(k.as_str(), "threads" | "checkpoint_every" | "device"))
-        .filter(|k| with_steps || k.as_str() != "steps")
-        .filter(|k| a.get(*k) != b.get(*k))
-        .map(|k| {
-            let show = |v: Option<&toml::Value>| v.map(|v| v.to_string()).unwrap_or_else(|| "(absent)".into());
-            format!("{k}: saved {}, sweep {}", show(a.get(k)), show(b.get(k)))
-        })
+/// `field: saved X, sweep Y` for every field that differs but those of `may_differ`
+/// ([`config_match::differences`], the comparison resuming makes too).
+fn config_differences(saved: &TrainConfig, wanted: &TrainConfig, may_differ: &[&str]) -> Vec<String> {
+    config_match::differences(saved, wanted, may_differ)
+        .into_iter()
+        .map(|d| format!("{}: saved {}, sweep {}", d.field, d.first, d.second))
         .collect()
 }
 
@@ -520,21 +531,19 @@ fn in_run(e: RlError, source: &str, run: &str) -> RlError {
     }
 }
 
-/// A required, non-empty list of distinct, non-empty strings.
-fn string_list(table: &toml::Table, key: &str, source: &str) -> Result<Vec<String>> {
-    let v = table.get(key).ok_or_else(|| RlError::config(source, key, "", "missing (a list of strings)"))?;
-    let items = v.as_array().ok_or_else(|| RlError::config(source, key, v, "expected a list of strings"))?;
+/// A non-empty list of distinct, non-empty strings (trimmed); `key` names it in errors.
+fn string_list(items: Vec<String>, key: &str, source: &str) -> Result<Vec<String>> {
     if items.is_empty() {
-        return Err(RlError::config(source, key, v, "the list is empty"));
+        return Err(RlError::config(source, key, "[]", "the list is empty"));
     }
     let mut out: Vec<String> = Vec::new();
     // A set, not `out.contains`: a list of N items is checked in linear time.
     let mut seen = std::collections::HashSet::new();
     for item in items {
-        let s = match item.as_str() {
-            Some(s) if !s.trim().is_empty() => s.trim().to_string(),
-            _ => return Err(RlError::config(source, key, item, "expected a non-empty string")),
-        };
+        let s = item.trim().to_string();
+        if s.is_empty() {
+            return Err(RlError::config(source, key, &item, "expected a non-empty string"));
+        }
         if !seen.insert(s.clone()) {
             return Err(RlError::config(source, key, &s, "listed twice"));
         }
@@ -543,34 +552,22 @@ fn string_list(table: &toml::Table, key: &str, source: &str) -> Result<Vec<Strin
     Ok(out)
 }
 
-/// The required, non-empty list of distinct non-negative integer seeds.
-fn seed_list(table: &toml::Table, source: &str) -> Result<Vec<u64>> {
-    let key = "seeds";
-    let v = table.get(key).ok_or_else(|| RlError::config(source, key, "", "missing (a list of integers)"))?;
-    let items = v.as_array().ok_or_else(|| RlError::config(source, key, v, "expected a list of integers"))?;
-    if items.is_empty() {
-        return Err(RlError::config(source, key, v, "the list is empty"));
+/// A non-empty list of distinct seeds.
+fn seed_list(seeds: Vec<u64>, source: &str) -> Result<Vec<u64>> {
+    if seeds.is_empty() {
+        return Err(RlError::config(source, "seeds", "[]", "the list is empty"));
     }
-    let mut out = Vec::new();
     // A set, not `out.contains`: 10^6 seeds took 64 s (issue 44 item 9).
     let mut seen = std::collections::HashSet::new();
-    for item in items {
-        let seed = item
-            .as_integer()
-            .and_then(|s| u64::try_from(s).ok())
-            .ok_or_else(|| RlError::config(source, key, item, "expected a non-negative integer"))?;
-        if !seen.insert(seed) {
-            return Err(RlError::config(source, key, seed, "listed twice"));
-        }
-        out.push(seed);
+    if let Some(seed) = seeds.iter().find(|&&s| !seen.insert(s)) {
+        return Err(RlError::config(source, "seeds", seed, "listed twice"));
     }
-    Ok(out)
+    Ok(seeds)
 }
 
 /// A table of TrainConfig overrides as `(field, TOML text)` pairs; `at` names the table
 /// (`config`, `variants.<name>.config`) in errors.
-fn overrides(v: &toml::Value, at: &str, source: &str) -> Result<Vec<(String, String)>> {
-    let table = v.as_table().ok_or_else(|| RlError::config(source, at, v, "expected a table of TrainConfig fields"))?;
+fn overrides(table: &toml::Table, at: &str, source: &str) -> Result<Vec<(String, String)>> {
     let known = TrainConfig::preset(Preset::Quick, "team_reach/1_ant").to_full_table();
     let mut out = Vec::new();
     for (k, value) in table {
@@ -593,24 +590,12 @@ fn overrides(v: &toml::Value, at: &str, source: &str) -> Result<Vec<(String, Str
     Ok(out)
 }
 
-/// The `i`-th `[[variants]]` table.
-fn parse_variant(item: &toml::Value, i: usize, source: &str, before: &[Variant]) -> Result<Variant> {
+/// The `i`-th `[[variants]]` table, its name checked (present, fit for a directory name,
+/// unlike those `before`) and its overrides too.
+fn check_variant(v: &VariantFile, i: usize, source: &str, before: &[Variant]) -> Result<Variant> {
     let at = format!("variants[{i}]");
-    let table = item.as_table().ok_or_else(|| RlError::config(source, &at, item, "expected a table (name, config)"))?;
-    for (k, v) in table {
-        if !VARIANT_KEYS.contains(&k.as_str()) {
-            return Err(RlError::config(
-                source,
-                &format!("{at}.{k}"),
-                v,
-                format!("unknown key; known keys: {}", VARIANT_KEYS.join(", ")),
-            ));
-        }
-    }
-    let name = match table.get("name") {
-        Some(toml::Value::String(s)) => s.clone(),
-        Some(v) => return Err(RlError::config(source, &format!("{at}.name"), v, "expected a string")),
-        None => return Err(RlError::config(source, &format!("{at}.name"), "", "missing (every variant needs a name)")),
+    let Some(name) = v.name.clone() else {
+        return Err(RlError::config(source, &format!("{at}.name"), "", "missing (every variant needs a name)"));
     };
     if name.is_empty()
         || name.chars().all(|c| c == '.')
@@ -626,10 +611,7 @@ fn parse_variant(item: &toml::Value, i: usize, source: &str, before: &[Variant])
     if before.iter().any(|v| v.name == name) {
         return Err(RlError::config(source, &format!("{at}.name"), &name, "two variants have this name"));
     }
-    let config = match table.get("config") {
-        Some(v) => overrides(v, &format!("variants.{name}.config"), source)?,
-        None => Vec::new(),
-    };
+    let config = overrides(&v.config, &format!("variants.{name}.config"), source)?;
     Ok(Variant { name, config })
 }
 
@@ -743,12 +725,16 @@ config = { entropy_coef = 0.0 }
         let cases: &[(&str, &[&str])] = &[
             (
                 "envs = [\"team_reach/1_ant\"]\nmodels = [\"shnn\"]\nseeds = [0]\ncolour = 1",
-                &["colour", "known keys", "envs, models"],
+                // serde's wording: the line, the key and the keys there are.
+                &["line 4", "unknown field `colour`", "expected one of `envs`, `models`"],
             ),
             ("envs = []\nmodels = [\"shnn\"]\nseeds = [0]", &["envs", "empty"]),
             ("models = [\"shnn\"]\nseeds = [0]", &["envs", "missing"]),
             ("envs = [\"team_reach/1_ant\"]\nmodels = [\"shnn\"]\nseeds = []", &["seeds", "empty"]),
-            ("envs = [\"team_reach/1_ant\"]\nmodels = [\"shnn\"]\nseeds = [-1]", &["seeds", "-1"]),
+            (
+                "envs = [\"team_reach/1_ant\"]\nmodels = [\"shnn\"]\nseeds = [-1]",
+                &["seeds = [-1]", "integer `-1`, expected u64"],
+            ),
             ("envs = [\"team_reach/1_ant\"]\nmodels = [\"shnn\", \"shnn\"]\nseeds = [0]", &["models", "twice"]),
             (
                 "envs = [\"team_reach/1_ant\"]\nmodels = [\"resnet\"]\nseeds = [0]",
@@ -778,7 +764,7 @@ config = { entropy_coef = 0.0 }
             ),
             (
                 "envs = [\"team_reach/1_ant\"]\nmodels = [\"shnn\"]\nseeds = [0]\n[[variants]]\nname = \"v\"\nfoo = 1",
-                &["variants[0].foo", "name, config"],
+                &["line 6", "foo = 1", "unknown field `foo`, expected `name` or `config`"],
             ),
             (
                 "envs = [\"team_reach/1_ant\"]\nmodels = [\"shnn\"]\nseeds = [0]\n[[variants]]\nname = \"v\"\nconfig = { seed = 3 }",
@@ -788,7 +774,7 @@ config = { entropy_coef = 0.0 }
                 "envs = [\"team_reach/1_ant\"]\nmodels = [\"shnn\"]\nseeds = [0]\ninclude_base = false",
                 &["include_base", "no runs"],
             ),
-            ("envs = [\"team_reach/1_ant\"\nmodels", &["bad.toml", "invalid TOML"]),
+            ("envs = [\"team_reach/1_ant\"\nmodels", &["bad.toml", "invalid sweep file", "line 2", "missing comma"]),
         ];
         for (text, wanted) in cases {
             let msg = err_of(text);

@@ -1,6 +1,7 @@
 //! The algorithm: MAPPO on the MeBen tasks (paper section 5; MEBEN.md section 6: Brax PPO
 //! per team), one module per job:
-//! - [`config`]: the hyper-parameters and run settings ([`config::TrainConfig`]);
+//! - [`config`]: the hyper-parameters and run settings ([`config::TrainConfig`]), and
+//!   [`config_match`]: whether two configurations are the same run (resume, sweeps);
 //! - [`trainer`]: one training iteration, read top to bottom ([`trainer::Trainer::iterate`]:
 //!   collect, normalise, update);
 //! - [`actor`]: a team's act step (normalise, policy, sample, log-probability), used by
@@ -21,6 +22,7 @@ pub mod actor;
 pub mod checkpoint;
 pub mod checksum;
 pub mod config;
+pub mod config_match;
 pub mod device;
 pub mod evaluate;
 pub mod gae;

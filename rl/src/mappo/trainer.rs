@@ -45,6 +45,7 @@ use crate::error::{Result, RlError};
 use crate::mappo::actor::JointAction;
 use crate::mappo::checkpoint::{Checkpoint, TeamState, VERSION};
 use crate::mappo::config::{NormStart, TrainConfig};
+use crate::mappo::config_match;
 use crate::mappo::device::check_device;
 use crate::mappo::evaluate::{EvalOptions, EvalSummary, evaluate};
 use crate::mappo::minibatch::Minibatch;
@@ -302,9 +303,10 @@ impl Trainer {
         })
     }
 
-    /// The run restored from a checkpoint (its configuration, except `steps`, `num_evals`,
-    /// `checkpoint_every` and `threads`, which may be changed to extend a run, and `device`:
-    /// a run resumes on either device).
+    /// The run restored from a checkpoint (its configuration, except the
+    /// [`config_match::SESSION_FIELDS`]: `steps`, `num_evals`, `checkpoint_every` and
+    /// `threads`, which may be changed to extend a run, and `device`: a run resumes on either
+    /// device).
     pub fn from_checkpoint(c: &Checkpoint, config: &TrainConfig, path: &std::path::Path) -> Result<Trainer> {
         config.validate("config")?;
         Self::restore(c, config, path, None)
@@ -333,23 +335,12 @@ impl Trainer {
         let mut t = Trainer::build(config, factory)?;
         // The configuration as the run records it (a factory's policies name the models).
         let config = &t.config.clone();
-        let mut fixed = c.config.clone();
-        fixed.steps = config.steps;
-        fixed.num_evals = config.num_evals;
-        fixed.checkpoint_every = config.checkpoint_every;
-        fixed.threads = config.threads;
-        fixed.device = config.device;
-        if &fixed != config {
-            let a = toml::Table::try_from(&fixed).unwrap_or_default();
-            let b = toml::Table::try_from(config).unwrap_or_default();
-            let diff: Vec<String> = a
-                .iter()
-                .filter(|(k, v)| b.get(*k) != Some(v))
-                .map(|(k, v)| {
-                    format!("{k} = {v} in the checkpoint, {} now", b.get(k).map(|x| x.to_string()).unwrap_or_default())
-                })
-                .collect();
-            return Err(bad(format!("was written by another configuration: {}", diff.join("; "))));
+        // The checkpoint's configuration but for the fields a session may change (the one
+        // comparison of `config_match`, which sweeps and run directories make too).
+        let diff = config_match::differences(&c.config, config, &config_match::SESSION_FIELDS);
+        if !diff.is_empty() {
+            let fields: Vec<String> = diff.iter().map(|d| d.describe("in the checkpoint", "now")).collect();
+            return Err(bad(format!("was written by another configuration: {}", fields.join("; "))));
         }
         if c.teams.len() != t.teams.len() || c.episode_returns.len() != t.episode_returns.len() {
             return Err(bad(format!(

@@ -53,11 +53,11 @@ impl Drop for TempDir {
 }
 
 /// A run's metrics rows without the wall-clock columns (`rl::app::metrics::WALL_TIME_COLUMNS`),
-/// for comparing runs row by row.
+/// as `(column, value)` in column-name order, for comparing runs row by row.
 pub fn metrics(run: &rl::RunDir) -> Vec<Vec<(String, f64)>> {
-    let rows = rl::app::metrics::read_csv(&run.metrics()).unwrap();
+    let rows = rl::app::record::MetricsTable::read(&run.metrics()).unwrap().rows;
     let wall = rl::app::metrics::WALL_TIME_COLUMNS;
-    rows.into_iter().map(|r| r.into_iter().filter(|(k, _)| !wall.contains(&k.as_str())).collect()).collect()
+    rows.iter().map(|r| r.cells().into_iter().filter(|(k, _)| !wall.contains(&k.as_str())).collect()).collect()
 }
 
 /// Runs the `meben` program with `args`: whether it succeeded, its stdout and its stderr.

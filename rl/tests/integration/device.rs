@@ -59,9 +59,14 @@ fn a_checkpoint_of_the_other_device_resumes() {
     assert_eq!(resumed.config.device, Device::Cpu);
     assert_eq!(resumed.iterate().unwrap().losses, t.iterate().unwrap().losses);
     // Another learning rate is still refused.
-    let other = TrainConfig { learning_rate: 1e-3, ..config };
+    let other = TrainConfig { learning_rate: 1e-3, ..config.clone() };
     let e = Trainer::from_checkpoint(&state, &other, Path::new("checkpoint.json")).err().unwrap().to_string();
     assert!(e.contains("learning_rate") && !e.contains("device"), "{e}");
+    // So is a field `config.toml` writes only away from its default, which the error used
+    // to leave unnamed ("was written by another configuration: " and nothing).
+    let per_slot = TrainConfig { train_starts: rl::TrainStarts::PerSlot, ..config };
+    let e = Trainer::from_checkpoint(&state, &per_slot, Path::new("checkpoint.json")).err().unwrap().to_string();
+    assert!(e.contains("train_starts = \"fresh\" in the checkpoint, \"per_slot\" now"), "{e}");
 }
 
 /// Without the feature `gpu`, asking for the GPU says how to get it.

@@ -131,13 +131,13 @@ fn periodic_evaluation_at_several_rotations_has_its_columns_and_resumes_exactly(
     let run = RunDir::new(dir.join("run"));
     let s = train(&config, &run, &TrainOptions::default()).unwrap();
     let text = std::fs::read_to_string(run.metrics()).unwrap();
-    let rows = rl::app::metrics::parse_csv(&text).unwrap();
+    let rows = rl::app::record::MetricsTable::parse(&text).unwrap().rows;
     assert_eq!(rows.len(), 2);
     for r in &rows {
-        assert_eq!(r["eval_sampled"], 1.0);
-        assert_eq!(r["eval_episodes"], 2.0);
-        assert_eq!(r["eval_episodes_rot180"], 2.0);
-        assert!(r.contains_key("eval_success_rate") && r.contains_key("eval_success_rate_rot180"));
+        assert_eq!(r.eval_sampled, Some(true));
+        assert_eq!(r.eval(0.0).unwrap().episodes, Some(2));
+        assert_eq!(r.eval(180.0).unwrap().episodes, Some(2));
+        assert!(r.get("eval_success_rate").is_some() && r.get("eval_success_rate_rot180").is_some());
     }
     let e = s.final_eval.as_ref().unwrap();
     assert!(e.sampled && e.rotation_deg == 0.0);
@@ -153,8 +153,10 @@ fn periodic_evaluation_at_several_rotations_has_its_columns_and_resumes_exactly(
     train(&config, &parts, &TrainOptions { stop_after: Some(1), ..Default::default() }).unwrap();
     let resumed = train(&config, &parts, &TrainOptions::default()).unwrap();
     let strip = |text: &str| -> Vec<Vec<(String, f64)>> {
-        let rows = rl::app::metrics::parse_csv(text).unwrap();
-        rows.into_iter().map(|r| r.into_iter().filter(|(k, _)| k != "wall_s" && k != "steps_per_s").collect()).collect()
+        let rows = rl::app::record::MetricsTable::parse(text).unwrap().rows;
+        rows.iter()
+            .map(|r| r.cells().into_iter().filter(|(k, _)| k != "wall_s" && k != "steps_per_s").collect())
+            .collect()
     };
     assert_eq!(strip(&std::fs::read_to_string(parts.metrics()).unwrap()), strip(&text));
     assert_eq!((resumed.final_eval, resumed.final_eval_rotated), (s.final_eval.clone(), s.final_eval_rotated.clone()));

@@ -6,7 +6,7 @@
 
 use crate::common;
 
-use rl::app::metrics::parse_csv;
+use rl::app::record::MetricsTable;
 use rl::{RunDir, TrainConfig, TrainOptions, train};
 
 /// Trains `model` (quick preset, seed 0) and checks that the evaluation success rises.
@@ -16,9 +16,9 @@ fn learns_team_reach_1_ant(model: &str) {
     assert_eq!(config.env.as_str(), "team_reach/1_ant");
     let run = RunDir::new(dir.join("run"));
     train(&config, &run, &TrainOptions::default()).unwrap();
-    let rows = parse_csv(&std::fs::read_to_string(run.metrics()).unwrap()).unwrap();
+    let rows = MetricsTable::read(&run.metrics()).unwrap().rows;
     let evals: Vec<(f64, f64)> =
-        rows.iter().filter_map(|r| Some((r["env_steps"], *r.get("eval_success_rate")?))).collect();
+        rows.iter().filter_map(|r| Some((r.env_steps as f64, r.eval(0.0)?.success_rate?))).collect();
     for (s, r) in &evals {
         println!("{model} env_steps {s} eval_success_rate {r}");
     }

@@ -142,6 +142,8 @@ fn report_of_synthetic_runs() {
     assert_eq!(xs, [1000.0, 3000.0]);
     assert!(close(shnn.curve[0].mean, 10.0) && close(shnn.curve[0].se, 0.0));
     assert!(close(shnn.curve[1].mean, shnn.mean));
+    assert!(close(shnn.iqm, shnn.mean));
+    assert_eq!((shnn.mean_ci, shnn.iqm_ci), ((50.0, 90.0), (50.0, 90.0)));
 
     let sumo = &r.groups[3];
     assert_eq!(sumo.metric, "eval_win_rate_t0");
@@ -165,9 +167,13 @@ fn report_of_synthetic_runs() {
     for want in [
         "## team_reach/1_ant",
         "## team_sumo/2_ants",
-        "| shnn | `shnn` | 3 | 66.67 ± 12.02 | 3k of 1.5M | 2.0 |",
-        "25.00 ± 0.00 †",
-        "| shnn | `shnn` | same | 2 | 55.00 ± 15.00 | 25.00 ± 25.00 | 20.00 ± 10.00 | 5k of 1.5M | 0.0 |",
+        // Beside mean ± s.e., the IQM (all 3 seeds below 4) and the bootstrap intervals,
+        // which with 3 seeds span them (each resample of only the lowest has odds 1/27).
+        "| run | model | seeds | success % (mean ± s.e.) | IQM [95% CI] | mean's 95% CI | env steps |",
+        "| shnn | `shnn` | 3 | 66.67 ± 12.02 | 66.67 [50.00, 90.00] | [50.00, 90.00] | 3k of 1.5M | 2.0 |",
+        "25.00 ± 0.00 † | 25.00 [25.00, 25.00] † | [25.00, 25.00] † |",
+        "| shnn | `shnn` | same | 2 | 55.00 ± 15.00 | 55.00 [40.00, 70.00] | [40.00, 70.00] | 25.00 ± 25.00 | \
+         20.00 ± 10.00 | 5k of 1.5M | 0.0 |",
         "Machine time: 2.0 h over the 7 runs above",
         "| 2.0 | seed 0: 50.00 (3k); seed 1: 60.00 (3k); seed 2: 90.00 (3k) |",
         // The training-rate fallback: measured at the last row having it, not the last row.
@@ -183,7 +189,7 @@ fn report_of_synthetic_runs() {
     assert!(
         csv.lines()
             .any(|l| l.starts_with("team_sumo/2_ants,shnn,,team_sumo_2_ants/shnn,eval_win_rate_t0,2,0 1,55,15,20,10,")
-                && l.ends_with(",0,25,25,0"))
+                && l.ends_with(",0,25,25,0,55,40,70,40,70"))
     );
     assert_eq!(r.curves, [root.join("curves/team_reach_1_ant.svg"), root.join("curves/team_sumo_2_ants.svg")]);
     for path in &r.curves {
@@ -253,17 +259,23 @@ fn report_has_a_group_and_a_curve_per_evaluation_rotation() {
     assert!(close(r.groups[1].mean, 1.0) && close(r.groups[3].mean, 45.0), "{:?}", r.groups);
     assert_eq!(r.groups[3].curve.len(), 2);
     let csv = std::fs::read_to_string(&r.csv).unwrap();
-    assert!(csv.lines().next().unwrap().ends_with(",rotation_deg,lose_mean_pct,lose_se_pct,machine_hours"));
+    assert!(csv.lines().next().unwrap().ends_with(
+        ",rotation_deg,lose_mean_pct,lose_se_pct,machine_hours,iqm_pct,iqm_ci_low_pct,iqm_ci_high_pct,\
+         mean_ci_low_pct,mean_ci_high_pct"
+    ));
     // Team Reach has no loss rate: the loss fields are empty. A rotated group is the same
     // runs: its machine time is 0, so that summing the column counts each run once.
-    assert!(csv.lines().any(|l| l.contains("eval_success_rate_rot180") && l.ends_with(",180,,,0")), "{csv}");
+    assert!(
+        csv.lines().any(|l| l.contains("eval_success_rate_rot180") && l.ends_with(",180,,,0,45,42,48,42,48")),
+        "{csv}"
+    );
     assert!(close(r.groups[0].machine_hours, 0.5) && r.groups[1].machine_hours == 0.0);
     let svg = std::fs::read_to_string(&r.curves[0]).unwrap();
     assert!(svg.contains("shnn, rotated 180°") && svg.contains("mlp, rotated 180°"));
     // Runs that reached their budget show the steps alone.
     let md = std::fs::read_to_string(&r.markdown).unwrap();
-    assert!(md.contains("| 2 | 45.00 ± 3.00 | 200 | (same runs) |"), "{md}");
-    assert!(md.contains("| 2 | 50.00 ± 10.00 | 200 | 0.5 |"), "{md}");
+    assert!(md.contains("| 2 | 45.00 ± 3.00 | 45.00 [42.00, 48.00] | [42.00, 48.00] | 200 | (same runs) |"), "{md}");
+    assert!(md.contains("| 2 | 50.00 ± 10.00 | 50.00 [40.00, 60.00] | [40.00, 60.00] | 200 | 0.5 |"), "{md}");
     assert!(md.contains("Machine time: 1.0 h over the 4 runs above"), "{md}");
     assert!(md.lines().filter(|l| l.starts_with('|')).all(|l| !l.contains(" of ")), "{md}");
 }

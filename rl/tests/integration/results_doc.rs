@@ -17,7 +17,7 @@
 //! matches when it equals the evidence rounded to the decimals it is written with (either
 //! way at an exact tie, since `{:.2}` and Python's rounding differ there).
 
-use std::collections::{BTreeMap, HashMap};
+use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
 /// The workspace root.
@@ -101,24 +101,24 @@ fn read_report(path: &Path) -> Vec<HashMap<String, String>> {
     lines.map(|l| header.iter().map(|h| h.to_string()).zip(l.split(',').map(str::to_string)).collect()).collect()
 }
 
-/// A run's `metrics.csv` rows (the project's reader: empty cells absent).
+/// A run's `metrics.csv` rows (the project's reader: empty cells `None`).
 fn read_metrics(run: &Path) -> Vec<MetricsRow> {
-    rl::app::metrics::read_csv(&run.join("metrics.csv")).unwrap()
+    rl::app::record::MetricsTable::read(&run.join("metrics.csv")).unwrap().rows
 }
 
 /// One row of `metrics.csv`.
-type MetricsRow = BTreeMap<String, f64>;
+type MetricsRow = rl::app::record::IterationRow;
 
 /// The last value of `column` in a run's rows.
 fn last(rows: &[MetricsRow], column: &str) -> f64 {
-    *rows.iter().rev().find_map(|r| r.get(column)).unwrap_or_else(|| panic!("{column} is never written"))
+    rows.iter().rev().find_map(|r| r.get(column)).unwrap_or_else(|| panic!("{column} is never written"))
 }
 
 /// The run directories of the experiments under `results/`.
 fn runs_of(experiments: &[String]) -> Vec<PathBuf> {
     experiments
         .iter()
-        .flat_map(|exp| rl::app::report::find_run_dirs(&root().join("results").join(exp)).unwrap())
+        .flat_map(|exp| rl::app::record::find_run_dirs(&root().join("results").join(exp)).unwrap())
         .collect()
 }
 
@@ -238,7 +238,7 @@ fn check_evaluations(t: &Table, experiments: &[String], tally: &mut Tally) {
         t.line
     );
     let evaluations: Vec<MetricsRow> =
-        read_metrics(&runs.pop().unwrap()).into_iter().filter(|r| r.contains_key("eval_win_rate_t0")).collect();
+        read_metrics(&runs.pop().unwrap()).into_iter().filter(|r| r.get("eval_win_rate_t0").is_some()).collect();
     let expected_header = ["env steps", "wins", "wins", "draw", "mean return", "mean episode"];
     for (head, want) in t.header.iter().zip(expected_header) {
         assert!(
@@ -250,17 +250,18 @@ fn check_evaluations(t: &Table, experiments: &[String], tally: &mut Tally) {
     for row in &t.rows {
         let place = format!("RESULTS.md, table at line {} ({}), evaluation at {}", t.line, t.section, row[0]);
         let shown_steps = row[0].trim_end_matches('M');
-        let Some(e) = evaluations.iter().find(|e| quotes(shown_steps, e["env_steps"] / 1e6)) else {
+        let Some(row_of) = evaluations.iter().find(|e| quotes(shown_steps, e.env_steps as f64 / 1e6)) else {
             tally.wrong.push(format!("{place}: no evaluation at those env steps"));
             continue;
         };
-        tally.check(format!("{place}, wins t0"), &row[1], 100.0 * e["eval_win_rate_t0"]);
-        tally.check(format!("{place}, wins t1"), &row[2], 100.0 * e["eval_win_rate_t1"]);
-        tally.check(format!("{place}, draw"), &row[3], 100.0 * e["eval_draw_rate"]);
+        let e = |column: &str| row_of.get(column).unwrap_or_else(|| panic!("{place}: no {column}"));
+        tally.check(format!("{place}, wins t0"), &row[1], 100.0 * e("eval_win_rate_t0"));
+        tally.check(format!("{place}, wins t1"), &row[2], 100.0 * e("eval_win_rate_t1"));
+        tally.check(format!("{place}, draw"), &row[3], 100.0 * e("eval_draw_rate"));
         let (r0, r1) = row[4].split_once(" / ").unwrap_or_else(|| panic!("{place}: returns {:?}", row[4]));
-        tally.check(format!("{place}, return t0"), r0, e["eval_return_t0"]);
-        tally.check(format!("{place}, return t1"), r1, e["eval_return_t1"]);
-        tally.check(format!("{place}, length"), &row[5], e["eval_length"]);
+        tally.check(format!("{place}, return t0"), r0, e("eval_return_t0"));
+        tally.check(format!("{place}, return t1"), r1, e("eval_return_t1"));
+        tally.check(format!("{place}, length"), &row[5], e("eval_length"));
     }
 }
 
