@@ -165,8 +165,9 @@ impl ModelDescription {
             _ => ValueNet::Mlp(hidden_widths(&config.critic_hidden, &[256, 256], false)?),
         };
         let critic = if flat { Critic::Nodes } else { config.critic.unwrap_or(kind.critic()) };
-        let assignment = (kind.has_entity_stage() || variant == Some(MlpVariant::Release))
-            .then(|| config.assignment.unwrap_or(AssignmentMethod::Greedy));
+        // The models that take the option `assignment` are those with a task assignment.
+        let assignment =
+            takes_option(kind, variant, "assignment").then(|| config.assignment.unwrap_or(AssignmentMethod::Greedy));
         let entity = kind.has_entity_stage().then(|| EntityStage {
             translation: config.translation.unwrap_or(if assignment == Some(AssignmentMethod::None) {
                 Translation::RootMean

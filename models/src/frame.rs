@@ -98,7 +98,7 @@ pub fn lrf<'t, T: Float>(
     let (nb, rows) = (z.shape()[0], z.shape()[1]);
     let z = match frame {
         AgentFrame::Learned(o) => {
-            if o.shape()[..2] != [nb, 3] {
+            if o.shape().len() != 3 || o.shape()[..2] != [nb, 3] {
                 return Err(ModelError::Input(format!("frames {:?} for {nb} scenes", o.shape())));
             }
             // O_i of each scene for every row of that scene.

@@ -9,8 +9,8 @@
 //! assignment or sits on it). The entity stage sees all entities in the frame of the team's
 //! first agent; each agent's head sees eq. (lrf)'s rows ([`lrf`]: its own nodes and its
 //! neighbours' roots) in its own frame. Positions are re-based as in `shnn` (the same
-//! translation modes), so all three are translation invariant; `hnn_hn` and `hnn_dn` are also invariant under
-//! rotations about the vertical, `hnn` is not.
+//! translation modes), so all three are translation invariant; `hnn_hn` and `hnn_dn` are
+//! also invariant under rotations about the vertical, `hnn` is not.
 //!
 //! Message passing ([`ScalarMp`]): `h = [vec(Z_i), h_i] W + b`, then `steps` rounds of
 //! `m_ij = MLP_e([h_i, h_j, x_j - x_i])`, `m_i = mean_j m_ij`, `h_i += MLP_n([h_i, m_i])`.
@@ -211,9 +211,10 @@ impl Hnn {
         let h = self.mp.forward(p, x0, pos, &graph.edges)?;
         // Body heads: own nodes in the agent's frame, with h'_a.
         let bodies = self.proc.bodies(obs, &inputs, &graph.agent_entity, agents)?;
-        let neighbours = match self.stage.neighbour_rows() {
-            true => self.proc.neighbours(obs, &graph, &bodies, self.stage.neighbour)?,
-            false => Vec::new(),
+        let neighbours = if self.stage.neighbour_rows() {
+            self.proc.neighbours(obs, &graph, &bodies, self.stage.neighbour)?
+        } else {
+            Vec::new()
         };
         let mut out = Vec::with_capacity(agents.len());
         for (i, (body, head)) in bodies.iter().zip(&self.heads).enumerate() {
