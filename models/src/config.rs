@@ -1,17 +1,17 @@
 //! Which model to build and its options ([`ModelConfig`]): a model of the paper
 //! ([`ModelKind`]) and the named options that keep every ablation runnable
-//! (`name:key=value;key=value`), resolved to the settings the builders use.
+//! (`name:key=value;key=value`), as given; [`ModelConfig::describe`] checks them against the
+//! model and resolves them, with the defaults, into the
+//! [`ModelDescription`](crate::description::ModelDescription) the builders use.
 //!
 //! Every option's default is the paper's model as its reference release builds it (the
 //! paper's equations and Algorithm 1 decide the structure; where the paper is silent the
 //! release decides); the other values are the ablations and this project's earlier variants.
 
 use crate::assignment::AssignmentMethod;
-use crate::entity_graph::GraphBuilder;
 use crate::error::{ModelError, Result};
-use crate::input::{EntityAbstraction, InputProcessor, Translation};
-use crate::kind::ModelKind;
-use envs::layout::ObsSpec;
+use crate::input::{EntityAbstraction, Translation};
+use crate::kind::{Critic, ModelKind};
 
 /// The option keys [`ModelConfig::parse`] accepts.
 pub const OPTION_KEYS: [&str; 11] = [
@@ -82,29 +82,6 @@ impl NeighbourOffset {
     }
 }
 
-/// Which value network the SHNN family uses.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
-pub enum CriticKind {
-    /// Its own subequivariant network over all entities, then `σ_V` (the reference release:
-    /// `models/SHNN.py` with `out_dim == 1`; [`crate::critic::SubeqCritic`]).
-    #[default]
-    Separate,
-    /// `σ_V` on the actor's entity features `h'` (eq. (value) read literally; this
-    /// project's earlier critic).
-    Shared,
-}
-
-impl CriticKind {
-    /// Parses `separate` or `shared`.
-    pub fn parse(s: &str) -> Result<Self> {
-        match s {
-            "separate" => Ok(Self::Separate),
-            "shared" => Ok(Self::Shared),
-            _ => Err(ModelError::Option(format!("unknown critic `{s}` (expected separate or shared)"))),
-        }
-    }
-}
-
 /// Where the gravity direction enters the entity-level message passing.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub enum GravityMode {
@@ -164,8 +141,9 @@ pub struct ModelConfig {
     pub abstraction: Option<EntityAbstraction>,
     /// The neighbour rows of eq. (lrf) (SHNN and HNN models; default [`NeighbourOffset::Unit`]).
     pub neighbour: Option<NeighbourOffset>,
-    /// The value network (SHNN family; default [`CriticKind::Separate`]).
-    pub critic: Option<CriticKind>,
+    /// What the value network reads (SHNN family: `critic=separate`,
+    /// [`Critic::Subequivariant`], the default, or `critic=shared`, [`Critic::EntityStage`]).
+    pub critic: Option<Critic>,
     /// Gravity in the message passing (SHNN family but `shnn_so3`; default
     /// [`GravityMode::Input`]).
     pub gravity: Option<GravityMode>,
@@ -214,7 +192,7 @@ impl ModelConfig {
     /// (`input`, `every_layer`), `actor_steps` (a positive integer), `variant` (`release`,
     /// `flat`), `seed` (integer), `head` and `critic_hidden` (hidden widths joined by `x`,
     /// e.g. `256x256`). E.g. `shnn:assignment=hungarian;critic=shared`. Whether an option
-    /// applies to the model is checked when it is built.
+    /// applies to the model is checked by [`ModelConfig::describe`] (and so when it is built).
     pub fn parse(s: &str) -> Result<Self> {
         let (name, opts) = s.split_once(':').unwrap_or((s, ""));
         ModelKind::parse(name)?;
@@ -238,7 +216,7 @@ impl ModelConfig {
                 "translation" => c.translation = Some(Translation::parse(v)?),
                 "abstraction" => c.abstraction = Some(EntityAbstraction::parse(v)?),
                 "neighbour" => c.neighbour = Some(NeighbourOffset::parse(v)?),
-                "critic" => c.critic = Some(CriticKind::parse(v)?),
+                "critic" => c.critic = Some(Critic::parse(v)?),
                 "gravity" => c.gravity = Some(GravityMode::parse(v)?),
                 "actor_steps" => {
                     let n = v.parse::<usize>().ok().filter(|&n| (1..=MAX_ACTOR_STEPS).contains(&n));
@@ -265,8 +243,9 @@ impl ModelConfig {
         Ok(c)
     }
 
-    /// The options that are set, as `(key, set)` pairs in [`OPTION_KEYS`] order (for the
-    /// "does not apply" checks).
+    /// The options that are set, as `(key, set)` pairs in [`OPTION_KEYS`] order but `seed`,
+    /// which every model takes (for the "takes no option" check of
+    /// [`ModelConfig::describe`]).
     pub(crate) fn set_options(&self) -> [(&'static str, bool); 10] {
         [
             ("assignment", self.assignment.is_some()),
@@ -285,44 +264,6 @@ impl ModelConfig {
     /// The model to build; an unknown name is an error listing the known ones.
     pub fn kind(&self) -> Result<ModelKind> {
         ModelKind::parse(&self.name)
-    }
-
-    /// The task assignment: the option, else greedy (Algorithm 1).
-    pub(crate) fn assignment_method(&self) -> AssignmentMethod {
-        self.assignment.unwrap_or(AssignmentMethod::Greedy)
-    }
-
-    /// The translation mode: the option, else [`Translation::Assigned`], or
-    /// [`Translation::RootMean`] with `assignment=none` (the paper's "w/o assignment").
-    pub(crate) fn translation_mode(&self) -> Translation {
-        self.translation.unwrap_or(if self.assignment_method() == AssignmentMethod::None {
-            Translation::RootMean
-        } else {
-            Translation::Assigned
-        })
-    }
-
-    /// The input processing of the hierarchical models (translation and abstraction
-    /// options) for scenes laid out by `spec`.
-    pub(crate) fn input_processor(&self, spec: &ObsSpec) -> Result<InputProcessor> {
-        Ok(InputProcessor::new(spec, self.translation_mode())?.with_abstraction(self.abstraction.unwrap_or_default()))
-    }
-
-    /// The task-assignment graph builder of `team` (assignment and seed options).
-    pub(crate) fn graph_builder(&self, spec: &ObsSpec, team: usize) -> Result<GraphBuilder> {
-        GraphBuilder::new(spec, self.assignment_method(), team, self.seed)
-    }
-
-    /// Errors naming the first option set here that is not in `allowed`.
-    pub(crate) fn check_options(&self, allowed: &[&str]) -> Result<()> {
-        if let Some((key, _)) = self.set_options().iter().find(|(k, set)| *set && !allowed.contains(k)) {
-            return Err(ModelError::Option(format!(
-                "model `{}` takes no option `{key}` (its options: {})",
-                self.name,
-                if allowed.is_empty() { "none".to_string() } else { allowed.join(", ") }
-            )));
-        }
-        Ok(())
     }
 }
 
@@ -348,16 +289,6 @@ fn parse_widths(key: &str, v: &str) -> Result<Vec<usize>> {
             ))
         })?;
     Ok(w)
-}
-
-/// The hidden widths of option `h`, else `default`; positive and, unless `allow_empty`,
-/// at least one.
-pub(crate) fn hidden_widths(h: &Option<Vec<usize>>, default: &[usize], allow_empty: bool) -> Result<Vec<usize>> {
-    let h = h.clone().unwrap_or_else(|| default.to_vec());
-    if (h.is_empty() && !allow_empty) || h.contains(&0) {
-        return Err(ModelError::Option(format!("hidden widths {h:?} must be non-empty and positive")));
-    }
-    Ok(h)
 }
 
 /// `[input, hidden.., output]`.

@@ -24,6 +24,7 @@ use nn::{Aggregation, Bound, EdgeDistance, EdgeList, Mlp, Scope, TransformerConf
 use tensor::{Activation, Device, Float, Tape, Tensor, Var};
 
 use crate::config::{GravityMode, MpSizes, layer_sizes};
+use crate::description::ValueNet;
 use crate::entity_mp::{EntityMp, EntityMpConfig};
 use crate::error::{ModelError, Result};
 use crate::input::{EntityAbstraction, EntityInputs, InputProcessor, Translation};
@@ -81,19 +82,16 @@ pub enum ValueHead {
 }
 
 impl ValueHead {
-    /// An MLP for `tokens` tokens of `features` features (`hidden` widths), or a Transformer
-    /// (the paper's sizes) if `transformer`.
-    pub fn new<T: Float>(
-        s: &mut Scope<'_, T>,
-        tokens: usize,
-        features: usize,
-        hidden: &[usize],
-        transformer: bool,
-    ) -> Result<Self> {
-        Ok(if transformer {
-            Self::Transformer(Box::new(TransformerHead::new(s, features, 1, TransformerConfig::default())?))
-        } else {
-            Self::Mlp(Mlp::new(s, &layer_sizes(tokens * features, hidden, 1), Activation::Relu)?)
+    /// `σ_V` as `net` describes it for `tokens` tokens of `features` features: an MLP of its
+    /// hidden widths, or a Transformer (the paper's sizes).
+    pub fn new<T: Float>(s: &mut Scope<'_, T>, tokens: usize, features: usize, net: &ValueNet) -> Result<Self> {
+        Ok(match net {
+            ValueNet::Transformer => {
+                Self::Transformer(Box::new(TransformerHead::new(s, features, 1, TransformerConfig::default())?))
+            }
+            ValueNet::Mlp(hidden) => {
+                Self::Mlp(Mlp::new(s, &layer_sizes(tokens * features, hidden, 1), Activation::Relu)?)
+            }
         })
     }
 
@@ -148,8 +146,7 @@ pub struct SubeqCritic {
 impl SubeqCritic {
     /// The critic of `agents` (the team `team`) for scenes laid out by `spec`: message-passing
     /// sizes `sizes` (its `steps` rounds), gravity as `gravity` (`None`: the `SO(3)`
-    /// ablation), `σ_V` an MLP with `hidden` widths or a Transformer.
-    #[allow(clippy::too_many_arguments)]
+    /// ablation), `σ_V` as `value` says.
     pub fn new<T: Float>(
         s: &mut Scope<'_, T>,
         spec: &ObsSpec,
@@ -157,8 +154,7 @@ impl SubeqCritic {
         agents: &[usize],
         sizes: MpSizes,
         gravity: Option<GravityMode>,
-        hidden: &[usize],
-        transformer: bool,
+        value: &ValueNet,
     ) -> Result<Self> {
         let proc = InputProcessor::new(spec, Translation::RootMean)?.with_abstraction(EntityAbstraction::Root);
         let g = spec.gravity_dir.map(f64::from);
@@ -177,7 +173,7 @@ impl SubeqCritic {
         };
         let mp = EntityMp::new(&mut s.sub("entity"), config)?;
         let ne = spec.entity_root_node.len();
-        let head = ValueHead::new(&mut s.sub("value"), ne, sizes.scalars, hidden, transformer)?;
+        let head = ValueHead::new(&mut s.sub("value"), ne, sizes.scalars, value)?;
         Ok(Self { proc, mp, head, order: critic_order(spec, agents), kinds: entity_kinds(spec, team) })
     }
 

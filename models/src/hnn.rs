@@ -3,42 +3,33 @@
 //! entity-level message passing, per-agent body MLP heads, critic on `h'`) with every vector
 //! flattened and treated as scalars, and plain MLP message passing.
 //!
-//! The vectors are first expressed in a frame ([`HnnFrame`]): the world axes (`hnn`), the
+//! The vectors are first expressed in a frame ([`Frame`]): the world axes (`hnn`), the
 //! agent's heading (`hnn_hn`), or the horizontal direction from the agent's root to its
 //! assigned entity, the goal direction (`hnn_dn`; the heading when the agent has no
 //! assignment or sits on it). The entity stage sees all entities in the frame of the team's
-//! first agent; each agent's head sees its own nodes in its own frame. Positions are relative
-//! to the scene origin (entities) and to the assigned entity's root (bodies) as in `shnn`,
-//! so all three are translation invariant; `hnn_hn` and `hnn_dn` are also invariant under
-//! rotations about the vertical, `hnn` is not.
+//! first agent; each agent's head sees eq. (lrf)'s rows ([`lrf`]: its own nodes and its
+//! neighbours' roots) in its own frame. Positions are re-based as in `shnn` (the same
+//! translation modes), so all three are translation invariant; `hnn_hn` and `hnn_dn` are
+//! also invariant under rotations about the vertical, `hnn` is not.
 //!
 //! Message passing ([`ScalarMp`]): `h = [vec(Z_i), h_i] W + b`, then `steps` rounds of
 //! `m_ij = MLP_e([h_i, h_j, x_j - x_i])`, `m_i = mean_j m_ij`, `h_i += MLP_n([h_i, m_i])`.
 
 use nn::{Bound, EdgeList, Linear, Mlp, Scope};
-use tensor::{Activation, Float, Tensor, Var};
+use tensor::{Activation, Float, Var};
 
 use crate::assignment::UNASSIGNED;
-use crate::config::{ModelConfig, NeighbourOffset, hidden_widths, layer_sizes};
+use crate::config::layer_sizes;
 use crate::critic::critic_order;
+use crate::description::{EntityStage, ModelDescription};
 use crate::entity_graph::GraphBuilder;
 use crate::error::{ModelError, Result};
+use crate::frame::{AgentFrame, lrf, lrf_shape, to_horizontal_frame};
 use crate::input::{ENTITY_SCALARS, InputProcessor};
 use crate::interface::{AgentPolicy, PolicyOutput};
-use crate::kind::{Frame, ModelKind};
+use crate::kind::Frame;
 use envs::layout::{N_SCALARS, ObsSpec};
 use envs::layout::{NODE_VECTOR_LEN, NODE_VECTORS, ObsBatch, ObsElement};
-
-/// The frame the HNN models express vectors in.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum HnnFrame {
-    /// World axes (`hnn`).
-    World,
-    /// The agent's heading (`hnn_hn`).
-    Heading,
-    /// The horizontal direction to the agent's assigned entity (`hnn_dn`).
-    Goal,
-}
 
 /// Sizes of [`ScalarMp`].
 #[derive(Clone, Copy, Debug)]
@@ -112,33 +103,15 @@ impl ScalarMp {
     }
 }
 
-/// `v` (a 3-vector) in the horizontal frame whose first axis is `(c, s, 0)`.
-fn rotate(v: [f64; 3], (s, c): (f64, f64)) -> [f64; 3] {
-    [c * v[0] + s * v[1], -s * v[0] + c * v[1], v[2]]
-}
-
-/// Rotates every `[3, NODE_VECTORS]` block of `z` (spatial rows) into the frame of its
-/// block's scene, `frames[block / per_scene]`.
-fn rotate_blocks<T: Float>(z: &Tensor<T>, per_scene: usize, frames: &[(f64, f64)]) -> Result<Tensor<T>> {
-    let shape = z.shape().to_vec();
-    let mut out = z.to_vec();
-    for (i, blk) in out.chunks_mut(3 * NODE_VECTORS).enumerate() {
-        let f = frames[i / per_scene];
-        for k in 0..NODE_VECTORS {
-            let v = rotate([0, 1, 2].map(|r| blk[r * NODE_VECTORS + k].to_f64()), f);
-            (0..3).for_each(|r| blk[r * NODE_VECTORS + k] = T::from_f64(v[r]));
-        }
-    }
-    Ok(Tensor::new(out, &shape)?)
-}
-
 /// An HNN model (module docs).
 #[derive(Clone, Debug)]
 pub struct Hnn {
     proc: InputProcessor,
     graph: GraphBuilder,
-    frame: HnnFrame,
-    neighbour: NeighbourOffset,
+    /// [`Frame::World`], [`Frame::Heading`] or [`Frame::Goal`].
+    frame: Frame,
+    /// The entity stage's options.
+    stage: EntityStage,
     mp: ScalarMp,
     heads: Vec<Mlp>,
     critic: Mlp,
@@ -157,60 +130,40 @@ impl Hnn {
         &self.graph
     }
 
-    /// Builds `kind` (of the HNN family) for `agents` of `team`: the entity stage under
-    /// `entity`, one head per agent under `actor.<a>` and the critic under `critic` of scope
-    /// `s`.
+    /// Builds the model `d` describes (of the HNN family) for `agents` of `team`: the entity
+    /// stage under `entity`, one head per agent under `actor.<a>` and the critic under
+    /// `critic` of scope `s`.
     pub(crate) fn new<T: Float>(
         s: &mut Scope<'_, T>,
-        kind: ModelKind,
-        config: &ModelConfig,
+        d: &ModelDescription,
         spec: &ObsSpec,
         team: usize,
         agents: &[usize],
     ) -> Result<Self> {
-        config.check_options(&[
-            "assignment",
-            "translation",
-            "abstraction",
-            "neighbour",
-            "actor_steps",
-            "head",
-            "critic_hidden",
-        ])?;
-        let head_hidden = hidden_widths(&config.head_hidden, &[256, 256], false)?;
-        let critic_hidden = hidden_widths(&config.critic_hidden, &[256, 256], false)?;
-        let proc = config.input_processor(spec)?;
-        let graph = config.graph_builder(spec, team)?;
-        let m = config.mp.unwrap_or_default();
-        let sizes = ScalarMpSizes {
-            scalars: m.scalars,
-            hidden: m.hidden,
-            layers: m.layers,
-            steps: config.actor_steps.unwrap_or(1),
-        };
-        let frame = match kind.frame() {
-            Frame::Heading => HnnFrame::Heading,
-            Frame::Goal => HnnFrame::Goal,
-            _ => HnnFrame::World,
-        };
-        let neighbour = config.neighbour.unwrap_or_default();
+        let stage = *d.entity_stage()?;
+        if !matches!(d.frame, Frame::World | Frame::Heading | Frame::Goal) {
+            return Err(ModelError::Option(format!("model `{}`: HNN has no {:?} frame", d.name(), d.frame)));
+        }
+        let proc = stage.input_processor(spec)?;
+        let graph = d.graph_builder(spec, team)?;
+        let m = stage.sizes;
+        let sizes = ScalarMpSizes { scalars: m.scalars, hidden: m.hidden, layers: m.layers, steps: stage.actor_steps };
         let mp = ScalarMp::new(&mut s.sub("entity"), NODE_VECTOR_LEN + ENTITY_SCALARS, sizes)?;
         let mut actor = s.sub("actor");
-        let slots = if neighbour == NeighbourOffset::None { 0 } else { graph.slots() };
+        let slots = if stage.neighbour_rows() { graph.slots() } else { 0 };
         let heads = agents
             .iter()
             .map(|&a| {
-                let k = 1 + spec.agent_dof[a] + slots;
-                let sz =
-                    layer_sizes(k * (NODE_VECTOR_LEN + N_SCALARS) + sizes.scalars, &head_hidden, 2 * spec.agent_dof[a]);
+                let (rows, row) = lrf_shape(spec.agent_dof[a], slots, 3);
+                let sz = layer_sizes(rows * row + sizes.scalars, &d.head_hidden, 2 * spec.agent_dof[a]);
                 Mlp::new(&mut actor.sub(a), &sz, Activation::Relu)
             })
             .collect::<nn::Result<Vec<_>>>()?;
         let ne = spec.entity_root_node.len();
-        let critic =
-            Mlp::new(&mut s.sub("critic"), &layer_sizes(ne * sizes.scalars, &critic_hidden, 1), Activation::Relu)?;
+        let sz = layer_sizes(ne * sizes.scalars, d.value_mlp()?, 1);
+        let critic = Mlp::new(&mut s.sub("critic"), &sz, Activation::Relu)?;
         let critic_entities = critic_order(spec, agents);
-        Ok(Self { proc, graph, frame, neighbour, mp, heads, critic, critic_entities })
+        Ok(Self { proc, graph, frame: d.frame, stage, mp, heads, critic, critic_entities })
     }
 
     /// Policy and (if `with_value`) value (module docs).
@@ -233,9 +186,8 @@ impl Hnn {
         let frame_of = |a: usize, b: usize| -> (f64, f64) {
             let yaw: f64 = heading[b * na + a].into();
             match self.frame {
-                HnnFrame::World => (0.0, 1.0),
-                HnnFrame::Heading => yaw.sin_cos(),
-                HnnFrame::Goal => {
+                Frame::Heading => yaw.sin_cos(),
+                Frame::Goal => {
                     let e = graph.agent_entity[b * na + a];
                     let root = obs.vec3(b, spec.agent_root_node[a], 0);
                     let d = if e == UNASSIGNED { [0.0; 3] } else { inputs.world_position(b, e) };
@@ -243,12 +195,15 @@ impl Hnn {
                     let r = dx.hypot(dy);
                     if e == UNASSIGNED || r < 1e-9 { yaw.sin_cos() } else { (dy / r, dx / r) }
                 }
+                // The world axes (the learned frames are SHNN's; `Hnn::new` refuses them).
+                _ => (0.0, 1.0),
             }
         };
         // Entity stage in the frame of the team's first agent.
         let ne = inputs.entities;
         let first: Vec<(f64, f64)> = (0..nb).map(|b| frame_of(agents[0], b)).collect();
-        let z = rotate_blocks(&self.proc.actor_entities(&inputs, &graph, agents, self.neighbour)?, ne, &first)?;
+        let z = self.proc.actor_entities(&inputs, &graph, agents, self.stage.neighbour)?;
+        let z = to_horizontal_frame(&z, ne, &first)?;
         let n = nb * ne;
         let zv = tape.constant(z.reshape(&[n, 3, NODE_VECTORS])?);
         let pos = zv.narrow(2, 0, 1)?.reshape(&[n, 3])?;
@@ -256,25 +211,23 @@ impl Hnn {
         let h = self.mp.forward(p, x0, pos, &graph.edges)?;
         // Body heads: own nodes in the agent's frame, with h'_a.
         let bodies = self.proc.bodies(obs, &inputs, &graph.agent_entity, agents)?;
-        let neighbours = match self.neighbour {
-            NeighbourOffset::None => Vec::new(),
-            offset => self.proc.neighbours(obs, &graph, &bodies, offset)?,
+        let neighbours = if self.stage.neighbour_rows() {
+            self.proc.neighbours(obs, &graph, &bodies, self.stage.neighbour)?
+        } else {
+            Vec::new()
         };
         let mut out = Vec::with_capacity(agents.len());
         for (i, (body, head)) in bodies.iter().zip(&self.heads).enumerate() {
             let a = body.agent;
             let dof = spec.agent_dof[a];
-            let (mut z, mut hb) = (tape.constant(body.z.clone()), tape.constant(body.h.clone()));
-            if let Some(nr) = neighbours.get(i) {
-                z = tape.cat(&[z, tape.constant(nr.z.clone())], 1)?;
-                hb = tape.cat(&[hb, tape.constant(nr.h.clone())], 1)?;
-            }
-            let k = z.shape()[1];
-            let frames: Vec<(f64, f64)> = (0..nb).map(|b| frame_of(a, b)).collect();
-            let zb = rotate_blocks(&z.value(), k, &frames)?.reshape(&[nb, k * 3 * NODE_VECTORS])?;
-            let hb = hb.reshape(&[nb, k * N_SCALARS])?;
+            // Eq. (lrf): o'_i in the agent's frame, flattened.
+            let frames = AgentFrame::Horizontal((0..nb).map(|b| frame_of(a, b)).collect());
+            let o = lrf(tape, body, neighbours.get(i), &frames)?;
+            let k = o.z.shape()[1];
+            let zb = o.z.reshape(&[nb, k * 3 * NODE_VECTORS])?;
+            let hb = o.h.reshape(&[nb, k * N_SCALARS])?;
             let ha = h.index_select(0, &inputs.rows_of(a))?;
-            let hidden = head.forward_hidden_parts(p, &[tape.constant(zb), hb, ha])?;
+            let hidden = head.forward_hidden_parts(p, &[zb, hb, ha])?;
             out.push(AgentPolicy {
                 agent: a,
                 loc: head.forward_output_columns(p, hidden, 0, dof)?,

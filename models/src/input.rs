@@ -28,7 +28,7 @@
 //! `p_j - p_i` is the true offset. Other translation modes keep `p - c` (or world positions).
 //!
 //! # Bodies
-//! Per agent `a` (for the body-level heads and the frame transform of eq. (lrf)): its own
+//! Per agent `a` (for the body-level heads and eq. (lrf), [`crate::frame::lrf`]): its own
 //! nodes (root, then one per actuated DoF in action order), `Z_{a,k}` `[B, K_a, 3, 3]` and
 //! `h_{a,k}` `[B, K_a, N_SCALARS]`, `K_a = 1 + dof_a`. With [`Translation::Assigned`] the
 //! positions are relative to the agent's own root, `p_{a,k} - p_{C(a),1} = p_{a,k} -

@@ -1,7 +1,9 @@
 //! The eleven models of the paper as one enum ([`ModelKind`]) that knows each one's
 //! structure: its family (which module builds it), whether it has an entity stage, its
 //! body-level head, its frame, its default critic and which symmetries its outputs keep.
-//! Code that needs one of these asks the kind instead of testing the model's name.
+//! Code that needs one of these asks the kind instead of testing the model's name; a model
+//! with its options resolved is a [`crate::description::ModelDescription`], whose fields are
+//! these types.
 
 use crate::error::{ModelError, Result};
 
@@ -71,21 +73,34 @@ pub enum Frame {
     Goal,
 }
 
-/// The value network a model builds by default (options may change it: `critic=shared`,
-/// `variant=flat`).
+/// What the value network reads (eq. (value), `V = σ_V(..)`): a model's default
+/// ([`ModelKind::critic`]), or the SHNN family's option `critic=separate|shared`, or the flat
+/// MLP's (`variant=flat`). `σ_V` itself is [`crate::description::ValueNet`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Critic {
-    /// Its own subequivariant message passing over every entity, then an MLP `σ_V` (the
-    /// release's critic, [`crate::critic::SubeqCritic`]).
+    /// Its own subequivariant message passing over every entity, then `σ_V` (the release's
+    /// critic, [`crate::critic::SubeqCritic`]; `critic=separate`, the SHNN family's default).
     Subequivariant,
-    /// The same with a Transformer as `σ_V`.
-    SubequivariantTransformer,
-    /// An MLP on the entity stage's features `h'`.
-    EntityMlp,
-    /// An MLP on every entity root's embedded features.
-    RootMlp,
-    /// A Transformer over every entity's root.
-    RootTransformer,
+    /// `σ_V` on the actor's entity-stage features `h'` (eq. (value) read literally;
+    /// `critic=shared`; the HNN family's critic).
+    EntityStage,
+    /// `σ_V` on every entity root's features (the MLP baselines: embedded roots and an MLP;
+    /// `transformer_hn`: the roots as the tokens of a Transformer).
+    Roots,
+    /// An MLP on every node of the scene (the flat MLP, `variant=flat`).
+    Nodes,
+}
+
+impl Critic {
+    /// Parses the option `critic`: `separate` ([`Critic::Subequivariant`]) or `shared`
+    /// ([`Critic::EntityStage`]).
+    pub fn parse(s: &str) -> Result<Self> {
+        match s {
+            "separate" => Ok(Self::Subequivariant),
+            "shared" => Ok(Self::EntityStage),
+            _ => Err(ModelError::Option(format!("unknown critic `{s}` (expected separate or shared)"))),
+        }
+    }
 }
 
 impl ModelKind {
@@ -172,14 +187,13 @@ impl ModelKind {
         }
     }
 
-    /// Its value network by default.
+    /// What its value network reads by default (its `σ_V` is a Transformer for the
+    /// Transformer models, an MLP for the others).
     pub fn critic(self) -> Critic {
         match self.family() {
-            Family::Shnn if self.head() == Head::Transformer => Critic::SubequivariantTransformer,
             Family::Shnn => Critic::Subequivariant,
-            Family::Hnn => Critic::EntityMlp,
-            Family::Mlp => Critic::RootMlp,
-            Family::FlatTransformer => Critic::RootTransformer,
+            Family::Hnn => Critic::EntityStage,
+            Family::Mlp | Family::FlatTransformer => Critic::Roots,
         }
     }
 

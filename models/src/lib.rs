@@ -2,7 +2,9 @@
 //! "Ablations"), one module per job:
 //! - they read the environment's observation layout (`envs::layout`: `ObsSpec`,
 //!   `Observation`, `ObsRows`);
-//! - which model and its options ([`kind`]: the eleven models of the paper, [`config`]);
+//! - which model and its options ([`kind`]: the eleven models of the paper and the types
+//!   that describe them; [`config`]: a model string's options; [`description`]: both
+//!   resolved once into the [`ModelDescription`] the builders match on);
 //! - the interface the trainer uses: a team's actor and critic [`Policy`], built by a
 //!   [`PolicyFactory`] ([`interface`]; bring your own model by implementing them);
 //! - the model zoo [`Model`] ([`zoo`]), the eleven models as one [`Policy`], built by its
@@ -12,14 +14,15 @@
 //! - their stages: input processing ([`input`]), the task assignment (Algorithm 1 and the
 //!   Hungarian alternative, [`assignment`]) and its entity graph ([`entity_graph`]), the
 //!   entity-level subequivariant message passing with the LRF vector ([`entity_mp`]), the
-//!   local reference frame (eqs. (ortho)-(lrf), [`frame`]), the body heads
-//!   ([`transformer_head`], [`body_gnn`]), the value networks ([`critic`]) and the
+//!   local reference frame and an agent's observation in it (eqs. (ortho)-(lrf),
+//!   [`frame`]), the body heads ([`transformer_head`], [`body_gnn`]), the value networks ([`critic`]) and the
 //!   Tanh-Normal action distribution ([`distribution`]).
 
 pub mod assignment;
 pub mod body_gnn;
 pub mod config;
 pub mod critic;
+pub mod description;
 pub mod distribution;
 pub mod entity_graph;
 pub mod entity_mp;
@@ -36,8 +39,9 @@ pub mod zoo;
 
 pub use assignment::{Assigner, AssignmentMethod, UNASSIGNED, distance_matrix};
 pub use body_gnn::{BodyGnn, BodyGnnConfig};
-pub use config::{CriticKind, GravityMode, MlpVariant, ModelConfig, MpSizes, NeighbourOffset, OPTION_KEYS};
+pub use config::{GravityMode, MlpVariant, ModelConfig, MpSizes, NeighbourOffset, OPTION_KEYS};
 pub use critic::{SubeqCritic, ValueHead};
+pub use description::{EntityStage, ModelDescription, ValueNet};
 pub use entity_graph::{EntityGraph, GraphBuilder, GraphTask, NO_AGENT};
 pub use entity_mp::{EntityFeatures, EntityMp, EntityMpConfig};
 pub use error::{ModelError, Result};

@@ -31,13 +31,14 @@ use nn::{Bound, Linear, Mlp, Scope};
 use tensor::{Activation, Float, Tensor, Var};
 
 use crate::assignment::{AssignmentMethod, UNASSIGNED};
-use crate::config::{ModelConfig, hidden_widths, layer_sizes};
+use crate::config::layer_sizes;
 use crate::critic::critic_order;
+use crate::description::{ModelDescription, ValueNet};
 use crate::entity_graph::GraphBuilder;
 use crate::error::{ModelError, Result};
 use crate::input::{InputProcessor, Translation};
 use crate::interface::{AgentPolicy, PolicyOutput};
-use crate::kind::{Frame, Head, ModelKind};
+use crate::kind::{Critic, Frame, Head};
 use crate::transformer_head::TransformerHead;
 use crate::zoo::split_head;
 use envs::layout::{N_SCALARS, NODE_VECTOR_LEN, NODE_VECTORS, ObsSpec};
@@ -163,22 +164,21 @@ pub struct ReleaseMlp {
 }
 
 impl ReleaseMlp {
-    /// Builds `kind` (`mlp` or `mlp_hn`, the release variant) for `agents` of `team` under
-    /// scope `s`, after checking `config`'s options.
+    /// Builds the model `d` describes (`mlp` or `mlp_hn`, the release variant) for `agents`
+    /// of `team` under scope `s`.
     pub(crate) fn build<T: Float>(
         s: &mut Scope<'_, T>,
-        kind: ModelKind,
-        config: &ModelConfig,
+        d: &ModelDescription,
         spec: &ObsSpec,
         team: usize,
         agents: &[usize],
     ) -> Result<Self> {
-        config.check_options(&["assignment", "variant", "head", "critic_hidden"])?;
-        let head_hidden = hidden_widths(&config.head_hidden, &[256, 256], false)?;
-        let critic_hidden = hidden_widths(&config.critic_hidden, &[256, 256], false)?;
-        let graph = config.graph_builder(spec, team)?;
-        let heading = kind.frame() == Frame::Heading;
-        Self::new(s, spec, agents, graph, heading, &head_hidden, &critic_hidden)
+        if (d.head, d.critic) != (Head::Mlp, Critic::Roots) {
+            return Err(ModelError::Option(format!("model `{}` is not the release's MLP", d.name())));
+        }
+        let graph = d.graph_builder(spec, team)?;
+        let heading = d.frame == Frame::Heading;
+        Self::new(s, spec, agents, graph, heading, &d.head_hidden, d.value_mlp()?)
     }
 
     /// The model for `agents` (scope `s` holds `actor` and `critic`).
@@ -319,24 +319,25 @@ enum FlatCritic {
 }
 
 impl FlatMlp {
-    /// Builds `kind` for `agents` under scope `s`, after checking `config`'s options:
-    /// `transformer_hn`, or `mlp`, `mlp_hn` with `variant=flat`.
+    /// Builds the model `d` describes for `agents` under scope `s`: `transformer_hn` (a
+    /// Transformer head and a Transformer over the roots), or `mlp`, `mlp_hn` with
+    /// `variant=flat` (MLP heads and an MLP on every node).
     pub(crate) fn build<T: Float>(
         s: &mut Scope<'_, T>,
-        kind: ModelKind,
-        config: &ModelConfig,
+        d: &ModelDescription,
         spec: &ObsSpec,
         agents: &[usize],
     ) -> Result<Self> {
-        let heading = kind.frame() == Frame::Heading;
-        if kind.head() == Head::Transformer {
-            config.check_options(&[])?;
-            return Self::new(s, spec, agents, heading, true, &[], &[]);
+        let heading = d.frame == Frame::Heading;
+        match (d.head, d.critic, &d.value) {
+            (Head::Transformer, Critic::Roots, ValueNet::Transformer) => {
+                Self::new(s, spec, agents, heading, true, &[], &[])
+            }
+            (Head::Mlp, Critic::Nodes, ValueNet::Mlp(critic_hidden)) => {
+                Self::new(s, spec, agents, heading, false, &d.head_hidden, critic_hidden)
+            }
+            _ => Err(ModelError::Option(format!("model `{}` is not a flat model", d.name()))),
         }
-        config.check_options(&["variant", "head", "critic_hidden"])?;
-        let head_hidden = hidden_widths(&config.head_hidden, &[256, 256, 256], false)?;
-        let critic_hidden = hidden_widths(&config.critic_hidden, &head_hidden, false)?;
-        Self::new(s, spec, agents, heading, false, &head_hidden, &critic_hidden)
     }
 
     /// The model for `agents`: MLP heads (`head_hidden`) or a shared Transformer head.

@@ -2,13 +2,14 @@
 //! and (value); appendices "Baselines" and "Ablations") as one [`Policy`] implementation,
 //! [`Model`], built for a [`ModelKind`] by its family's module.
 //!
-//! A [`Model`] is built from a [`ModelConfig`] for one scene layout ([`ObsSpec`]) and one
-//! team: it creates its parameters in a [`Scope`] (so the trainer keeps every team's
-//! parameters in one [`ParamStore`] under different prefixes, counted with
-//! [`Model::num_params`] and [`Model::param_counts`]) and maps a batch of observations to,
-//! for each agent of the team, the Tanh-Normal parameters `loc`, `scale` `[B, dof_a]` of its
-//! actuated DoF (`std = softplus(scale) + 0.001`, [`crate::distribution::std_from_scale`]),
-//! the team's value `[B]`, and the task assignment it used ([`PolicyOutput`]).
+//! A [`Model`] is built from a [`ModelConfig`], resolved into a [`ModelDescription`], for one
+//! scene layout ([`ObsSpec`]) and one team: it creates its parameters in a [`Scope`] (so the
+//! trainer keeps every team's parameters in one [`ParamStore`] under different prefixes,
+//! counted with [`Model::num_params`] and [`Model::param_counts`]) and maps a batch of
+//! observations to, for each agent of the team, the Tanh-Normal parameters `loc`, `scale`
+//! `[B, dof_a]` of its actuated DoF (`std = softplus(scale) + 0.001`,
+//! [`crate::distribution::std_from_scale`]), the team's value `[B]`, and the task assignment
+//! it used ([`PolicyOutput`]).
 //!
 //! Parameter names under the scope: `entity.*` (the actor's entity-level message passing,
 //! shared by the team's agents), `actor.*` (the body-level heads: `actor.<a>.*` one MLP per
@@ -42,6 +43,7 @@ use tensor::{Float, Var};
 
 use crate::assignment::AssignmentMethod;
 use crate::config::{MlpVariant, ModelConfig};
+use crate::description::ModelDescription;
 use crate::entity_graph::GraphBuilder;
 use crate::entity_mp::EntityMp;
 use crate::error::{ModelError, Result};
@@ -73,8 +75,7 @@ enum Arch {
 /// A policy and critic for one team of one scene layout (module docs).
 #[derive(Clone, Debug)]
 pub struct Model {
-    name: String,
-    kind: ModelKind,
+    description: ModelDescription,
     team: usize,
     agents: Vec<usize>,
     spec: ObsSpec,
@@ -84,10 +85,16 @@ pub struct Model {
 
 impl Model {
     /// Builds `config`'s model for `team` of scenes laid out by `spec`, with parameters under
-    /// scope `s` (module docs). Unknown names and options that do not apply are errors
+    /// scope `s` (module docs): [`Model::build`] of its description
+    /// ([`ModelConfig::describe`]). Unknown names and options that do not apply are errors
     /// listing the accepted ones.
     pub fn new<T: Float>(s: &mut Scope<'_, T>, config: &ModelConfig, spec: &ObsSpec, team: usize) -> Result<Self> {
-        let kind = config.kind()?;
+        Self::build(s, &config.describe()?, spec, team)
+    }
+
+    /// Builds the model `d` describes for `team` of scenes laid out by `spec`, with parameters
+    /// under scope `s`, by its family's module.
+    pub fn build<T: Float>(s: &mut Scope<'_, T>, d: &ModelDescription, spec: &ObsSpec, team: usize) -> Result<Self> {
         if team >= spec.n_teams {
             return Err(ModelError::Option(format!("team {team} in a scene of {} teams", spec.n_teams)));
         }
@@ -96,26 +103,30 @@ impl Model {
             return Err(ModelError::Input(format!("team {team} has no agent")));
         }
         let prefix = s.full_name("");
-        let arch = match kind.family() {
-            Family::Shnn => Arch::Shnn(Box::new(Shnn::new(s, kind, config, spec, team, &agents)?)),
-            Family::Hnn => Arch::Hnn(Box::new(Hnn::new(s, kind, config, spec, team, &agents)?)),
-            Family::Mlp => match config.variant.unwrap_or_default() {
-                MlpVariant::Release => Arch::Mlp(Box::new(ReleaseMlp::build(s, kind, config, spec, team, &agents)?)),
-                MlpVariant::Flat => Arch::Flat(Box::new(FlatMlp::build(s, kind, config, spec, &agents)?)),
-            },
-            Family::FlatTransformer => Arch::Flat(Box::new(FlatMlp::build(s, kind, config, spec, &agents)?)),
+        let arch = match (d.family, d.variant) {
+            (Family::Shnn, _) => Arch::Shnn(Box::new(Shnn::new(s, d, spec, team, &agents)?)),
+            (Family::Hnn, _) => Arch::Hnn(Box::new(Hnn::new(s, d, spec, team, &agents)?)),
+            (Family::Mlp, Some(MlpVariant::Flat)) | (Family::FlatTransformer, _) => {
+                Arch::Flat(Box::new(FlatMlp::build(s, d, spec, &agents)?))
+            }
+            (Family::Mlp, _) => Arch::Mlp(Box::new(ReleaseMlp::build(s, d, spec, team, &agents)?)),
         };
-        Ok(Self { name: config.name.clone(), kind, team, agents, spec: spec.clone(), prefix, arch })
+        Ok(Self { description: d.clone(), team, agents, spec: spec.clone(), prefix, arch })
     }
 
     /// The model's name.
     pub fn name(&self) -> &str {
-        &self.name
+        self.description.name()
+    }
+
+    /// The model and its options, resolved.
+    pub fn description(&self) -> &ModelDescription {
+        &self.description
     }
 
     /// Which model of the paper it is.
     pub fn kind(&self) -> ModelKind {
-        self.kind
+        self.description.kind
     }
 
     /// The team the model acts for.

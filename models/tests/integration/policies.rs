@@ -336,7 +336,7 @@ fn unknown_names_and_options_are_errors_listing_the_known_ones() {
     let flat = ModelConfig { variant: Some(models::MlpVariant::Flat), ..ModelConfig::new("mlp") };
     let e = err(&ModelConfig { assignment: Some(AssignmentMethod::Hungarian), ..flat }, 0);
     assert!(e.contains("assignment") && e.contains("variant"), "{e}");
-    let e = err(&ModelConfig { critic: Some(models::CriticKind::Shared), ..ModelConfig::new("hnn") }, 0);
+    let e = err(&ModelConfig { critic: Some(models::kind::Critic::EntityStage), ..ModelConfig::new("hnn") }, 0);
     assert!(e.contains("critic"), "{e}");
     let e = err(&ModelConfig { gravity: Some(models::GravityMode::EveryLayer), ..ModelConfig::new("shnn_so3") }, 0);
     assert!(e.contains("gravity"), "{e}");
@@ -357,7 +357,7 @@ fn unknown_names_and_options_are_errors_listing_the_known_ones() {
     assert_eq!(c.abstraction, Some(EntityAbstraction::Mean));
     assert_eq!((c.seed, c.head_hidden.clone()), (4, Some(vec![32, 16])));
     assert_eq!(c.neighbour, Some(models::NeighbourOffset::Raw));
-    assert_eq!(c.critic, Some(models::CriticKind::Shared));
+    assert_eq!(c.critic, Some(models::kind::Critic::EntityStage));
     assert_eq!(c.gravity, Some(models::GravityMode::EveryLayer));
     assert_eq!((c.actor_steps, c.critic_hidden.clone()), (Some(2), Some(vec![8])));
     assert!(Model::new(&mut store.scope("ok", &mut init), &c, &spec, 0).is_ok());

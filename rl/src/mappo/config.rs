@@ -284,7 +284,10 @@ impl TrainConfig {
             if field == "opponent" && spec.is_empty() {
                 continue;
             }
-            models::ModelConfig::parse(spec).map_err(|e| RlError::config(source, field, spec, e.to_string()))?;
+            // Parsed and resolved: an option the model does not take fails here, not at build.
+            models::ModelConfig::parse(spec)
+                .and_then(|c| c.describe())
+                .map_err(|e| RlError::config(source, field, spec, e.to_string()))?;
         }
         self.validate_except_models(source)
     }
