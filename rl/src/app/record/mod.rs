@@ -101,8 +101,12 @@ mod tests {
         let config = TrainConfig::resolve(None, None, &[]).unwrap();
         config.save(&run.config()).unwrap();
         std::fs::write(run.metrics(), "iteration,env_steps,wall_s\n1,100,2.5\n2,200,5\n").unwrap();
-        std::fs::create_dir_all(tmp.0.join("runs/.hidden/seed0")).unwrap();
-        assert_eq!(find_run_dirs(&tmp.0).unwrap(), [dir.clone()]);
+        // A run in a hidden directory is not searched.
+        let hidden = tmp.0.join("runs/.hidden/seed0");
+        std::fs::create_dir_all(&hidden).unwrap();
+        std::fs::copy(run.config(), hidden.join("config.toml")).unwrap();
+        std::fs::copy(run.metrics(), hidden.join("metrics.csv")).unwrap();
+        assert_eq!(find_run_dirs(&tmp.0).unwrap(), std::slice::from_ref(&dir));
 
         let r = RunRecord::read(&dir).unwrap();
         assert_eq!((r.config.clone(), r.finished, r.summary.clone()), (config, false, None));
