@@ -559,7 +559,7 @@ fn cmd_report(a: ReportArgs) -> Result<(), String> {
     println!("{text}");
     eprintln!("meben: wrote {}", r.markdown.display());
     if let Some(paper) = &a.paper {
-        let path = crate::app::paper::write_paper_table(&a.root, paper).map_err(|e| e.to_string())?;
+        let path = crate::app::paper::write_paper_table(&a.root, &r.groups, paper).map_err(|e| e.to_string())?;
         eprintln!("meben: wrote {}", path.display());
     }
     Ok(())

@@ -1,14 +1,14 @@
-//! The paper-versus-here table of an experiment (`meben report DIR --paper FILE`): each group
-//! of `DIR/report.csv` beside the paper's figure for the same environment, model, start and
+//! The paper-versus-here table of an experiment (`meben report DIR --paper FILE`): each of
+//! the report's groups ([`crate::app::report::aggregate`]) beside the paper's figure for the same environment, model, start and
 //! evaluation rotation, from a committed data file of the paper's figures
 //! (`results/paper.toml`), written to `DIR/paper.md`. Nothing is typed by hand: the file is
-//! generated from the report and the data file alone, and `docs/RESULTS.md` quotes it.
+//! generated from the runs' records and the data file alone, and `docs/RESULTS.md` quotes it.
 
-use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use serde::Deserialize;
 
+use crate::app::report::{GroupReport, StartKind};
 use crate::error::{Result, RlError};
 
 /// The paper's figures (the file's module docs, `results/paper.toml`).
@@ -86,93 +86,6 @@ impl PaperFigures {
     }
 }
 
-/// One group of `report.csv`, the columns this table reads.
-struct Group {
-    env: String,
-    model: String,
-    opponent: String,
-    variant: String,
-    metric: String,
-    seeds: String,
-    mean: f64,
-    se: f64,
-    steps: f64,
-    rotation_deg: i64,
-}
-
-/// The groups of `DIR/report.csv`, read by column name.
-fn read_groups(csv: &Path) -> Result<Vec<Group>> {
-    let text = std::fs::read_to_string(csv).map_err(|e| RlError::file(csv, e.to_string()))?;
-    let mut lines = text.lines();
-    let header: Vec<&str> = lines.next().unwrap_or_default().split(',').collect();
-    let column = |name: &str| {
-        header.iter().position(|h| *h == name).ok_or_else(|| RlError::file(csv, format!("no column `{name}`")))
-    };
-    let cols = [
-        "env",
-        "model",
-        "opponent",
-        "variant",
-        "metric",
-        "seeds",
-        "mean_pct",
-        "se_pct",
-        "env_steps_min",
-        "rotation_deg",
-    ]
-    .map(column);
-    let mut at = [0usize; 10];
-    for (a, c) in at.iter_mut().zip(cols) {
-        *a = c?;
-    }
-    let mut out = Vec::new();
-    for (i, line) in lines.enumerate() {
-        let cells: Vec<&str> = line.split(',').collect();
-        let cell = |k: usize| cells.get(at[k]).copied().unwrap_or_default();
-        let number = |k: usize| {
-            cell(k).parse::<f64>().map_err(|_| {
-                RlError::file(csv, format!("line {}: column `{}` is `{}`, not a number", i + 2, header[at[k]], cell(k)))
-            })
-        };
-        out.push(Group {
-            env: cell(0).into(),
-            model: cell(1).into(),
-            opponent: cell(2).into(),
-            variant: cell(3).into(),
-            metric: cell(4).into(),
-            seeds: cell(5).into(),
-            mean: number(6)?,
-            se: number(7)?,
-            steps: number(8)?,
-            rotation_deg: number(9)? as i64,
-        });
-    }
-    Ok(out)
-}
-
-/// The start of the group's runs (their `config.toml`): `fixed` (`fixed_start`), `random`,
-/// or `random (per slot)` (`train_starts = "per_slot"`, the release's reset; matched with
-/// the paper's `random` figures, which the release's reset produced).
-fn group_start(root: &Path, variant: &str) -> Result<&'static str> {
-    let dir = root.join(variant);
-    let mut runs: Vec<PathBuf> = std::fs::read_dir(&dir)
-        .map_err(|e| RlError::file(&dir, e.to_string()))?
-        .filter_map(|e| e.ok().map(|e| e.path().join("config.toml")))
-        .filter(|p| p.is_file())
-        .collect();
-    runs.sort();
-    let path = runs.first().ok_or_else(|| RlError::file(&dir, "no run with a config.toml"))?;
-    let text = std::fs::read_to_string(path).map_err(|e| RlError::file(path, e.to_string()))?;
-    let table: toml::Table = text.parse().map_err(|e: toml::de::Error| RlError::file(path, e.to_string()))?;
-    Ok(if table.get("fixed_start").and_then(toml::Value::as_bool) == Some(true) {
-        "fixed"
-    } else if table.get("train_starts").and_then(toml::Value::as_str) == Some("per_slot") {
-        "random (per slot)"
-    } else {
-        "random"
-    })
-}
-
 /// A percentage as the paper writes it: at least two decimals, more where the paper gives
 /// more (`1.399`).
 fn paper_number(x: f64) -> String {
@@ -185,30 +98,30 @@ fn millions(steps: f64) -> String {
     if steps % 1e6 == 0.0 { format!("{}M", steps / 1e6) } else { format!("{:.2}M", steps / 1e6) }
 }
 
-/// The table for the report of `root` against `paper` (module docs), as Markdown.
-pub fn paper_table(root: &Path, paper: &PaperFigures) -> Result<String> {
-    let groups = read_groups(&root.join("report.csv"))?;
-    let mut starts: BTreeMap<String, &'static str> = BTreeMap::new();
+/// Env steps reached by a group: its fewest (`10.16M`), and the budget when some run is
+/// still short of it (`1.15M of 10M`: still training, or stopped).
+fn steps_reached(g: &GroupReport) -> String {
+    let reached = millions(g.env_steps.0 as f64);
+    if g.env_steps.0 < g.target_steps { format!("{reached} of {}", millions(g.target_steps as f64)) } else { reached }
+}
+
+/// The table of the report's `groups` against `paper` (module docs), as Markdown. A Team
+/// Reach group is matched by environment, model, rotation and start (`random (per slot)`,
+/// the release's reset, matches the paper's `random` figures, which that reset produced);
+/// Team Sumo's figures are not in the data file.
+pub fn paper_table(groups: &[GroupReport], paper: &PaperFigures) -> String {
     let mut out = String::from(
         "| env | model | start | evaluated | here: % (mean ± s.e.) | seeds | env steps | paper: % (mean ± its spread) | \
          paper's env steps | paper's table |\n|---|---|---|---|---:|---:|---:|---:|---:|---|\n",
     );
-    for g in &groups {
-        let start = match starts.get(&g.variant) {
-            Some(s) => *s,
-            None => {
-                let s = group_start(root, &g.variant)?;
-                starts.insert(g.variant.clone(), s);
-                s
-            }
-        };
+    for g in groups {
         let what = if g.metric.starts_with("eval_win_rate") { "win" } else { "success" };
         let model =
             if g.opponent.is_empty() { format!("`{}`", g.model) } else { format!("`{}` vs `{}`", g.model, g.opponent) };
-        let evaluated =
-            if g.rotation_deg == 0 { what.to_string() } else { format!("{what}, rotated {}°", g.rotation_deg) };
-        let key = if start == "fixed" { "fixed" } else { "random" };
-        let figure = if g.opponent.is_empty() { paper.find(&g.env, &g.model, key, g.rotation_deg) } else { None };
+        let rotation = g.rotation_deg as i64;
+        let evaluated = if rotation == 0 { what.to_string() } else { format!("{what}, rotated {rotation}°") };
+        let key = if g.start == StartKind::Fixed { "fixed" } else { "random" };
+        let figure = if g.opponent.is_empty() { paper.find(&g.env, &g.model, key, rotation) } else { None };
         let (p, p_steps, p_table) = match figure {
             Some(f) => (
                 format!("{} ± {}", paper_number(f.mean), paper_number(f.spread)),
@@ -218,23 +131,24 @@ pub fn paper_table(root: &Path, paper: &PaperFigures) -> Result<String> {
             None => ("–".into(), "–".into(), "not in the paper's tables".into()),
         };
         out.push_str(&format!(
-            "| `{}` | {model} | {start} | {evaluated} | {:.2} ± {:.2} | {} | {} | {p} | {p_steps} | {p_table} |\n",
+            "| `{}` | {model} | {} | {evaluated} | {:.2} ± {:.2} | {} | {} | {p} | {p_steps} | {p_table} |\n",
             g.env,
+            g.start.label(),
             g.mean,
             g.se,
-            g.seeds,
-            millions(g.steps)
+            g.runs.len(),
+            steps_reached(g)
         ));
     }
-    Ok(out)
+    out
 }
 
-/// Writes [`paper_table`] to `root/paper.md` (atomically) and returns its path.
-pub fn write_paper_table(root: &Path, paper_file: &Path) -> Result<PathBuf> {
+/// Writes [`paper_table`] of the report's `groups` to `root/paper.md` (atomically) and
+/// returns its path.
+pub fn write_paper_table(root: &Path, groups: &[GroupReport], paper_file: &Path) -> Result<PathBuf> {
     let paper = PaperFigures::load(paper_file)?;
-    let table = paper_table(root, &paper)?;
     let path = root.join("paper.md");
-    nn::write_atomic(&path, table.as_bytes()).map_err(|e| RlError::file(&path, e.to_string()))?;
+    nn::write_atomic(&path, paper_table(groups, &paper).as_bytes()).map_err(|e| RlError::file(&path, e.to_string()))?;
     Ok(path)
 }
 
@@ -278,5 +192,63 @@ mod tests {
         assert!(e.unwrap_err().to_string().contains("rotated"));
         let e = parse("[[figure]]\ntable = \"t\"\nenv = \"e\"\nmodel = \"m\"\nmean = 500.0\nspread = 1.0\n");
         assert!(e.unwrap_err().to_string().contains("500"));
+    }
+
+    fn group(model: &str, start: StartKind, steps: (u64, u64)) -> GroupReport {
+        GroupReport {
+            env: "team_reach/1_ant".into(),
+            model: model.into(),
+            opponent: String::new(),
+            variant: format!("team_reach_1_ant/{model}"),
+            label: model.into(),
+            metric: "eval_success_rate".into(),
+            rotation_deg: 0.0,
+            start,
+            from_train: false,
+            runs: vec!["seed0".into(), "seed1".into()],
+            seed_list: vec![0, 1],
+            finals: vec![10.0, 20.0],
+            final_steps: vec![steps.0, steps.0],
+            mean: 15.0,
+            se: 5.0,
+            iqm: 15.0,
+            mean_ci: (10.0, 20.0),
+            iqm_ci: (10.0, 20.0),
+            draw: None,
+            lose: None,
+            env_steps: steps,
+            target_steps: 10_000_000,
+            machine_hours: 1.0,
+            curve: Vec::new(),
+            curve_lose: Vec::new(),
+            curve_draw: Vec::new(),
+        }
+    }
+
+    #[test]
+    fn groups_meet_the_figure_of_their_start_and_unfinished_ones_say_their_budget() {
+        let p = parse(
+            "[[figure]]\ntable = \"r\"\nenv = \"team_reach/1_ant\"\nmodel = \"shnn\"\nmean = 60.0\nspread = 3.0\n\
+             [[figure]]\ntable = \"f\"\nenv = \"team_reach/1_ant\"\nmodel = \"shnn\"\nstart = \"fixed\"\nmean = 70.0\nspread = 4.0\n",
+        )
+        .unwrap();
+        let groups = [
+            group("shnn", StartKind::Fixed, (10_158_080, 10_158_080)),
+            group("shnn", StartKind::RandomPerSlot, (1_146_880, 10_158_080)),
+            group("mlp", StartKind::Random, (10_158_080, 10_158_080)),
+        ];
+        let table = paper_table(&groups, &p);
+        let rows: Vec<&str> = table.lines().skip(2).collect();
+        assert_eq!(rows.len(), 3);
+        assert_eq!(
+            rows[0],
+            "| `team_reach/1_ant` | `shnn` | fixed | success | 15.00 ± 5.00 | 2 | 10.16M | 70.00 ± 4.00 | 50M | f |"
+        );
+        assert_eq!(
+            rows[1],
+            "| `team_reach/1_ant` | `shnn` | random (per slot) | success | 15.00 ± 5.00 | 2 | 1.15M of 10M | \
+             60.00 ± 3.00 | 50M | r |"
+        );
+        assert!(rows[2].ends_with("| – | – | not in the paper's tables |"), "{}", rows[2]);
     }
 }

@@ -332,15 +332,25 @@ impl Trainer {
         factory: Option<&dyn PolicyFactory>,
     ) -> Result<Trainer> {
         let bad = |m: String| RlError::Checkpoint { path: path.to_path_buf(), message: m };
-        let mut t = Trainer::build(config, factory)?;
-        // The configuration as the run records it (a factory's policies name the models).
-        let config = &t.config.clone();
         // The checkpoint's configuration but for the fields a session may change (the one
         // comparison of `config_match`, which sweeps and run directories make too).
-        let diff = config_match::differences(&c.config, config, &config_match::SESSION_FIELDS);
-        if !diff.is_empty() {
+        let same_config = |now: &TrainConfig| {
+            let diff = config_match::differences(&c.config, now, &config_match::SESSION_FIELDS);
+            if diff.is_empty() {
+                return Ok(());
+            }
             let fields: Vec<String> = diff.iter().map(|d| d.describe("in the checkpoint", "now")).collect();
-            return Err(bad(format!("was written by another configuration: {}", fields.join("; "))));
+            Err(bad(format!("was written by another configuration: {}", fields.join("; "))))
+        };
+        // A zoo model is named by the configuration: a mismatch is refused before anything is
+        // built. A factory's policies name the models the run records, known once built.
+        if factory.is_none() {
+            same_config(config)?;
+        }
+        let mut t = Trainer::build(config, factory)?;
+        let config = &t.config.clone();
+        if factory.is_some() {
+            same_config(config)?;
         }
         if c.teams.len() != t.teams.len() || c.episode_returns.len() != t.episode_returns.len() {
             return Err(bad(format!(

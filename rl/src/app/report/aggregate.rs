@@ -9,7 +9,7 @@ use std::path::{Path, PathBuf};
 use super::stats::{bootstrap_ci, iqm, mean, mean_and_se};
 use crate::app::record::{IterationRow, Rate, RunRecord};
 use crate::app::sweep::sanitize_component;
-use crate::mappo::config::TrainConfig;
+use crate::mappo::config::{TrainConfig, TrainStarts};
 
 /// One point of a group's learning curve.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -43,6 +43,8 @@ pub struct GroupReport {
     pub metric: String,
     /// The rotation of the evaluations (degrees; 0 unrotated).
     pub rotation_deg: f64,
+    /// Where the runs' training episodes start (their configuration).
+    pub start: StartKind,
     /// Whether at least one run had no evaluation rows and used the training rate.
     pub from_train: bool,
     /// The run directories, relative to the root.
@@ -86,6 +88,41 @@ pub struct GroupReport {
     pub curve_lose: Vec<CurvePoint>,
     /// See `curve_lose`.
     pub curve_draw: Vec<CurvePoint>,
+}
+
+/// Where a group's training episodes start, from its runs' configuration: how the paper's
+/// tables tell their experiments apart.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum StartKind {
+    /// A fresh random start every episode (the default).
+    Random,
+    /// One fixed start (`fixed_start = true`: the paper's equivariance test).
+    Fixed,
+    /// Random starts, each environment slot replaying its first one
+    /// (`train_starts = "per_slot"`: the reference release's reset).
+    RandomPerSlot,
+}
+
+impl StartKind {
+    /// The start of a run configured by `config`.
+    pub fn of(config: &TrainConfig) -> StartKind {
+        if config.fixed_start {
+            StartKind::Fixed
+        } else if config.train_starts == TrainStarts::PerSlot {
+            StartKind::RandomPerSlot
+        } else {
+            StartKind::Random
+        }
+    }
+
+    /// As a table writes it: `random`, `fixed` or `random (per slot)`.
+    pub fn label(self) -> &'static str {
+        match self {
+            StartKind::Random => "random",
+            StartKind::Fixed => "fixed",
+            StartKind::RandomPerSlot => "random (per slot)",
+        }
+    }
 }
 
 /// The groups of the runs `records` (each with its directory relative to the report's
@@ -305,6 +342,7 @@ fn summarise(variant: String, mut runs: Vec<RunResult>) -> GroupReport {
         label,
         metric,
         rotation_deg,
+        start: StartKind::of(c),
         from_train,
         runs: runs.iter().map(|r| r.rel.clone()).collect(),
         seed_list: runs.iter().map(|r| r.config.seed).collect(),

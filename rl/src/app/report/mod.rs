@@ -49,7 +49,7 @@ pub mod stats;
 
 use std::path::{Path, PathBuf};
 
-pub use aggregate::{CurvePoint, GroupReport, group_runs};
+pub use aggregate::{CurvePoint, GroupReport, StartKind, group_runs};
 pub(crate) use render::count;
 use render::{curve_plot, render_csv, render_markdown};
 
