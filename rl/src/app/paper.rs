@@ -157,9 +157,9 @@ mod tests {
     use super::*;
 
     fn parse(text: &str) -> Result<PaperFigures> {
-        let dir = std::env::temp_dir().join(format!("meben-paper-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        let path = dir.join(format!("paper-{}.toml", text.len()));
+        static CALLS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+        let call = CALLS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        let path = std::env::temp_dir().join(format!("meben-paper-{}-{call}.toml", std::process::id()));
         std::fs::write(&path, text).unwrap();
         let r = PaperFigures::load(&path);
         std::fs::remove_file(&path).unwrap();

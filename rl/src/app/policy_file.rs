@@ -365,8 +365,7 @@ pub fn find_pretrained(dir: &Path, name: &str) -> Result<PathBuf> {
         None => Err(RlError::Policy {
             path: dir.join(MANIFEST),
             message: format!(
-                "no pretrained policy `{name}` is shipped (expected <env>/<model>, e.g. team_reach/2_ants/shnn); \
-                 shipped: {}",
+                "no pretrained policy `{name}` is shipped (a name is <env>/<model>); shipped: {}",
                 m.names()
             ),
         }),

@@ -28,7 +28,8 @@ const TINY: &[&str] = &[
 
 #[test]
 fn train_eval_report_render_produce_their_files() {
-    let dir = common::temp_dir("cli");
+    let tmp = common::TempDir::new("cli");
+    let dir = tmp.0.clone();
     let root = dir.join("sweep");
     let run = root.join("run0");
     let run_s = run.to_str().unwrap();
@@ -88,7 +89,6 @@ fn train_eval_report_render_produce_their_files() {
         fails_with(&["render", "--run", run_s, "--out", out.to_str().unwrap()], &[name, "--out", "own"]);
     }
     assert_eq!(std::fs::read(run.join("metrics.csv")).unwrap(), metrics);
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 fn fails_with(args: &[&str], needles: &[&str]) {
@@ -102,7 +102,8 @@ fn fails_with(args: &[&str], needles: &[&str]) {
 
 #[test]
 fn bad_input_gives_clear_errors() {
-    let dir = common::temp_dir("cli-bad");
+    let tmp = common::TempDir::new("cli-bad");
+    let dir = tmp.0.clone();
     let out = dir.join("r");
     let out_s = out.to_str().unwrap();
     fails_with(
@@ -153,7 +154,6 @@ fn bad_input_gives_clear_errors() {
     fails_with(&["eval", "--run", nowhere, "--stochastic", "--mean"], &["--stochastic", "--mean"]);
     fails_with(&["train", "--set", "eval_rotations=[90.0]", "--out", out_s], &["eval_rotations", "first rotation"]);
     assert!(!Path::new(out_s).join("checkpoint.json").exists());
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]

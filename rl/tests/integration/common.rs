@@ -28,21 +28,17 @@ pub fn tiny(env: &str, model: &str, iterations: u64, extra: &[(&str, &str)]) -> 
     TrainConfig::resolve(Some(Preset::Quick), None, &ov).unwrap()
 }
 
-/// A fresh empty directory under the system's temporary directory.
-pub fn temp_dir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("meben-test-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
-/// A fresh directory under the system temporary directory, removed when dropped.
+/// A fresh directory under the system temporary directory, removed when dropped (a test
+/// that fails removes it too: a test's runs can hold tens of MB, and CI runs them often).
 pub struct TempDir(pub PathBuf);
 
 impl TempDir {
     /// Creates (empties) the directory `meben-test-<pid>-<name>`.
     pub fn new(name: &str) -> TempDir {
-        TempDir(temp_dir(name))
+        let d = std::env::temp_dir().join(format!("meben-test-{}-{name}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&d);
+        std::fs::create_dir_all(&d).unwrap();
+        TempDir(d)
     }
 }
 

@@ -116,7 +116,8 @@ fn an_invariant_policy_plays_the_moved_scene_as_the_unmoved_one() {
 
 #[test]
 fn periodic_evaluation_at_several_rotations_has_its_columns_and_resumes_exactly() {
-    let dir = common::temp_dir("eval-rotations");
+    let tmp = common::TempDir::new("eval-rotations");
+    let dir = tmp.0.clone();
     let config = common::tiny(
         "team_reach/1_ant",
         "mlp_hn",
@@ -160,5 +161,4 @@ fn periodic_evaluation_at_several_rotations_has_its_columns_and_resumes_exactly(
     };
     assert_eq!(strip(&std::fs::read_to_string(parts.metrics()).unwrap()), strip(&text));
     assert_eq!((resumed.final_eval, resumed.final_eval_rotated), (s.final_eval.clone(), s.final_eval_rotated.clone()));
-    let _ = std::fs::remove_dir_all(&dir);
 }

@@ -11,7 +11,8 @@ use rl::{RunDir, TrainConfig, TrainOptions, train};
 
 /// Trains `model` (quick preset, seed 0) and checks that the evaluation success rises.
 fn learns_team_reach_1_ant(model: &str) {
-    let dir = common::temp_dir(&format!("learning-{model}"));
+    let tmp = common::TempDir::new(&format!("learning-{model}"));
+    let dir = tmp.0.clone();
     let config = TrainConfig::resolve(None, None, &[("model".into(), model.into())]).unwrap();
     assert_eq!(config.env.as_str(), "team_reach/1_ant");
     let run = RunDir::new(dir.join("run"));
@@ -25,7 +26,6 @@ fn learns_team_reach_1_ant(model: &str) {
     let first = evals.first().unwrap().1;
     let best_late = evals[evals.len() / 2..].iter().map(|e| e.1).fold(0.0, f64::max);
     assert!(best_late >= 0.2 && best_late >= first + 0.15, "{model}: success rate did not rise: {evals:?}");
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]

@@ -30,7 +30,8 @@ fn check(run: &Path, args: &[&str], threads: &str) -> (i32, String, String) {
 
 #[test]
 fn repro_check_passes_on_a_run_and_fails_on_altered_rows() {
-    let dir = common::temp_dir("repro_check");
+    let tmp = common::TempDir::new("repro_check");
+    let dir = tmp.0.clone();
     let run = dir.join("run");
     // A tiny run with the equivariance test's evaluation (fixed start, 0 and 180 degrees,
     // sampled actions), as the reproduction's runs have.

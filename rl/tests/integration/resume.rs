@@ -34,7 +34,8 @@ fn build_rows(run: &RunDir) -> Vec<String> {
 
 #[test]
 fn resumed_runs_are_bit_identical_to_uninterrupted_ones() {
-    let dir = common::temp_dir("resume");
+    let tmp = common::TempDir::new("resume");
+    let dir = tmp.0.clone();
     for (env, model, extra) in [
         ("team_reach/1_ant", "shnn", vec![]),
         ("team_sumo/2_ants", "shnn", vec![("opponent", "mlp_hn"), ("curriculum_fraction", "0.5")]),
@@ -75,12 +76,12 @@ fn resumed_runs_are_bit_identical_to_uninterrupted_ones() {
         assert_eq!(build_rows(&whole), ["0"]);
         assert_eq!(build_rows(&parts), ["0", "1", "3"]);
     }
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]
 fn bad_checkpoints_and_changed_configurations_are_refused() {
-    let dir = common::temp_dir("badckpt");
+    let tmp = common::TempDir::new("badckpt");
+    let dir = tmp.0.clone();
     let config = common::tiny("team_reach/1_ant", "mlp_hn", 2, &[]);
     let run = RunDir::new(dir.join("run"));
     train(&config, &run, &TrainOptions { stop_after: Some(1), ..Default::default() }).unwrap();
@@ -123,7 +124,6 @@ fn bad_checkpoints_and_changed_configurations_are_refused() {
     shnn.model = "shnn".into();
     let e = train(&shnn, &run, &TrainOptions::default()).unwrap_err().to_string();
     assert!(e.contains("checkpoint.json") && e.contains("model"), "{e}");
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// Damaged files other than the checkpoint ("a corrupted file"): `metrics.csv`
