@@ -441,6 +441,12 @@ pub fn run_sweep(
         };
         match result {
             // A stop was asked for: the sweep stops too (the same command goes on from here).
+            // A new run stopped before it began leaves nothing, not even the empty directory
+            // made for it above (`remove_dir` removes only an empty one).
+            Err(e @ RlError::Interrupted { iteration: None, .. }) if status == RunStatus::New => {
+                let _ = std::fs::remove_dir(dir.root());
+                return Err(e);
+            }
             Err(e @ RlError::Interrupted { .. }) => return Err(e),
             Ok(_) if status == RunStatus::Partial => outcome.resumed += 1,
             Ok(_) => outcome.trained += 1,
@@ -894,6 +900,41 @@ config = { entropy_coef = 0.0 }
         let outcome = run_sweep(&sweep, &tmp.0, &RunSelection::all(), fake_train).unwrap();
         assert_eq!(outcome, SweepOutcome { runs: 4, trained: 0, resumed: 0, skipped: 4, taken: 0 });
         assert!(calls.borrow().is_empty());
+    }
+
+    /// A stop asked for between runs (the first signal, during a sweep's last iteration of
+    /// a run) ends the sweep before the next run: its error says nothing was changed, and
+    /// nothing is (its directory, made for it, is removed again); a partial run keeps its own.
+    #[test]
+    fn a_stop_before_a_new_run_leaves_no_directory() {
+        let tmp = TempDir::new("sweep-stop");
+        let text = "envs = [\"team_reach/1_ant\"]\nmodels = [\"mlp_hn\"]\nseeds = [0, 1]\npreset = \"quick\"";
+        let sweep = Sweep::parse(text, "s.toml").unwrap();
+        let runs = sweep.runs().unwrap();
+        let mut calls = 0;
+        let e = run_sweep(&sweep, &tmp.0, &RunSelection::all(), |c, r| {
+            calls += 1;
+            if c.seed == 0 {
+                fake_run(r, c, true);
+                return Ok(RunSummary::default());
+            }
+            Err(RlError::Interrupted { run: r.root().to_path_buf(), iteration: None })
+        })
+        .unwrap_err();
+        assert!(matches!(e, RlError::Interrupted { iteration: None, .. }), "{e}");
+        assert_eq!(calls, 2);
+        assert!(tmp.0.join(&runs[0].name).join("done.json").is_file());
+        assert!(!tmp.0.join(&runs[1].name).exists(), "the stopped new run left its directory");
+
+        // A partial run stopped before its next iteration keeps its directory and checkpoint.
+        let partial = RunDir::new(tmp.0.join(&runs[1].name));
+        fake_run(&partial, &runs[1].config, false);
+        let e = run_sweep(&sweep, &tmp.0, &RunSelection::all(), |_, r| {
+            Err(RlError::Interrupted { run: r.root().to_path_buf(), iteration: None })
+        })
+        .unwrap_err();
+        assert!(matches!(e, RlError::Interrupted { .. }), "{e}");
+        assert!(partial.checkpoint().is_file());
     }
 
     /// Issue 44 item 11: two `meben ablate` on one directory shared the work but both
