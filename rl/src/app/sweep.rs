@@ -432,21 +432,14 @@ pub fn run_sweep(
                 eprintln!("{head}: resuming");
                 train_fn(&run.config, &dir)
             }),
-            RunStatus::New => std::fs::create_dir_all(dir.root())
-                .map_err(|e| RlError::file(dir.root(), format!("cannot create the directory: {e}")))
-                .and_then(|()| {
-                    eprintln!("{head}: training");
-                    train_fn(&run.config, &dir)
-                }),
+            // `train` makes the directory once it begins (a stop before then leaves none).
+            RunStatus::New => {
+                eprintln!("{head}: training");
+                train_fn(&run.config, &dir)
+            }
         };
         match result {
             // A stop was asked for: the sweep stops too (the same command goes on from here).
-            // A new run stopped before it began leaves nothing, not even the empty directory
-            // made for it above (`remove_dir` removes only an empty one).
-            Err(e @ RlError::Interrupted { iteration: None, .. }) if status == RunStatus::New => {
-                let _ = std::fs::remove_dir(dir.root());
-                return Err(e);
-            }
             Err(e @ RlError::Interrupted { .. }) => return Err(e),
             Ok(_) if status == RunStatus::Partial => outcome.resumed += 1,
             Ok(_) => outcome.trained += 1,
@@ -904,7 +897,7 @@ config = { entropy_coef = 0.0 }
 
     /// A stop asked for between runs (the first signal, during a sweep's last iteration of
     /// a run) ends the sweep before the next run: its error says nothing was changed, and
-    /// nothing is (its directory, made for it, is removed again); a partial run keeps its own.
+    /// nothing is (no directory is made for it); a partial run keeps its own.
     #[test]
     fn a_stop_before_a_new_run_leaves_no_directory() {
         let tmp = TempDir::new("sweep-stop");
@@ -952,6 +945,7 @@ config = { entropy_coef = 0.0 }
         let other = crate::app::lock::RunLock::acquire(held.root()).unwrap();
         let mut trained = Vec::new();
         let outcome = run_sweep(&sweep, &tmp.0, &RunSelection::all(), |c, r| {
+            std::fs::create_dir_all(r.root()).unwrap(); // as `train` does
             let _lock = crate::app::lock::RunLock::acquire(r.root())?;
             trained.push(c.seed);
             fake_run(r, c, true);
