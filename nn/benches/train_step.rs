@@ -1,8 +1,11 @@
 //! Training-step benchmark (`../shared/bench/README.md`): `mlp_step` and `shnn_step`, the
 //! same arithmetic as the JAX and PyTorch peers, in f32 on every core. Prints
-//! `mlp_step  median_ms=...  steps=50  loss=...` and `shnn_step median_ms=...`.
+//! `mlp_step  median_ms=...  steps=50  loss=...  device=cpu` and `shnn_step median_ms=...`.
 //!
-//! Run: `cargo bench -p nn --bench train_step [-- mlp_step|shnn_step]`.
+//! Run: `cargo bench -p nn --bench train_step [-- mlp_step|shnn_step]`. `DEVICE=gpu` (with
+//! `--features gpu`) keeps the parameters, Adam's moments and the fixed inputs on the GPU, as
+//! the JAX peer does on one, and runs every step there; each step ends by reading its loss
+//! back, so its time includes the device's work (the peer waits with `block_until_ready`).
 
 use std::time::Instant;
 
@@ -13,7 +16,7 @@ use nn::message_passing::{Aggregation, EdgeDistance, EdgeList, MessagePassingCon
 use nn::{Adam, AdamConfig, Bound, Init, Linear, Mlp, ParamStore, SubeqMessagePassing, VectorLinear, clip_elementwise};
 use rand::RngExt;
 use rand_chacha::ChaCha8Rng;
-use tensor::{Activation, Tape, Tensor, Var};
+use tensor::{Activation, Device, Tape, Tensor, Var};
 
 /// A standard normal draw (Box–Muller).
 fn normal(r: &mut ChaCha8Rng) -> f32 {
@@ -25,8 +28,19 @@ fn randn(r: &mut ChaCha8Rng, shape: &[usize]) -> Tensor<f32> {
     Tensor::new((0..n).map(|_| normal(r)).collect(), shape).unwrap()
 }
 
+/// `t` on `device` (uploaded once, before the timed steps).
+fn on(device: Device, t: Tensor<f32>) -> Tensor<f32> {
+    t.to_device(device).unwrap_or_else(|e| panic!("cannot place an input on the {device}: {e}"))
+}
+
+/// The parameters moved to `device` (Adam keeps its moments where they are).
+fn placed(mut store: ParamStore<f32>, device: Device) -> ParamStore<f32> {
+    store.to_device(device).unwrap_or_else(|e| panic!("cannot place the parameters on the {device}: {e}"));
+    store
+}
+
 /// Runs `warmup + steps` optimisation steps and prints the median of the counted ones.
-fn bench(name: &str, warmup: usize, steps: usize, mut step: impl FnMut() -> f32) {
+fn bench(name: &str, device: Device, warmup: usize, steps: usize, mut step: impl FnMut() -> f32) {
     let mut times = Vec::with_capacity(steps);
     let mut loss = 0.0;
     for k in 0..warmup + steps {
@@ -38,16 +52,16 @@ fn bench(name: &str, warmup: usize, steps: usize, mut step: impl FnMut() -> f32)
     }
     times.sort_by(f64::total_cmp);
     let median = if steps % 2 == 1 { times[steps / 2] } else { 0.5 * (times[steps / 2 - 1] + times[steps / 2]) };
-    println!("{name:<9} median_ms={median:.2}  steps={steps}  loss={loss:.5}");
+    println!("{name:<9} median_ms={median:.2}  steps={steps}  loss={loss:.5}  device={device}");
 }
 
-/// One optimisation step: forward and backward on a fresh tape, element-wise clipping to
-/// 0.1, Adam.
+/// One optimisation step on the store's device: forward and backward on a fresh tape,
+/// element-wise clipping to 0.1, Adam.
 fn train_step<F>(store: &mut ParamStore<f32>, adam: &mut Adam, loss_fn: F) -> f32
 where
     F: for<'t> Fn(&Bound<'t, f32>) -> Var<'t, f32>,
 {
-    let tape = Tape::new();
+    let tape = Tape::on(store.device());
     let profile = std::env::var_os("TENSOR_PROFILE").is_some();
     if profile {
         tape.enable_profiling();
@@ -64,18 +78,19 @@ where
     loss.value().item().unwrap()
 }
 
-fn mlp_step(rng: &mut ChaCha8Rng) {
+fn mlp_step(rng: &mut ChaCha8Rng, device: Device) {
     const B: usize = 5120;
     let mut store = ParamStore::new();
     let mut init = nn::init_rng(0);
     let mlp = Mlp::new(&mut store.scope("mlp", &mut init), &[128, 256, 256, 16], Activation::Relu).unwrap();
-    let x = randn(rng, &[B, 128]);
-    let u = randn(rng, &[B, 8]);
-    let adv = randn(rng, &[B]);
-    let logp_old = Tensor::<f32>::zeros(&[B]);
+    let mut store = placed(store, device);
+    let x = on(device, randn(rng, &[B, 128]));
+    let u = on(device, randn(rng, &[B, 8]));
+    let adv = on(device, randn(rng, &[B]));
+    let logp_old = on(device, Tensor::<f32>::zeros(&[B]));
     let mut adam = Adam::new(AdamConfig::default(), &store);
     let half_log_2pi = 0.5 * (2.0 * std::f64::consts::PI).ln();
-    bench("mlp_step", 5, 50, || {
+    bench("mlp_step", device, 5, 50, || {
         train_step(&mut store, &mut adam, |p| {
             let t = p.tape();
             let out = mlp.forward(p, t.constant(x.clone())).unwrap();
@@ -91,7 +106,7 @@ fn mlp_step(rng: &mut ChaCha8Rng) {
     });
 }
 
-fn shnn_step(rng: &mut ChaCha8Rng) {
+fn shnn_step(rng: &mut ChaCha8Rng, device: Device) {
     const B: usize = 1024;
     const E: usize = 4;
     let n = B * E;
@@ -122,10 +137,11 @@ fn shnn_step(rng: &mut ChaCha8Rng) {
         node[7] = 0.0;
         node[11] = -1.0;
     }
-    let h0 = randn(rng, &[n, 12]);
+    let (z0, h0) = (on(device, z0), on(device, randn(rng, &[n, 12])));
+    let mut store = placed(store, device);
     let edges = EdgeList::fully_connected(B, E);
     let mut adam = Adam::new(AdamConfig::default(), &store);
-    bench("shnn_step", 3, 20, || {
+    bench("shnn_step", device, 3, 20, || {
         train_step(&mut store, &mut adam, |p| {
             let t = p.tape();
             let z0v = t.constant(z0.clone());
@@ -146,10 +162,22 @@ fn main() {
     let run = |name: &str| which.is_empty() || which.iter().any(|w| w == name);
     let mut rng: ChaCha8Rng = rand::SeedableRng::seed_from_u64(0);
     let _ = rng.random::<u32>();
+    let device: Device = match std::env::var("DEVICE").map(|d| d.parse::<Device>()) {
+        Err(_) => Device::Cpu,
+        Ok(Ok(d)) if d.is_built() => d,
+        Ok(Ok(d)) => fail(&format!("DEVICE={d}: this build lacks the device (build with --features gpu)")),
+        Ok(Err(e)) => fail(&format!("DEVICE: {e}")),
+    };
     if run("mlp_step") {
-        mlp_step(&mut rng);
+        mlp_step(&mut rng, device);
     }
     if run("shnn_step") {
-        shnn_step(&mut rng);
+        shnn_step(&mut rng, device);
     }
+}
+
+/// Prints `message` and exits with status 2.
+fn fail(message: &str) -> ! {
+    eprintln!("train_step: {message}");
+    std::process::exit(2)
 }

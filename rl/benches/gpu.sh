@@ -12,8 +12,12 @@
 #   matmul    the WGSL matmul rate on the shapes of `shnn` training
 #   gpu       env steps/s of training on the GPU (paper preset), shnn and mlp_hn on
 #             3_ant_claw_centipede, 2_ants, 1_ant, with each iteration's stage timings
+#   before    `gpu`'s shnn pair with the baseline binary (gpu_build.sh's BEFORE), in the same
+#             call, for a ratio on one machine
+#   peers     the training-step workloads of ../shared/bench (mlp_step, shnn_step) on the GPU
+#             against the JAX peer on the same GPU (the machine's own JAX), in alternating
+#             rounds, then both on the CPU alone
 #   profile   one `shnn` minibatch's forward and backward on the GPU, op by op
-#             (GPU_PAIRS="env:model ..." replaces the pairs)
 #   sim       the simulator's scaling from 1 thread to every core
 #   cpu       env steps/s of training on the CPU alone at every core (one iteration each)
 # DEADLINE (seconds, default 540) skips what would start after it, so the machine's time
@@ -24,9 +28,10 @@ cd "$(dirname "$0")/../.."
 C=/tmp/gpu-carry-bin
 mkdir -p $C
 cp gpu-carry/COMMIT gpu-carry/LEVEL $C/
+[ -e gpu-carry/BEFORE ] && cp gpu-carry/BEFORE $C/
 for f in gpu-carry/*.gz; do gzip -dc "$f" > "$C/$(basename "$f" .gz)" && chmod +x "$C/$(basename "$f" .gz)"; done
 RUNS=${RUNS:-/tmp/gpu-bench}
-SECTIONS=${SECTIONS:-correct matmul gpu profile gpu_more sim cpu}
+SECTIONS=${SECTIONS:-correct matmul gpu before peers profile gpu_more sim cpu}
 DEADLINE=${DEADLINE:-540}
 mkdir -p "$RUNS"
 if [ -n "${OUT:-}" ]; then exec > >(tee "$OUT/gpu-bench.log") 2>&1; fi
@@ -84,17 +89,19 @@ else
 fi
 # train <device> <env> <model> <iterations> <limit_s>: env steps/s of a short paper-preset
 # training: the last iteration's rate (the first is a warm-up when there are two), and every
-# iteration's stage timings (MEBEN_TIMINGS).
+# iteration's stage timings (MEBEN_TIMINGS). MEBEN names another binary (its line says which).
 train() {
-    local dir="$RUNS/$1-${2//\//_}-$3"
+    local bin=${MEBEN:-$C/meben}
+    local dir="$RUNS/$1-${2//\//_}-$3-$(basename "$bin")"
     rm -rf "$dir"
     # SIGKILL: meben takes SIGTERM as "stop after this iteration", which can take minutes.
-    MEBEN_TIMINGS=1 timeout -s KILL "$(limit "$5")" $C/meben train --preset paper --device "$1" --env "$2" --model "$3" \
+    MEBEN_TIMINGS=1 timeout -s KILL "$(limit "$5")" "$bin" train --preset paper --device "$1" --env "$2" --model "$3" \
         --steps $(($4 * ITER)) "${SIZE[@]}" --set num_evals=0 --set eval_episodes=1 --quiet --out "$dir" \
         > "$dir.log" 2>&1
     local rc=$?
     local where="CPU only, $CORES threads"
     [ "$1" = gpu ] && where="$(grep -o 'training on GPU: .*' "$dir.log" | head -1 | cut -c18-) + $CORES CPU threads"
+    [ -n "${MEBEN:-}" ] && where="$where; binary $(basename "$bin")"
     awk -F, -v dev="$1" -v env="$2" -v model="$3" -v rc=$rc -v m="$MACHINE" -v where="$where" '
       NR > 1 && $1 != "" { s[NR] = $2; w[NR] = $3; n = NR }
       END {
@@ -122,6 +129,35 @@ gpu() {
 gpu_more() {
     echo "== training on the GPU, 2_ants and 1_ant (paper preset; simulator and act step on $CORES CPU threads)"
     pairs gpu 2 60 team_reach/2_ants:shnn team_reach/1_ant:shnn team_reach/2_ants:mlp_hn team_reach/1_ant:mlp_hn
+}
+
+before() {
+    if [ ! -x $C/meben_before ]; then
+        echo "== before: skipped (no gpu-carry/meben_before.gz: gpu_build.sh with BEFORE=<commit>)"
+        return
+    fi
+    echo "== training on the GPU with the baseline binary, commit $(cat $C/BEFORE) (the same pair as \`gpu\`'s first)"
+    MEBEN=$C/meben_before pairs gpu 2 120 team_reach/3_ant_claw_centipede:shnn
+}
+
+peers() {
+    echo "== training step (../shared/bench/README.md) against the JAX peer, f32, medians of each program's steps"
+    local jax=gpu-carry/peers/jax_step.py
+    if [ ! -e $jax ]; then
+        echo "peers: skipped (no $jax: gpu_build.sh copies it from ../shared/bench/peers)"
+        return
+    fi
+    python3 -c 'import jax; print("JAX", jax.__version__, "devices:", jax.devices())' 2>&1 | tail -1
+    for round in 1 2; do
+        want || break
+        DEVICE=gpu timeout -s KILL "$(limit 60)" $C/train_step 2>&1 | grep -E "step|panicked|rror" | sed "s/\$/ (this library, round $round)/"
+        want || break
+        timeout -s KILL "$(limit 90)" python3 $jax 2>&1 | grep -E "step|panicked|rror" | sed "s/\$/ (JAX default device, round $round)/"
+    done
+    want || return
+    timeout -s KILL "$(limit 60)" $C/train_step 2>&1 | grep -E "step|panicked|rror" | sed "s/\$/ (this library, $CORES CPU threads)/"
+    want || return
+    JAX_PLATFORMS=cpu timeout -s KILL "$(limit 90)" python3 $jax 2>&1 | grep -E "step|panicked|rror" | sed "s/\$/ (JAX on the CPU, $CORES cores)/"
 }
 
 profile() {
