@@ -1,6 +1,7 @@
 //! Training-step benchmark (`../shared/bench/README.md`): `mlp_step` and `shnn_step`, the
 //! same arithmetic as the JAX and PyTorch peers, in f32 on every core. Prints
-//! `mlp_step  median_ms=...  steps=50  loss=...  device=cpu` and `shnn_step median_ms=...`.
+//! `mlp_step  median_ms=...  steps=50  loss=...  device=cpu` and `shnn_step median_ms=...`,
+//! the final loss exactly (the shortest decimal that reads back as its bits).
 //!
 //! Run: `cargo bench -p nn --bench train_step [-- mlp_step|shnn_step]`. `DEVICE=gpu` (with
 //! `--features gpu`) keeps the parameters, Adam's moments and the fixed inputs on the GPU, as
@@ -52,7 +53,7 @@ fn bench(name: &str, device: Device, warmup: usize, steps: usize, mut step: impl
     }
     times.sort_by(f64::total_cmp);
     let median = if steps % 2 == 1 { times[steps / 2] } else { 0.5 * (times[steps / 2 - 1] + times[steps / 2]) };
-    println!("{name:<9} median_ms={median:.2}  steps={steps}  loss={loss:.5}  device={device}");
+    println!("{name:<9} median_ms={median:.2}  steps={steps}  loss={loss}  device={device}");
 }
 
 /// One optimisation step on the store's device: forward and backward on a fresh tape,

@@ -3,6 +3,7 @@
 
 mod common;
 mod equivariance;
+mod gpu_determinism;
 mod gpu_optim;
 mod layers;
 mod optim_state;
