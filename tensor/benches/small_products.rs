@@ -10,7 +10,13 @@
 //! - `frame`: `O^T Z`, `[N, 3, 3] x [N, 3, 3]` (eq. (lrf)).
 //!
 //! Prints one line per product, `small <name> fwd_ms=... bwd_ms=... fill_ms=...`, medians of
-//! 15 samples after 3 warm-up calls.
+//! 15 samples after 3 warm-up calls. `N=<rows>` replaces the 10,240 rows (153,600 are the
+//! edge rows of a `3_ant_claw_centipede` minibatch).
+//!
+//! `DEVICE=gpu` (with `--features gpu`) times the forward product on the GPU instead, the
+//! operands resident there, each call waited for (`small <name> gpu_fwd_ms=... plan_ms=...
+//! gb_per_s=...`: `plan_ms` is the host's share, planning the batch; `gb_per_s` counts each
+//! operand read once and the output written once).
 //!
 //! Run: `cargo bench -p tensor --bench small_products`.
 
@@ -20,10 +26,9 @@ use std::time::Instant;
 #[global_allocator]
 static ALLOC: mimalloc::MiMalloc = mimalloc::MiMalloc;
 
-use tensor::Tensor;
-use tensor::kernels::matmul::{matmul, small_batched_backward};
+use tensor::kernels::matmul::{MatMulPlan, matmul, small_batched_backward};
+use tensor::{Device, Tensor};
 
-const N: usize = 10240;
 const SAMPLES: usize = 15;
 
 fn median_ms(mut f: impl FnMut()) -> f64 {
@@ -50,16 +55,42 @@ fn filled(shape: &[usize], seed: usize) -> Tensor<f32> {
 /// `B` is `A` itself.
 type Case = (&'static str, [usize; 3], bool, [usize; 3], bool, bool);
 
+/// The forward product on `device` (the GPU): operands placed there once, each call waited
+/// for; and the host's time to plan the batch.
+fn on_device(device: Device, name: &str, a: &Tensor<f32>, ta: bool, b: &Tensor<f32>, tb: bool) {
+    let (da, db) = (a.to_device(device).expect("upload"), b.to_device(device).expect("upload"));
+    let y = da.matmul_t(&db, ta, tb).expect("shapes");
+    let fwd = median_ms(|| {
+        black_box(da.matmul_t(&db, ta, tb).expect("shapes"));
+        device.synchronize();
+    });
+    let plan = median_ms(|| {
+        black_box(MatMulPlan::new(a.shape(), b.shape(), ta, tb).expect("shapes"));
+    });
+    let bytes = 4.0 * (a.numel() + b.numel() + y.numel()) as f64;
+    println!("small {name} {device}_fwd_ms={fwd:.3} plan_ms={plan:.3} gb_per_s={:.0}", bytes / fwd * 1e-6);
+}
+
 fn main() {
+    let n: usize = std::env::var("N").ok().and_then(|v| v.parse().ok()).unwrap_or(10240);
+    let device: Device = std::env::var("DEVICE").ok().and_then(|d| d.parse().ok()).unwrap_or_default();
+    if !device.is_built() {
+        eprintln!("small_products: DEVICE={device} needs a build with --features gpu");
+        std::process::exit(2);
+    }
     let cases: [Case; 4] = [
-        ("gram", [N, 3, 32], true, [N, 3, 32], false, true),
-        ("coef", [N, 3, 32], false, [N, 32, 32], false, false),
-        ("outer", [N, 3, 32], false, [N, 3, 32], true, true),
-        ("frame", [N, 3, 3], true, [N, 3, 3], false, false),
+        ("gram", [n, 3, 32], true, [n, 3, 32], false, true),
+        ("coef", [n, 3, 32], false, [n, 32, 32], false, false),
+        ("outer", [n, 3, 32], false, [n, 3, 32], true, true),
+        ("frame", [n, 3, 3], true, [n, 3, 3], false, false),
     ];
     for (name, sa, ta, sb, tb, same) in cases {
         let a = filled(&sa, 1);
         let b = if same { a.clone() } else { filled(&sb, 2) };
+        if device != Device::Cpu {
+            on_device(device, name, &a, ta, &b, tb);
+            continue;
+        }
         let y = matmul(&a, &b, ta, tb).expect("shapes");
         let g = filled(y.shape(), 3);
         let fwd = median_ms(|| {

@@ -6,6 +6,8 @@
 //! the subequivariant layers — go through a direct loop, because a general matmul call per
 //! 3x32 block costs more than the arithmetic.
 
+use std::sync::OnceLock;
+
 use faer::{Accum, MatMut, MatRef, Par};
 use rayon::prelude::*;
 
@@ -70,8 +72,12 @@ pub struct MatMulPlan {
     pub n: usize,
     /// Broadcast batch shape.
     pub batch: Vec<usize>,
-    /// Offsets (in elements) of each batch entry's A and B matrices.
-    pub offsets: Vec<(usize, usize)>,
+    /// Per batch dim, the elements between consecutive matrices of A and of B along it (0
+    /// where that operand is broadcast).
+    strides: Vec<(usize, usize)>,
+    /// Each batch entry's A and B offsets, listed on first use ([`MatMulPlan::offsets`]):
+    /// a GPU product of regular offsets never needs the list.
+    offsets: OnceLock<Vec<(usize, usize)>>,
 }
 
 impl MatMulPlan {
@@ -94,24 +100,66 @@ impl MatMulPlan {
         let (ba, bb) = (&a[..a.len() - 2], &b[..b.len() - 2]);
         let batch = broadcast_shapes("matmul", ba, bb)
             .map_err(|_| mismatch("matmul", &[a, b], "batch dims do not broadcast"))?;
-        let nb = numel(&batch);
         let sa = broadcast_strides(ba, &batch);
         let sb = broadcast_strides(bb, &batch);
-        let mut offsets = Vec::with_capacity(nb);
-        let mut idx = vec![0usize; batch.len()];
-        for _ in 0..nb {
-            let oa: usize = idx.iter().zip(&sa).map(|(i, s)| i * s).sum();
-            let ob: usize = idx.iter().zip(&sb).map(|(i, s)| i * s).sum();
-            offsets.push((oa * ar * ac, ob * br * bc));
-            for d in (0..batch.len()).rev() {
-                idx[d] += 1;
-                if idx[d] < batch[d] {
-                    break;
+        let strides = sa.iter().zip(&sb).map(|(&x, &y)| (x * ar * ac, y * br * bc)).collect();
+        Ok(Self { m, k, n, batch, strides, offsets: OnceLock::new() })
+    }
+
+    /// One product of matrices that start at offset 0 of both operands.
+    pub fn single(m: usize, k: usize, n: usize) -> Self {
+        Self { m, k, n, batch: vec![], strides: vec![], offsets: OnceLock::new() }
+    }
+
+    /// The number of batch entries (products).
+    pub fn batches(&self) -> usize {
+        numel(&self.batch)
+    }
+
+    /// Each batch entry's offsets (in elements) of its A and B matrices, in batch order.
+    pub fn offsets(&self) -> &[(usize, usize)] {
+        self.offsets.get_or_init(|| {
+            let nb = self.batches();
+            let mut offsets = Vec::with_capacity(nb);
+            let mut idx = vec![0usize; self.batch.len()];
+            for _ in 0..nb {
+                let oa: usize = idx.iter().zip(&self.strides).map(|(i, s)| i * s.0).sum();
+                let ob: usize = idx.iter().zip(&self.strides).map(|(i, s)| i * s.1).sum();
+                offsets.push((oa, ob));
+                for d in (0..self.batch.len()).rev() {
+                    idx[d] += 1;
+                    if idx[d] < self.batch[d] {
+                        break;
+                    }
+                    idx[d] = 0;
                 }
-                idx[d] = 0;
             }
-        }
-        Ok(Self { m, k, n, batch, offsets })
+            offsets
+        })
+    }
+
+    /// `(sa, sb)` when batch entry `i`'s matrices start at `(i sa, i sb)` (every product of
+    /// the models: batch dims that are contiguous or broadcast as a whole), without listing
+    /// them; `None` when they do not.
+    pub fn regular(&self) -> Option<(usize, usize)> {
+        let linear = |stride: fn(&(usize, usize)) -> usize| {
+            // The innermost batch dim of more than one entry fixes the step; every outer one
+            // must then step by it times the entries inside.
+            let mut step: Option<usize> = None;
+            let mut inside = 1usize;
+            for (d, &size) in self.batch.iter().enumerate().rev() {
+                if size > 1 {
+                    let s = stride(&self.strides[d]);
+                    let unit = *step.get_or_insert(s);
+                    if unit.checked_mul(inside) != Some(s) {
+                        return None;
+                    }
+                }
+                inside = inside.checked_mul(size)?;
+            }
+            Some(step.unwrap_or(0))
+        };
+        Some((linear(|s| s.0)?, linear(|s| s.1)?))
     }
 
     /// Output shape `[batch.., m, n]`.
@@ -169,14 +217,14 @@ pub fn matmul_into_then<T: Float>(
             faer_matmul(o, accumulate, Product { a: am, ta, b: bm, tb, m, k, n }, 0, m);
         }
     };
-    let nb = plan.offsets.len();
+    let nb = plan.batches();
     if nb > 1 && work * nb >= 1 << 16 {
-        out.par_chunks_mut(mn).zip(plan.offsets.par_iter()).for_each(|(o, off)| one(o, off));
+        out.par_chunks_mut(mn).zip(plan.offsets().par_iter()).for_each(|(o, off)| one(o, off));
     } else if nb == 1 && work >= 1 << 22 && ta && !tb && inner_split_suits(m, k, n) {
         // A^T B with a small result and a long inner dim (weight gradients x^T g): split the
         // inner dim into fixed chunks, one partial product each, summed in chunk order. The
         // chunking depends only on the shape, so the bits do not depend on the thread count.
-        let (oa, ob) = plan.offsets[0];
+        let (oa, ob) = plan.offsets()[0];
         let chunks = (k / K_CHUNK).clamp(1, 8);
         let chunks = 1 << chunks.ilog2(); // a power of two: even work for 2, 4 or 8 threads
         let chunk = k.div_ceil(chunks);
@@ -202,8 +250,8 @@ pub fn matmul_into_then<T: Float>(
         // A^T B with a tall, thin result and a long inner dim (weight gradients x^T g of wide
         // inputs): faer is several times faster on the transposed problem B^T A, so compute
         // that ([n, m]) and transpose it into place.
-        let (oa, ob) = plan.offsets[0];
-        let t_plan = MatMulPlan { m: n, k, n: m, batch: vec![], offsets: vec![(0, 0)] };
+        let (oa, ob) = plan.offsets()[0];
+        let t_plan = MatMulPlan::single(n, k, m);
         let mut tmp = crate::pool::for_overwrite(m * n);
         matmul_into(&mut tmp, false, &b[ob..ob + k * n], true, &a[oa..oa + k * m], false, &t_plan);
         for i in 0..m {
@@ -220,7 +268,7 @@ pub fn matmul_into_then<T: Float>(
     } else if nb == 1 && work >= 1 << 22 && m.max(n) >= 2 * MIN_BLOCK {
         // One large product: split the longer output side into fixed blocks (a function of
         // the shape only) computed in parallel, each by one single-threaded faer call.
-        let (oa, ob) = plan.offsets[0];
+        let (oa, ob) = plan.offsets()[0];
         let (am, bm) = (&a[oa..oa + m * k], &b[ob..ob + k * n]);
         if m >= n {
             let rb = block_size(m);
@@ -234,7 +282,7 @@ pub fn matmul_into_then<T: Float>(
         }
         matmul_col_blocks(out, accumulate, Product { a: am, ta, b: bm, tb, m, k, n }, block_size(n));
     } else {
-        out.chunks_mut(mn).zip(plan.offsets.iter()).for_each(|(o, off)| one(o, off));
+        out.chunks_mut(mn).zip(plan.offsets().iter()).for_each(|(o, off)| one(o, off));
     }
     if let Some(post) = post {
         // Runs of whole rows (of length n), in parallel when large.
@@ -504,5 +552,53 @@ pub fn small_batched_backward<T: Float>(
             });
         }
         (None, None) => {}
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::MatMulPlan;
+
+    /// A's shape, B's shape, and the strides `regular` should find (or none).
+    type Case = (&'static [usize], &'static [usize], Option<(usize, usize)>);
+
+    /// The offsets `new` plans, listed by brute force: entry `idx` (row-major over the batch
+    /// shape) starts at the sum of `idx` times each operand's broadcast stride.
+    fn listed(a: &[usize], b: &[usize], ta: bool, tb: bool) -> Vec<(usize, usize)> {
+        MatMulPlan::new(a, b, ta, tb).unwrap().offsets().to_vec()
+    }
+
+    #[test]
+    fn regular_offsets_are_recognised_and_match_the_list() {
+        let cases: [Case; 7] = [
+            (&[7, 3, 32], &[7, 32, 32], Some((96, 1024))),
+            (&[7, 3, 32], &[32, 32], Some((96, 0))),
+            (&[32, 3], &[7, 3, 5], Some((0, 15))),
+            (&[2, 3, 4, 5], &[2, 3, 5, 6], Some((20, 30))),
+            (&[2, 1, 4, 5], &[2, 3, 5, 6], None),
+            (&[2, 1, 4, 5], &[1, 3, 5, 6], None),
+            (&[1, 3, 4, 5], &[2, 1, 5, 6], None),
+        ];
+        for (a, b, want) in cases {
+            let plan = MatMulPlan::new(a, b, false, false).unwrap();
+            assert_eq!(plan.regular(), want, "{a:?} x {b:?}");
+            assert_eq!(plan.offsets().len(), plan.batches());
+            if let Some((sa, sb)) = want {
+                let by_stride: Vec<_> = (0..plan.batches()).map(|i| (i * sa, i * sb)).collect();
+                assert_eq!(plan.offsets(), &by_stride[..], "{a:?} x {b:?}");
+            }
+        }
+        // A batch dim of one entry between others does not break regularity.
+        assert_eq!(
+            MatMulPlan::new(&[2, 1, 3, 4, 5], &[2, 1, 3, 5, 6], false, false).unwrap().regular(),
+            Some((20, 30))
+        );
+        // The broadcast cases' lists, by hand: A repeats along the second batch dim.
+        assert_eq!(
+            listed(&[2, 1, 4, 5], &[2, 3, 5, 6], false, false),
+            [(0, 0), (0, 30), (0, 60), (20, 90), (20, 120), (20, 150)]
+        );
+        assert_eq!(MatMulPlan::single(4, 5, 6).offsets(), &[(0, 0)]);
+        assert_eq!(MatMulPlan::single(4, 5, 6).regular(), Some((0, 0)));
     }
 }

@@ -66,19 +66,16 @@ fn is_small(m: usize, k: usize, n: usize) -> bool {
 }
 
 /// Where each batch entry's matrices start, for the kernels: `(a_base, b_base, a_stride,
-/// b_stride)` when the offsets are regular (`base + b * stride`: every batched product of
-/// the models, broadcast or not), with no buffer; otherwise the listed offsets, uploaded.
-fn batch_offsets(offsets: &[(usize, usize)]) -> ([u32; 4], Option<DeviceBuffer>) {
-    let (a0, b0) = offsets[0];
-    let (sa, sb) = offsets.get(1).map_or((0, 0), |&(a1, b1)| (a1.wrapping_sub(a0), b1.wrapping_sub(b0)));
-    let regular =
-        offsets.iter().enumerate().all(|(i, &(oa, ob))| {
-            oa == a0.wrapping_add(i.wrapping_mul(sa)) && ob == b0.wrapping_add(i.wrapping_mul(sb))
-        }) && offsets.len().checked_mul(sa.max(sb)).is_some_and(|end| end < u32::MAX as usize);
-    if regular {
-        return ([u(a0), u(b0), u(sa), u(sb)], None);
+/// b_stride)` when the offsets are regular (`b * stride`: every batched product of the
+/// models, broadcast or not; [`MatMulPlan::regular`], no list made), with no buffer;
+/// otherwise the listed offsets, uploaded.
+fn batch_offsets(plan: &MatMulPlan) -> ([u32; 4], Option<DeviceBuffer>) {
+    if let Some((sa, sb)) = plan.regular()
+        && plan.batches().checked_mul(sa.max(sb)).is_some_and(|end| end < u32::MAX as usize)
+    {
+        return ([0, 0, u(sa), u(sb)], None);
     }
-    let list: Vec<u32> = offsets.iter().flat_map(|&(oa, ob)| [u(oa), u(ob)]).collect();
+    let list: Vec<u32> = plan.offsets().iter().flat_map(|&(oa, ob)| [u(oa), u(ob)]).collect();
     ([0; 4], Some(DeviceBuffer::upload_u32(&list)))
 }
 
@@ -132,10 +129,16 @@ fn matmul_into_with(
     act: Activation,
 ) {
     let (m, k, n) = (plan.m, plan.k, plan.n);
-    let batches = plan.offsets.len();
+    let batches = plan.batches();
     assert_eq!(out.len(), batches * m * n, "matmul: the output holds the plan's output shape");
-    for &(oa, ob) in &plan.offsets {
-        assert!(oa + m * k <= a.len() && ob + k * n <= b.len(), "matmul: operands smaller than the plan");
+    let fits = |(oa, ob): (usize, usize)| oa + m * k <= a.len() && ob + k * n <= b.len();
+    match plan.regular() {
+        // Regular offsets grow with the entry: the last one is the furthest.
+        Some((sa, sb)) => assert!(
+            batches == 0 || fits(((batches - 1) * sa, (batches - 1) * sb)),
+            "matmul: operands smaller than the plan"
+        ),
+        None => assert!(plan.offsets().iter().all(|&o| fits(o)), "matmul: operands smaller than the plan"),
     }
     if let Some(bias) = bias {
         assert_eq!(bias.len(), n, "matmul: the bias holds one value per output column");
@@ -148,7 +151,7 @@ fn matmul_into_with(
         return;
     }
     // Regular offsets (always, in the models) go in the parameters: no upload.
-    let (regular, listed) = batch_offsets(&plan.offsets);
+    let (regular, listed) = batch_offsets(plan);
     // Without a bias (or listed offsets) the kernel reads none: any buffer that is not the
     // output fills the slot.
     let offsets = listed.as_ref().unwrap_or(a);
@@ -193,7 +196,7 @@ fn matmul_into_with(
 
 /// `op(a) @ op(b)` following `plan`, as a new buffer of `plan.out_shape()` values.
 pub(crate) fn matmul(a: &DeviceBuffer, ta: bool, b: &DeviceBuffer, tb: bool, plan: &MatMulPlan) -> DeviceBuffer {
-    let out = DeviceBuffer::uninit(plan.offsets.len() * plan.m * plan.n);
+    let out = DeviceBuffer::uninit(plan.batches() * plan.m * plan.n);
     matmul_into(&out, false, a, ta, b, tb, plan, None, Activation::Identity);
     out
 }
@@ -216,7 +219,7 @@ pub(crate) fn linear_sum(
     let out = DeviceBuffer::uninit(rows * n);
     let last = parts.len() - 1;
     for (i, (&(x, k), w)) in parts.iter().zip(weights).enumerate() {
-        let plan = MatMulPlan { m: rows, k, n, batch: vec![], offsets: vec![(0, 0)] };
+        let plan = MatMulPlan::single(rows, k, n);
         let (bias, act) = if i == last { (bias, act) } else { (None, Activation::Identity) };
         matmul_into(&out, i > 0, x, false, w, false, &plan, bias, act);
     }
