@@ -34,7 +34,7 @@ fn on(device: Device, t: Tensor<f32>) -> Tensor<f32> {
     t.to_device(device).unwrap_or_else(|e| panic!("cannot place an input on the {device}: {e}"))
 }
 
-/// The parameters moved to `device` (Adam keeps its moments where they are).
+/// The parameters moved to `device` (Adam uploads its moments there at its first step).
 fn placed(mut store: ParamStore<f32>, device: Device) -> ParamStore<f32> {
     store.to_device(device).unwrap_or_else(|e| panic!("cannot place the parameters on the {device}: {e}"));
     store
