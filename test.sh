@@ -53,7 +53,7 @@ cargo test --workspace --release
 # (Each crate's integration tests are one binary, `integration`; its GPU modules are named gpu_*.)
 cargo test --release -p tensor --features gpu
 cargo test --release -p models --features gpu --test integration gpu_models::
-cargo test --release -p nn --features gpu --test integration gpu_optim:: gpu_determinism::
+cargo test --release -p nn --features gpu --test integration -- gpu_optim:: gpu_determinism::
 cargo test --release -p rl --features gpu --test integration gpu_training::
 # The Rust programs the Python tests compare with (already built by cargo test; cheap).
 cargo build --release -p rl --bin meben -p envs --example replay_actions
