@@ -67,10 +67,10 @@ fn is_small(m: usize, k: usize, n: usize) -> bool {
 
 /// Where each batch entry's matrices start, for the kernels: `(a_base, b_base, a_stride,
 /// b_stride)` when the offsets are regular (`b * stride`: every batched product of the
-/// models, broadcast or not; [`MatMulPlan::regular`], no list made), with no buffer;
-/// otherwise the listed offsets, uploaded.
-fn batch_offsets(plan: &MatMulPlan) -> ([u32; 4], Option<DeviceBuffer>) {
-    if let Some((sa, sb)) = plan.regular()
+/// models, broadcast or not; `regular` is [`MatMulPlan::regular`], no list made), with no
+/// buffer; otherwise the listed offsets, uploaded.
+fn batch_offsets(plan: &MatMulPlan, regular: Option<(usize, usize)>) -> ([u32; 4], Option<DeviceBuffer>) {
+    if let Some((sa, sb)) = regular
         && plan.batches().checked_mul(sa.max(sb)).is_some_and(|end| end < u32::MAX as usize)
     {
         return ([0, 0, u(sa), u(sb)], None);
@@ -132,7 +132,8 @@ fn matmul_into_with(
     let batches = plan.batches();
     assert_eq!(out.len(), batches * m * n, "matmul: the output holds the plan's output shape");
     let fits = |(oa, ob): (usize, usize)| oa + m * k <= a.len() && ob + k * n <= b.len();
-    match plan.regular() {
+    let strides = plan.regular();
+    match strides {
         // Regular offsets grow with the entry: the last one is the furthest.
         Some((sa, sb)) => assert!(
             batches == 0 || fits(((batches - 1) * sa, (batches - 1) * sb)),
@@ -151,7 +152,7 @@ fn matmul_into_with(
         return;
     }
     // Regular offsets (always, in the models) go in the parameters: no upload.
-    let (regular, listed) = batch_offsets(plan);
+    let (regular, listed) = batch_offsets(plan, strides);
     // Without a bias (or listed offsets) the kernel reads none: any buffer that is not the
     // output fills the slot.
     let offsets = listed.as_ref().unwrap_or(a);
