@@ -7,6 +7,8 @@
 //! `--features gpu`) keeps the parameters, Adam's moments and the fixed inputs on the GPU, as
 //! the JAX peer does on one, and runs every step there; each step ends by reading its loss
 //! back, so its time includes the device's work (the peer waits with `block_until_ready`).
+//! `GPU_TIMING=1` then times one more step on the GPU's own clock and prints its kernels'
+//! timeline (busy against span, by kernel and by op; `GPU_TIMING=all`: every row).
 
 use std::time::Instant;
 
@@ -54,6 +56,36 @@ fn bench(name: &str, device: Device, warmup: usize, steps: usize, mut step: impl
     times.sort_by(f64::total_cmp);
     let median = if steps % 2 == 1 { times[steps / 2] } else { 0.5 * (times[steps / 2 - 1] + times[steps / 2]) };
     println!("{name:<9} median_ms={median:.2}  steps={steps}  loss={loss}  device={device}");
+    if std::env::var_os("GPU_TIMING").is_some() {
+        gpu_timed_step(name, device, step);
+    }
+}
+
+/// `GPU_TIMING=1`: one more step (after the printed loss) with every kernel launch timed on
+/// the GPU's clock (`tensor::gpu::timing`), and its timeline (`GPU_TIMING=all`: every row).
+#[cfg(feature = "gpu")]
+fn gpu_timed_step(name: &str, device: Device, mut step: impl FnMut() -> f32) {
+    if device != Device::Gpu {
+        fail("GPU_TIMING times the GPU's kernels: set DEVICE=gpu too");
+    }
+    let gpu = tensor::gpu::gpu().unwrap_or_else(|e| fail(&e.to_string()));
+    gpu.start_timing().unwrap_or_else(|e| fail(&e.to_string()));
+    let t = Instant::now();
+    step();
+    let wall = t.elapsed().as_secs_f64() * 1e3;
+    let timeline = gpu.stop_timing().unwrap_or_else(|e| fail(&e.to_string()));
+    eprintln!("{name} gpu-timed step: {wall:.3} ms of wall time");
+    if std::env::var("GPU_TIMING").is_ok_and(|v| v == "all") {
+        eprintln!("{timeline:#}");
+    } else {
+        eprintln!("{timeline}");
+    }
+}
+
+/// `GPU_TIMING` needs the device.
+#[cfg(not(feature = "gpu"))]
+fn gpu_timed_step(_: &str, _: Device, _: impl FnMut() -> f32) {
+    fail("GPU_TIMING needs a build with --features gpu and DEVICE=gpu")
 }
 
 /// One optimisation step on the store's device: forward and backward on a fresh tape,

@@ -18,6 +18,8 @@
 #             against the JAX peer on the same GPU (the machine's own JAX), in alternating
 #             rounds, then both on the CPU alone
 #   profile   one `shnn` minibatch's forward and backward on the GPU, op by op
+#   timeline  the same minibatch pass, and `shnn_step`, on the GPU's own clock without waiting
+#             between ops (GPU_TIMING): kernels' busy time against the span, by kernel and op
 #   sim       the simulator's scaling from 1 thread to every core
 #   cpu       env steps/s of training on the CPU alone at every core (one iteration each)
 # DEADLINE (seconds, default 540) skips what would start after it, so the machine's time
@@ -31,7 +33,7 @@ cp gpu-carry/COMMIT gpu-carry/LEVEL $C/
 [ -e gpu-carry/BEFORE ] && cp gpu-carry/BEFORE $C/
 for f in gpu-carry/*.gz; do gzip -dc "$f" > "$C/$(basename "$f" .gz)" && chmod +x "$C/$(basename "$f" .gz)"; done
 RUNS=${RUNS:-/tmp/gpu-bench}
-SECTIONS=${SECTIONS:-correct matmul gpu before peers profile gpu_more sim cpu}
+SECTIONS=${SECTIONS:-correct matmul gpu before peers profile timeline gpu_more sim cpu}
 DEADLINE=${DEADLINE:-540}
 mkdir -p "$RUNS"
 if [ -n "${OUT:-}" ]; then exec > >(tee "$OUT/gpu-bench.log") 2>&1; fi
@@ -167,6 +169,16 @@ profile() {
     [ -n "${QUICK:-}" ] && env=team_reach/1_ant preset=quick
     DEVICE=gpu PRESET=$preset ITERATIONS=0 MINIBATCH_REPS=3 TENSOR_PROFILE=1 BENCH_ENVS=$env \
         BENCH_MODELS=shnn timeout -s KILL "$(limit 90)" $C/train_throughput 2>&1 | grep -v '^\s*$' | head -70
+}
+
+timeline() {
+    echo "== one shnn minibatch pass and one shnn_step on the GPU's clock (timestamp queries, no waits between ops)"
+    local env=team_reach/3_ant_claw_centipede preset=paper
+    [ -n "${QUICK:-}" ] && env=team_reach/1_ant preset=quick
+    DEVICE=gpu PRESET=$preset ITERATIONS=0 MINIBATCH_REPS=3 GPU_TIMING=1 BENCH_ENVS=$env BENCH_MODELS=shnn \
+        timeout -s KILL "$(limit 90)" $C/train_throughput 2>&1 | grep -v '^\s*$' | sed -n '/gpu-timed/,/^team_reach/p' | head -60
+    want || return
+    DEVICE=gpu GPU_TIMING=1 timeout -s KILL "$(limit 60)" $C/train_step shnn_step 2>&1 | grep -v '^\s*$' | grep -v XDG | head -45
 }
 
 sim() {

@@ -22,7 +22,10 @@
 //! sizes (256 environments, minibatches of 128 unrolls) instead of the paper's.
 //!
 //! Run: `cargo bench -p rl --bench train_throughput [-- <filter>]` (a substring of
-//! `<env> <model>`). `ITERATIONS=k` measures k iterations (default 2) after one warm-up
+//! `<env> <model>`). `GPU_TIMING=1` (with `DEVICE=gpu`) times one more pass on the GPU's own
+//! clock without waiting between ops (`tensor::gpu::timing`): the kernels' busy time against
+//! the pass's span and wall time, by kernel and by op (`GPU_TIMING=all`: every row).
+//! `ITERATIONS=k` measures k iterations (default 2) after one warm-up
 //! iteration (`WARMUP=0` for none); `ITERATIONS=0` collects one iteration's data and times
 //! only the minibatch passes, a quick check of the update's efficiency. `TENSOR_PROFILE=1`
 //! prints the per-op profile of the counted minibatch update (`TENSOR_PROFILE=shapes`: with
@@ -118,6 +121,12 @@ fn minibatch_flops(t: &Trainer, c: &TrainConfig, reps: usize) -> Result<(u64, f6
             per(4) / 1e6
         );
     }
+    if std::env::var_os("GPU_TIMING").is_some() {
+        if c.device != tensor::Device::Gpu {
+            return Err("GPU_TIMING times the GPU's kernels: set DEVICE=gpu too".into());
+        }
+        gpu_timeline(|| pass(&Tape::on(c.device)))?;
+    }
     let tape = Tape::<f32>::on(c.device);
     if std::env::var("TENSOR_PROFILE").is_ok_and(|v| v == "shapes") {
         tape.enable_profiling_by_shape();
@@ -139,6 +148,34 @@ fn minibatch_flops(t: &Trainer, c: &TrainConfig, reps: usize) -> Result<(u64, f6
 fn gpu_counts() -> Option<[u64; 5]> {
     let s = tensor::gpu::gpu().ok()?.stats();
     Some([s.launches, s.uploads, s.upload_bytes, s.downloads, s.download_bytes])
+}
+
+/// One more pass of `pass` with every launch timed on the GPU's clock: its wall time, and the
+/// timeline of its kernels (`GPU_TIMING=all`: every op's row).
+#[cfg(feature = "gpu")]
+fn gpu_timeline(
+    pass: impl FnOnce() -> Result<(), Box<dyn std::error::Error>>,
+) -> Result<(), Box<dyn std::error::Error>> {
+    let gpu = tensor::gpu::gpu()?;
+    gpu.synchronize();
+    gpu.start_timing()?;
+    let start = Instant::now();
+    pass()?;
+    let wall = start.elapsed().as_secs_f64();
+    let t = gpu.stop_timing()?;
+    eprintln!("gpu-timed minibatch pass: {:.3} ms of wall time", wall * 1e3);
+    if std::env::var("GPU_TIMING").is_ok_and(|v| v == "all") {
+        eprintln!("{t:#}");
+    } else {
+        eprintln!("{t}");
+    }
+    Ok(())
+}
+
+/// `GPU_TIMING` needs the device.
+#[cfg(not(feature = "gpu"))]
+fn gpu_timeline(_: impl FnOnce() -> Result<(), Box<dyn std::error::Error>>) -> Result<(), Box<dyn std::error::Error>> {
+    Err("GPU_TIMING needs a build with --features gpu and DEVICE=gpu".into())
 }
 
 /// The GPU's counters: none in a build without the device.

@@ -267,6 +267,7 @@ impl<T: Float> Tape<T> {
             prof.forward.entry(key).or_default().add(now - prof.last.unwrap_or(now), f);
             prof.last = Some(now);
         }
+        label_gpu_launches(|| op.name().to_string());
         let op = if requires_grad { op } else { Op::Leaf };
         let mut nodes = self.nodes.borrow_mut();
         nodes.push(Node { value, op, requires_grad });
@@ -317,6 +318,7 @@ impl<T: Float> Tape<T> {
             if let Some(g) = store.take(id) {
                 let start = Instant::now();
                 propagate(&nodes, id, g, &mut store)?;
+                label_gpu_launches(|| format!("{} (backward)", nodes[id].op.name()));
                 if let Some(prof) = self.profile.borrow_mut().as_mut() {
                     nodes[id].value.device().synchronize();
                     let elapsed = start.elapsed();
@@ -333,6 +335,19 @@ impl<T: Float> Tape<T> {
     pub(crate) fn check_same(&self, v: Var<'_, T>) {
         assert!(std::ptr::eq(self, v.tape), "a Var from another tape was used");
     }
+}
+
+/// While the GPU times its launches ([`crate::gpu::Gpu::start_timing`]), gives the launches
+/// of the op just run the label `name()`; nothing otherwise (or without the `gpu` feature).
+fn label_gpu_launches(name: impl FnOnce() -> String) {
+    #[cfg(feature = "gpu")]
+    if crate::gpu::timing::active()
+        && let Ok(gpu) = crate::gpu::gpu()
+    {
+        gpu.label_launches(&name());
+    }
+    #[cfg(not(feature = "gpu"))]
+    let _ = name;
 }
 
 /// `flops / time` as "12.34 GFLOP/s", or "-" when either is zero.

@@ -5,6 +5,7 @@ use std::collections::HashMap;
 use std::sync::{Arc, Mutex, OnceLock};
 
 use crate::error::{Result, TensorError};
+use crate::gpu::timing::{self, KernelTimeline, TimedLaunch, Timing};
 
 /// Threads per workgroup of the one-dimensional kernels (`@workgroup_size(256)` in WGSL).
 pub(crate) const WORKGROUP: u32 = 256;
@@ -71,6 +72,8 @@ pub struct Gpu {
     free: Mutex<HashMap<u64, Vec<wgpu::Buffer>>>,
     stats: Mutex<GpuStats>,
     pending: Mutex<Pending>,
+    /// Whether the device was given timestamp queries ([`Gpu::start_timing`]).
+    timestamps: bool,
 }
 
 /// Launches recorded but not yet submitted. Ordering rules that keep a batch correct:
@@ -94,6 +97,8 @@ struct Pending {
     /// recalled after it).
     staged: bool,
     launches: usize,
+    /// The launches' timestamps while [`Gpu::start_timing`] is on.
+    timing: Option<Timing>,
 }
 
 /// The process's GPU, initialised on first use: the first adapter wgpu offers on Vulkan,
@@ -142,9 +147,12 @@ impl Gpu {
         // The adapter's own limits: the default 128 MiB binding limit is smaller than the
         // activations of a paper-sized batch.
         let limits = adapter.limits();
+        // Timestamp queries, where the adapter has them, for `start_timing` (they cost nothing
+        // until a pass asks for one).
+        let timestamps = adapter.features().contains(wgpu::Features::TIMESTAMP_QUERY);
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("tensor"),
-            required_features: wgpu::Features::empty(),
+            required_features: if timestamps { wgpu::Features::TIMESTAMP_QUERY } else { wgpu::Features::empty() },
             required_limits: limits.clone(),
             ..Default::default()
         }))
@@ -164,7 +172,16 @@ impl Gpu {
             pipelines: Mutex::new(HashMap::new()),
             free: Mutex::new(HashMap::new()),
             stats: Mutex::new(GpuStats::default()),
-            pending: Mutex::new(Pending { encoder: None, params: Vec::new(), arena, belt, staged: false, launches: 0 }),
+            pending: Mutex::new(Pending {
+                encoder: None,
+                params: Vec::new(),
+                arena,
+                belt,
+                staged: false,
+                launches: 0,
+                timing: None,
+            }),
+            timestamps,
         })
     }
 
@@ -231,7 +248,10 @@ impl Gpu {
 
     /// Submits the recorded launches (their parameters first).
     fn flush_locked(&self, pending: &mut Pending) {
-        if let Some(enc) = pending.encoder.take() {
+        if let Some(mut enc) = pending.encoder.take() {
+            if let Some(t) = pending.timing.as_mut() {
+                self.resolve_timestamps(&mut enc, t);
+            }
             if !pending.params.is_empty() {
                 self.queue.write_buffer(&pending.arena, 0, bytemuck::cast_slice(&pending.params));
             }
@@ -249,6 +269,94 @@ impl Gpu {
             pending.params.clear();
             pending.launches = 0;
         }
+    }
+
+    /// Records the copy of the open batch's timestamps into a buffer of their own, read
+    /// when timing stops.
+    fn resolve_timestamps(&self, enc: &mut wgpu::CommandEncoder, t: &mut Timing) {
+        let (Some(set), n) = (t.open.take(), std::mem::take(&mut t.open_launches)) else {
+            return;
+        };
+        let bytes = u64::from(n) * 2 * wgpu::QUERY_SIZE as u64;
+        let buffer = |usage| {
+            self.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("timestamps"),
+                size: bytes,
+                usage,
+                mapped_at_creation: false,
+            })
+        };
+        let resolved = buffer(wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC);
+        let readback = buffer(wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST);
+        enc.resolve_query_set(&set, 0..2 * n, &resolved, 0);
+        enc.copy_buffer_to_buffer(&resolved, 0, &readback, 0, bytes);
+        t.resolved.push((readback, n));
+    }
+
+    /// Starts timing every kernel launch on the GPU's own clock (module
+    /// [`crate::gpu::timing`]) until [`Gpu::stop_timing`]. Launches are not waited for, so
+    /// they run as they do untimed. An error if the adapter has no timestamp queries.
+    pub fn start_timing(&self) -> Result<()> {
+        if !self.timestamps {
+            return Err(TensorError::Device {
+                op: "start_timing",
+                detail: format!("the GPU adapter {} has no timestamp queries (wgpu's TIMESTAMP_QUERY)", self.info),
+            });
+        }
+        let mut pending = self.pending.lock().expect("gpu batch lock");
+        self.flush_locked(&mut pending);
+        pending.timing = Some(Timing::new());
+        timing::ACTIVE.store(true, std::sync::atomic::Ordering::Relaxed);
+        Ok(())
+    }
+
+    /// Whether launches are being timed ([`Gpu::start_timing`]).
+    pub fn timing(&self) -> bool {
+        self.pending.lock().expect("gpu batch lock").timing.is_some()
+    }
+
+    /// Gives `label` (an op's name) to the launches timed since the last label; nothing when
+    /// timing is off. Tapes call it after each op.
+    pub fn label_launches(&self, label: &str) {
+        if let Some(t) = self.pending.lock().expect("gpu batch lock").timing.as_mut() {
+            t.label(label);
+        }
+    }
+
+    /// Stops timing, waits for the GPU and reads every launch's start and end: the
+    /// [`KernelTimeline`] since [`Gpu::start_timing`]. An error if timing was not on.
+    pub fn stop_timing(&self) -> Result<KernelTimeline> {
+        let t = {
+            let mut pending = self.pending.lock().expect("gpu batch lock");
+            self.flush_locked(&mut pending);
+            pending.timing.take()
+        };
+        timing::ACTIVE.store(false, std::sync::atomic::Ordering::Relaxed);
+        let Some(t) = t else {
+            return Err(TensorError::Device {
+                op: "stop_timing",
+                detail: "timing was not started (Gpu::start_timing)".into(),
+            });
+        };
+        let (tx, rx) = std::sync::mpsc::channel();
+        for (buf, _) in &t.resolved {
+            let tx = tx.clone();
+            buf.slice(..).map_async(wgpu::MapMode::Read, move |r| {
+                let _ = tx.send(r);
+            });
+        }
+        drop(tx);
+        self.device.poll(wgpu::PollType::wait_indefinitely()).expect("the GPU device was lost");
+        for r in rx {
+            r.map_err(|e| TensorError::Device { op: "stop_timing", detail: format!("reading the timestamps: {e}") })?;
+        }
+        let mut ticks = Vec::with_capacity(t.launches.len());
+        for (buf, n) in &t.resolved {
+            let view = buf.slice(..).get_mapped_range().expect("mapped above");
+            let words: &[u64] = bytemuck::cast_slice(&view);
+            ticks.extend((0..*n as usize).map(|i| (words[2 * i], words[2 * i + 1])));
+        }
+        Ok(KernelTimeline::new(&t.launches, &ticks, f64::from(self.queue.get_timestamp_period())))
     }
 
     /// Submits every launch recorded so far.
@@ -381,10 +489,29 @@ impl Gpu {
         });
         let x = groups.min(MAX_GROUPS_PER_DIM);
         let y = groups.div_ceil(x);
+        // While timing: this launch's start and end at the next two queries of the batch's set.
+        let timed = pending.timing.as_mut().map(|t| {
+            let set = t.open.get_or_insert_with(|| {
+                self.device.create_query_set(&wgpu::QuerySetDescriptor {
+                    label: Some("timestamps"),
+                    ty: wgpu::QueryType::Timestamp,
+                    count: 2 * LAUNCHES_PER_SUBMIT as u32,
+                })
+            });
+            let first = 2 * t.open_launches;
+            t.open_launches += 1;
+            t.launches.push(TimedLaunch { kernel: kernel.name, label: String::new() });
+            (set.clone(), first)
+        });
         {
+            let timestamp_writes = timed.as_ref().map(|(set, first)| wgpu::ComputePassTimestampWrites {
+                query_set: set,
+                beginning_of_pass_write_index: Some(*first),
+                end_of_pass_write_index: Some(first + 1),
+            });
             let enc = self.encoder(&mut pending.encoder);
-            let mut pass = enc
-                .begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some(kernel.name), timestamp_writes: None });
+            let mut pass =
+                enc.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some(kernel.name), timestamp_writes });
             pass.set_pipeline(&pipeline);
             pass.set_bind_group(0, &bind, &[]);
             pass.dispatch_workgroups(x, y, 1);

@@ -2,6 +2,7 @@
 //! kernels for every op of the tape, forward and backward.
 //!
 //! - [`context`]: the process's one device ([`gpu`]), its buffer pool and kernel launches.
+//! - [`timing`]: every launch timed on the GPU's clock ([`Gpu::start_timing`]).
 //! - [`DeviceBuffer`]: the storage of a tensor on the device (f32 values).
 //! - `ops/`: one module per kernel family, each a thin Rust wrapper around a WGSL file in
 //!   `wgsl/` that computes every output element in one thread, in a fixed order: no
@@ -14,9 +15,11 @@
 
 pub mod context;
 pub(crate) mod ops;
+pub mod timing;
 
 pub use context::{AdapterInfo, Gpu, GpuStats, gpu};
 pub use ops::optim::AdamStep;
+pub use timing::{KernelTimeline, TimelineRow};
 
 /// The storage of one tensor on the GPU: `len` f32 values in a buffer that goes back to the
 /// device's pool when dropped.

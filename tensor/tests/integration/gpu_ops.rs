@@ -295,6 +295,44 @@ fn a_gpu_tape_uploads_its_leaves_once() {
     assert_eq!(tensor::gpu::gpu().unwrap().stats().uploads - before, 1);
 }
 
+/// Timing on the GPU's clock: every launch between start and stop is timed once, labelled
+/// with the op that made it (forward or backward), without changing any value.
+#[test]
+fn the_gpu_clock_times_every_launch_and_names_its_op() {
+    let _serial = serial();
+    let gpu = tensor::gpu::gpu().unwrap();
+    assert!(gpu.stop_timing().is_err(), "stopping what was not started");
+    let (a, b) = (randn(24, &[64, 48]), randn(25, &[48, 32]));
+    let step = || {
+        let tape = Tape::<f32>::on(Device::Gpu);
+        let (x, w) = (tape.var(a.clone()), tape.var(b.clone()));
+        let loss = x.matmul(w).unwrap().tanh().sum_all();
+        let g = tape.backward(loss).unwrap();
+        (loss.value().to_device(Device::Cpu).unwrap(), g.get(w).unwrap().to_device(Device::Cpu).unwrap())
+    };
+    let untimed = step();
+    gpu.start_timing().expect("lavapipe and NVIDIA's Vulkan drivers have timestamp queries");
+    assert!(gpu.timing());
+    let launches = gpu.stats().launches;
+    let timed = step();
+    let launched = gpu.stats().launches - launches;
+    let t = gpu.stop_timing().unwrap();
+    assert!(!gpu.timing());
+    assert_eq!(timed.0.data(), untimed.0.data(), "timing changed the loss");
+    assert_eq!(timed.1.data(), untimed.1.data(), "timing changed a gradient");
+    assert_eq!(t.launches as u64, launched, "every launch timed once");
+    assert_eq!(t.rows.iter().map(|r| r.launches).sum::<usize>(), t.launches);
+    for label in ["matmul", "tanh", "matmul (backward)", "tanh (backward)"] {
+        assert!(t.rows.iter().any(|r| r.label == label), "no row of {label:?}:\n{t}");
+    }
+    assert!(t.busy_s > 0.0 && t.span_s > 0.0, "{t}");
+    assert!(t.rows.iter().all(|r| r.seconds >= 0.0));
+    // Timing off: nothing more is recorded, and a new start begins empty.
+    step();
+    gpu.start_timing().unwrap();
+    assert_eq!(gpu.stop_timing().unwrap().launches, 0);
+}
+
 #[test]
 fn optimiser_kernels_match_the_host_formulas() {
     let _serial = serial();
