@@ -41,8 +41,10 @@ PID=$!
 rows() { [ -f "$SCRATCH/run/metrics.csv" ] && echo $(($(wc -l < "$SCRATCH/run/metrics.csv") - 1)) || echo 0; }
 if [ -n "$WANT" ]; then
   while kill -0 "$PID" 2> /dev/null && [ "$(rows)" -lt "$WANT" ]; do sleep 2; done
-  kill "$PID" 2> /dev/null
-  wait "$PID" 2> /dev/null
+  # At once: a plain SIGTERM would let it train one more iteration (meben stops after the
+  # current one), and the scratch run is thrown away.
+  kill -KILL "$PID" 2> /dev/null
+  { wait "$PID"; } 2> /dev/null
 else
   if ! wait "$PID"; then
     echo "$0: the re-run failed:" >&2
