@@ -176,9 +176,15 @@ timeline() {
     local env=team_reach/3_ant_claw_centipede preset=paper
     [ -n "${QUICK:-}" ] && env=team_reach/1_ant preset=quick
     DEVICE=gpu PRESET=$preset ITERATIONS=0 MINIBATCH_REPS=3 GPU_TIMING=1 BENCH_ENVS=$env BENCH_MODELS=shnn \
-        timeout -s KILL "$(limit 90)" $C/train_throughput 2>&1 | grep -v '^\s*$' | sed -n '/gpu-timed/,/^team_reach/p' | head -60
+        timeout -s KILL "$(limit 90)" $C/train_throughput > "$RUNS/timeline-pass.log" 2>&1
+    local rc=$?
+    grep -v '^\s*$' "$RUNS/timeline-pass.log" | sed -n '/gpu-timed/,/^team_reach/p' | head -60
+    [ $rc -eq 0 ] || echo "train_throughput: exit $rc (137: stopped at its time limit)"
     want || return
-    DEVICE=gpu GPU_TIMING=1 timeout -s KILL "$(limit 60)" $C/train_step shnn_step 2>&1 | grep -v '^\s*$' | grep -v XDG | head -45
+    DEVICE=gpu GPU_TIMING=1 timeout -s KILL "$(limit 60)" $C/train_step shnn_step > "$RUNS/timeline-step.log" 2>&1
+    rc=$?
+    grep -v '^\s*$' "$RUNS/timeline-step.log" | grep -v XDG | head -45
+    [ $rc -eq 0 ] || echo "train_step shnn_step: exit $rc (137: stopped at its time limit)"
 }
 
 sim() {
