@@ -18,8 +18,9 @@
 #             against the JAX peer on the same GPU (the machine's own JAX), in alternating
 #             rounds, then both on the CPU alone
 #   profile   one `shnn` minibatch's forward and backward on the GPU, op by op
-#   timeline  the same minibatch pass, and `shnn_step`, on the GPU's own clock without waiting
-#             between ops (GPU_TIMING): kernels' busy time against the span, by kernel and op
+#   timeline  the same minibatch pass, `shnn_step`, and a training iteration's update, on the
+#             GPU's own clock without waiting between ops (GPU_TIMING, MEBEN_TIMINGS=gpu):
+#             kernels' busy time against the span, by kernel and op
 #   sim       the simulator's scaling from 1 thread to every core
 #   cpu       env steps/s of training on the CPU alone at every core (one iteration each)
 # DEADLINE (seconds, default 540) skips what would start after it, so the machine's time
@@ -185,6 +186,17 @@ timeline() {
     rc=$?
     grep -v '^\s*$' "$RUNS/timeline-step.log" | grep -v XDG | head -45
     [ $rc -eq 0 ] || echo "train_step shnn_step: exit $rc (137: stopped at its time limit)"
+    want || return
+    # A whole iteration's update (every minibatch, the host's gathers between them, Adam):
+    # the second of two, its kernels by kernel and the top op rows.
+    echo "-- shnn training on $env, the second iteration on the GPU's clock (MEBEN_TIMINGS=gpu)"
+    rm -rf "$RUNS/timeline-train"
+    MEBEN_TIMINGS=gpu timeout -s KILL "$(limit 150)" $C/meben train --preset $preset --device gpu --env $env \
+        --model shnn "${SIZE[@]}" --steps $((2 * ITER)) --set num_evals=0 --quiet --out "$RUNS/timeline-train" \
+        > "$RUNS/timeline-train.log" 2>&1
+    rc=$?
+    grep -v XDG "$RUNS/timeline-train.log" | sed -n '/iteration 2 took/,$p' | head -40
+    [ $rc -eq 0 ] || echo "meben train: exit $rc (137: stopped at its time limit)"
 }
 
 sim() {

@@ -267,7 +267,9 @@ impl<T: Float> Tape<T> {
             prof.forward.entry(key).or_default().add(now - prof.last.unwrap_or(now), f);
             prof.last = Some(now);
         }
-        label_gpu_launches(|| op.name().to_string());
+        // A leaf launches nothing: launches still unlabelled when one is recorded were made
+        // outside the tape (the last step's clipping and Adam) and keep no op's name.
+        label_gpu_launches(|| if matches!(op, Op::Leaf) { String::new() } else { op.name().to_string() });
         let op = if requires_grad { op } else { Op::Leaf };
         let mut nodes = self.nodes.borrow_mut();
         nodes.push(Node { value, op, requires_grad });
@@ -338,7 +340,8 @@ impl<T: Float> Tape<T> {
 }
 
 /// While the GPU times its launches ([`crate::gpu::Gpu::start_timing`]), gives the launches
-/// of the op just run the label `name()`; nothing otherwise (or without the `gpu` feature).
+/// of the op just run the label `name()` (empty: none, shown as `-`); nothing otherwise (or
+/// without the `gpu` feature).
 fn label_gpu_launches(name: impl FnOnce() -> String) {
     #[cfg(feature = "gpu")]
     if crate::gpu::timing::active()

@@ -291,11 +291,18 @@ fn train_in_pool(config: &TrainConfig, run: &RunDir, options: &TrainOptions) -> 
             break;
         }
         let t0 = Instant::now();
+        let gpu_clock = gpu_timeline_wanted(config.device);
+        if gpu_clock {
+            start_gpu_timeline()?;
+        }
         let stats = trainer.iterate()?;
         let dt = t0.elapsed().as_secs_f64();
         let sps = config.steps_per_iteration() as f64 / dt;
         if timings_wanted() {
             eprintln!("meben: iteration {} took {dt:.3} s: {}", trainer.iteration, stats.timings.describe());
+        }
+        if gpu_clock {
+            eprintln!("meben: iteration {} on the GPU's clock: {}", trainer.iteration, stop_gpu_timeline()?);
         }
         let mut evals = Vec::new();
         if eval_due(trainer.iteration, total, config.num_evals as u64) {
@@ -346,6 +353,34 @@ fn train_in_pool(config: &TrainConfig, run: &RunDir, options: &TrainOptions) -> 
 /// ([`crate::mappo::trainer::Timings`]; docs/PERFORMANCE.md).
 fn timings_wanted() -> bool {
     std::env::var_os("MEBEN_TIMINGS").is_some_and(|v| !v.is_empty() && v != "0")
+}
+
+/// Whether `MEBEN_TIMINGS=gpu` also asks for each iteration's kernels on the GPU's own clock
+/// (`tensor::gpu::timing`: busy time against the span of the update's kernels, by kernel and
+/// op), for a run whose updates are on the GPU.
+fn gpu_timeline_wanted(device: tensor::Device) -> bool {
+    device == tensor::Device::Gpu && std::env::var("MEBEN_TIMINGS").is_ok_and(|v| v == "gpu")
+}
+
+#[cfg(feature = "gpu")]
+fn start_gpu_timeline() -> Result<()> {
+    Ok(tensor::gpu::gpu()?.start_timing()?)
+}
+
+#[cfg(feature = "gpu")]
+fn stop_gpu_timeline() -> Result<tensor::gpu::KernelTimeline> {
+    Ok(tensor::gpu::gpu()?.stop_timing()?)
+}
+
+// Without the feature no run's updates are on the GPU, so these are never called.
+#[cfg(not(feature = "gpu"))]
+fn start_gpu_timeline() -> Result<()> {
+    Ok(())
+}
+
+#[cfg(not(feature = "gpu"))]
+fn stop_gpu_timeline() -> Result<&'static str> {
+    Ok("")
 }
 
 #[cfg(test)]

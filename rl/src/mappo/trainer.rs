@@ -117,7 +117,8 @@ pub struct IterationStats {
 }
 
 /// Wall seconds of an iteration's stages, summed over its steps and minibatches (printed
-/// per iteration with `MEBEN_TIMINGS=1`; docs/PERFORMANCE.md). On the GPU a stage's time
+/// per iteration with `MEBEN_TIMINGS=1`, and with `MEBEN_TIMINGS=gpu` the kernels' own
+/// times too; docs/PERFORMANCE.md). On the GPU a stage's time
 /// is the host's: kernels run asynchronously until something comes back, so the loss's time
 /// includes the forward pass (GAE reads the values), `backward` includes the gradient pass
 /// (the non-finite check reads its verdict), and `optimizer` only queues clipping and Adam,

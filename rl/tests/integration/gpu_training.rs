@@ -136,3 +136,29 @@ fn the_program_names_the_adapter() {
     let adapter = tensor::gpu::gpu().unwrap().adapter().to_string();
     assert!(stderr.contains(&format!("meben: training on GPU: {adapter}")), "{stderr}");
 }
+
+/// `MEBEN_TIMINGS=gpu` prints each iteration's stages and its kernels on the GPU's clock.
+#[test]
+fn the_program_prints_an_iterations_kernels_on_the_gpus_clock() {
+    let tmp = TempDir::new("gpu-timeline");
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_meben"))
+        .args(["train", "--model", "mlp_hn", "--device", "gpu", "--steps", "80", "--num-envs", "4", "--quiet"])
+        .args(["--set", "batch_size=4", "--set", "num_minibatches=2", "--set", "epochs=1", "--set", "num_evals=0"])
+        .arg("--out")
+        .arg(tmp.0.join("r"))
+        .env("MEBEN_TIMINGS", "gpu")
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{stderr}");
+    for k in [1, 2] {
+        assert!(stderr.contains(&format!("meben: iteration {k} took")), "{stderr}");
+        assert!(stderr.contains(&format!("meben: iteration {k} on the GPU's clock: gpu timeline: ")), "{stderr}");
+    }
+    // The update's kernels, labelled by op: the policy's layers forward and backward, Adam's
+    // step outside the tape.
+    for row in ["linear / matmul", "linear (backward) / matmul", "- / adam"] {
+        assert!(stderr.contains(row), "no {row:?} row:\n{stderr}");
+    }
+    assert!(!stderr.contains("leaf /"), "launches credited to a leaf:\n{stderr}");
+}

@@ -64,7 +64,7 @@ impl Timing {
 #[derive(Clone, Debug, PartialEq)]
 pub struct TimelineRow {
     /// The op that launched it (`name`, `name (backward)`), or `-` for launches made outside a
-    /// labelling tape (the optimiser's step, a gradient check).
+    /// tape (the optimiser's clipping, Adam and non-finite check).
     pub label: String,
     /// The kernel (a WGSL entry point of `gpu/wgsl`).
     pub kernel: &'static str,

@@ -325,8 +325,17 @@ fn the_gpu_clock_times_every_launch_and_names_its_op() {
     for label in ["matmul", "tanh", "matmul (backward)", "tanh (backward)"] {
         assert!(t.rows.iter().any(|r| r.label == label), "no row of {label:?}:\n{t}");
     }
+    assert!(t.rows.iter().all(|r| r.label != "leaf"), "launches credited to a leaf:\n{t}");
     assert!(t.busy_s > 0.0 && t.span_s > 0.0, "{t}");
     assert!(t.rows.iter().all(|r| r.seconds >= 0.0));
+    // Launches outside a tape, then a new tape's leaves: they keep no op's name.
+    gpu.start_timing().unwrap();
+    let x = a.to_device(Device::Gpu).unwrap();
+    let _ = x.map_unary(tensor::UnaryOp::Neg);
+    let _ = step();
+    let t = gpu.stop_timing().unwrap();
+    let outside = t.rows.iter().find(|r| r.label == "-").unwrap_or_else(|| panic!("no '-' row:\n{t}"));
+    assert_eq!((outside.kernel, outside.launches), ("unary_forward", 1), "{t}");
     // Timing off: nothing more is recorded, and a new start begins empty.
     step();
     gpu.start_timing().unwrap();
