@@ -69,11 +69,9 @@ fn gpu_timed_step(name: &str, device: Device, mut step: impl FnMut() -> f32) {
         fail("GPU_TIMING times the GPU's kernels: set DEVICE=gpu too");
     }
     let gpu = tensor::gpu::gpu().unwrap_or_else(|e| fail(&e.to_string()));
-    gpu.start_timing().unwrap_or_else(|e| fail(&e.to_string()));
     let t = Instant::now();
-    step();
+    let (_, timeline) = gpu.timed(&mut step).unwrap_or_else(|e| fail(&e.to_string()));
     let wall = t.elapsed().as_secs_f64() * 1e3;
-    let timeline = gpu.stop_timing().unwrap_or_else(|e| fail(&e.to_string()));
     eprintln!("{name} gpu-timed step: {wall:.3} ms of wall time");
     if std::env::var("GPU_TIMING").is_ok_and(|v| v == "all") {
         eprintln!("{timeline:#}");

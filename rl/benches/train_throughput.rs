@@ -158,11 +158,10 @@ fn gpu_timeline(
 ) -> Result<(), Box<dyn std::error::Error>> {
     let gpu = tensor::gpu::gpu()?;
     gpu.synchronize();
-    gpu.start_timing()?;
     let start = Instant::now();
-    pass()?;
+    let (done, t) = gpu.timed(pass)?;
+    done?;
     let wall = start.elapsed().as_secs_f64();
-    let t = gpu.stop_timing()?;
     eprintln!("gpu-timed minibatch pass: {:.3} ms of wall time", wall * 1e3);
     if std::env::var("GPU_TIMING").is_ok_and(|v| v == "all") {
         eprintln!("{t:#}");

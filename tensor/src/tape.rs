@@ -269,7 +269,7 @@ impl<T: Float> Tape<T> {
         }
         // A leaf launches nothing: launches still unlabelled when one is recorded were made
         // outside the tape (the last step's clipping and Adam) and keep no op's name.
-        label_gpu_launches(|| if matches!(op, Op::Leaf) { String::new() } else { op.name().to_string() });
+        label_gpu_launches(if matches!(op, Op::Leaf) { None } else { Some((op.name(), false)) });
         let op = if requires_grad { op } else { Op::Leaf };
         let mut nodes = self.nodes.borrow_mut();
         nodes.push(Node { value, op, requires_grad });
@@ -320,7 +320,7 @@ impl<T: Float> Tape<T> {
             if let Some(g) = store.take(id) {
                 let start = Instant::now();
                 propagate(&nodes, id, g, &mut store)?;
-                label_gpu_launches(|| format!("{} (backward)", nodes[id].op.name()));
+                label_gpu_launches(Some((nodes[id].op.name(), true)));
                 if let Some(prof) = self.profile.borrow_mut().as_mut() {
                     nodes[id].value.device().synchronize();
                     let elapsed = start.elapsed();
@@ -340,17 +340,17 @@ impl<T: Float> Tape<T> {
 }
 
 /// While the GPU times its launches ([`crate::gpu::Gpu::start_timing`]), gives the launches
-/// of the op just run the label `name()` (empty: none, shown as `-`); nothing otherwise (or
-/// without the `gpu` feature).
-fn label_gpu_launches(name: impl FnOnce() -> String) {
+/// of the op just run its name and direction (`None`: no op's, shown as `-`); nothing
+/// otherwise (or without the `gpu` feature).
+fn label_gpu_launches(op: Option<(&'static str, bool)>) {
     #[cfg(feature = "gpu")]
     if crate::gpu::timing::active()
         && let Ok(gpu) = crate::gpu::gpu()
     {
-        gpu.label_launches(&name());
+        gpu.label_launches(op);
     }
     #[cfg(not(feature = "gpu"))]
-    let _ = name;
+    let _ = op;
 }
 
 /// `flops / time` as "12.34 GFLOP/s", or "-" when either is zero.

@@ -5,7 +5,7 @@ use std::collections::HashMap;
 use std::sync::{Arc, Mutex, OnceLock};
 
 use crate::error::{Result, TensorError};
-use crate::gpu::timing::{self, KernelTimeline, TimedLaunch, Timing};
+use crate::gpu::timing::{self, KernelTimeline, OpLabel, TimedLaunch, Timing};
 
 /// Threads per workgroup of the one-dimensional kernels (`@workgroup_size(256)` in WGSL).
 pub(crate) const WORKGROUP: u32 = 256;
@@ -315,12 +315,21 @@ impl Gpu {
         self.pending.lock().expect("gpu batch lock").timing.is_some()
     }
 
-    /// Gives `label` (an op's name) to the launches timed since the last label; nothing when
-    /// timing is off. Tapes call it after each op.
-    pub fn label_launches(&self, label: &str) {
+    /// Gives `op` (an op's name, and whether its gradient rule ran; `None`: made outside a
+    /// tape) to the launches timed since the last label; nothing when timing is off. Tapes
+    /// call it after each op.
+    pub fn label_launches(&self, op: OpLabel) {
         if let Some(t) = self.pending.lock().expect("gpu batch lock").timing.as_mut() {
-            t.label(label);
+            t.label(op);
         }
+    }
+
+    /// Runs `f` with every launch timed ([`Gpu::start_timing`] .. [`Gpu::stop_timing`]):
+    /// its result and the timeline of its kernels.
+    pub fn timed<R>(&self, f: impl FnOnce() -> R) -> Result<(R, KernelTimeline)> {
+        self.start_timing()?;
+        let r = f();
+        Ok((r, self.stop_timing()?))
     }
 
     /// Stops timing, waits for the GPU and reads every launch's start and end: the
@@ -500,7 +509,7 @@ impl Gpu {
             });
             let first = 2 * t.open_launches;
             t.open_launches += 1;
-            t.launches.push(TimedLaunch { kernel: kernel.name, label: String::new() });
+            t.launches.push(TimedLaunch { kernel: kernel.name, op: None });
             (set.clone(), first)
         });
         {

@@ -19,7 +19,7 @@ pub mod timing;
 
 pub use context::{AdapterInfo, Gpu, GpuStats, gpu};
 pub use ops::optim::AdamStep;
-pub use timing::{KernelTimeline, TimelineRow};
+pub use timing::{KernelTimeline, OpLabel, TimelineRow};
 
 /// The storage of one tensor on the GPU: `len` f32 values in a buffer that goes back to the
 /// device's pool when dropped.

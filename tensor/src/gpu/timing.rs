@@ -22,13 +22,17 @@ pub(crate) fn active() -> bool {
     ACTIVE.load(Ordering::Relaxed)
 }
 
+/// Which op made a launch: its name and whether its gradient rule did; `None` for a launch
+/// made outside a tape (or not labelled yet).
+pub type OpLabel = Option<(&'static str, bool)>;
+
 /// One launch whose start and end the GPU wrote.
 #[derive(Clone, Debug)]
 pub(crate) struct TimedLaunch {
     /// The kernel's name.
     pub kernel: &'static str,
-    /// The op that launched it (empty until a tape labels it).
-    pub label: String,
+    /// The op that made it (`None` until a tape labels it).
+    pub op: OpLabel,
 }
 
 /// Launches being timed: the open batch's query set, the batches resolved and waiting to be
@@ -51,10 +55,10 @@ impl Timing {
         Self { open: None, open_launches: 0, resolved: Vec::new(), launches: Vec::new(), labelled: 0 }
     }
 
-    /// Gives `label` to every launch since the last label.
-    pub fn label(&mut self, label: &str) {
+    /// Gives `op` to every launch since the last label.
+    pub fn label(&mut self, op: OpLabel) {
         for l in &mut self.launches[self.labelled..] {
-            l.label = label.to_string();
+            l.op = op;
         }
         self.labelled = self.launches.len();
     }
@@ -93,21 +97,25 @@ impl KernelTimeline {
     /// `period_ns` nanoseconds.
     pub(crate) fn new(launches: &[TimedLaunch], ticks: &[(u64, u64)], period_ns: f64) -> Self {
         let secs = |t: u64| t as f64 * period_ns * 1e-9;
-        let mut by_row: HashMap<(&str, &'static str), (usize, f64)> = HashMap::new();
+        let mut by_row: HashMap<(OpLabel, &'static str), (usize, f64)> = HashMap::new();
         let mut busy = 0.0;
         for (l, &(start, end)) in launches.iter().zip(ticks) {
             let s = secs(end.saturating_sub(start));
             busy += s;
-            let label = if l.label.is_empty() { "-" } else { l.label.as_str() };
-            let e = by_row.entry((label, l.kernel)).or_default();
+            let e = by_row.entry((l.op, l.kernel)).or_default();
             e.0 += 1;
             e.1 += s;
         }
+        let label = |op: OpLabel| match op {
+            None => "-".to_string(),
+            Some((name, false)) => name.to_string(),
+            Some((name, true)) => format!("{name} (backward)"),
+        };
         let first = ticks.iter().map(|t| t.0).min().unwrap_or(0);
         let last = ticks.iter().map(|t| t.1).max().unwrap_or(0);
         let mut rows: Vec<TimelineRow> = by_row
             .into_iter()
-            .map(|((label, kernel), (n, s))| TimelineRow { label: label.to_string(), kernel, launches: n, seconds: s })
+            .map(|((op, kernel), (n, s))| TimelineRow { label: label(op), kernel, launches: n, seconds: s })
             .collect();
         rows.sort_by(|a, b| {
             b.seconds.total_cmp(&a.seconds).then_with(|| (&a.label, a.kernel).cmp(&(&b.label, b.kernel)))
@@ -169,8 +177,9 @@ mod tests {
 
     #[test]
     fn rows_sum_launches_by_op_and_kernel_and_the_span_covers_the_gaps() {
-        let l = |kernel, label: &str| TimedLaunch { kernel, label: label.to_string() };
-        let launches = [l("matmul", "linear"), l("binary", "add"), l("matmul", "linear"), l("adam", "")];
+        let l = |kernel, op: OpLabel| TimedLaunch { kernel, op };
+        let (linear, add) = (Some(("linear", false)), Some(("add", true)));
+        let launches = [l("matmul", linear), l("binary", add), l("matmul", linear), l("adam", None)];
         // Ticks of 2 ns: 10-20, a gap, 30-35, 35-55, 100-101.
         let ticks = [(10, 20), (30, 35), (35, 55), (100, 101)];
         let t = KernelTimeline::new(&launches, &ticks, 2.0);
@@ -180,7 +189,7 @@ mod tests {
         let r = &t.rows[0];
         assert_eq!((r.label.as_str(), r.kernel, r.launches), ("linear", "matmul", 2));
         assert!((r.seconds - 60.0e-9).abs() < 1e-18, "{}", r.seconds);
-        assert_eq!(t.rows[1].label, "add");
+        assert_eq!(t.rows[1].label, "add (backward)");
         assert_eq!(t.rows[2].label, "-", "an unlabelled launch");
         let k = t.by_kernel()[0];
         assert_eq!((k.0, k.1), ("matmul", 2));
@@ -192,13 +201,14 @@ mod tests {
     #[test]
     fn a_label_goes_to_the_launches_since_the_last_one() {
         let mut t = Timing::new();
-        t.launches.push(TimedLaunch { kernel: "a", label: String::new() });
-        t.label("first");
-        t.launches.push(TimedLaunch { kernel: "b", label: String::new() });
-        t.launches.push(TimedLaunch { kernel: "c", label: String::new() });
-        t.label("second");
-        t.label("third (no launches)");
-        let labels: Vec<&str> = t.launches.iter().map(|l| l.label.as_str()).collect();
-        assert_eq!(labels, ["first", "second", "second"]);
+        let launch = |kernel| TimedLaunch { kernel, op: None };
+        t.launches.push(launch("a"));
+        t.label(Some(("first", false)));
+        t.launches.push(launch("b"));
+        t.launches.push(launch("c"));
+        t.label(Some(("second", true)));
+        t.label(Some(("third (no launches)", false)));
+        let labels: Vec<OpLabel> = t.launches.iter().map(|l| l.op).collect();
+        assert_eq!(labels, [Some(("first", false)), Some(("second", true)), Some(("second", true))]);
     }
 }

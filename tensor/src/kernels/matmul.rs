@@ -562,8 +562,8 @@ mod tests {
     /// A's shape, B's shape, and the strides `regular` should find (or none).
     type Case = (&'static [usize], &'static [usize], Option<(usize, usize)>);
 
-    /// The offsets `new` plans, listed by brute force: entry `idx` (row-major over the batch
-    /// shape) starts at the sum of `idx` times each operand's broadcast stride.
+    /// The offsets `new` plans, as `offsets` lists them (entry `idx`, row-major over the batch
+    /// shape, starts at the sum of `idx` times each operand's broadcast stride).
     fn listed(a: &[usize], b: &[usize], ta: bool, tb: bool) -> Vec<(usize, usize)> {
         MatMulPlan::new(a, b, ta, tb).unwrap().offsets().to_vec()
     }
