@@ -37,7 +37,7 @@ impl VectorLinear {
     /// channels and, with `gravity`, the gravity direction as the last channel: the same as
     /// [`VectorLinear::forward`] of the concatenation (after [`append_gravity`]), without
     /// building it. Each part is multiplied by its block of rows of `W` and the products are
-    /// added in one op (`tensor::Tape::linear_sum`).
+    /// added in one op that reads the blocks in place (`tensor::Tape::linear_rows`).
     pub fn forward_channels<'t, T: Float>(
         &self,
         p: &Bound<'t, T>,
@@ -57,13 +57,7 @@ impl VectorLinear {
             )));
         }
         let w = p.get(self.linear.weight);
-        let mut terms = Vec::with_capacity(inputs.len());
-        let mut offset = 0;
-        for (z, width) in inputs.into_iter().zip(widths) {
-            terms.push((z, w.narrow(0, offset, width)?));
-            offset += width;
-        }
-        Ok(w.tape().linear_sum(&terms, None, Activation::Identity)?)
+        Ok(w.tape().linear_rows(&inputs, w, None, Activation::Identity)?)
     }
 }
 

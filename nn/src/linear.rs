@@ -131,13 +131,8 @@ impl Mlp {
             )));
         }
         let w = p.get(first.weight);
-        let (mut offset, mut terms) = (0, Vec::with_capacity(parts.len()));
-        for (&part, width) in parts.iter().zip(widths) {
-            terms.push((part, w.narrow(0, offset, width)?));
-            offset += width;
-        }
         let b = first.bias.map(|b| p.get(b));
-        let mut h = w.tape().linear_sum(&terms, b, self.activation)?;
+        let mut h = w.tape().linear_rows(parts, w, b, self.activation)?;
         for layer in &self.layers[1..self.layers.len() - 1] {
             h = layer.forward_act(p, h, self.activation)?;
         }
@@ -153,24 +148,15 @@ impl Mlp {
         }
         let only = &self.layers[0];
         let w = p.get(only.weight);
-        let (mut offset, mut terms) = (0, Vec::with_capacity(parts.len()));
-        for &part in parts {
-            let width = *part.shape().last().ok_or_else(|| NnError::Config("an MLP input part has no dims".into()))?;
-            if offset + width > only.fan_in {
-                break;
-            }
-            terms.push((part, w.narrow(0, offset, width)?));
-            offset += width;
-        }
-        if offset != only.fan_in || terms.len() != parts.len() {
+        let widths: Vec<usize> = parts.iter().map(|x| x.shape().last().copied().unwrap_or(0)).collect();
+        if parts.iter().any(|x| x.shape().is_empty()) || widths.iter().sum::<usize>() != only.fan_in {
             return Err(NnError::Config(format!(
-                "MLP input parts of widths {:?} for a layer of {} inputs",
-                parts.iter().map(|x| x.shape().last().copied().unwrap_or(0)).collect::<Vec<_>>(),
+                "MLP input parts of widths {widths:?} for a layer of {} inputs",
                 only.fan_in
             )));
         }
         let b = only.bias.map(|b| p.get(b));
-        Ok(w.tape().linear_sum(&terms, b, Activation::Identity)?)
+        Ok(w.tape().linear_rows(parts, w, b, Activation::Identity)?)
     }
 
     /// Applies every layer but the last (each followed by the activation): the features the

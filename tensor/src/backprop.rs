@@ -12,7 +12,7 @@ use crate::dispatch as k;
 use crate::element::Float;
 use crate::error::Result;
 use crate::kernels::matmul::MatMulPlan;
-use crate::op::{Activation, NodeId, Op};
+use crate::op::{Activation, LinearTerm, NodeId, Op};
 use crate::shape::split_at_axis;
 use crate::tape::Node;
 use crate::tensor::Tensor;
@@ -67,17 +67,23 @@ pub(crate) fn propagate<T: Float>(nodes: &[Node<T>], id: NodeId, g: Tensor<T>, s
             let gpre = if *act == Activation::Identity { g } else { k::activation_backward(y, &g, *act)? };
             let n = *y.shape().last().expect("a layer's output has a last dim");
             let rows = gpre.numel() / n.max(1);
-            // Each part as its own layer: dX_i = G' W_i^T, dW_i = X_i^T G'.
-            for &(x, w) in parts {
+            // Each part as its own layer of weight W_i = w[row..row + k]:
+            // dX_i = G' W_i^T, dW_i = X_i^T G' (added into those rows of dw).
+            for &LinearTerm { x, w, row } in parts {
                 let (xv, wv) = (val(x), val(w));
-                let kdim = wv.shape()[0];
+                let kdim = *xv.shape().last().expect("a layer's input has a last dim");
+                let whole = row == 0 && kdim == wv.shape()[0];
                 if store.wants(x) {
-                    let plan = MatMulPlan::new(&[rows, n], &[kdim, n], false, true)?;
-                    store.add_product_planned(x, rows * kdim, &gpre, false, wv, true, &plan)?;
+                    let plan = MatMulPlan::single(rows, n, kdim);
+                    store.add_product_rows(x, rows * kdim, (&gpre, false), (wv, row * n, true), &plan)?;
                 }
                 if store.wants(w) {
-                    let plan = MatMulPlan::new(&[rows, kdim], &[rows, n], true, false)?;
-                    store.add_product_planned(w, kdim * n, xv, true, &gpre, false, &plan)?;
+                    let plan = MatMulPlan::single(kdim, rows, n);
+                    if whole {
+                        store.add_product_planned(w, kdim * n, xv, true, &gpre, false, &plan)?;
+                    } else {
+                        store.add_product_to_rows(w, wv.numel(), row * n, (xv, true), (&gpre, false), &plan)?;
+                    }
                 }
             }
             if let Some(b) = b

@@ -13,7 +13,7 @@ use crate::device::Device;
 use crate::element::Float;
 use crate::error::Result;
 #[cfg(feature = "gpu")]
-use crate::error::{check_axis, invalid, mismatch};
+use crate::error::{check_axis, invalid};
 use crate::kernels::{elementwise, index, layout, matmul, nnops, reduce};
 use crate::op::{Activation, BinaryOp, ReduceOp, UnaryOp};
 #[cfg(feature = "gpu")]
@@ -121,40 +121,31 @@ pub(crate) fn matmul<T: Float>(a: &Tensor<T>, b: &Tensor<T>, ta: bool, tb: bool)
     }
 }
 
-/// `act(sum_i x_i @ w_i + b)`.
+/// `act(sum_i x_i @ w_i[row_i..row_i + k_i] + b)` for the terms `(x_i, w_i, row_i)`.
 pub(crate) fn linear_sum<T: Float>(
-    parts: &[(&Tensor<T>, &Tensor<T>)],
+    parts: &[nnops::WeightRows<'_, T>],
     b: Option<&Tensor<T>>,
     act: Activation,
 ) -> Result<Tensor<T>> {
-    let mut all: Vec<&Tensor<T>> = parts.iter().flat_map(|&(x, w)| [x, w]).collect();
+    let mut all: Vec<&Tensor<T>> = parts.iter().flat_map(|&(x, w, _)| [x, w]).collect();
     all.extend(b);
     match device_of(&all) {
-        Device::Cpu => nnops::linear_sum(parts, b, act),
+        Device::Cpu => nnops::linear_sum_rows(parts, b, act),
         Device::Gpu => on_gpu! {
-            let Some(((x0, w0), rest)) = parts.split_first() else {
-                return Err(mismatch("linear", &[], "needs at least one (x, w) part"));
-            };
-            let (shape, rows) = nnops::linear_shapes(x0.shape(), w0.shape(), b.map(|b| b.shape()))?;
-            for (x, w) in rest {
-                let (s, r) = nnops::linear_shapes(x.shape(), w.shape(), None)?;
-                if s != shape || r != rows {
-                    return Err(mismatch(
-                        "linear",
-                        &[x0.shape(), w0.shape(), x.shape(), w.shape()],
-                        "every part must have the same leading dims and output width",
-                    ));
-                }
-            }
+            let (shape, rows, n) = nnops::linear_rows_shapes(parts, b.map(|b| b.shape()))?;
             dev::check("linear", numel(&shape))?;
-            let n = w0.shape()[1];
             let placed: Vec<(Tensor<T>, Tensor<T>)> =
-                parts.iter().map(|&(x, w)| Ok((dev::up(x)?, dev::up(w)?))).collect::<Result<_>>()?;
+                parts.iter().map(|&(x, w, _)| Ok((dev::up(x)?, dev::up(w)?))).collect::<Result<_>>()?;
             let bias = b.map(dev::up).transpose()?;
-            let xs: Vec<(&crate::gpu::DeviceBuffer, usize)> =
-                placed.iter().map(|(x, w)| (dev::buf(x), w.shape()[0])).collect();
-            let ws: Vec<&crate::gpu::DeviceBuffer> = placed.iter().map(|(_, w)| dev::buf(w)).collect();
-            let y = crate::gpu::ops::matmul::linear_sum(&xs, &ws, rows, n, bias.as_ref().map(dev::buf), act);
+            let terms: Vec<crate::gpu::ops::matmul::Term<'_>> = placed
+                .iter()
+                .zip(parts)
+                .map(|((x, w), &(xh, _, row))| {
+                    let k = xh.shape()[xh.rank() - 1];
+                    crate::gpu::ops::matmul::Term { x: dev::buf(x), k, w: dev::buf(w), w_base: row * n }
+                })
+                .collect();
+            let y = crate::gpu::ops::matmul::linear_sum(&terms, rows, n, bias.as_ref().map(dev::buf), act);
             Ok(dev::out(y, shape))
         },
     }

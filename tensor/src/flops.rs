@@ -47,7 +47,7 @@
 use std::ops::{Add, AddAssign};
 
 use crate::element::Float;
-use crate::op::{Activation, BinaryOp, NodeId, Op};
+use crate::op::{Activation, BinaryOp, LinearTerm, NodeId, Op};
 use crate::shape::{broadcast_shapes, numel};
 use crate::tape::Node;
 
@@ -175,8 +175,8 @@ pub(crate) fn forward<T: Float>(nodes: &[Node<T>], op: &Op, out: &[usize]) -> Op
         }
         Op::Linear { parts, b, act } => {
             let mut matmul = 0;
-            for &(_, w) in parts {
-                let (k, cols) = (nodes[w].value.shape()[0], nodes[w].value.shape()[1]);
+            for t in parts {
+                let (k, cols) = term_dims(nodes, t);
                 matmul += product_flops(1, n.checked_div(cols).unwrap_or(0), k, cols);
             }
             // One add per element for every part after the first, the bias and the activation.
@@ -239,15 +239,15 @@ pub(crate) fn backward<T: Float>(nodes: &[Node<T>], id: NodeId) -> OpFlops {
             f
         }
         Op::Linear { parts, b, act } => {
-            let needed = parts.iter().any(|&(x, w)| wants(x) || wants(w)) || b.is_some_and(wants);
+            let needed = parts.iter().any(|t| wants(t.x) || wants(t.w)) || b.is_some_and(wants);
             let mut f = OpFlops::default();
             if needed && *act != Activation::Identity {
                 f.other += 2 * n as u64;
             }
-            for &(x, w) in parts {
-                let (k, cols) = (nodes[w].value.shape()[0], nodes[w].value.shape()[1]);
+            for t in parts {
+                let (k, cols) = term_dims(nodes, t);
                 let rows = n.checked_div(cols).unwrap_or(0);
-                for input in [x, w] {
+                for input in [t.x, t.w] {
                     if wants(input) {
                         f.matmul += product_flops(1, rows, k, cols);
                     }
@@ -266,4 +266,11 @@ pub(crate) fn backward<T: Float>(nodes: &[Node<T>], id: NodeId) -> OpFlops {
         }
         Op::Segment { x, mean, .. } => OpFlops::other(if wants(*x) && *mean { x_len(*x) } else { 0 }),
     }
+}
+
+/// `(k, n)` of one term of a fused layer: the rows of its weight that it multiplies (the last
+/// dim of its input) and the weight's width.
+fn term_dims<T: Float>(nodes: &[Node<T>], t: &LinearTerm) -> (usize, usize) {
+    let k = nodes[t.x].value.shape().last().copied().unwrap_or(0);
+    (k, nodes[t.w].value.shape()[1])
 }

@@ -158,28 +158,71 @@ impl<T: Float> GradStore<T> {
         tr: bool,
         plan: &matmul::MatMulPlan,
     ) -> Result<()> {
+        self.add_product_rows(target, len, (l, tl), (r, 0, tr), plan)
+    }
+
+    /// Adds `op(l) @ op(R)` (following `plan`, `len` values) to the gradient of `target`,
+    /// where `R` is the matrix that starts at element `r_start` of `r` (a block of rows of a
+    /// weight, read in place).
+    pub(crate) fn add_product_rows(
+        &mut self,
+        target: NodeId,
+        len: usize,
+        (l, tl): (&Tensor<T>, bool),
+        (r, r_start, tr): (&Tensor<T>, usize, bool),
+        plan: &matmul::MatMulPlan,
+    ) -> Result<()> {
         let gpu = self.on_gpu(target, l) || on_device(r);
         if !gpu {
             let (slot, accumulate) = self.host_slot_to_write(target, len);
-            matmul::matmul_into(slot, accumulate, l.data(), tl, r.data(), tr, plan);
+            let r = &r.data()[r_start..];
+            matmul::matmul_into(slot, accumulate, l.data(), tl, r, tr, plan);
             return Ok(());
         }
         #[cfg(feature = "gpu")]
         {
+            use crate::gpu::ops::matmul::{Placed, matmul_into_at};
             let (l, r) = (l.to_device(crate::Device::Gpu)?, r.to_device(crate::Device::Gpu)?);
             let (slot, accumulate) = self.device_slot(target, len, false);
             let (lb, rb) = (l.device_buffer().expect("placed"), r.device_buffer().expect("placed"));
-            crate::gpu::ops::matmul::matmul_into(
-                slot,
-                accumulate,
-                lb,
-                tl,
-                rb,
-                tr,
-                plan,
-                None,
-                crate::op::Activation::Identity,
-            );
+            let (out, r) = (Placed { buf: slot, base: 0 }, Placed { buf: rb, base: r_start });
+            matmul_into_at(out, accumulate, lb, tl, r, tr, plan, None, crate::op::Activation::Identity);
+        }
+        Ok(())
+    }
+
+    /// Adds `op(l) @ op(r)` (following `plan`) into the block of the gradient of `target`
+    /// (`target_len` values in all) that starts at element `start`: the gradient of a block of
+    /// rows of a weight. On the GPU the product adds into the block in place (its kernels
+    /// add the finished sum to the old value, so the bits are those of a product of its own
+    /// added afterwards); on the CPU it is computed apart and then added, as a narrow's
+    /// gradient is.
+    pub(crate) fn add_product_to_rows(
+        &mut self,
+        target: NodeId,
+        target_len: usize,
+        start: usize,
+        (l, tl): (&Tensor<T>, bool),
+        (r, tr): (&Tensor<T>, bool),
+        plan: &matmul::MatMulPlan,
+    ) -> Result<()> {
+        let len = plan.m * plan.n;
+        if !(self.on_gpu(target, l) || on_device(r)) {
+            let mut block = pool::for_overwrite(len);
+            matmul::matmul_into(&mut block, false, l.data(), tl, r.data(), tr, plan);
+            let slot = self.host_slot(target, target_len);
+            slot[start..start + len].iter_mut().zip(&block).for_each(|(s, &v)| *s += v);
+            pool::recycle(block);
+            return Ok(());
+        }
+        #[cfg(feature = "gpu")]
+        {
+            use crate::gpu::ops::matmul::{Placed, matmul_into_at};
+            let (l, r) = (l.to_device(crate::Device::Gpu)?, r.to_device(crate::Device::Gpu)?);
+            let (slot, _) = self.device_slot(target, target_len, true);
+            let (lb, rb) = (l.device_buffer().expect("placed"), r.device_buffer().expect("placed"));
+            let (out, r) = (Placed { buf: slot, base: start }, Placed { buf: rb, base: 0 });
+            matmul_into_at(out, true, lb, tl, r, tr, plan, None, crate::op::Activation::Identity);
         }
         Ok(())
     }

@@ -205,6 +205,18 @@ pub enum ReduceOp {
 /// Node identifier on a tape (its position).
 pub type NodeId = usize;
 
+/// One product of a fused [`Op::Linear`]: `x @ w[row..row + k]`, with `k` the last dim of
+/// `x` (`row` 0 and `k` all of `w`'s rows for a whole weight).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct LinearTerm {
+    /// The input `x [.., k]`.
+    pub x: NodeId,
+    /// The weight `w [in, out]`, of which rows `row..row + k` multiply `x`.
+    pub w: NodeId,
+    /// The first row of `w` that `x` multiplies.
+    pub row: usize,
+}
+
 /// One recorded operation: the inputs (node ids) and the constants its gradient rule needs.
 #[derive(Clone, Debug)]
 pub enum Op {
@@ -236,12 +248,13 @@ pub enum Op {
         /// Whether `b`'s last two dims are read transposed.
         tb: bool,
     },
-    /// Fused `act(sum_i x_i @ w_i + b)` over the last dims of the `x_i` (`parts` are the
-    /// `(x_i, w_i)`; one part is an ordinary layer, several are one layer applied to the
-    /// concatenation of the `x_i` without building it).
+    /// Fused `act(sum_i x_i @ W_i + b)` over the last dims of the `x_i`, where `W_i` is the
+    /// block of rows `row_i..row_i + k_i` of `w_i` (`k_i` the last dim of `x_i`; one part of
+    /// a whole weight is an ordinary layer, several are one layer applied to the
+    /// concatenation of the `x_i` without building it or slicing its weight).
     Linear {
-        /// The `(x_i, w_i)` input/weight pairs.
-        parts: Vec<(NodeId, NodeId)>,
+        /// The input/weight terms.
+        parts: Vec<LinearTerm>,
         /// The bias, if any.
         b: Option<NodeId>,
         /// The activation applied after the bias.

@@ -68,8 +68,18 @@ fn profile_key<T: Float>(nodes: &[Node<T>], op: &Op, out: &[usize], by_shape: bo
     match op {
         _ if !by_shape => op.name().to_string(),
         Op::Linear { parts, .. } => {
-            let terms: Vec<String> =
-                parts.iter().map(|&(x, w)| format!("{}x{}", shape(x, false), shape(w, false))).collect();
+            let terms: Vec<String> = parts
+                .iter()
+                .map(|t| {
+                    let (k, w) = (nodes[t.x].value.shape().last().copied().unwrap_or(0), &nodes[t.w].value);
+                    let rows = if t.row == 0 && w.shape()[0] == k {
+                        String::new()
+                    } else {
+                        format!("[{}..{}]", t.row, t.row + k)
+                    };
+                    format!("{}x{}{rows}", shape(t.x, false), shape(t.w, false))
+                })
+                .collect();
             format!("linear {}", terms.join(" + "))
         }
         Op::MatMul { a, b, ta, tb } => format!("matmul {}x{}", shape(*a, *ta), shape(*b, *tb)),

@@ -7,7 +7,8 @@ use std::sync::Arc;
 use crate::dispatch as k;
 use crate::element::Float;
 use crate::error::{Result, check_axis, invalid, mismatch};
-use crate::op::{Activation, BinaryOp, NodeId, Op, ReduceOp, UnaryOp};
+use crate::kernels::nnops;
+use crate::op::{Activation, BinaryOp, LinearTerm, NodeId, Op, ReduceOp, UnaryOp};
 use crate::shape::{broadcast_shapes, numel};
 use crate::tape::{Tape, Var};
 use crate::tensor::Tensor;
@@ -159,10 +160,13 @@ impl<'t, T: Float> Var<'t, T> {
             self.tape.check_same(b);
             b.value()
         });
-        let y = k::linear_sum(&[(&self.value(), &w.value())], bv.as_ref(), act)?;
+        let (xv, wv) = (self.value(), w.value());
+        nnops::linear_shapes(xv.shape(), wv.shape(), bv.as_ref().map(|b| b.shape()))?;
+        let y = k::linear_sum(&[(&xv, &wv, 0)], bv.as_ref(), act)?;
         let mut inputs = vec![self.id, w.id];
         inputs.extend(b.map(|b| b.id));
-        Ok(self.tape.record(y, Op::Linear { parts: vec![(self.id, w.id)], b: b.map(|b| b.id), act }, &inputs))
+        let parts = vec![LinearTerm { x: self.id, w: w.id, row: 0 }];
+        Ok(self.tape.record(y, Op::Linear { parts, b: b.map(|b| b.id), act }, &inputs))
     }
 
     /// Softmax over the last axis.
@@ -309,16 +313,78 @@ impl<T: Float> Tape<T> {
                 (x.value(), w.value())
             })
             .collect();
-        let refs: Vec<(&Tensor<T>, &Tensor<T>)> = vals.iter().map(|(x, w)| (x, w)).collect();
+        let (first_x, first_w) =
+            vals.first().ok_or_else(|| mismatch("linear", &[], "needs at least one (x, w) part"))?;
         let bv = b.map(|b| {
             self.check_same(b);
             b.value()
         });
-        let y = k::linear_sum(&refs, bv.as_ref(), act)?;
-        let ids: Vec<(NodeId, NodeId)> = parts.iter().map(|&(x, w)| (x.id, w.id)).collect();
-        let mut inputs: Vec<NodeId> = ids.iter().flat_map(|&(x, w)| [x, w]).collect();
+        nnops::linear_shapes(first_x.shape(), first_w.shape(), bv.as_ref().map(|b| b.shape()))?;
+        for (x, w) in &vals {
+            nnops::linear_shapes(x.shape(), w.shape(), None)?;
+        }
+        let terms: Vec<LinearTerm> = parts.iter().map(|&(x, w)| LinearTerm { x: x.id, w: w.id, row: 0 }).collect();
+        let refs: Vec<nnops::WeightRows<'_, T>> = vals.iter().map(|(x, w)| (x, w, 0)).collect();
+        self.record_linear(terms, &refs, b, bv.as_ref(), act)
+    }
+
+    /// One layer over several inputs that reads its weight in place: `act(cat(xs, last axis)
+    /// @ w + b)` for `w [in, out]`, where `x_i [.., k_i]` multiplies rows `r_i..r_i + k_i` of
+    /// `w` (`r_i` the sum of the earlier `k_j`; the `k_i` sum to `in`). The same values as
+    /// [`Tape::linear_sum`] of `x_i` and `w.narrow(0, r_i, k_i)` (the same bits on the CPU and
+    /// on the GPU), without the narrows: the products read the blocks of `w` where they lie,
+    /// and the weight's gradient is written into them.
+    pub fn linear_rows<'t>(
+        &'t self,
+        xs: &[Var<'t, T>],
+        w: Var<'t, T>,
+        b: Option<Var<'t, T>>,
+        act: Activation,
+    ) -> Result<Var<'t, T>> {
+        self.check_same(w);
+        let wv = w.value();
+        let vals: Vec<Tensor<T>> = xs
+            .iter()
+            .map(|&x| {
+                self.check_same(x);
+                x.value()
+            })
+            .collect();
+        let bv = b.map(|b| {
+            self.check_same(b);
+            b.value()
+        });
+        let (mut row, mut terms, mut refs) = (0, Vec::with_capacity(xs.len()), Vec::with_capacity(xs.len()));
+        for (x, xv) in xs.iter().zip(&vals) {
+            terms.push(LinearTerm { x: x.id, w: w.id, row });
+            refs.push((xv, &wv, row));
+            row += xv.shape().last().copied().unwrap_or(0);
+        }
+        if wv.rank() != 2 || row != wv.shape()[0] {
+            let mut shapes: Vec<&[usize]> = vals.iter().map(|x| x.shape()).collect();
+            shapes.push(wv.shape());
+            return Err(mismatch(
+                "linear",
+                &shapes,
+                format!("the inputs' widths sum to {row}, the weight must be [{row}, out]"),
+            ));
+        }
+        self.record_linear(terms, &refs, b, bv.as_ref(), act)
+    }
+
+    /// Computes and records a fused layer of checked terms.
+    fn record_linear<'t>(
+        &'t self,
+        terms: Vec<LinearTerm>,
+        refs: &[nnops::WeightRows<'_, T>],
+        b: Option<Var<'t, T>>,
+        bv: Option<&Tensor<T>>,
+        act: Activation,
+    ) -> Result<Var<'t, T>> {
+        let y = k::linear_sum(refs, bv, act)?;
+        let mut inputs: Vec<NodeId> = terms.iter().flat_map(|t| [t.x, t.w]).collect();
         inputs.extend(b.map(|b| b.id));
-        Ok(self.record(y, Op::Linear { parts: ids, b: b.map(|b| b.id), act }, &inputs))
+        Ok(self.record(y, Op::Linear { parts: terms, b: b.map(|b| b.id), act }, &inputs))
     }
 
     /// Stacks equally shaped tensors along a new `axis`.

@@ -68,21 +68,64 @@ pub fn linear_sum<T: Float>(
     b: Option<&Tensor<T>>,
     act: Activation,
 ) -> Result<Tensor<T>> {
-    let Some(((x0, w0), rest)) = parts.split_first() else {
+    let terms: Vec<WeightRows<'_, T>> = parts.iter().map(|&(x, w)| (x, w, 0)).collect();
+    for &(x, w, _) in &terms {
+        linear_shapes(x.shape(), w.shape(), None)?;
+    }
+    linear_sum_rows(&terms, b, act)
+}
+
+/// One term of [`linear_sum_rows`]: `(x, w, row)`, `x [.., k]` times rows `row..row + k` of
+/// `w [in, out]` (a contiguous block of the row-major weight: nothing is copied).
+pub type WeightRows<'a, T> = (&'a Tensor<T>, &'a Tensor<T>, usize);
+
+/// Checks the terms of a fused layer ([`linear_sum_rows`]) and the bias `[out]`; returns the
+/// output shape, the row count and the output width.
+pub fn linear_rows_shapes<T: Float>(
+    parts: &[WeightRows<'_, T>],
+    b: Option<&[usize]>,
+) -> Result<(Vec<usize>, usize, usize)> {
+    let Some(&(x0, w0, _)) = parts.first() else {
         return Err(mismatch("linear", &[], "needs at least one (x, w) part"));
     };
-    let (shape, rows) = linear_shapes(x0.shape(), w0.shape(), b.map(|b| b.shape()))?;
-    for (x, w) in rest {
-        let (s, r) = linear_shapes(x.shape(), w.shape(), None)?;
-        if s != shape || r != rows {
+    let n = w0.shape().get(1).copied().unwrap_or(0);
+    for &(x, w, row) in parts {
+        let (xs, ws) = (x.shape(), w.shape());
+        let k = xs.last().copied();
+        let ok = w.rank() == 2
+            && ws[1] == n
+            && k.is_some_and(|k| row + k <= ws[0])
+            && xs[..xs.len() - 1] == x0.shape()[..x0.rank() - 1];
+        if !ok {
             return Err(mismatch(
                 "linear",
-                &[x0.shape(), w0.shape(), x.shape(), w.shape()],
-                "every part must have the same leading dims and output width",
+                &[x0.shape(), w0.shape(), xs, ws],
+                format!(
+                    "every part must be x [.., k] with the first part's leading dims, times rows {row}..{row}+k \
+                     of a weight [in, {n}]"
+                ),
             ));
         }
     }
-    let n = w0.shape()[1];
+    if let Some(b) = b
+        && b != [n]
+    {
+        return Err(mismatch("linear", &[w0.shape(), b], "expected b [out] for w [in, out]"));
+    }
+    let mut shape = x0.shape().to_vec();
+    *shape.last_mut().expect("checked above") = n;
+    let rows = x0.shape()[..x0.rank() - 1].iter().product();
+    Ok((shape, rows, n))
+}
+
+/// `act(sum_i x_i @ w_i[row_i..row_i + k_i] + b)` for the terms `(x_i, w_i, row_i)`, as
+/// [`linear_sum`]: the weights' row blocks are read in place.
+pub fn linear_sum_rows<T: Float>(
+    parts: &[WeightRows<'_, T>],
+    b: Option<&Tensor<T>>,
+    act: Activation,
+) -> Result<Tensor<T>> {
+    let (shape, rows, n) = linear_rows_shapes(parts, b.map(|b| b.shape()))?;
     // The first product writes every element; bias and activation follow the last.
     let mut out = crate::pool::for_overwrite(rows * n);
     let bias = b.map(|b| b.data());
@@ -99,10 +142,11 @@ pub fn linear_sum<T: Float>(
         }
     };
     let needs_post = bias.is_some() || act != Activation::Identity;
-    for (i, (x, w)) in parts.iter().enumerate() {
-        let plan = MatMulPlan::new(&[rows, w.shape()[0]], w.shape(), false, false)?;
+    for (i, &(x, w, row)) in parts.iter().enumerate() {
+        let k = x.shape()[x.rank() - 1];
+        let plan = MatMulPlan::single(rows, k, n);
         let post = (needs_post && i + 1 == parts.len()).then_some(&post as _);
-        matmul_into_then(&mut out, i > 0, x.data(), false, w.data(), false, &plan, post);
+        matmul_into_then(&mut out, i > 0, x.data(), false, &w.data()[row * n..(row + k) * n], false, &plan, post);
     }
     Ok(Tensor::from_parts(out, shape))
 }

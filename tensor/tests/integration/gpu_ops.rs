@@ -206,8 +206,40 @@ fn layers_on_the_gpu_match_the_cpu_forward_and_backward() {
     });
     let s = randn(11, &[6, 10]);
     check("softmax", std::slice::from_ref(&s), SUMS, &|_, v| Ok(v[0].scale(3.0).softmax()));
+    // A layer reading row blocks of its weight in place, the weight also used whole by a
+    // second layer: against the CPU, and the same bits as the narrowed weights on each device.
+    let parts =
+        [randn(12, &[70, 20]), randn(13, &[70, 5]), randn(14, &[70, 1]), randn(15, &[26, 9]), randn(16, &[70, 26])];
+    let (rows, narrowed) = (&rows_then_whole as &Body<'_>, &narrows_then_whole as &Body<'_>);
+    check("linear_rows", &parts, SUMS, rows);
+    for device in [Device::Cpu, Device::Gpu] {
+        let (a, ag, _) = run(device, &parts, rows);
+        let (b, bg, _) = run(device, &parts, narrowed);
+        assert_eq!(a.data(), b.data(), "{device}: linear_rows against narrowed weights");
+        for (i, (x, y)) in ag.iter().zip(&bg).enumerate() {
+            let bits =
+                |t: &Option<Tensor<f32>>| t.as_ref().map(|t| t.data().iter().map(|v| v.to_bits()).collect::<Vec<_>>());
+            assert_eq!(bits(x), bits(y), "{device}: gradient {i}, linear_rows against narrowed weights");
+        }
+    }
     check("norm_last", std::slice::from_ref(&s), SUMS, &|_, v| Ok(v[0].norm_last(1e-8)));
     check("standardize", &[s], SUMS, &|_, v| Ok(v[0].standardize(1e-5)));
+}
+
+/// `tanh(cat(v0, v1, v2) @ v3 + b)` by `linear_rows` (bias: the first 9 columns of `v4`'s
+/// first row), then a second layer using the weight `v3` whole on `v4`, both outputs added.
+fn rows_then_whole<'t>(t: &'t Tape<f32>, v: &[Var<'t, f32>]) -> Result<Var<'t, f32>> {
+    let b = v[4].narrow(0, 0, 1)?.narrow(1, 0, 9)?.reshape(&[9])?;
+    let y = t.linear_rows(&v[..3], v[3], Some(b), Activation::Tanh)?;
+    y.add(v[4].linear(v[3], None, Activation::Identity)?)
+}
+
+/// [`rows_then_whole`] with the weight's row blocks cut out by `narrow`.
+fn narrows_then_whole<'t>(t: &'t Tape<f32>, v: &[Var<'t, f32>]) -> Result<Var<'t, f32>> {
+    let b = v[4].narrow(0, 0, 1)?.narrow(1, 0, 9)?.reshape(&[9])?;
+    let terms = [(v[0], v[3].narrow(0, 0, 20)?), (v[1], v[3].narrow(0, 20, 5)?), (v[2], v[3].narrow(0, 25, 1)?)];
+    let y = t.linear_sum(&terms, Some(b), Activation::Tanh)?;
+    y.add(v[4].linear(v[3], None, Activation::Identity)?)
 }
 
 #[test]

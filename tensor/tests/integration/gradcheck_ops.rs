@@ -194,6 +194,14 @@ fn fused_linear_and_softmax() {
     for act in [Activation::Identity, Activation::Tanh] {
         gc!(vec![xa.clone(), wa.clone(), xb.clone(), wb.clone(), xc.clone(), wc.clone(), b.clone()], |t, v| t
             .linear_sum(&[(v[0], v[1]), (v[2], v[3]), (v[4], v[5])], Some(v[6]), act));
+        // The same layer reading row blocks of one weight in place.
+        let w = Tensor::new([wa.data(), wb.data(), wc.data()].concat(), &[7, 5]).unwrap();
+        gc!(vec![xa.clone(), xb.clone(), xc.clone(), w.clone(), b.clone()], |t, v| t.linear_rows(
+            &v[..3],
+            v[3],
+            Some(v[4]),
+            act
+        ));
         // A constant part (no gradient wanted for it) and no bias.
         gc!(vec![wa.clone(), xb.clone(), wb.clone()], |t, v| t.linear_sum(
             &[(t.constant(xa.clone()), v[0]), (v[1], v[2])],
@@ -219,6 +227,14 @@ fn a_layer_over_parts_equals_the_layer_over_their_concatenation() {
     let bad = tape.var(uniform(&mut r, &[5, 4]));
     assert!(tape.linear_sum(&[(xa, wa), (bad, wb)], None, Activation::Identity).is_err());
     assert!(tape.linear_sum(&[], None, Activation::Identity).is_err());
+    // Row blocks of one weight: the widths must add up to its rows.
+    let w = tape.cat(&[wa, wb], 0).unwrap();
+    let rows = tape.linear_rows(&[xa, xb], w, Some(b), Activation::Tanh).unwrap();
+    assert_eq!(rows.value().data(), parts.value().data(), "linear_rows against linear_sum of the blocks");
+    let err = tape.linear_rows(&[xa], w, None, Activation::Identity).unwrap_err().to_string();
+    assert!(err.contains("sum to 3") && err.contains("[3, out]"), "{err}");
+    assert!(tape.linear_rows(&[xa, xb, xb], w, None, Activation::Identity).is_err());
+    assert!(tape.linear_rows(&[], w, None, Activation::Identity).is_err());
 }
 
 #[test]

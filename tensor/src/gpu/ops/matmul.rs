@@ -68,14 +68,19 @@ fn is_small(m: usize, k: usize, n: usize) -> bool {
 /// Where each batch entry's matrices start, for the kernels: `(a_base, b_base, a_stride,
 /// b_stride)` when the offsets are regular (`b * stride`: every batched product of the
 /// models, broadcast or not; `regular` is [`MatMulPlan::regular`], no list made), with no
-/// buffer; otherwise the listed offsets, uploaded.
-fn batch_offsets(plan: &MatMulPlan, regular: Option<(usize, usize)>) -> ([u32; 4], Option<DeviceBuffer>) {
+/// buffer; otherwise the listed offsets, uploaded. `b`'s matrices start `b_base` elements
+/// into its buffer (a block of rows of a weight).
+fn batch_offsets(
+    plan: &MatMulPlan,
+    regular: Option<(usize, usize)>,
+    b_base: usize,
+) -> ([u32; 4], Option<DeviceBuffer>) {
     if let Some((sa, sb)) = regular
-        && plan.batches().checked_mul(sa.max(sb)).is_some_and(|end| end < u32::MAX as usize)
+        && plan.batches().checked_mul(sa.max(sb)).is_some_and(|end| end.saturating_add(b_base) < u32::MAX as usize)
     {
-        return ([0, 0, u(sa), u(sb)], None);
+        return ([0, u(b_base), u(sa), u(sb)], None);
     }
-    let list: Vec<u32> = plan.offsets().iter().flat_map(|&(oa, ob)| [u(oa), u(ob)]).collect();
+    let list: Vec<u32> = plan.offsets().iter().flat_map(|&(oa, ob)| [u(oa), u(b_base + ob)]).collect();
     ([0; 4], Some(DeviceBuffer::upload_u32(&list)))
 }
 
@@ -111,18 +116,48 @@ pub(crate) fn matmul_into(
     act: Activation,
 ) {
     let small = is_small(plan.m, plan.k, plan.n);
-    matmul_into_with(small, out, accumulate, a, ta, b, tb, plan, bias, act);
+    let out = Placed { buf: out, base: 0 };
+    matmul_into_with(small, out, accumulate, a, ta, Placed { buf: b, base: 0 }, tb, plan, bias, act);
 }
 
-/// [`matmul_into`] on the small-matrix kernel (`small`) or the tiled one.
+/// A buffer and the element at which a product's matrix (its first batch entry's) starts in
+/// it: a block of rows of a weight, read or written in place.
+#[derive(Clone, Copy)]
+pub(crate) struct Placed<'a> {
+    /// The buffer.
+    pub buf: &'a DeviceBuffer,
+    /// The first element.
+    pub base: usize,
+}
+
+/// [`matmul_into`] with `b` read from, and the output written to, element `base` of their
+/// buffers: the products of a layer that multiply blocks of rows of its weight, and the
+/// gradients of those blocks, without copying the block out or back.
 #[allow(clippy::too_many_arguments)]
-fn matmul_into_with(
-    small: bool,
-    out: &DeviceBuffer,
+pub(crate) fn matmul_into_at(
+    out: Placed<'_>,
     accumulate: bool,
     a: &DeviceBuffer,
     ta: bool,
-    b: &DeviceBuffer,
+    b: Placed<'_>,
+    tb: bool,
+    plan: &MatMulPlan,
+    bias: Option<&DeviceBuffer>,
+    act: Activation,
+) {
+    let small = is_small(plan.m, plan.k, plan.n);
+    matmul_into_with(small, out, accumulate, a, ta, b, tb, plan, bias, act);
+}
+
+/// [`matmul_into_at`] on the small-matrix kernel (`small`) or the tiled one.
+#[allow(clippy::too_many_arguments)]
+fn matmul_into_with(
+    small: bool,
+    out: Placed<'_>,
+    accumulate: bool,
+    a: &DeviceBuffer,
+    ta: bool,
+    b: Placed<'_>,
     tb: bool,
     plan: &MatMulPlan,
     bias: Option<&DeviceBuffer>,
@@ -130,8 +165,9 @@ fn matmul_into_with(
 ) {
     let (m, k, n) = (plan.m, plan.k, plan.n);
     let batches = plan.batches();
-    assert_eq!(out.len(), batches * m * n, "matmul: the output holds the plan's output shape");
-    let fits = |(oa, ob): (usize, usize)| oa + m * k <= a.len() && ob + k * n <= b.len();
+    let (out, out_base, b, b_base) = (out.buf, out.base, b.buf, b.base);
+    assert!(out_base + batches * m * n <= out.len(), "matmul: the output holds the plan's output shape");
+    let fits = |(oa, ob): (usize, usize)| oa + m * k <= a.len() && b_base + ob + k * n <= b.len();
     let strides = plan.regular();
     match strides {
         // Regular offsets grow with the entry: the last one is the furthest.
@@ -152,7 +188,7 @@ fn matmul_into_with(
         return;
     }
     // Regular offsets (always, in the models) go in the parameters: no upload.
-    let (regular, listed) = batch_offsets(plan, strides);
+    let (regular, listed) = batch_offsets(plan, strides, b_base);
     // Without a bias (or listed offsets) the kernel reads none: any buffer that is not the
     // output fills the slot.
     let offsets = listed.as_ref().unwrap_or(a);
@@ -176,6 +212,7 @@ fn matmul_into_with(
         regular[2],
         regular[3],
         u32::from(listed.is_some()),
+        u(out_base),
     ];
     let total = batches * m * n;
     if small {
@@ -183,17 +220,24 @@ fn matmul_into_with(
         return;
     }
     let (slices, k_per_slice) = split_k(groups, k);
-    let params = [&shared[..], &[u(tiles_n), u(per_batch), u(slices), u(k_per_slice)]].concat();
     if slices == 1 {
+        let params = [&shared[..], &[u(tiles_n), u(per_batch), u(slices), u(k_per_slice)]].concat();
         device().launch(&MATMUL, &params, &with_output(inputs, out), u(groups));
         return;
     }
-    // Split k: the slices' partial sums, then their sum in order with the epilogue.
+    // Split k: the slices' partial sums (from element 0 of their own buffer), then their sum
+    // in order with the epilogue, written from `out_base`.
+    let mut params = [&shared[..], &[u(tiles_n), u(per_batch), u(slices), u(k_per_slice)]].concat();
+    params[OUT_BASE] = 0;
     let parts = DeviceBuffer::uninit(slices * total);
     device().launch(&MATMUL, &params, &with_output(inputs, &parts), u(groups * slices));
-    let params = [u(total), u(n), u(slices), u32::from(accumulate), u32::from(has_bias), activation_code(act)];
+    let params =
+        [u(total), u(n), u(slices), u32::from(accumulate), u32::from(has_bias), activation_code(act), u(out_base)];
     device().launch_1d(&MATMUL_REDUCE, &params, &[parts.buffer(), bias.buffer(), out.buffer()], total);
 }
+
+/// The index of `out_base` in the kernels' shared parameters.
+const OUT_BASE: usize = 14;
 
 /// `op(a) @ op(b)` following `plan`, as a new buffer of `plan.out_shape()` values.
 pub(crate) fn matmul(a: &DeviceBuffer, ta: bool, b: &DeviceBuffer, tb: bool, plan: &MatMulPlan) -> DeviceBuffer {
@@ -202,27 +246,37 @@ pub(crate) fn matmul(a: &DeviceBuffer, ta: bool, b: &DeviceBuffer, tb: bool, pla
     out
 }
 
-/// `act(sum_i x_i @ w_i + bias)` as a new `[rows, n]` buffer: `parts` are the `(x_i, k_i)`
-/// with `x_i` a `[rows, k_i]` buffer, `weights` the matching `w_i` as `[k_i, n]` buffers. The
-/// first product writes the output, later ones add to it, and the bias and activation are
-/// applied after the last (as `kernels::nnops::linear_sum`). Panics without parts or when
-/// `weights` and `parts` differ in length.
+/// One product of [`linear_sum`]: `x`, a `[rows, k]` buffer, times the `[k, n]` block of `w`
+/// that starts at element `w_base` (a block of rows of a weight, read in place).
+pub(crate) struct Term<'a> {
+    /// The input.
+    pub x: &'a DeviceBuffer,
+    /// Its width.
+    pub k: usize,
+    /// The weight.
+    pub w: &'a DeviceBuffer,
+    /// Where the block starts in `w`.
+    pub w_base: usize,
+}
+
+/// `act(sum_i x_i @ w_i + bias)` as a new `[rows, n]` buffer for the [`Term`]s `(x_i, w_i)`.
+/// The first product writes the output, later ones add to it, and the bias and activation
+/// are applied after the last (as `kernels::nnops::linear_sum`). Panics without terms.
 pub(crate) fn linear_sum(
-    parts: &[(&DeviceBuffer, usize)],
-    weights: &[&DeviceBuffer],
+    terms: &[Term<'_>],
     rows: usize,
     n: usize,
     bias: Option<&DeviceBuffer>,
     act: Activation,
 ) -> DeviceBuffer {
-    assert!(!parts.is_empty(), "linear_sum: needs at least one (x, w) part");
-    assert_eq!(parts.len(), weights.len(), "linear_sum: one weight per input");
+    assert!(!terms.is_empty(), "linear_sum: needs at least one (x, w) part");
     let out = DeviceBuffer::uninit(rows * n);
-    let last = parts.len() - 1;
-    for (i, (&(x, k), w)) in parts.iter().zip(weights).enumerate() {
-        let plan = MatMulPlan::single(rows, k, n);
+    let last = terms.len() - 1;
+    for (i, t) in terms.iter().enumerate() {
+        let plan = MatMulPlan::single(rows, t.k, n);
         let (bias, act) = if i == last { (bias, act) } else { (None, Activation::Identity) };
-        matmul_into(&out, i > 0, x, false, w, false, &plan, bias, act);
+        let (o, w) = (Placed { buf: &out, base: 0 }, Placed { buf: t.w, base: t.w_base });
+        matmul_into_at(o, i > 0, t.x, false, w, false, &plan, bias, act);
     }
     out
 }
@@ -393,7 +447,7 @@ mod tests {
         let (xd, wd, bd) =
             (DeviceBuffer::upload(x.data()), DeviceBuffer::upload(w.data()), DeviceBuffer::upload(bias.data()));
         for (act, got) in check_bias_and_activations("bias", &x, &w, &bias) {
-            let again = linear_sum(&[(&xd, k)], &[&wd], rows, n, Some(&bd), act).download();
+            let again = linear_sum(&[Term { x: &xd, k, w: &wd, w_base: 0 }], rows, n, Some(&bd), act).download();
             assert_eq!(bits(&got), bits(&again), "{act:?}: linear_sum gives other bits than matmul_into");
         }
     }
@@ -426,7 +480,8 @@ mod tests {
             .collect()
     }
 
-    /// Sums of 2 and 3 products, with and without bias, against the CPU's `linear_sum`.
+    /// Sums of 2 and 3 products, with and without bias, against the CPU's `linear_sum`; the
+    /// same weights as row blocks of one stacked weight, read in place, give the same bits.
     #[test]
     fn linear_sum_matches_the_cpu() {
         let (rows, n) = (90, 35);
@@ -451,12 +506,27 @@ mod tests {
             let xd: Vec<DeviceBuffer> = xs.iter().map(|x| DeviceBuffer::upload(x.data())).collect();
             let wd: Vec<DeviceBuffer> = ws.iter().map(|w| DeviceBuffer::upload(w.data())).collect();
             let bd = b.as_ref().map(|b| DeviceBuffer::upload(b.data()));
-            let dparts: Vec<(&DeviceBuffer, usize)> = xd.iter().zip(&ks).map(|(x, &k)| (x, k)).collect();
-            let dw: Vec<&DeviceBuffer> = wd.iter().collect();
-            let got = linear_sum(&dparts, &dw, rows, n, bd.as_ref(), act).download();
+            let terms: Vec<Term<'_>> =
+                xd.iter().zip(&wd).zip(&ks).map(|((x, w), &k)| Term { x, k, w, w_base: 0 }).collect();
+            let got = linear_sum(&terms, rows, n, bd.as_ref(), act).download();
             check(&format!("linear_sum {ks:?} bias={bias} {act:?}"), &got, want.data(), &mag);
-            let again = linear_sum(&dparts, &dw, rows, n, bd.as_ref(), act).download();
+            let again = linear_sum(&terms, rows, n, bd.as_ref(), act).download();
             assert_eq!(bits(&got), bits(&again), "linear_sum {ks:?}: a second run gives other bits");
+            // One weight [sum k, n] whose row blocks are the w_i, after a row of padding.
+            let stacked: Vec<f32> =
+                values(n, 71).into_iter().chain(ws.iter().flat_map(|w| w.data().to_vec())).collect();
+            let stacked = DeviceBuffer::upload(&stacked);
+            let mut row = 1;
+            let blocks: Vec<Term<'_>> = xd
+                .iter()
+                .zip(&ks)
+                .map(|(x, &k)| {
+                    row += k;
+                    Term { x, k, w: &stacked, w_base: (row - k) * n }
+                })
+                .collect();
+            let in_place = linear_sum(&blocks, rows, n, bd.as_ref(), act).download();
+            assert_eq!(bits(&got), bits(&in_place), "linear_sum {ks:?}: row blocks read in place");
         }
     }
 
@@ -481,6 +551,35 @@ mod tests {
         check_bias_and_activations("split bias", &tensor(&[rows, k], 94), &tensor(&[k, n], 95), &tensor(&[n], 96));
     }
 
+    /// A product reading `b` from inside a larger buffer and adding into a block inside a
+    /// larger output (a layer's weight rows and their gradient, in place) gives the bits of
+    /// the same product on buffers of its own, on each kernel (small, tiled, split k), and
+    /// leaves the rest of the output alone.
+    #[test]
+    fn products_read_and_write_row_blocks_in_place() {
+        for (m, k, n) in [(20, 40, 30), (70, 100, 33), (70, 3000, 33)] {
+            for (ta, tb) in [(false, false), (true, false), (false, true), (true, true)] {
+                let (a, b) = (tensor(&stored(m, k, ta), 111), tensor(&stored(k, n, tb), 112));
+                let plan = MatMulPlan::single(m, k, n);
+                let (before, after) = (3 * n + 1, 2 * n);
+                let old = values(before + m * n + after, 113);
+                let padded: Vec<f32> = values(before, 114).into_iter().chain(b.data().to_vec()).collect();
+                let ad = DeviceBuffer::upload(a.data());
+                let (bd, bpad) = (DeviceBuffer::upload(b.data()), DeviceBuffer::upload(&padded));
+                let own = DeviceBuffer::upload(&old[before..before + m * n]);
+                matmul_into(&own, true, &ad, ta, &bd, tb, &plan, None, Activation::Identity);
+                let out = DeviceBuffer::upload(&old);
+                let (o, bp) = (Placed { buf: &out, base: before }, Placed { buf: &bpad, base: before });
+                matmul_into_at(o, true, &ad, ta, bp, tb, &plan, None, Activation::Identity);
+                let got = out.download();
+                let what = format!("m={m} k={k} n={n} ta={ta} tb={tb}");
+                assert_eq!(bits(&got[before..before + m * n]), bits(&own.download()), "{what}: the block");
+                assert_eq!(bits(&got[..before]), bits(&old[..before]), "{what}: before the block");
+                assert_eq!(bits(&got[before + m * n..]), bits(&old[before + m * n..]), "{what}: after it");
+            }
+        }
+    }
+
     /// The subequivariant layers' batched products of small matrices go to the one-thread-
     /// per-output kernel, which matches the CPU and gives the tiled kernel's bits (the same
     /// fused multiply-adds in the same order), with and without the epilogue.
@@ -499,7 +598,8 @@ mod tests {
                 let old = values(batch * m * n, 104);
                 let run = |small: bool, act: Activation| {
                     let out = DeviceBuffer::upload(&old);
-                    matmul_into_with(small, &out, true, &ad, ta, &bd, tb, &plan, Some(&bias), act);
+                    let (o, b) = (Placed { buf: &out, base: 0 }, Placed { buf: &bd, base: 0 });
+                    matmul_into_with(small, o, true, &ad, ta, b, tb, &plan, Some(&bias), act);
                     bits(&out.download())
                 };
                 for act in [Activation::Identity, Activation::Tanh] {

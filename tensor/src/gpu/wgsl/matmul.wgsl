@@ -3,10 +3,11 @@
 // (likewise with tb), all row-major; the output is [batches, m, n].
 //
 // p = [m, k, n, ta, tb, accumulate, has_bias, act (0 identity, 1 relu, 2 tanh), batches,
-//      a_base, b_base, a_stride, b_stride, offsets_listed, tiles_n, tiles_per_batch, slices,
-//      k_per_slice]: batch entry b's matrices start at `offsets` (when listed) or at
-//      base + b * stride (ops/matmul.rs: no upload when the offsets are regular); the first
-//      14 are matmul_small.wgsl's.
+//      a_base, b_base, a_stride, b_stride, offsets_listed, out_base, tiles_n, tiles_per_batch,
+//      slices, k_per_slice]: batch entry b's matrices start at `offsets` (when listed) or at
+//      base + b * stride (ops/matmul.rs: no upload when the offsets are regular), its output
+//      at out_base + b * m * n (a block of rows of a weight's gradient); the first 15 are
+//      matmul_small.wgsl's.
 //
 // Split k (slices > 1, ops/matmul.rs: few output tiles over a long inner dim): slice s sums
 // k in [s * k_per_slice, (s + 1) * k_per_slice) and writes its partial sums, with no
@@ -91,10 +92,10 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) nwg: vec3
     let ta = p[3] != 0u;
     let tb = p[4] != 0u;
     let batches = p[8];
-    let tiles_n = p[14];
-    let per_batch = p[15];
-    let slices = p[16];
-    let k_per_slice = p[17];
+    let tiles_n = p[15];
+    let per_batch = p[16];
+    let slices = p[17];
+    let k_per_slice = p[18];
     let wid = wg.x + wg.y * nwg.x;
     // The grid may hold a few more workgroups than tiles (Gpu::launch rounds up to a
     // rectangle); the test is the same for the whole workgroup.
@@ -194,7 +195,7 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) nwg: vec3
     if split {
         code = 0u;
     }
-    let base = (slice * batches + batch) * m * n;
+    let base = p[14] + (slice * batches + batch) * m * n;
     let r = row0 + 4u * ty;
     let c = col0 + 4u * tx;
     if r < m { store_row(r, c, n, base, c0, accumulate, has_bias, code); }

@@ -5,8 +5,8 @@
 // same fused multiply-adds as matmul.wgsl, so the two kernels give the same bits.
 //
 // p = [m, k, n, ta, tb, accumulate, has_bias, act, batches, a_base, b_base, a_stride,
-//      b_stride, offsets_listed]: batch entry b's matrices start at `offsets` (when listed)
-//      or at base + b * stride.
+//      b_stride, offsets_listed, out_base]: batch entry b's matrices start at `offsets` (when
+//      listed) or at base + b * stride, the output at out_base.
 @group(0) @binding(1) var<storage, read> a: array<f32>;
 @group(0) @binding(2) var<storage, read> b: array<f32>;
 @group(0) @binding(3) var<storage, read> offsets: array<u32>;
@@ -44,11 +44,12 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) nwg: vec3
         acc = fma(av, bv, acc);
     }
     var v = acc;
+    let o = p[14] + id;
     if p[5] != 0u {
-        v = out[id] + v;
+        v = out[o] + v;
     }
     if p[6] != 0u {
         v = v + bias[j];
     }
-    out[id] = activation(p[7], v);
+    out[o] = activation(p[7], v);
 }
