@@ -170,8 +170,9 @@ impl Mlp {
     }
 
     /// The output layer restricted to output columns `start..start+len`, applied to hidden
-    /// features from [`Mlp::forward_hidden`]. Splitting the output this way slices the small
-    /// weight matrix instead of the large output.
+    /// features from [`Mlp::forward_hidden`]. Splitting the output this way computes only
+    /// those columns, reading them from the weight in place (`tensor::Var::linear_columns`),
+    /// instead of slicing the large output.
     pub fn forward_output_columns<'t, T: Float>(
         &self,
         p: &Bound<'t, T>,
@@ -180,11 +181,7 @@ impl Mlp {
         len: usize,
     ) -> Result<Var<'t, T>> {
         let last = &self.layers[self.layers.len() - 1];
-        let w = p.get(last.weight).narrow(1, start, len)?;
-        let b = match last.bias {
-            Some(b) => Some(p.get(b).narrow(0, start, len)?),
-            None => None,
-        };
-        Ok(hidden.linear(w, b, Activation::Identity)?)
+        let b = last.bias.map(|b| p.get(b));
+        Ok(hidden.linear_columns(p.get(last.weight), b, start, len, Activation::Identity)?)
     }
 }

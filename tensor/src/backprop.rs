@@ -17,6 +17,7 @@ use crate::shape::split_at_axis;
 use crate::tape::Node;
 use crate::tensor::Tensor;
 
+use crate::grad_store::Block;
 pub(crate) use crate::grad_store::GradStore;
 
 /// Adds the contributions of node `id` (with output gradient `g`) to its inputs.
@@ -62,36 +63,44 @@ pub(crate) fn propagate<T: Float>(nodes: &[Node<T>], id: NodeId, g: Tensor<T>, s
                 store.add_product(*b, bv.shape(), l, tl, r, tr)?;
             }
         }
-        Op::Linear { parts, b, act } => {
+        Op::Linear { parts, b, col, act } => {
             // G' = G act'(pre), through the output (no copy without an activation).
             let gpre = if *act == Activation::Identity { g } else { k::activation_backward(y, &g, *act)? };
             let n = *y.shape().last().expect("a layer's output has a last dim");
             let rows = gpre.numel() / n.max(1);
-            // Each part as its own layer of weight W_i = w[row..row + k]:
-            // dX_i = G' W_i^T, dW_i = X_i^T G' (added into those rows of dw).
+            // Each part as its own layer of weight W_i = w[row..row + k, col..col + n]:
+            // dX_i = G' W_i^T, dW_i = X_i^T G' (added into that block of dw).
             for &LinearTerm { x, w, row } in parts {
                 let (xv, wv) = (val(x), val(w));
                 let kdim = *xv.shape().last().expect("a layer's input has a last dim");
-                let whole = row == 0 && kdim == wv.shape()[0];
+                let width = wv.shape()[1];
+                let block = Block { start: row * width + col, ld: width };
+                let whole = row == 0 && kdim == wv.shape()[0] && n == width;
                 if store.wants(x) {
                     let plan = MatMulPlan::single(rows, n, kdim);
-                    store.add_product_rows(x, rows * kdim, (&gpre, false), (wv, row * n, true), &plan)?;
+                    store.add_product_rows(x, rows * kdim, (&gpre, false), (wv, block, true), &plan)?;
                 }
                 if store.wants(w) {
                     let plan = MatMulPlan::single(kdim, rows, n);
                     if whole {
                         store.add_product_planned(w, kdim * n, xv, true, &gpre, false, &plan)?;
                     } else {
-                        store.add_product_to_rows(w, wv.numel(), row * n, (xv, true), (&gpre, false), &plan)?;
+                        store.add_product_to_block(w, wv.numel(), block, (xv, true), (&gpre, false), &plan)?;
                     }
                 }
             }
             if let Some(b) = b
                 && store.wants(*b)
             {
-                // The bias gradient: G' summed over rows.
+                // The bias gradient: G' summed over rows (entries col..col + n of it).
                 let rows_view = gpre.reshape(&[rows, n])?;
-                store.add(*b, k::reduce(&rows_view, crate::op::ReduceOp::Sum, Some(0), false)?);
+                let sum = k::reduce(&rows_view, crate::op::ReduceOp::Sum, Some(0), false)?;
+                let b_shape = val(*b).shape();
+                if b_shape == [n] {
+                    store.add(*b, sum);
+                } else {
+                    store.add_narrow_backward(*b, b_shape, &sum, 0, *col)?;
+                }
             }
         }
         Op::Softmax(x) => {

@@ -121,31 +121,48 @@ pub(crate) fn matmul<T: Float>(a: &Tensor<T>, b: &Tensor<T>, ta: bool, tb: bool)
     }
 }
 
-/// `act(sum_i x_i @ w_i[row_i..row_i + k_i] + b)` for the terms `(x_i, w_i, row_i)`.
+/// `act(sum_i x_i @ w_i[row_i..row_i + k_i, cols] + b[cols])` for the terms `(x_i, w_i,
+/// row_i)` and the output columns `cols = (start, len)` (`None`: all of them).
 pub(crate) fn linear_sum<T: Float>(
     parts: &[nnops::WeightRows<'_, T>],
     b: Option<&Tensor<T>>,
     act: Activation,
+    cols: Option<(usize, usize)>,
 ) -> Result<Tensor<T>> {
     let mut all: Vec<&Tensor<T>> = parts.iter().flat_map(|&(x, w, _)| [x, w]).collect();
     all.extend(b);
     match device_of(&all) {
-        Device::Cpu => nnops::linear_sum_rows(parts, b, act),
+        Device::Cpu => match cols {
+            // Some of the outputs: the weights' and bias's columns copied out first (the
+            // products then have the bits of a layer of those columns alone).
+            Some((start, len)) if len != parts[0].1.shape()[1] => {
+                let ws: Vec<Tensor<T>> =
+                    parts.iter().map(|&(_, w, _)| layout::narrow(w, 1, start, len)).collect::<Result<_>>()?;
+                let b = b.map(|b| layout::narrow(b, 0, start, len)).transpose()?;
+                let terms: Vec<nnops::WeightRows<'_, T>> =
+                    parts.iter().zip(&ws).map(|(&(x, _, row), w)| (x, w, row)).collect();
+                nnops::linear_sum_rows(&terms, b.as_ref(), act)
+            }
+            _ => nnops::linear_sum_rows(parts, b, act),
+        },
         Device::Gpu => on_gpu! {
-            let (shape, rows, n) = nnops::linear_rows_shapes(parts, b.map(|b| b.shape()))?;
+            let (shape, rows, n) = nnops::linear_rows_shapes(parts, b.map(|b| b.shape()), cols)?;
             dev::check("linear", numel(&shape))?;
+            let start = cols.map_or(0, |c| c.0);
             let placed: Vec<(Tensor<T>, Tensor<T>)> =
                 parts.iter().map(|&(x, w, _)| Ok((dev::up(x)?, dev::up(w)?))).collect::<Result<_>>()?;
             let bias = b.map(dev::up).transpose()?;
             let terms: Vec<crate::gpu::ops::matmul::Term<'_>> = placed
                 .iter()
                 .zip(parts)
-                .map(|((x, w), &(xh, _, row))| {
-                    let k = xh.shape()[xh.rank() - 1];
-                    crate::gpu::ops::matmul::Term { x: dev::buf(x), k, w: dev::buf(w), w_base: row * n }
+                .map(|((x, w), &(xh, wh, row))| {
+                    let (k, ld) = (xh.shape()[xh.rank() - 1], wh.shape()[1]);
+                    let w = crate::gpu::ops::matmul::Placed::block(dev::buf(w), row * ld + start, ld);
+                    crate::gpu::ops::matmul::Term { x: dev::buf(x), k, w }
                 })
                 .collect();
-            let y = crate::gpu::ops::matmul::linear_sum(&terms, rows, n, bias.as_ref().map(dev::buf), act);
+            let bias = bias.as_ref().map(|b| crate::gpu::ops::matmul::Placed::at(dev::buf(b), start));
+            let y = crate::gpu::ops::matmul::linear_sum(&terms, rows, n, bias, act);
             Ok(dev::out(y, shape))
         },
     }

@@ -173,10 +173,10 @@ pub(crate) fn forward<T: Float>(nodes: &[Node<T>], op: &Op, out: &[usize]) -> Op
             let (batch, m, k, n) = product_dims(nodes[*a].value.shape(), nodes[*b].value.shape(), *ta, *tb);
             OpFlops { matmul: product_flops(batch, m, k, n), other: 0 }
         }
-        Op::Linear { parts, b, act } => {
+        Op::Linear { parts, b, act, .. } => {
             let mut matmul = 0;
             for t in parts {
-                let (k, cols) = term_dims(nodes, t);
+                let (k, cols) = term_dims(nodes, t, out);
                 matmul += product_flops(1, n.checked_div(cols).unwrap_or(0), k, cols);
             }
             // One add per element for every part after the first, the bias and the activation.
@@ -238,14 +238,14 @@ pub(crate) fn backward<T: Float>(nodes: &[Node<T>], id: NodeId) -> OpFlops {
             }
             f
         }
-        Op::Linear { parts, b, act } => {
+        Op::Linear { parts, b, act, .. } => {
             let needed = parts.iter().any(|t| wants(t.x) || wants(t.w)) || b.is_some_and(wants);
             let mut f = OpFlops::default();
             if needed && *act != Activation::Identity {
                 f.other += 2 * n as u64;
             }
             for t in parts {
-                let (k, cols) = term_dims(nodes, t);
+                let (k, cols) = term_dims(nodes, t, node.value.shape());
                 let rows = n.checked_div(cols).unwrap_or(0);
                 for input in [t.x, t.w] {
                     if wants(input) {
@@ -268,9 +268,9 @@ pub(crate) fn backward<T: Float>(nodes: &[Node<T>], id: NodeId) -> OpFlops {
     }
 }
 
-/// `(k, n)` of one term of a fused layer: the rows of its weight that it multiplies (the last
-/// dim of its input) and the weight's width.
-fn term_dims<T: Float>(nodes: &[Node<T>], t: &LinearTerm) -> (usize, usize) {
+/// `(k, n)` of one term of a fused layer of output `y`: the rows of its weight that it
+/// multiplies (the last dim of its input) and the columns (the last dim of the output).
+fn term_dims<T: Float>(nodes: &[Node<T>], t: &LinearTerm, y: &[usize]) -> (usize, usize) {
     let k = nodes[t.x].value.shape().last().copied().unwrap_or(0);
-    (k, nodes[t.w].value.shape()[1])
+    (k, y.last().copied().unwrap_or(0))
 }

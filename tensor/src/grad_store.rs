@@ -27,6 +27,27 @@ enum Grad<T: Float> {
     Device(crate::gpu::DeviceBuffer),
 }
 
+/// A matrix inside a row-major buffer: it starts at element `start` and its stored rows are
+/// `ld` elements apart (a block of rows and columns of a weight `[in, ld]`).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Block {
+    /// The first element.
+    pub start: usize,
+    /// The elements between stored rows.
+    pub ld: usize,
+}
+
+impl Block {
+    /// The block's `rows x cols` values out of `data`, packed.
+    fn gather<T: Float>(&self, data: &[T], rows: usize, cols: usize) -> Vec<T> {
+        let mut out = pool::for_overwrite(rows * cols);
+        for (i, dst) in out.chunks_exact_mut(cols.max(1)).enumerate() {
+            dst.copy_from_slice(&data[self.start + i * self.ld..self.start + i * self.ld + cols]);
+        }
+        out
+    }
+}
+
 /// Gradient buffers for the nodes of one backward pass.
 pub(crate) struct GradStore<T: Float> {
     grads: Vec<Option<Grad<T>>>,
@@ -158,24 +179,27 @@ impl<T: Float> GradStore<T> {
         tr: bool,
         plan: &matmul::MatMulPlan,
     ) -> Result<()> {
-        self.add_product_rows(target, len, (l, tl), (r, 0, tr), plan)
+        let packed = Block { start: 0, ld: if tr { plan.k } else { plan.n } };
+        self.add_product_rows(target, len, (l, tl), (r, packed, tr), plan)
     }
 
     /// Adds `op(l) @ op(R)` (following `plan`, `len` values) to the gradient of `target`,
-    /// where `R` is the matrix that starts at element `r_start` of `r` (a block of rows of a
-    /// weight, read in place).
+    /// where `R` is the [`Block`] of `r` (a block of a weight, read in place; on the CPU a
+    /// block with a row stride is copied out first).
     pub(crate) fn add_product_rows(
         &mut self,
         target: NodeId,
         len: usize,
         (l, tl): (&Tensor<T>, bool),
-        (r, r_start, tr): (&Tensor<T>, usize, bool),
+        (r, at, tr): (&Tensor<T>, Block, bool),
         plan: &matmul::MatMulPlan,
     ) -> Result<()> {
+        let (r_rows, r_cols) = if tr { (plan.n, plan.k) } else { (plan.k, plan.n) };
         let gpu = self.on_gpu(target, l) || on_device(r);
         if !gpu {
+            let copied = (at.ld != r_cols).then(|| at.gather(r.data(), r_rows, r_cols));
+            let r = copied.as_deref().unwrap_or(&r.data()[at.start..]);
             let (slot, accumulate) = self.host_slot_to_write(target, len);
-            let r = &r.data()[r_start..];
             matmul::matmul_into(slot, accumulate, l.data(), tl, r, tr, plan);
             return Ok(());
         }
@@ -185,33 +209,35 @@ impl<T: Float> GradStore<T> {
             let (l, r) = (l.to_device(crate::Device::Gpu)?, r.to_device(crate::Device::Gpu)?);
             let (slot, accumulate) = self.device_slot(target, len, false);
             let (lb, rb) = (l.device_buffer().expect("placed"), r.device_buffer().expect("placed"));
-            let (out, r) = (Placed { buf: slot, base: 0 }, Placed { buf: rb, base: r_start });
+            let (out, r) = (Placed::whole(slot), Placed::block(rb, at.start, at.ld));
             matmul_into_at(out, accumulate, lb, tl, r, tr, plan, None, crate::op::Activation::Identity);
         }
         Ok(())
     }
 
-    /// Adds `op(l) @ op(r)` (following `plan`) into the block of the gradient of `target`
-    /// (`target_len` values in all) that starts at element `start`: the gradient of a block of
-    /// rows of a weight. On the GPU the product adds into the block in place (its kernels
-    /// add the finished sum to the old value, so the bits are those of a product of its own
-    /// added afterwards); on the CPU it is computed apart and then added, as a narrow's
-    /// gradient is.
-    pub(crate) fn add_product_to_rows(
+    /// Adds `op(l) @ op(r)` (following `plan`) into the [`Block`] of the gradient of `target`
+    /// (`target_len` values in all): the gradient of a block of a weight. On the GPU the
+    /// product adds into the block in place (its kernels add the finished sum to the old
+    /// value, so the bits are those of a product of its own added afterwards); on the CPU it
+    /// is computed apart and then added, as a narrow's gradient is.
+    pub(crate) fn add_product_to_block(
         &mut self,
         target: NodeId,
         target_len: usize,
-        start: usize,
+        at: Block,
         (l, tl): (&Tensor<T>, bool),
         (r, tr): (&Tensor<T>, bool),
         plan: &matmul::MatMulPlan,
     ) -> Result<()> {
-        let len = plan.m * plan.n;
+        let (m, n) = (plan.m, plan.n);
         if !(self.on_gpu(target, l) || on_device(r)) {
-            let mut block = pool::for_overwrite(len);
+            let mut block = pool::for_overwrite(m * n);
             matmul::matmul_into(&mut block, false, l.data(), tl, r.data(), tr, plan);
             let slot = self.host_slot(target, target_len);
-            slot[start..start + len].iter_mut().zip(&block).for_each(|(s, &v)| *s += v);
+            for (i, src) in block.chunks_exact(n.max(1)).enumerate() {
+                let dst = &mut slot[at.start + i * at.ld..at.start + i * at.ld + n];
+                dst.iter_mut().zip(src).for_each(|(s, &v)| *s += v);
+            }
             pool::recycle(block);
             return Ok(());
         }
@@ -221,7 +247,7 @@ impl<T: Float> GradStore<T> {
             let (l, r) = (l.to_device(crate::Device::Gpu)?, r.to_device(crate::Device::Gpu)?);
             let (slot, _) = self.device_slot(target, target_len, true);
             let (lb, rb) = (l.device_buffer().expect("placed"), r.device_buffer().expect("placed"));
-            let (out, r) = (Placed { buf: slot, base: start }, Placed { buf: rb, base: 0 });
+            let (out, r) = (Placed::block(slot, at.start, at.ld), Placed::whole(rb));
             matmul_into_at(out, true, lb, tl, r, tr, plan, None, crate::op::Activation::Identity);
         }
         Ok(())

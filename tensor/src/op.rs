@@ -249,14 +249,18 @@ pub enum Op {
         tb: bool,
     },
     /// Fused `act(sum_i x_i @ W_i + b)` over the last dims of the `x_i`, where `W_i` is the
-    /// block of rows `row_i..row_i + k_i` of `w_i` (`k_i` the last dim of `x_i`; one part of
-    /// a whole weight is an ordinary layer, several are one layer applied to the
-    /// concatenation of the `x_i` without building it or slicing its weight).
+    /// block of rows `row_i..row_i + k_i` and columns `col..col + n` of `w_i` (`k_i` the last
+    /// dim of `x_i`, `n` the output's; one part of a whole weight is an ordinary layer,
+    /// several are one layer applied to the concatenation of the `x_i` without building it
+    /// or slicing its weight; `col` and `n` short of the weight's width are some of a layer's
+    /// outputs).
     Linear {
         /// The input/weight terms.
         parts: Vec<LinearTerm>,
-        /// The bias, if any.
+        /// The bias (of the weights' full width: entries `col..col + n` are added), if any.
         b: Option<NodeId>,
+        /// The first column of the weights (and entry of the bias) the layer computes.
+        col: usize,
         /// The activation applied after the bias.
         act: Activation,
     },

@@ -67,17 +67,16 @@ fn profile_key<T: Float>(nodes: &[Node<T>], op: &Op, out: &[usize], by_shape: bo
     let shape = |id: NodeId, t: bool| format!("{:?}{}", nodes[id].value.shape(), if t { "^T" } else { "" });
     match op {
         _ if !by_shape => op.name().to_string(),
-        Op::Linear { parts, .. } => {
+        Op::Linear { parts, col, .. } => {
+            let n = out.last().copied().unwrap_or(0);
             let terms: Vec<String> = parts
                 .iter()
                 .map(|t| {
                     let (k, w) = (nodes[t.x].value.shape().last().copied().unwrap_or(0), &nodes[t.w].value);
-                    let rows = if t.row == 0 && w.shape()[0] == k {
-                        String::new()
-                    } else {
-                        format!("[{}..{}]", t.row, t.row + k)
-                    };
-                    format!("{}x{}{rows}", shape(t.x, false), shape(t.w, false))
+                    let whole = t.row == 0 && w.shape()[0] == k && *col == 0 && w.shape()[1] == n;
+                    let block =
+                        if whole { String::new() } else { format!("[{}..{}, {col}..{}]", t.row, t.row + k, col + n) };
+                    format!("{}x{}{block}", shape(t.x, false), shape(t.w, false))
                 })
                 .collect();
             format!("linear {}", terms.join(" + "))

@@ -162,11 +162,44 @@ impl<'t, T: Float> Var<'t, T> {
         });
         let (xv, wv) = (self.value(), w.value());
         nnops::linear_shapes(xv.shape(), wv.shape(), bv.as_ref().map(|b| b.shape()))?;
-        let y = k::linear_sum(&[(&xv, &wv, 0)], bv.as_ref(), act)?;
+        let y = k::linear_sum(&[(&xv, &wv, 0)], bv.as_ref(), act, None)?;
         let mut inputs = vec![self.id, w.id];
         inputs.extend(b.map(|b| b.id));
         let parts = vec![LinearTerm { x: self.id, w: w.id, row: 0 }];
-        Ok(self.tape.record(y, Op::Linear { parts, b: b.map(|b| b.id), act }, &inputs))
+        Ok(self.tape.record(y, Op::Linear { parts, b: b.map(|b| b.id), col: 0, act }, &inputs))
+    }
+
+    /// Some of a layer's outputs: `act(self @ w[:, start..start + len] + b[start..start +
+    /// len])` for `self [.., in]`, `w [in, out]`, `b [out]`. The same values as [`Var::linear`]
+    /// of `w.narrow(1, start, len)` and `b.narrow(0, start, len)` (the same bits on the CPU and
+    /// on the GPU), without the narrows: on the GPU the product reads the columns where they
+    /// lie, and their gradient is written into them.
+    pub fn linear_columns(
+        self,
+        w: Var<'t, T>,
+        b: Option<Var<'t, T>>,
+        start: usize,
+        len: usize,
+        act: Activation,
+    ) -> Result<Self> {
+        self.tape.check_same(w);
+        let bv = b.map(|b| {
+            self.tape.check_same(b);
+            b.value()
+        });
+        let (xv, wv) = (self.value(), w.value());
+        nnops::linear_shapes(xv.shape(), wv.shape(), bv.as_ref().map(|b| b.shape()))?;
+        if start + len > wv.shape()[1] {
+            return Err(invalid(
+                "linear_columns",
+                format!("columns {start}..{} of a weight of shape {:?}", start + len, wv.shape()),
+            ));
+        }
+        let y = k::linear_sum(&[(&xv, &wv, 0)], bv.as_ref(), act, Some((start, len)))?;
+        let mut inputs = vec![self.id, w.id];
+        inputs.extend(b.map(|b| b.id));
+        let parts = vec![LinearTerm { x: self.id, w: w.id, row: 0 }];
+        Ok(self.tape.record(y, Op::Linear { parts, b: b.map(|b| b.id), col: start, act }, &inputs))
     }
 
     /// Softmax over the last axis.
@@ -381,10 +414,10 @@ impl<T: Float> Tape<T> {
         bv: Option<&Tensor<T>>,
         act: Activation,
     ) -> Result<Var<'t, T>> {
-        let y = k::linear_sum(refs, bv, act)?;
+        let y = k::linear_sum(refs, bv, act, None)?;
         let mut inputs: Vec<NodeId> = terms.iter().flat_map(|t| [t.x, t.w]).collect();
         inputs.extend(b.map(|b| b.id));
-        Ok(self.record(y, Op::Linear { parts: terms, b: b.map(|b| b.id), act }, &inputs))
+        Ok(self.record(y, Op::Linear { parts: terms, b: b.map(|b| b.id), col: 0, act }, &inputs))
     }
 
     /// Stacks equally shaped tensors along a new `axis`.

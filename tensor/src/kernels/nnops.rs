@@ -79,21 +79,31 @@ pub fn linear_sum<T: Float>(
 /// `w [in, out]` (a contiguous block of the row-major weight: nothing is copied).
 pub type WeightRows<'a, T> = (&'a Tensor<T>, &'a Tensor<T>, usize);
 
-/// Checks the terms of a fused layer ([`linear_sum_rows`]) and the bias `[out]`; returns the
-/// output shape, the row count and the output width.
+/// Checks the terms of a fused layer ([`linear_sum_rows`]) and the bias `[out]`, for the
+/// output columns `cols` (`(start, len)`; `None`: all of them); returns the output shape, the
+/// row count and the output width.
 pub fn linear_rows_shapes<T: Float>(
     parts: &[WeightRows<'_, T>],
     b: Option<&[usize]>,
+    cols: Option<(usize, usize)>,
 ) -> Result<(Vec<usize>, usize, usize)> {
     let Some(&(x0, w0, _)) = parts.first() else {
         return Err(mismatch("linear", &[], "needs at least one (x, w) part"));
     };
-    let n = w0.shape().get(1).copied().unwrap_or(0);
+    let width = w0.shape().get(1).copied().unwrap_or(0);
+    let (start, n) = cols.unwrap_or((0, width));
+    if start + n > width {
+        return Err(mismatch(
+            "linear",
+            &[w0.shape()],
+            format!("output columns {start}..{} of a weight of {width} columns", start + n),
+        ));
+    }
     for &(x, w, row) in parts {
         let (xs, ws) = (x.shape(), w.shape());
         let k = xs.last().copied();
         let ok = w.rank() == 2
-            && ws[1] == n
+            && ws[1] == width
             && k.is_some_and(|k| row + k <= ws[0])
             && xs[..xs.len() - 1] == x0.shape()[..x0.rank() - 1];
         if !ok {
@@ -102,13 +112,13 @@ pub fn linear_rows_shapes<T: Float>(
                 &[x0.shape(), w0.shape(), xs, ws],
                 format!(
                     "every part must be x [.., k] with the first part's leading dims, times rows {row}..{row}+k \
-                     of a weight [in, {n}]"
+                     of a weight [in, {width}]"
                 ),
             ));
         }
     }
     if let Some(b) = b
-        && b != [n]
+        && b != [width]
     {
         return Err(mismatch("linear", &[w0.shape(), b], "expected b [out] for w [in, out]"));
     }
@@ -125,7 +135,7 @@ pub fn linear_sum_rows<T: Float>(
     b: Option<&Tensor<T>>,
     act: Activation,
 ) -> Result<Tensor<T>> {
-    let (shape, rows, n) = linear_rows_shapes(parts, b.map(|b| b.shape()))?;
+    let (shape, rows, n) = linear_rows_shapes(parts, b.map(|b| b.shape()), None)?;
     // The first product writes every element; bias and activation follow the last.
     let mut out = crate::pool::for_overwrite(rows * n);
     let bias = b.map(|b| b.data());

@@ -212,16 +212,13 @@ fn layers_on_the_gpu_match_the_cpu_forward_and_backward() {
         [randn(12, &[70, 20]), randn(13, &[70, 5]), randn(14, &[70, 1]), randn(15, &[26, 9]), randn(16, &[70, 26])];
     let (rows, narrowed) = (&rows_then_whole as &Body<'_>, &narrows_then_whole as &Body<'_>);
     check("linear_rows", &parts, SUMS, rows);
-    for device in [Device::Cpu, Device::Gpu] {
-        let (a, ag, _) = run(device, &parts, rows);
-        let (b, bg, _) = run(device, &parts, narrowed);
-        assert_eq!(a.data(), b.data(), "{device}: linear_rows against narrowed weights");
-        for (i, (x, y)) in ag.iter().zip(&bg).enumerate() {
-            let bits =
-                |t: &Option<Tensor<f32>>| t.as_ref().map(|t| t.data().iter().map(|v| v.to_bits()).collect::<Vec<_>>());
-            assert_eq!(bits(x), bits(y), "{device}: gradient {i}, linear_rows against narrowed weights");
-        }
-    }
+    same_bits("linear_rows", &parts, rows, narrowed);
+    // Some of a layer's output columns, each with its part of the bias, the weight and bias
+    // also used whole: against the CPU, and the bits of narrowed weights and biases.
+    let layer = [randn(17, &[70, 12]), randn(18, &[12, 40]), randn(19, &[40])];
+    let (cols, narrowed) = (&columns_then_whole as &Body<'_>, &narrowed_columns_then_whole as &Body<'_>);
+    check("linear_columns", &layer, SUMS, cols);
+    same_bits("linear_columns", &layer, cols, narrowed);
     check("norm_last", std::slice::from_ref(&s), SUMS, &|_, v| Ok(v[0].norm_last(1e-8)));
     check("standardize", &[s], SUMS, &|_, v| Ok(v[0].standardize(1e-5)));
 }
@@ -240,6 +237,42 @@ fn narrows_then_whole<'t>(t: &'t Tape<f32>, v: &[Var<'t, f32>]) -> Result<Var<'t
     let terms = [(v[0], v[3].narrow(0, 0, 20)?), (v[1], v[3].narrow(0, 20, 5)?), (v[2], v[3].narrow(0, 25, 1)?)];
     let y = t.linear_sum(&terms, Some(b), Activation::Tanh)?;
     y.add(v[4].linear(v[3], None, Activation::Identity)?)
+}
+
+/// `f` and `g` give the same bits, output and gradients, on the CPU and on the GPU.
+fn same_bits(name: &str, inputs: &[Tensor<f32>], f: &Body<'_>, g: &Body<'_>) {
+    let bits = |t: &Tensor<f32>| t.data().iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+    for device in [Device::Cpu, Device::Gpu] {
+        let (a, ag, _) = run(device, inputs, f);
+        let (b, bg, _) = run(device, inputs, g);
+        assert_eq!(bits(&a), bits(&b), "{device}: {name} against narrowed weights");
+        for (i, (x, y)) in ag.iter().zip(&bg).enumerate() {
+            assert_eq!(
+                x.as_ref().map(bits),
+                y.as_ref().map(bits),
+                "{device}: gradient {i}, {name} against narrowed weights"
+            );
+        }
+    }
+}
+
+/// Columns 0..16 (tanh), 16..36 and 36..40 of the layer `v0 @ v1 + v2`, side by side, plus the
+/// whole layer (so the weight's and bias's gradients gather from both).
+fn columns_then_whole<'t>(t: &'t Tape<f32>, v: &[Var<'t, f32>]) -> Result<Var<'t, f32>> {
+    let a = v[0].linear_columns(v[1], Some(v[2]), 0, 16, Activation::Tanh)?;
+    let b = v[0].linear_columns(v[1], Some(v[2]), 16, 20, Activation::Identity)?;
+    let c = v[0].linear_columns(v[1], None, 36, 4, Activation::Relu)?;
+    t.cat(&[a, b, c], 1)?.add(v[0].linear(v[1], Some(v[2]), Activation::Identity)?)
+}
+
+/// [`columns_then_whole`] with the weight's and bias's columns cut out by `narrow`.
+fn narrowed_columns_then_whole<'t>(t: &'t Tape<f32>, v: &[Var<'t, f32>]) -> Result<Var<'t, f32>> {
+    let cols = |s, n| -> Result<(Var<'t, f32>, Var<'t, f32>)> { Ok((v[1].narrow(1, s, n)?, v[2].narrow(0, s, n)?)) };
+    let ((wa, ba), (wb, bb), (wc, _)) = (cols(0, 16)?, cols(16, 20)?, cols(36, 4)?);
+    let a = v[0].linear(wa, Some(ba), Activation::Tanh)?;
+    let b = v[0].linear(wb, Some(bb), Activation::Identity)?;
+    let c = v[0].linear(wc, None, Activation::Relu)?;
+    t.cat(&[a, b, c], 1)?.add(v[0].linear(v[1], Some(v[2]), Activation::Identity)?)
 }
 
 #[test]

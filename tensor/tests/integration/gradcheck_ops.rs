@@ -202,6 +202,8 @@ fn fused_linear_and_softmax() {
             Some(v[4]),
             act
         ));
+        // Some of a layer's output columns, with their part of the bias.
+        gc!(vec![xa.clone(), wa.clone(), b.clone()], |_, v| v[0].linear_columns(v[1], Some(v[2]), 1, 3, act));
         // A constant part (no gradient wanted for it) and no bias.
         gc!(vec![wa.clone(), xb.clone(), wb.clone()], |t, v| t.linear_sum(
             &[(t.constant(xa.clone()), v[0]), (v[1], v[2])],
@@ -235,6 +237,14 @@ fn a_layer_over_parts_equals_the_layer_over_their_concatenation() {
     assert!(err.contains("sum to 3") && err.contains("[3, out]"), "{err}");
     assert!(tape.linear_rows(&[xa, xb, xb], w, None, Activation::Identity).is_err());
     assert!(tape.linear_rows(&[], w, None, Activation::Identity).is_err());
+    // Output columns: within the weight's width, the bias of the full width.
+    let cols = xa.linear_columns(wa, None, 1, 1, Activation::Identity).unwrap();
+    let narrowed = xa.linear(wa.narrow(1, 1, 1).unwrap(), None, Activation::Identity).unwrap();
+    assert_eq!(cols.value().data(), narrowed.value().data(), "linear_columns against a narrowed weight");
+    let err = xa.linear_columns(wa, None, 1, 2, Activation::Identity).unwrap_err().to_string();
+    assert!(err.contains("columns 1..3") && err.contains("[3, 2]"), "{err}");
+    let short_bias = wa.narrow(1, 0, 1).unwrap().reshape(&[3]).unwrap();
+    assert!(xa.linear_columns(wa, Some(short_bias), 0, 1, Activation::Identity).is_err());
 }
 
 #[test]

@@ -116,23 +116,45 @@ pub(crate) fn matmul_into(
     act: Activation,
 ) {
     let small = is_small(plan.m, plan.k, plan.n);
-    let out = Placed { buf: out, base: 0 };
-    matmul_into_with(small, out, accumulate, a, ta, Placed { buf: b, base: 0 }, tb, plan, bias, act);
+    let (out, b, bias) = (Placed::whole(out), Placed::whole(b), bias.map(Placed::whole));
+    matmul_into_with(small, out, accumulate, a, ta, b, tb, plan, bias, act);
 }
 
-/// A buffer and the element at which a product's matrix (its first batch entry's) starts in
-/// it: a block of rows of a weight, read or written in place.
+/// A matrix inside a buffer: it starts at element `base` and its stored rows are `ld`
+/// elements apart (`None`: its own width, i.e. packed). A block of rows of a row-major
+/// weight is `base` = first row times the width; a block of columns also has `ld` = the
+/// weight's width. Read or written in place, without copying the block out or back.
 #[derive(Clone, Copy)]
 pub(crate) struct Placed<'a> {
     /// The buffer.
     pub buf: &'a DeviceBuffer,
     /// The first element.
     pub base: usize,
+    /// The elements between stored rows, when not the matrix's own width.
+    pub ld: Option<usize>,
 }
 
-/// [`matmul_into`] with `b` read from, and the output written to, element `base` of their
-/// buffers: the products of a layer that multiply blocks of rows of its weight, and the
-/// gradients of those blocks, without copying the block out or back.
+impl<'a> Placed<'a> {
+    /// The whole buffer, packed from element 0.
+    pub(crate) fn whole(buf: &'a DeviceBuffer) -> Self {
+        Self { buf, base: 0, ld: None }
+    }
+
+    /// Packed from element `base`.
+    pub(crate) fn at(buf: &'a DeviceBuffer, base: usize) -> Self {
+        Self { buf, base, ld: None }
+    }
+
+    /// From element `base`, stored rows `ld` elements apart.
+    pub(crate) fn block(buf: &'a DeviceBuffer, base: usize, ld: usize) -> Self {
+        Self { buf, base, ld: Some(ld) }
+    }
+}
+
+/// [`matmul_into`] with `b` (and the bias) read from, and the output written to, the blocks
+/// [`Placed`] says (one product: a plan of one batch entry when a row stride is given): the
+/// products of a layer that multiply blocks of its weight, and the gradients of those
+/// blocks, without copying the blocks out or back.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn matmul_into_at(
     out: Placed<'_>,
@@ -142,7 +164,7 @@ pub(crate) fn matmul_into_at(
     b: Placed<'_>,
     tb: bool,
     plan: &MatMulPlan,
-    bias: Option<&DeviceBuffer>,
+    bias: Option<Placed<'_>>,
     act: Activation,
 ) {
     let small = is_small(plan.m, plan.k, plan.n);
@@ -160,14 +182,22 @@ fn matmul_into_with(
     b: Placed<'_>,
     tb: bool,
     plan: &MatMulPlan,
-    bias: Option<&DeviceBuffer>,
+    bias: Option<Placed<'_>>,
     act: Activation,
 ) {
     let (m, k, n) = (plan.m, plan.k, plan.n);
     let batches = plan.batches();
+    // The stored b is [k, n] (or [n, k] with tb): its rows' stride, and the output's.
+    let (b_rows, b_cols) = if tb { (n, k) } else { (k, n) };
+    let (ldb, ldo) = (b.ld.unwrap_or(b_cols), out.ld.unwrap_or(n));
+    assert!(ldb >= b_cols && ldo >= n, "matmul: a row stride shorter than the rows");
+    assert!(batches == 1 || (ldb == b_cols && ldo == n), "matmul: row strides are for one product");
+    // The extent of a (possibly strided) matrix of `rows x cols`.
+    let extent = |rows: usize, cols: usize, ld: usize| if rows == 0 || cols == 0 { 0 } else { (rows - 1) * ld + cols };
     let (out, out_base, b, b_base) = (out.buf, out.base, b.buf, b.base);
-    assert!(out_base + batches * m * n <= out.len(), "matmul: the output holds the plan's output shape");
-    let fits = |(oa, ob): (usize, usize)| oa + m * k <= a.len() && b_base + ob + k * n <= b.len();
+    let out_end = if batches == 1 { extent(m, n, ldo) } else { batches * m * n };
+    assert!(out_base + out_end <= out.len(), "matmul: the output holds the plan's output shape");
+    let fits = |(oa, ob): (usize, usize)| oa + m * k <= a.len() && b_base + ob + extent(b_rows, b_cols, ldb) <= b.len();
     let strides = plan.regular();
     match strides {
         // Regular offsets grow with the entry: the last one is the furthest.
@@ -178,9 +208,10 @@ fn matmul_into_with(
         None => assert!(plan.offsets().iter().all(|&o| fits(o)), "matmul: operands smaller than the plan"),
     }
     if let Some(bias) = bias {
-        assert_eq!(bias.len(), n, "matmul: the bias holds one value per output column");
+        assert!(bias.base + n <= bias.buf.len(), "matmul: the bias holds one value per output column");
     }
     let has_bias = bias.is_some();
+    let bias_base = bias.map_or(0, |b| b.base);
     let tiles_n = n.div_ceil(TILE_N);
     let per_batch = m.div_ceil(TILE_M) * tiles_n;
     let groups = per_batch * batches;
@@ -192,7 +223,7 @@ fn matmul_into_with(
     // Without a bias (or listed offsets) the kernel reads none: any buffer that is not the
     // output fills the slot.
     let offsets = listed.as_ref().unwrap_or(a);
-    let bias = bias.unwrap_or(a);
+    let bias = bias.map_or(a, |b| b.buf);
     // The kernels' buffers: these inputs, then the one they write.
     let inputs = [a.buffer(), b.buffer(), offsets.buffer(), bias.buffer()];
     // The parameters both kernels share (matmul_small.wgsl's whole list, the head of
@@ -213,6 +244,9 @@ fn matmul_into_with(
         regular[3],
         u32::from(listed.is_some()),
         u(out_base),
+        u(ldb),
+        u(ldo),
+        u(bias_base),
     ];
     let total = batches * m * n;
     if small {
@@ -225,19 +259,31 @@ fn matmul_into_with(
         device().launch(&MATMUL, &params, &with_output(inputs, out), u(groups));
         return;
     }
-    // Split k: the slices' partial sums (from element 0 of their own buffer), then their sum
-    // in order with the epilogue, written from `out_base`.
+    // Split k: the slices' partial sums (packed from element 0 of their own buffer), then
+    // their sum in order with the epilogue, written where `out` says.
     let mut params = [&shared[..], &[u(tiles_n), u(per_batch), u(slices), u(k_per_slice)]].concat();
     params[OUT_BASE] = 0;
+    params[OUT_LD] = u(n);
     let parts = DeviceBuffer::uninit(slices * total);
     device().launch(&MATMUL, &params, &with_output(inputs, &parts), u(groups * slices));
-    let params =
-        [u(total), u(n), u(slices), u32::from(accumulate), u32::from(has_bias), activation_code(act), u(out_base)];
+    let params = [
+        u(total),
+        u(n),
+        u(slices),
+        u32::from(accumulate),
+        u32::from(has_bias),
+        activation_code(act),
+        u(out_base),
+        u(ldo),
+        u(bias_base),
+    ];
     device().launch_1d(&MATMUL_REDUCE, &params, &[parts.buffer(), bias.buffer(), out.buffer()], total);
 }
 
 /// The index of `out_base` in the kernels' shared parameters.
 const OUT_BASE: usize = 14;
+/// The index of the output's row stride in the kernels' shared parameters.
+const OUT_LD: usize = 16;
 
 /// `op(a) @ op(b)` following `plan`, as a new buffer of `plan.out_shape()` values.
 pub(crate) fn matmul(a: &DeviceBuffer, ta: bool, b: &DeviceBuffer, tb: bool, plan: &MatMulPlan) -> DeviceBuffer {
@@ -246,27 +292,26 @@ pub(crate) fn matmul(a: &DeviceBuffer, ta: bool, b: &DeviceBuffer, tb: bool, pla
     out
 }
 
-/// One product of [`linear_sum`]: `x`, a `[rows, k]` buffer, times the `[k, n]` block of `w`
-/// that starts at element `w_base` (a block of rows of a weight, read in place).
+/// One product of [`linear_sum`]: `x`, a `[rows, k]` buffer, times the `[k, n]` block of a
+/// weight that `w` places (rows and columns of a weight, read in place).
 pub(crate) struct Term<'a> {
     /// The input.
     pub x: &'a DeviceBuffer,
     /// Its width.
     pub k: usize,
-    /// The weight.
-    pub w: &'a DeviceBuffer,
-    /// Where the block starts in `w`.
-    pub w_base: usize,
+    /// The weight's block.
+    pub w: Placed<'a>,
 }
 
 /// `act(sum_i x_i @ w_i + bias)` as a new `[rows, n]` buffer for the [`Term`]s `(x_i, w_i)`.
-/// The first product writes the output, later ones add to it, and the bias and activation
-/// are applied after the last (as `kernels::nnops::linear_sum`). Panics without terms.
+/// The first product writes the output, later ones add to it, and the bias (`n` values
+/// from where it is placed) and activation are applied after the last (as
+/// `kernels::nnops::linear_sum`). Panics without terms.
 pub(crate) fn linear_sum(
     terms: &[Term<'_>],
     rows: usize,
     n: usize,
-    bias: Option<&DeviceBuffer>,
+    bias: Option<Placed<'_>>,
     act: Activation,
 ) -> DeviceBuffer {
     assert!(!terms.is_empty(), "linear_sum: needs at least one (x, w) part");
@@ -275,8 +320,7 @@ pub(crate) fn linear_sum(
     for (i, t) in terms.iter().enumerate() {
         let plan = MatMulPlan::single(rows, t.k, n);
         let (bias, act) = if i == last { (bias, act) } else { (None, Activation::Identity) };
-        let (o, w) = (Placed { buf: &out, base: 0 }, Placed { buf: t.w, base: t.w_base });
-        matmul_into_at(o, i > 0, t.x, false, w, false, &plan, bias, act);
+        matmul_into_at(Placed::whole(&out), i > 0, t.x, false, t.w, false, &plan, bias, act);
     }
     out
 }
@@ -447,7 +491,8 @@ mod tests {
         let (xd, wd, bd) =
             (DeviceBuffer::upload(x.data()), DeviceBuffer::upload(w.data()), DeviceBuffer::upload(bias.data()));
         for (act, got) in check_bias_and_activations("bias", &x, &w, &bias) {
-            let again = linear_sum(&[Term { x: &xd, k, w: &wd, w_base: 0 }], rows, n, Some(&bd), act).download();
+            let terms = [Term { x: &xd, k, w: Placed::whole(&wd) }];
+            let again = linear_sum(&terms, rows, n, Some(Placed::whole(&bd)), act).download();
             assert_eq!(bits(&got), bits(&again), "{act:?}: linear_sum gives other bits than matmul_into");
         }
     }
@@ -507,10 +552,10 @@ mod tests {
             let wd: Vec<DeviceBuffer> = ws.iter().map(|w| DeviceBuffer::upload(w.data())).collect();
             let bd = b.as_ref().map(|b| DeviceBuffer::upload(b.data()));
             let terms: Vec<Term<'_>> =
-                xd.iter().zip(&wd).zip(&ks).map(|((x, w), &k)| Term { x, k, w, w_base: 0 }).collect();
-            let got = linear_sum(&terms, rows, n, bd.as_ref(), act).download();
+                xd.iter().zip(&wd).zip(&ks).map(|((x, w), &k)| Term { x, k, w: Placed::whole(w) }).collect();
+            let got = linear_sum(&terms, rows, n, bd.as_ref().map(Placed::whole), act).download();
             check(&format!("linear_sum {ks:?} bias={bias} {act:?}"), &got, want.data(), &mag);
-            let again = linear_sum(&terms, rows, n, bd.as_ref(), act).download();
+            let again = linear_sum(&terms, rows, n, bd.as_ref().map(Placed::whole), act).download();
             assert_eq!(bits(&got), bits(&again), "linear_sum {ks:?}: a second run gives other bits");
             // One weight [sum k, n] whose row blocks are the w_i, after a row of padding.
             let stacked: Vec<f32> =
@@ -522,10 +567,10 @@ mod tests {
                 .zip(&ks)
                 .map(|(x, &k)| {
                     row += k;
-                    Term { x, k, w: &stacked, w_base: (row - k) * n }
+                    Term { x, k, w: Placed::at(&stacked, (row - k) * n) }
                 })
                 .collect();
-            let in_place = linear_sum(&blocks, rows, n, bd.as_ref(), act).download();
+            let in_place = linear_sum(&blocks, rows, n, bd.as_ref().map(Placed::whole), act).download();
             assert_eq!(bits(&got), bits(&in_place), "linear_sum {ks:?}: row blocks read in place");
         }
     }
@@ -552,30 +597,47 @@ mod tests {
     }
 
     /// A product reading `b` from inside a larger buffer and adding into a block inside a
-    /// larger output (a layer's weight rows and their gradient, in place) gives the bits of
-    /// the same product on buffers of its own, on each kernel (small, tiled, split k), and
-    /// leaves the rest of the output alone.
+    /// larger output (a layer's weight rows and their gradient, in place; with a row stride,
+    /// its columns) gives the bits of the same product on buffers of its own, on each kernel
+    /// (small, tiled, split k), with a bias read from inside a larger buffer, and leaves the
+    /// rest of the output alone.
     #[test]
-    fn products_read_and_write_row_blocks_in_place() {
+    fn products_read_and_write_blocks_in_place() {
         for (m, k, n) in [(20, 40, 30), (70, 100, 33), (70, 3000, 33)] {
             for (ta, tb) in [(false, false), (true, false), (false, true), (true, true)] {
-                let (a, b) = (tensor(&stored(m, k, ta), 111), tensor(&stored(k, n, tb), 112));
-                let plan = MatMulPlan::single(m, k, n);
-                let (before, after) = (3 * n + 1, 2 * n);
-                let old = values(before + m * n + after, 113);
-                let padded: Vec<f32> = values(before, 114).into_iter().chain(b.data().to_vec()).collect();
-                let ad = DeviceBuffer::upload(a.data());
-                let (bd, bpad) = (DeviceBuffer::upload(b.data()), DeviceBuffer::upload(&padded));
-                let own = DeviceBuffer::upload(&old[before..before + m * n]);
-                matmul_into(&own, true, &ad, ta, &bd, tb, &plan, None, Activation::Identity);
-                let out = DeviceBuffer::upload(&old);
-                let (o, bp) = (Placed { buf: &out, base: before }, Placed { buf: &bpad, base: before });
-                matmul_into_at(o, true, &ad, ta, bp, tb, &plan, None, Activation::Identity);
-                let got = out.download();
-                let what = format!("m={m} k={k} n={n} ta={ta} tb={tb}");
-                assert_eq!(bits(&got[before..before + m * n]), bits(&own.download()), "{what}: the block");
-                assert_eq!(bits(&got[..before]), bits(&old[..before]), "{what}: before the block");
-                assert_eq!(bits(&got[before + m * n..]), bits(&old[before + m * n..]), "{what}: after it");
+                for pad in [0, 5] {
+                    let (a, b) = (tensor(&stored(m, k, ta), 111), tensor(&stored(k, n, tb), 112));
+                    let plan = MatMulPlan::single(m, k, n);
+                    let b_cols = stored(k, n, tb)[1];
+                    // Matrices of `cols` columns stored in rows of `cols + pad`, after `before`
+                    // values, with `after` more at the end.
+                    let (before, after) = (3 * n + 1, 2 * n);
+                    let embed = |v: &[f32], cols: usize, seed: u64| -> Vec<f32> {
+                        let mut fill = values(before + v.len() / cols * pad + after, seed).into_iter();
+                        let mut out: Vec<f32> = fill.by_ref().take(before).collect();
+                        for row in v.chunks(cols) {
+                            out.extend_from_slice(row);
+                            out.extend(fill.by_ref().take(pad));
+                        }
+                        out.extend(fill);
+                        out
+                    };
+                    let old = values(m * n, 113);
+                    let (bias, act) = (values(n, 115), Activation::Tanh);
+                    let ad = DeviceBuffer::upload(a.data());
+                    let own = DeviceBuffer::upload(&old);
+                    let (bd, biasd) = (DeviceBuffer::upload(b.data()), DeviceBuffer::upload(&bias));
+                    matmul_into(&own, true, &ad, ta, &bd, tb, &plan, Some(&biasd), act);
+                    let want = embed(&own.download(), n, 116);
+                    let out = DeviceBuffer::upload(&embed(&old, n, 116));
+                    let bpad = DeviceBuffer::upload(&embed(b.data(), b_cols, 114));
+                    let bias_in = DeviceBuffer::upload(&embed(&bias, n, 117));
+                    let place = |buf, cols| Placed::block(buf, before, cols + pad);
+                    let bias_at = Some(Placed::at(&bias_in, before));
+                    matmul_into_at(place(&out, n), true, &ad, ta, place(&bpad, b_cols), tb, &plan, bias_at, act);
+                    let what = format!("m={m} k={k} n={n} ta={ta} tb={tb} pad={pad}");
+                    assert_eq!(bits(&out.download()), bits(&want), "{what}: the block and what surrounds it");
+                }
             }
         }
     }
@@ -598,8 +660,8 @@ mod tests {
                 let old = values(batch * m * n, 104);
                 let run = |small: bool, act: Activation| {
                     let out = DeviceBuffer::upload(&old);
-                    let (o, b) = (Placed { buf: &out, base: 0 }, Placed { buf: &bd, base: 0 });
-                    matmul_into_with(small, o, true, &ad, ta, b, tb, &plan, Some(&bias), act);
+                    let (o, b) = (Placed::whole(&out), Placed::whole(&bd));
+                    matmul_into_with(small, o, true, &ad, ta, b, tb, &plan, Some(Placed::whole(&bias)), act);
                     bits(&out.download())
                 };
                 for act in [Activation::Identity, Activation::Tanh] {

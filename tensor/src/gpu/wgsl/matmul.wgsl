@@ -3,10 +3,12 @@
 // (likewise with tb), all row-major; the output is [batches, m, n].
 //
 // p = [m, k, n, ta, tb, accumulate, has_bias, act (0 identity, 1 relu, 2 tanh), batches,
-//      a_base, b_base, a_stride, b_stride, offsets_listed, out_base, tiles_n, tiles_per_batch,
-//      slices, k_per_slice]: batch entry b's matrices start at `offsets` (when listed) or at
-//      base + b * stride (ops/matmul.rs: no upload when the offsets are regular), its output
-//      at out_base + b * m * n (a block of rows of a weight's gradient); the first 15 are
+//      a_base, b_base, a_stride, b_stride, offsets_listed, out_base, ldb, ldo, bias_base,
+//      tiles_n, tiles_per_batch, slices, k_per_slice]: batch entry b's matrices start at
+//      `offsets` (when listed) or at base + b * stride (ops/matmul.rs: no upload when the
+//      offsets are regular), its output at out_base + b * m * n; the stored rows of B are ldb
+//      apart and the output's ldo (more than their width for a block of columns of a weight
+//      or of its gradient; one product then), the bias starts at bias_base; the first 18 are
 //      matmul_small.wgsl's.
 //
 // Split k (slices > 1, ops/matmul.rs: few output tiles over a long inner dim): slice s sums
@@ -66,18 +68,19 @@ fn mac(kk: u32, tx: u32, ty: u32) {
 
 // Epilogue of one output row: (+ the current value) + bias, activation; one store per element.
 fn store_row(r: u32, c: u32, n: u32, base: u32, v: vec4<f32>, accumulate: bool, has_bias: bool, code: u32) {
+    let ldo = p[16];
     for (var j = 0u; j < 4u; j++) {
         if c + j >= n {
             break;
         }
-        let idx = base + r * n + c + j;
+        let idx = base + r * ldo + c + j;
         var x = v.x;
         if j == 1u { x = v.y; } else if j == 2u { x = v.z; } else if j == 3u { x = v.w; }
         if accumulate {
             x = out[idx] + x;
         }
         if has_bias {
-            x = x + bias[c + j];
+            x = x + bias[p[17] + c + j];
         }
         out[idx] = activation(code, x);
     }
@@ -92,10 +95,10 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) nwg: vec3
     let ta = p[3] != 0u;
     let tb = p[4] != 0u;
     let batches = p[8];
-    let tiles_n = p[15];
-    let per_batch = p[16];
-    let slices = p[17];
-    let k_per_slice = p[18];
+    let tiles_n = p[18];
+    let per_batch = p[19];
+    let slices = p[20];
+    let k_per_slice = p[21];
     let wid = wg.x + wg.y * nwg.x;
     // The grid may hold a few more workgroups than tiles (Gpu::launch rounds up to a
     // rectangle); the test is the same for the whole workgroup.
@@ -166,9 +169,9 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) nwg: vec3
             var v = 0.0;
             if gc < n && gk < k_end {
                 if tb {
-                    v = b[b_off + gc * k + gk];
+                    v = b[b_off + gc * p[15] + gk];
                 } else {
-                    v = b[b_off + gk * n + gc];
+                    v = b[b_off + gk * p[15] + gc];
                 }
             }
             tile_b[kk * ROW_VEC4 + c / 4u][c % 4u] = v;

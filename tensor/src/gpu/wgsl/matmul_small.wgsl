@@ -5,8 +5,10 @@
 // same fused multiply-adds as matmul.wgsl, so the two kernels give the same bits.
 //
 // p = [m, k, n, ta, tb, accumulate, has_bias, act, batches, a_base, b_base, a_stride,
-//      b_stride, offsets_listed, out_base]: batch entry b's matrices start at `offsets` (when
-//      listed) or at base + b * stride, the output at out_base.
+//      b_stride, offsets_listed, out_base, ldb, ldo, bias_base]: batch entry b's matrices
+//      start at `offsets` (when listed) or at base + b * stride, the output at out_base; the
+//      stored rows of B are ldb apart and the output's ldo (matmul.wgsl), the bias starts at
+//      bias_base.
 @group(0) @binding(1) var<storage, read> a: array<f32>;
 @group(0) @binding(2) var<storage, read> b: array<f32>;
 @group(0) @binding(3) var<storage, read> offsets: array<u32>;
@@ -40,16 +42,16 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) nwg: vec3
         var av: f32;
         var bv: f32;
         if ta { av = a[a_off + kk * m + i]; } else { av = a[a_off + i * k + kk]; }
-        if tb { bv = b[b_off + j * k + kk]; } else { bv = b[b_off + kk * n + j]; }
+        if tb { bv = b[b_off + j * p[15] + kk]; } else { bv = b[b_off + kk * p[15] + j]; }
         acc = fma(av, bv, acc);
     }
     var v = acc;
-    let o = p[14] + id;
+    let o = p[14] + batch * mn + i * p[16] + j;
     if p[5] != 0u {
         v = out[o] + v;
     }
     if p[6] != 0u {
-        v = v + bias[j];
+        v = v + bias[p[17] + j];
     }
     out[o] = activation(p[7], v);
 }
