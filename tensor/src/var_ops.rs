@@ -155,18 +155,7 @@ impl<'t, T: Float> Var<'t, T> {
 
     /// Fused `act(self @ w + b)` over the last dim: `self [.., in]`, `w [in, out]`, `b [out]`.
     pub fn linear(self, w: Var<'t, T>, b: Option<Var<'t, T>>, act: Activation) -> Result<Self> {
-        self.tape.check_same(w);
-        let bv = b.map(|b| {
-            self.tape.check_same(b);
-            b.value()
-        });
-        let (xv, wv) = (self.value(), w.value());
-        nnops::linear_shapes(xv.shape(), wv.shape(), bv.as_ref().map(|b| b.shape()))?;
-        let y = k::linear_sum(&[(&xv, &wv, 0)], bv.as_ref(), act, None)?;
-        let mut inputs = vec![self.id, w.id];
-        inputs.extend(b.map(|b| b.id));
-        let parts = vec![LinearTerm { x: self.id, w: w.id, row: 0 }];
-        Ok(self.tape.record(y, Op::Linear { parts, b: b.map(|b| b.id), col: 0, act }, &inputs))
+        self.linear_block(w, b, None, act)
     }
 
     /// Some of a layer's outputs: `act(self @ w[:, start..start + len] + b[start..start +
@@ -182,6 +171,17 @@ impl<'t, T: Float> Var<'t, T> {
         len: usize,
         act: Activation,
     ) -> Result<Self> {
+        self.linear_block(w, b, Some((start, len)), act)
+    }
+
+    /// [`Var::linear`] of the output columns `cols` (`(start, len)`; `None`: all of them).
+    fn linear_block(
+        self,
+        w: Var<'t, T>,
+        b: Option<Var<'t, T>>,
+        cols: Option<(usize, usize)>,
+        act: Activation,
+    ) -> Result<Self> {
         self.tape.check_same(w);
         let bv = b.map(|b| {
             self.tape.check_same(b);
@@ -189,17 +189,20 @@ impl<'t, T: Float> Var<'t, T> {
         });
         let (xv, wv) = (self.value(), w.value());
         nnops::linear_shapes(xv.shape(), wv.shape(), bv.as_ref().map(|b| b.shape()))?;
-        if start + len > wv.shape()[1] {
+        if let Some((start, len)) = cols
+            && start + len > wv.shape()[1]
+        {
             return Err(invalid(
                 "linear_columns",
                 format!("columns {start}..{} of a weight of shape {:?}", start + len, wv.shape()),
             ));
         }
-        let y = k::linear_sum(&[(&xv, &wv, 0)], bv.as_ref(), act, Some((start, len)))?;
+        let y = k::linear_sum(&[(&xv, &wv, 0)], bv.as_ref(), act, cols)?;
         let mut inputs = vec![self.id, w.id];
         inputs.extend(b.map(|b| b.id));
         let parts = vec![LinearTerm { x: self.id, w: w.id, row: 0 }];
-        Ok(self.tape.record(y, Op::Linear { parts, b: b.map(|b| b.id), col: start, act }, &inputs))
+        let col = cols.map_or(0, |c| c.0);
+        Ok(self.tape.record(y, Op::Linear { parts, b: b.map(|b| b.id), col, act }, &inputs))
     }
 
     /// Softmax over the last axis.
