@@ -84,11 +84,11 @@ pub(crate) fn binary<T: Float>(a: &Tensor<T>, b: &Tensor<T>, op: BinaryOp) -> Re
     match device_of(&[a, b]) {
         Device::Cpu => elementwise::binary(a, b, op),
         Device::Gpu => on_gpu! {
-            use crate::gpu::ops::elementwise::{BinaryCode, binary};
+            use crate::gpu::ops::elementwise::binary;
             let shape = broadcast_shapes(op.name(), a.shape(), b.shape())?;
             dev::check(op.name(), numel(&shape))?;
             let (a, b) = (dev::up(a)?, dev::up(b)?);
-            let y = binary(dev::buf(&a), a.shape(), dev::buf(&b), b.shape(), &shape, BinaryCode::Op(op));
+            let y = binary(dev::buf(&a), a.shape(), dev::buf(&b), b.shape(), &shape, op);
             Ok(dev::out(y, shape))
         },
     }
@@ -253,18 +253,10 @@ pub(crate) fn cat<T: Float>(xs: &[&Tensor<T>], axis: usize) -> Result<Tensor<T>>
         Device::Gpu => on_gpu! {
             let shape = layout::cat_shape(xs, axis)?;
             dev::check("cat", numel(&shape))?;
-            let (outer, total, inner) = split_at_axis(&shape, axis);
-            let y = crate::gpu::DeviceBuffer::uninit(numel(&shape));
-            let mut start = 0;
-            for x in xs {
-                let x = dev::up(x)?;
-                let len = x.shape()[axis];
-                let block = crate::gpu::ops::layout::Block {
-                    outer, inner, len, src_n: len, src_start: 0, dst_n: total, dst_start: start,
-                };
-                crate::gpu::ops::layout::block_copy_into(&y, dev::buf(&x), block, false);
-                start += len;
-            }
+            let (outer, _, inner) = split_at_axis(&shape, axis);
+            let placed = xs.iter().map(|x| dev::up(x)).collect::<Result<Vec<_>>>()?;
+            let parts: Vec<_> = placed.iter().map(|x| (dev::buf(x), x.shape()[axis])).collect();
+            let y = crate::gpu::ops::layout::cat(&parts, outer, inner);
             Ok(dev::out(y, shape))
         },
     }
@@ -410,29 +402,25 @@ pub(crate) fn binary_backward<T: Float>(
             ))
         }
         Device::Gpu => on_gpu! {
-            // The rules of `elementwise::binary_backward`, as tensor arithmetic.
+            // The rules of `elementwise::binary_backward`: add and sub need no kernel but a
+            // negation; the others compute both gradients in one launch, `b` scaling rows of
+            // `a` with the rows' sums inside it (as the CPU's fast path does).
+            use crate::gpu::ops::elementwise as gpu;
             let shape = y.shape();
             let (wa, wb) = wants;
-            let full = |t: Result<Tensor<T>>, target: &Tensor<T>| -> Result<Tensor<T>> { sum_to_shape(&t?, target.shape()) };
+            let full = |t: Tensor<T>, target: &Tensor<T>| -> Result<Tensor<T>> { sum_to_shape(&t, target.shape()) };
             let (ga, gb) = match op {
-                BinaryOp::Add => (wa.then(|| Ok(g.clone())), wb.then(|| Ok(g.clone()))),
-                BinaryOp::Sub => (wa.then(|| Ok(g.clone())), wb.then(|| Ok(unary(g, UnaryOp::Neg)))),
-                BinaryOp::Mul => (wa.then(|| binary(g, b, BinaryOp::Mul)), wb.then(|| binary(g, a, BinaryOp::Mul))),
-                BinaryOp::Div => (
-                    wa.then(|| binary(g, b, BinaryOp::Div)),
-                    // d(a/b)/db = -y / b
-                    wb.then(|| Ok(unary(&binary(&binary(g, y, BinaryOp::Mul)?, b, BinaryOp::Div)?, UnaryOp::Neg))),
-                ),
-                BinaryOp::Minimum | BinaryOp::Maximum => {
-                    use crate::gpu::ops::elementwise::BinaryCode;
-                    let code = if op == BinaryOp::Minimum { BinaryCode::LessEq } else { BinaryCode::GreaterEq };
-                    let (ad, bd) = (dev::up(a)?, dev::up(b)?);
-                    let mask: Tensor<T> = dev::out(
-                        crate::gpu::ops::elementwise::binary(dev::buf(&ad), a.shape(), dev::buf(&bd), b.shape(), shape, code),
-                        shape.to_vec(),
-                    );
-                    let ga = binary(g, &mask, BinaryOp::Mul);
-                    (wa.then(|| ga.clone()), wb.then(|| binary(g, &ga?, BinaryOp::Sub)))
+                BinaryOp::Add => (wa.then(|| g.clone()), wb.then(|| g.clone())),
+                BinaryOp::Sub => (wa.then(|| g.clone()), wb.then(|| unary(g, UnaryOp::Neg))),
+                _ => {
+                    let (gd, ad, bd, yd) = (dev::up(g)?, dev::up(a)?, dev::up(b)?, dev::up(y)?);
+                    let (gbuf, abuf, bbuf) = (dev::buf(&gd), dev::buf(&ad), dev::buf(&bd));
+                    if matches!(op, BinaryOp::Div | BinaryOp::Mul) && a.numel() == y.numel() && elementwise::is_row_broadcast(b.shape(), shape) {
+                        let (ga, gb) = gpu::row_scale_backward(gbuf, abuf, bbuf, op == BinaryOp::Div, wants);
+                        return Ok((ga.map(|v| dev::out(v, a.shape().to_vec())), gb.map(|v| dev::out(v, b.shape().to_vec()))));
+                    }
+                    let (ga, gb) = gpu::binary_backward(gbuf, abuf, a.shape(), bbuf, b.shape(), dev::buf(&yd), shape, op, wants);
+                    (ga.map(|v| dev::out(v, shape.to_vec())), gb.map(|v| dev::out(v, shape.to_vec())))
                 },
             };
             Ok((ga.map(|t| full(t, a)).transpose()?, gb.map(|t| full(t, b)).transpose()?))

@@ -136,14 +136,67 @@ fn binary_ops_with_broadcasting() {
         ("minimum", |a, b| a.minimum(b)),
         ("maximum", |a, b| a.maximum(b)),
     ];
-    let shapes: [(&[usize], &[usize]); 5] =
-        [(&[4, 5], &[4, 5]), (&[4, 5], &[5]), (&[3, 4, 5], &[4, 1]), (&[4, 1], &[1, 6]), (&[2, 3], &[])];
+    // The last three: one value of `b` per row of `a` (rows of 15, 7 and 24 values), which
+    // mul and div differentiate in one kernel with the rows' sums inside.
+    let shapes: [(&[usize], &[usize]); 8] = [
+        (&[4, 5], &[4, 5]),
+        (&[4, 5], &[5]),
+        (&[3, 4, 5], &[4, 1]),
+        (&[4, 1], &[1, 6]),
+        (&[2, 3], &[]),
+        (&[6, 3, 5], &[6, 1, 1]),
+        (&[6, 7], &[6, 1]),
+        (&[5, 2, 12], &[5, 1, 1]),
+    ];
     for (name, op) in ops {
         for (s, (sa, sb)) in shapes.iter().enumerate() {
             let a = randn(10 + s as u64, sa);
             let b = if name == "div" { positive(20 + s as u64, sb) } else { randn(20 + s as u64, sb) };
-            check(&format!("{name} {sa:?} {sb:?}"), &[a, b], SUMS, &|_, v| op(v[0], v[1]));
+            let label = format!("{name} {sa:?} {sb:?}");
+            check(&label, &[a.clone(), b.clone()], SUMS, &|_, v| op(v[0], v[1]));
+            // One gradient wanted, the other operand a constant (either side).
+            check(&format!("{label}, b constant"), &[a.clone(), b.clone()], SUMS, &|t, v| {
+                op(v[0], t.constant(v[1].value().clone()))
+            });
+            check(&format!("{label}, a constant"), &[a, b], SUMS, &|t, v| op(t.constant(v[0].value().clone()), v[1]));
         }
+    }
+}
+
+#[test]
+fn fused_binary_gradients_keep_the_bits_of_their_rules() {
+    let _serial = serial();
+    // Broadcast both ways, so each gradient is also summed back: the one-launch kernel
+    // against the rules written as separate element-wise ops and sums on the GPU.
+    let (a, b) = (randn(40, &[3, 4, 5]), positive(41, &[4, 1]));
+    let w = randn(42, &[3, 4, 5]);
+    let bits = |t: &Tensor<f32>| t.data().iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+    type B = for<'t> fn(Var<'t, f32>, Var<'t, f32>) -> Result<Var<'t, f32>>;
+    let ops: [(&str, B); 2] = [("mul", |a, b| a.mul(b)), ("div", |a, b| a.div(b))];
+    for (name, op) in ops {
+        let tape = Tape::<f32>::new();
+        let (av, bv) = (tape.var(a.to_device(Device::Gpu).unwrap()), tape.var(b.to_device(Device::Gpu).unwrap()));
+        let wv = tape.constant(w.to_device(Device::Gpu).unwrap());
+        let y = op(av, bv).unwrap();
+        let grads = tape.backward(y.mul(wv).unwrap().sum_all()).unwrap();
+        let (ga, gb) = (grads.get(av).unwrap(), grads.get(bv).unwrap());
+        let _off = tape.no_grad();
+        let (want_a, want_b) = if name == "mul" {
+            (wv.mul(bv).unwrap(), wv.mul(av).unwrap())
+        } else {
+            (wv.div(bv).unwrap(), wv.mul(y).unwrap().div(bv).unwrap().neg())
+        };
+        let want_b = want_b.sum(0, false).unwrap().sum(1, true).unwrap();
+        assert_eq!(
+            bits(&ga.to_device(Device::Cpu).unwrap()),
+            bits(&want_a.value().to_device(Device::Cpu).unwrap()),
+            "{name}: ga"
+        );
+        assert_eq!(
+            bits(&gb.to_device(Device::Cpu).unwrap()),
+            bits(&want_b.value().to_device(Device::Cpu).unwrap()),
+            "{name}: gb"
+        );
     }
 }
 
@@ -288,6 +341,18 @@ fn layout_ops_on_the_gpu_match_the_cpu_forward_and_backward() {
     check("narrow twice", std::slice::from_ref(&x), EXACT, &|_, v| v[0].narrow(2, 0, 3)?.add(v[0].narrow(2, 1, 3)?));
     let y = randn(13, &[2, 5, 4]);
     check("cat", &[x.clone(), y.clone()], EXACT, &|t, v| t.cat(&[v[0], v[1], v[0]], 1));
+    // Nine parts (a launch joins six), one of them empty, along each axis in turn.
+    let lens = [3, 0, 1, 2, 4, 1, 3, 2, 5];
+    for axis in 0..3 {
+        let parts: Vec<Tensor<f32>> = (0..9)
+            .map(|i| {
+                let mut shape = vec![2, 3, 4];
+                shape[axis] = lens[i];
+                randn(50 + i as u64, &shape)
+            })
+            .collect();
+        check(&format!("cat of nine on axis {axis}"), &parts, EXACT, &|t, v| t.cat(v, axis));
+    }
     check("stack", &[x.clone(), x.clone()], EXACT, &|t, v| t.stack(&[v[0], v[1]], 0));
 }
 

@@ -52,30 +52,15 @@ const BINARY: Kernel = kernel!("binary", "strided_fns.wgsl", "binary.wgsl");
 const WHERE: Kernel = kernel!("where", "strided_fns.wgsl", "where.wgsl");
 const ADD_INTO: Kernel = kernel!("add_into", "add_into.wgsl");
 
-/// What the binary kernel computes: a [`BinaryOp`] or one of the 0/1 masks of the min/max
-/// gradients.
-#[derive(Clone, Copy, Debug)]
-pub(crate) enum BinaryCode {
-    /// The forward op.
-    Op(BinaryOp),
-    /// 1 where `a <= b`, else 0.
-    LessEq,
-    /// 1 where `a >= b`, else 0.
-    GreaterEq,
-}
-
-impl BinaryCode {
-    fn code(self) -> u32 {
-        match self {
-            BinaryCode::Op(BinaryOp::Add) => 0,
-            BinaryCode::Op(BinaryOp::Sub) => 1,
-            BinaryCode::Op(BinaryOp::Mul) => 2,
-            BinaryCode::Op(BinaryOp::Div) => 3,
-            BinaryCode::Op(BinaryOp::Minimum) => 4,
-            BinaryCode::Op(BinaryOp::Maximum) => 5,
-            BinaryCode::LessEq => 6,
-            BinaryCode::GreaterEq => 7,
-        }
+/// The code of a binary op in the kernels' `switch` (`binary.wgsl`, `binary_backward.wgsl`).
+fn binary_code(op: BinaryOp) -> u32 {
+    match op {
+        BinaryOp::Add => 0,
+        BinaryOp::Sub => 1,
+        BinaryOp::Mul => 2,
+        BinaryOp::Div => 3,
+        BinaryOp::Minimum => 4,
+        BinaryOp::Maximum => 5,
     }
 }
 
@@ -86,11 +71,11 @@ pub(crate) fn binary(
     b: &DeviceBuffer,
     b_shape: &[usize],
     shape: &[usize],
-    op: BinaryCode,
+    op: BinaryOp,
 ) -> DeviceBuffer {
     let n = numel(shape);
     let out = DeviceBuffer::uninit(n);
-    let mut params = vec![u(n), op.code(), 0, 0];
+    let mut params = vec![u(n), binary_code(op), 0, 0];
     params.extend(strided_params(shape, &[&broadcast_strides(a_shape, shape), &broadcast_strides(b_shape, shape)]));
     device().launch_1d(&BINARY, &params, &[a.buffer(), b.buffer(), out.buffer()], n);
     out
@@ -111,6 +96,73 @@ pub(crate) fn where_select(
     params.extend(strided_params(shape, &[&broadcast_strides(a_shape, shape), &broadcast_strides(b_shape, shape)]));
     device().launch_1d(&WHERE, &params, &[mask.buffer(), a.buffer(), b.buffer(), out.buffer()], n);
     out
+}
+
+const BINARY_BACKWARD: Kernel = kernel!("binary_backward", "strided_fns.wgsl", "binary_backward.wgsl");
+const ROW_SCALE_BACKWARD: Kernel = kernel!("row_scale_backward", "row_scale_backward.wgsl");
+
+/// The gradients a binary op's backward wrote: `(ga, gb)`, each present when it was wanted.
+pub(crate) type GradBuffers = (Option<DeviceBuffer>, Option<DeviceBuffer>);
+
+/// The output buffer of a gradient: `n` values when it is wanted, else a one-element
+/// placeholder the kernel never writes (two writable bindings may not share a buffer).
+fn grad_slot(wanted: bool, n: usize) -> DeviceBuffer {
+    DeviceBuffer::uninit(if wanted { n } else { 1 })
+}
+
+/// Both gradients of `op(a, b)` (mul, div, minimum, maximum) over the broadcast `shape`, in
+/// one launch (`binary_backward.wgsl`): `g` and the output `y` are contiguous over `shape`,
+/// `a` and `b` broadcast to it. Each wanted gradient comes back over `shape`, for the caller
+/// to sum to its operand's shape.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn binary_backward(
+    g: &DeviceBuffer,
+    a: &DeviceBuffer,
+    a_shape: &[usize],
+    b: &DeviceBuffer,
+    b_shape: &[usize],
+    y: &DeviceBuffer,
+    shape: &[usize],
+    op: BinaryOp,
+    (wa, wb): (bool, bool),
+) -> GradBuffers {
+    assert!(
+        matches!(op, BinaryOp::Mul | BinaryOp::Div | BinaryOp::Minimum | BinaryOp::Maximum),
+        "binary_backward kernel: {op:?} needs no kernel of its own"
+    );
+    let n = numel(shape);
+    let (ga, gb) = (grad_slot(wa, n), grad_slot(wb, n));
+    let mut params = vec![u(n), binary_code(op), u32::from(wa), u32::from(wb)];
+    params.extend(strided_params(shape, &[&broadcast_strides(a_shape, shape), &broadcast_strides(b_shape, shape)]));
+    let buffers = [g.buffer(), a.buffer(), b.buffer(), y.buffer(), ga.buffer(), gb.buffer()];
+    device().launch_1d(&BINARY_BACKWARD, &params, &buffers, n);
+    (wa.then_some(ga), wb.then_some(gb))
+}
+
+/// Both gradients of `a * b` (`div`: `a / b`) where `b` holds one value per row of `m =
+/// a.len() / b.len()` values of `a`, in one launch with the rows' reductions inside
+/// (`row_scale_backward.wgsl`, the CPU's `row_scale_backward` rules and order): `ga` shaped
+/// like `a`, `gb` like `b`.
+pub(crate) fn row_scale_backward(
+    g: &DeviceBuffer,
+    a: &DeviceBuffer,
+    b: &DeviceBuffer,
+    div: bool,
+    (wa, wb): (bool, bool),
+) -> GradBuffers {
+    let (n, rows) = (a.len(), b.len());
+    assert!(rows > 0 && n % rows == 0 && g.len() == n, "row_scale_backward: {n} values are not rows of {rows}");
+    let (ga, gb) = (grad_slot(wa, n), grad_slot(wb, rows));
+    let na = if wa { n } else { 0 };
+    let params = [u(n), u(rows), u(n / rows), u32::from(div), u(na), u32::from(wb)];
+    let threads = na + if wb { rows } else { 0 };
+    device().launch_1d(
+        &ROW_SCALE_BACKWARD,
+        &params,
+        &[g.buffer(), a.buffer(), b.buffer(), ga.buffer(), gb.buffer()],
+        threads,
+    );
+    (wa.then_some(ga), wb.then_some(gb))
 }
 
 /// `dst += src` element by element (equal lengths).

@@ -8,6 +8,10 @@ use crate::shape::numel;
 
 const STRIDED_COPY: Kernel = kernel!("strided_copy", "strided_fns.wgsl", "strided_copy.wgsl");
 const BLOCK_COPY: Kernel = kernel!("block_copy", "block_copy.wgsl");
+const CAT: Kernel = kernel!("cat", "cat.wgsl");
+
+/// Parts [`cat`] joins in one launch (the kernel's source bindings).
+const CAT_PARTS: usize = 6;
 
 /// `out[i] = scale * x[offset + sum_d idx_d(i) * strides[d]]` over `shape` (row-major).
 pub(crate) fn strided_copy(
@@ -52,4 +56,29 @@ pub(crate) fn block_copy_into(dst: &DeviceBuffer, src: &DeviceBuffer, b: Block, 
     let params =
         [u(b.outer), u(b.len), u(b.inner), u(b.src_n), u(b.src_start), u(b.dst_n), u(b.dst_start), accumulate as u32];
     device().launch_1d(&BLOCK_COPY, &params, &[src.buffer(), dst.buffer()], n);
+}
+
+/// `parts` (buffers with their entries along the axis) joined along an axis: `outer` blocks
+/// of `inner` values each, the output's axis the sum of the parts' entries. One launch per
+/// six parts (`cat.wgsl`).
+pub(crate) fn cat(parts: &[(&DeviceBuffer, usize)], outer: usize, inner: usize) -> DeviceBuffer {
+    let total: usize = parts.iter().map(|p| p.1).sum();
+    let out = DeviceBuffer::uninit(outer * total * inner);
+    let mut dst_start = 0;
+    for chunk in parts.chunks(CAT_PARTS) {
+        let mut ends = [0u32; CAT_PARTS];
+        let mut end = 0;
+        for (slot, &(_, len)) in ends.iter_mut().zip(chunk) {
+            end += len;
+            *slot = u(end);
+        }
+        let mut params = vec![u(outer), u(total), u(inner), u(dst_start), u(end), u(chunk.len())];
+        params.extend(ends);
+        let mut buffers: Vec<&wgpu::Buffer> =
+            (0..CAT_PARTS).map(|j| chunk.get(j).unwrap_or(&chunk[0]).0.buffer()).collect();
+        buffers.push(out.buffer());
+        device().launch_1d(&CAT, &params, &buffers, outer * end * inner);
+        dst_start += end;
+    }
+    out
 }

@@ -1,5 +1,4 @@
-// out = op(a, b) with broadcasting through strides (BinaryOp codes in ops/elementwise.rs;
-// 6 and 7 are the 0/1 masks "a <= b" and "a >= b" that min/max gradients use).
+// out = op(a, b) with broadcasting through strides (BinaryOp codes in ops/elementwise.rs).
 // p = [n, code, offset a, offset b, rank, dims.., strides a.., strides b..] (strided_fns).
 @group(0) @binding(1) var<storage, read> a: array<f32>;
 @group(0) @binding(2) var<storage, read> b: array<f32>;
@@ -12,9 +11,7 @@ fn apply(code: u32, x: f32, y: f32) -> f32 {
         case 2u: { return x * y; }
         case 3u: { return x / y; }
         case 4u: { return select(y, x, x <= y); }
-        case 5u: { return select(y, x, x >= y); }
-        case 6u: { return select(0.0, 1.0, x <= y); }
-        default: { return select(0.0, 1.0, x >= y); }
+        default: { return select(y, x, x >= y); }
     }
 }
 
