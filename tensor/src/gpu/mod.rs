@@ -4,6 +4,8 @@
 //! - [`context`]: the process's one device ([`gpu`]), its buffer pool and kernel launches.
 //! - [`timing`]: every launch timed on the GPU's clock ([`Gpu::start_timing`]).
 //! - [`DeviceBuffer`]: the storage of a tensor on the device (f32 values).
+//! - `list_cache`: index lists (and what the index ops derive from them) kept on the device
+//!   while they recur.
 //! - `ops/`: one module per kernel family, each a thin Rust wrapper around a WGSL file in
 //!   `wgsl/` that computes every output element in one thread, in a fixed order: no
 //!   floating-point atomics, so a kernel gives the same bits on the same GPU and driver.
@@ -14,6 +16,7 @@
 //! `gid.x + gid.y * num_workgroups.x * 256` (see `wgsl/common.wgsl`).
 
 pub mod context;
+pub(crate) mod list_cache;
 pub(crate) mod ops;
 pub mod timing;
 
@@ -53,13 +56,6 @@ impl DeviceBuffer {
     /// Uploads u32 values (indices, masks): `len` counts the words.
     pub(crate) fn upload_u32(values: &[u32]) -> Self {
         Self::from_raw(device().upload_words(values), values.len())
-    }
-
-    /// Uploads indices as u32 (callers check that they fit: shapes are limited to 2^32
-    /// elements on the device).
-    pub(crate) fn upload_indices(idx: &[usize]) -> Self {
-        let v: Vec<u32> = idx.iter().map(|&i| i as u32).collect();
-        Self::upload_u32(&v)
     }
 
     /// The values, copied to the host.

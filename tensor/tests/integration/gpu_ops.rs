@@ -425,6 +425,48 @@ fn a_gpu_tape_uploads_its_leaves_once() {
     assert_eq!(tensor::gpu::gpu().unwrap().stats().uploads - before, 1);
 }
 
+/// An index list seen before is not uploaded again, nor its scatter lists rebuilt: the
+/// second pass over the same list uploads only the leaf and the backward seed, and gives the
+/// same bits; a list of the same length with other contents is uploaded and used.
+#[test]
+fn index_lists_are_uploaded_once_while_they_recur() {
+    let _serial = serial();
+    let x = randn(60, &[4, 50, 3]);
+    let mut r = rng(61);
+    let first: Vec<usize> = (0..333).map(|_| r.random_range(0..50)).collect();
+    let mut other = first.clone();
+    other[200] = (other[200] + 1) % 50;
+    // Uploads of one pass (x, the seed, and whatever index lists it needs) and its results.
+    let pass = |idx: &[usize]| {
+        let before = tensor::gpu::gpu().unwrap().stats().uploads;
+        let tape = Tape::<f32>::on(Device::Gpu);
+        let xv = tape.var(x.clone());
+        let y = xv.index_select(1, idx).unwrap();
+        let loss = y.mul(y).unwrap().sum_all();
+        let g = tape.backward(loss).unwrap().get(xv).unwrap().to_device(Device::Cpu).unwrap();
+        let uploads = tensor::gpu::gpu().unwrap().stats().uploads - before;
+        (uploads, y.value().to_device(Device::Cpu).unwrap(), g)
+    };
+    let cpu = |idx: &[usize]| {
+        let tape = Tape::<f32>::new();
+        let xv = tape.var(x.clone());
+        let y = xv.index_select(1, idx).unwrap();
+        let g = tape.backward(y.mul(y).unwrap().sum_all()).unwrap().get(xv).unwrap().clone();
+        (y.value().clone(), g)
+    };
+    let (n1, y1, g1) = pass(&first);
+    let (n2, y2, g2) = pass(&first);
+    // The list (one buffer) and the scatter lists of its adjoint (three) the first time only.
+    assert_eq!((n1, n2), (2 + 4, 2), "uploads of the first and second pass");
+    assert_eq!((y1.data(), g1.data()), (y2.data(), g2.data()));
+    let (yc, gc) = cpu(&first);
+    assert_eq!((y1.data(), g1.data()), (yc.data(), gc.data()), "against the CPU");
+    let (n3, y3, g3) = pass(&other);
+    assert_eq!(n3, 2 + 4, "a changed list must be uploaded");
+    let (yc, gc) = cpu(&other);
+    assert_eq!((y3.data(), g3.data()), (yc.data(), gc.data()), "the changed list against the CPU");
+}
+
 /// Timing on the GPU's clock: every launch between start and stop is timed once, labelled
 /// with the op that made it (forward or backward), without changing any value.
 #[test]

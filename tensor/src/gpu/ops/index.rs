@@ -18,9 +18,34 @@
 //!
 //! [`split_at_axis`]: crate::shape::split_at_axis
 
+use std::sync::{Arc, Mutex};
+
 use super::{kernel, u};
 use crate::gpu::context::Kernel;
+use crate::gpu::list_cache::{ListCache, ListKind, derived};
 use crate::gpu::{DeviceBuffer, device};
+
+/// Words of index lists (host keys and device buffers) kept between calls: 128 MiB each side
+/// at most, far above a paper-size model's lists (a few MB).
+const KEPT_WORDS: usize = 1 << 25;
+
+/// The device lists derived from index lists, kept while they recur (`gpu/list_cache.rs`).
+static LISTS: Mutex<ListCache<Vec<DeviceBuffer>>> = Mutex::new(ListCache::new(KEPT_WORDS));
+
+/// The device buffers derived from `idx` as `kind`: kept ones when the same list came before,
+/// else `build(idx as u32)`'s, kept for the next call.
+fn lists(kind: ListKind, idx: &[usize], build: impl FnOnce(&[u32]) -> Vec<DeviceBuffer>) -> Arc<Vec<DeviceBuffer>> {
+    derived(&LISTS, kind, idx, |key| {
+        let bufs = build(key);
+        let words = bufs.iter().map(DeviceBuffer::len).sum();
+        (bufs, words)
+    })
+}
+
+/// `idx` on the device as u32.
+fn indices(idx: &[usize]) -> Arc<Vec<DeviceBuffer>> {
+    lists(ListKind::Indices, idx, |key| vec![DeviceBuffer::upload_u32(key)])
+}
 
 const SELECT: Kernel = kernel!("index_select", "index_select.wgsl");
 const GATHER: Kernel = kernel!("index_gather", "index_gather.wgsl");
@@ -83,13 +108,13 @@ impl Csr {
         Csr { dests, offsets, srcs }
     }
 
-    /// Uploads `(dests, offsets, srcs)`.
-    fn upload(&self) -> (DeviceBuffer, DeviceBuffer, DeviceBuffer) {
-        (
+    /// Uploads `[dests, offsets, srcs]`.
+    fn upload(&self) -> Vec<DeviceBuffer> {
+        vec![
             DeviceBuffer::upload_u32(&self.dests),
             DeviceBuffer::upload_u32(&self.offsets),
             DeviceBuffer::upload_u32(&self.srcs),
-        )
+        ]
     }
 }
 
@@ -117,11 +142,11 @@ pub(crate) fn index_select(x: &DeviceBuffer, outer: usize, n: usize, inner: usiz
     let total = outer * m * inner;
     let out = DeviceBuffer::uninit(total);
     if total > 0 {
-        let idx_d = DeviceBuffer::upload_indices(idx);
+        let idx_d = indices(idx);
         device().launch_1d(
             &SELECT,
             &[u(total), u(n), u(m), u(inner)],
-            &[x.buffer(), idx_d.buffer(), out.buffer()],
+            &[x.buffer(), idx_d[0].buffer(), out.buffer()],
             total,
         );
     }
@@ -146,10 +171,9 @@ pub(crate) fn index_add_into(
     if outer * m * inner == 0 {
         return;
     }
-    let keys: Vec<u32> = idx.iter().map(|&k| u(k)).collect();
-    let csr = Csr::new(&keys, n);
-    let nd = csr.dests.len();
-    let (dests, offsets, srcs) = csr.upload();
+    let csr = lists(ListKind::Scatter { n }, idx, |keys| Csr::new(keys, n).upload());
+    let (dests, offsets, srcs) = (&csr[0], &csr[1], &csr[2]);
+    let nd = dests.len();
     let total = outer * nd * inner;
     device().launch_1d(
         &ADD,
@@ -168,11 +192,11 @@ pub(crate) fn gather(x: &DeviceBuffer, outer: usize, n: usize, inner: usize, m: 
     let total = idx.len();
     let out = DeviceBuffer::uninit(total);
     if total > 0 {
-        let idx_d = DeviceBuffer::upload_indices(idx);
+        let idx_d = indices(idx);
         device().launch_1d(
             &GATHER,
             &[u(total), u(n), u(m), u(inner)],
-            &[x.buffer(), idx_d.buffer(), out.buffer()],
+            &[x.buffer(), idx_d[0].buffer(), out.buffer()],
             total,
         );
     }
@@ -199,17 +223,20 @@ pub(crate) fn gather_backward_into(
     if idx.is_empty() {
         return;
     }
-    let keys: Vec<u32> = idx
-        .iter()
-        .enumerate()
-        .map(|(p, &k)| {
-            let (o, i) = (p / (m * inner), p % inner);
-            u((o * n + k) * inner + i)
-        })
-        .collect();
-    let csr = Csr::new(&keys, dst.len());
-    let nd = csr.dests.len();
-    let (dests, offsets, srcs) = csr.upload();
+    let kind = ListKind::GatherScatter { outer, n, inner, m };
+    let csr = lists(kind, idx, |idx| {
+        let keys: Vec<u32> = idx
+            .iter()
+            .enumerate()
+            .map(|(p, &k)| {
+                let (o, i) = (p / (m * inner), p % inner);
+                u((o * n + k as usize) * inner + i)
+            })
+            .collect();
+        Csr::new(&keys, dst.len()).upload()
+    });
+    let (dests, offsets, srcs) = (&csr[0], &csr[1], &csr[2]);
+    let nd = dests.len();
     device().launch_1d(
         &SCATTER_ADD,
         &[u(nd)],
@@ -236,12 +263,14 @@ pub(crate) fn segment_reduce(
     let total = num_segments * inner;
     let out = DeviceBuffer::uninit(total);
     if total > 0 {
-        let (offsets, scales) = segment_offsets_and_scales(seg, num_segments);
-        let (offsets, scales) = (DeviceBuffer::upload_u32(&offsets), DeviceBuffer::upload(&scales));
+        let rows_of = lists(ListKind::SegmentRows { num_segments }, seg, |_| {
+            let (offsets, scales) = segment_offsets_and_scales(seg, num_segments);
+            vec![DeviceBuffer::upload_u32(&offsets), DeviceBuffer::upload(&scales)]
+        });
         device().launch_1d(
             &SEGMENT_REDUCE,
             &[u(total), u(inner), u32::from(mean)],
-            &[x.buffer(), offsets.buffer(), scales.buffer(), out.buffer()],
+            &[x.buffer(), rows_of[0].buffer(), rows_of[1].buffer(), out.buffer()],
             total,
         );
     }
@@ -265,12 +294,14 @@ pub(crate) fn segment_backward(
     let total = rows * inner;
     let dx = DeviceBuffer::uninit(total);
     if total > 0 {
-        let (_, scales) = segment_offsets_and_scales(seg, num_segments);
-        let (seg_d, scales) = (DeviceBuffer::upload_indices(seg), DeviceBuffer::upload(&scales));
+        let ids = lists(ListKind::SegmentIds { num_segments }, seg, |key| {
+            let (_, scales) = segment_offsets_and_scales(seg, num_segments);
+            vec![DeviceBuffer::upload_u32(key), DeviceBuffer::upload(&scales)]
+        });
         device().launch_1d(
             &SEGMENT_BACKWARD,
             &[u(total), u(inner), u32::from(mean)],
-            &[g.buffer(), seg_d.buffer(), scales.buffer(), dx.buffer()],
+            &[g.buffer(), ids[0].buffer(), ids[1].buffer(), dx.buffer()],
             total,
         );
     }
