@@ -12,7 +12,7 @@ use crate::dispatch as k;
 use crate::element::Float;
 use crate::error::Result;
 use crate::kernels::matmul::MatMulPlan;
-use crate::op::{Activation, LinearTerm, NodeId, Op};
+use crate::op::{Activation, LinearTerm, NodeId, Op, UnaryOp};
 use crate::shape::split_at_axis;
 use crate::tape::Node;
 use crate::tensor::Tensor;
@@ -29,7 +29,9 @@ pub(crate) fn propagate<T: Float>(nodes: &[Node<T>], id: NodeId, g: Tensor<T>, s
         Op::Leaf => {}
         Op::Unary(x, op) => {
             if store.wants(*x) {
-                store.add(*x, k::unary_backward(&g, val(*x), y, *op)?);
+                // d(x + c)/dx = 1: the gradient passes as it is (no kernel; `g * 1` is `g`).
+                let dx = if matches!(op, UnaryOp::AddScalar(_)) { g } else { k::unary_backward(&g, val(*x), y, *op)? };
+                store.add(*x, dx);
             }
         }
         Op::Binary(a, b, op) => {

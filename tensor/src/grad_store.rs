@@ -25,6 +25,11 @@ enum Grad<T: Float> {
     /// On the GPU.
     #[cfg(feature = "gpu")]
     Device(crate::gpu::DeviceBuffer),
+    /// On the GPU, a contribution whose storage other tensors still share (the same output
+    /// gradient passed to both inputs of an add, say): kept as it is, copied only if an
+    /// in-place rule must write it, and added out of place when another contribution comes.
+    #[cfg(feature = "gpu")]
+    Shared(Tensor<T>),
 }
 
 /// A matrix inside a row-major buffer: it starts at element `start` and its stored rows are
@@ -90,6 +95,18 @@ impl<T: Float> GradStore<T> {
             (Some(Grad::Host(g)), true) => {
                 g.iter_mut().zip(t.data()).for_each(|(a, &b)| *a += b);
             }
+            #[cfg(feature = "gpu")]
+            (slot @ Some(Grad::Shared(_)), _) => {
+                // `held + t` into a new buffer: one launch, where a copy of the shared one and
+                // an in-place add were two; the same sum, element by element.
+                use crate::gpu::ops::elementwise::binary;
+                let Some(Grad::Shared(held)) = slot.take() else { unreachable!("matched above") };
+                let t = t.to_device(crate::Device::Gpu).expect("a gradient the device already holds fits");
+                let (a, b) = (held.device_buffer().expect("on the device"), t.device_buffer().expect("uploaded"));
+                assert_eq!(held.numel(), t.numel(), "two contributions to one gradient differ in size");
+                let flat = [held.numel()];
+                *slot = Some(Grad::Device(binary(a, &flat, b, &flat, &flat, crate::op::BinaryOp::Add)));
+            }
             (slot @ None, _) => *slot = Some(into_grad(t)),
             #[cfg(not(feature = "gpu"))]
             _ => unreachable!("no device tensors without the gpu feature"),
@@ -101,7 +118,7 @@ impl<T: Float> GradStore<T> {
         match self.grads[id].get_or_insert_with(|| Grad::Host(pool::zeros(len))) {
             Grad::Host(v) => v,
             #[cfg(feature = "gpu")]
-            Grad::Device(_) => unreachable!("host rules run on host gradients"),
+            Grad::Device(_) | Grad::Shared(_) => unreachable!("host rules run on host gradients"),
         }
     }
 
@@ -112,7 +129,7 @@ impl<T: Float> GradStore<T> {
         match self.grads[id].get_or_insert_with(|| Grad::Host(pool::for_overwrite(len))) {
             Grad::Host(v) => (v, accumulate),
             #[cfg(feature = "gpu")]
-            Grad::Device(_) => unreachable!("host rules run on host gradients"),
+            Grad::Device(_) | Grad::Shared(_) => unreachable!("host rules run on host gradients"),
         }
     }
 
@@ -122,7 +139,7 @@ impl<T: Float> GradStore<T> {
         match &self.grads[id] {
             Some(Grad::Host(_)) => false,
             #[cfg(feature = "gpu")]
-            Some(Grad::Device(_)) => true,
+            Some(Grad::Device(_) | Grad::Shared(_)) => true,
             None => on_device(g),
         }
     }
@@ -137,12 +154,17 @@ impl<T: Float> GradStore<T> {
             let up = DeviceBuffer::upload(T::as_f32_slice(v).expect("device gradients are f32"));
             self.grads[id] = Some(Grad::Device(up));
         }
+        if let Some(Grad::Shared(_)) = &self.grads[id] {
+            // Written in place from here on: its own buffer (a copy only if still shared).
+            let Some(Grad::Shared(t)) = self.grads[id].take() else { unreachable!("matched above") };
+            self.grads[id] = Some(Grad::Device(t.into_device_buffer()));
+        }
         let slot = self.grads[id].get_or_insert_with(|| {
             Grad::Device(if zeroed { DeviceBuffer::zeros(len) } else { DeviceBuffer::uninit(len) })
         });
         match slot {
             Grad::Device(b) => (b, existed),
-            Grad::Host(_) => unreachable!("moved to the device above"),
+            Grad::Host(_) | Grad::Shared(_) => unreachable!("made a device buffer above"),
         }
     }
 
@@ -454,7 +476,7 @@ fn host_mut<T: Float>(g: &mut Option<Grad<T>>) -> &mut [T] {
     match g.as_mut().expect("initialised") {
         Grad::Host(v) => v,
         #[cfg(feature = "gpu")]
-        Grad::Device(_) => unreachable!("host slots"),
+        Grad::Device(_) | Grad::Shared(_) => unreachable!("host slots"),
     }
 }
 
@@ -463,11 +485,15 @@ fn on_device<T: Float>(t: &Tensor<T>) -> bool {
     t.device() == crate::Device::Gpu
 }
 
-/// A contribution as a gradient buffer (no copy when the tensor's storage is not shared).
+/// A contribution as a gradient: its buffer when no other tensor shares it; on the device a
+/// shared one is kept as it is ([`Grad::Shared`]), on the host copied.
 fn into_grad<T: Float>(t: Tensor<T>) -> Grad<T> {
     #[cfg(feature = "gpu")]
     if on_device(&t) {
-        return Grad::Device(t.into_device_buffer());
+        return match t.try_into_device_buffer() {
+            Ok(b) => Grad::Device(b),
+            Err(shared) => Grad::Shared(shared),
+        };
     }
     Grad::Host(t.into_vec())
 }
@@ -478,5 +504,7 @@ fn from_grad<T: Float>(g: Grad<T>, shape: Vec<usize>) -> Tensor<T> {
         Grad::Host(v) => Tensor::from_parts(v, shape),
         #[cfg(feature = "gpu")]
         Grad::Device(b) => Tensor::from_device(b, shape),
+        #[cfg(feature = "gpu")]
+        Grad::Shared(t) => t.into_reshaped(&shape).expect("a contribution holds its node's values"),
     }
 }

@@ -268,6 +268,19 @@ impl<T: Float> Tensor<T> {
         Self { shape, data: Storage::Device(Arc::new(DeviceData { buf, host: std::sync::OnceLock::new() })) }
     }
 
+    /// The device buffer of a tensor on the GPU if no other tensor shares it, else the tensor
+    /// back unchanged.
+    #[cfg(feature = "gpu")]
+    pub(crate) fn try_into_device_buffer(self) -> std::result::Result<crate::gpu::DeviceBuffer, Self> {
+        match self.data {
+            Storage::Device(d) => match Arc::try_unwrap(d) {
+                Ok(d) => Ok(d.buf),
+                Err(shared) => Err(Self { shape: self.shape, data: Storage::Device(shared) }),
+            },
+            Storage::Host(_) => unreachable!("try_into_device_buffer of a host tensor"),
+        }
+    }
+
     /// The device buffer of a tensor on the GPU, taken without a copy when no other tensor
     /// shares it (else copied on the device).
     #[cfg(feature = "gpu")]

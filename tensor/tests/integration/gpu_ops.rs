@@ -205,9 +205,18 @@ fn an_input_used_several_times_accumulates_its_gradient() {
     let _serial = serial();
     let x = randn(30, &[5, 6]);
     check("x * x", std::slice::from_ref(&x), SUMS, &|_, v| v[0].mul(v[0]));
-    check("exp x + x^2 + narrow", &[x], SUMS, &|_, v| {
+    check("exp x + x^2 + narrow", std::slice::from_ref(&x), SUMS, &|_, v| {
         let y = v[0].exp().add(v[0].square())?;
         y.narrow(1, 0, 3)?.add(v[0].narrow(1, 2, 3)?)
+    });
+    // An add passes one gradient to both inputs, so a device gradient starts out shared:
+    // added to out of place when a second contribution comes (`x + x`), copied before an
+    // in-place rule writes it (the narrow of `x`, whose rule runs after the add's).
+    check("x + x", std::slice::from_ref(&x), EXACT, &|_, v| v[0].add(v[0]));
+    let y = randn(31, &[5, 6]);
+    check("x + y, then a narrow of x", &[x, y], EXACT, &|_, v| {
+        let early = v[0].narrow(1, 0, 2)?;
+        v[0].add(v[1])?.narrow(1, 0, 2)?.add(early)
     });
 }
 
