@@ -175,8 +175,10 @@ impl EntityMp {
         let x = z0.narrow(2, 0, 1)?; // p_{i,1}: [n, 3, 1]
         let mut z = self.embed_z.forward_channels(p, &[z0], self.config.gravity)?;
         let mut h = self.embed_h.forward(p, h0)?;
+        // The positions stay put: every round reads the same edge geometry.
+        let geometry = self.mp.edge_geometry(x, edges)?;
         for _ in 0..self.config.steps {
-            (z, h) = self.mp.forward_with(p, z, h, x, edges, edge_scalars)?;
+            (z, h) = self.mp.forward_over(p, z, h, &geometry, edges, edge_scalars)?;
         }
         let (u, frame) = match &self.w_u {
             Some(w_u) => {

@@ -54,7 +54,9 @@ pub use equivariant::{SubeqSizes, SubequivariantFn, VectorLinear, gram};
 pub use error::{NnError, Result};
 pub use init::Init;
 pub use linear::{Linear, Mlp};
-pub use message_passing::{Aggregation, EdgeDistance, EdgeList, MessagePassingConfig, SubeqMessagePassing};
+pub use message_passing::{
+    Aggregation, EdgeDistance, EdgeGeometry, EdgeList, MessagePassingConfig, SubeqMessagePassing,
+};
 pub use norm::LayerNorm;
 pub use optim::{Adam, AdamConfig, LrSchedule, clip_elementwise, clip_global_norm};
 pub use params::{Bound, ParamId, ParamStore, Scope, init_rng};

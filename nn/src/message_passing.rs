@@ -104,6 +104,16 @@ impl EdgeDistance {
     }
 }
 
+/// The edges' geometry a [`SubeqMessagePassing`] layer reads: `e = x_j - x_i` and the
+/// distance feature of `|e|` ([`SubeqMessagePassing::edge_geometry`]).
+#[derive(Clone, Copy, Debug)]
+pub struct EdgeGeometry<'t, T: Float> {
+    /// `x_j - x_i` per edge `[E, 3, 1]`.
+    pub e: Var<'t, T>,
+    /// The distance feature `[E, EdgeDistance::size()]`; `None` when the layer takes none.
+    pub distance: Option<Var<'t, T>>,
+}
+
 /// Sizes and options of a [`SubeqMessagePassing`] layer.
 #[derive(Clone, Debug)]
 pub struct MessagePassingConfig {
@@ -191,31 +201,75 @@ impl SubeqMessagePassing {
         edges: &EdgeList,
         edge_scalars: Option<Var<'t, T>>,
     ) -> Result<(Var<'t, T>, Var<'t, T>)> {
+        self.check_nodes(z, h, edges)?;
+        let geometry = self.edge_geometry(x, edges)?;
+        self.forward_over(p, z, h, &geometry, edges, edge_scalars)
+    }
+
+    /// The edges' geometry this layer reads over positions `x: [N, 3, 1]`: `e = x_j - x_i`
+    /// and the distance feature of its configuration (eqs. vector-interaction,
+    /// scalar-interaction). Message passing does not move the positions, so rounds over the
+    /// same positions share it: compute it once and pass it to each
+    /// [`SubeqMessagePassing::forward_over`] (the same values as recomputing it per round).
+    pub fn edge_geometry<'t, T: Float>(&self, x: Var<'t, T>, edges: &EdgeList) -> Result<EdgeGeometry<'t, T>> {
+        let n = edges.num_nodes;
+        if x.shape() != [n, 3, 1] {
+            return Err(NnError::Config(format!("message passing expects x [{n}, 3, 1]; got {:?}", x.shape())));
+        }
+        let e = x.index_select(0, &edges.dst)?.sub(x.index_select(0, &edges.src)?)?; // [E, 3, 1]
+        let dist = || -> Result<Var<'t, T>> { Ok(e.reshape(&[edges.len(), 3])?.norm_last(1e-12)) }; // [E, 1]
+        let distance = match &self.config.distance {
+            EdgeDistance::Raw => Some(dist()?),
+            EdgeDistance::Rbf(r) => Some(r.forward(dist()?)?),
+            EdgeDistance::None => None,
+        };
+        Ok(EdgeGeometry { e, distance })
+    }
+
+    /// An error unless `z: [N, 3, m]` and `h: [N, s]`.
+    fn check_nodes<T: Float>(&self, z: Var<'_, T>, h: Var<'_, T>, edges: &EdgeList) -> Result<()> {
+        let (n, m, s) = (edges.num_nodes, self.config.vectors, self.config.scalars);
+        if z.shape() != [n, 3, m] || h.shape() != [n, s] {
+            return Err(NnError::Config(format!(
+                "message passing expects z [{n}, 3, {m}] and h [{n}, {s}]; got {:?} and {:?}",
+                z.shape(),
+                h.shape(),
+            )));
+        }
+        Ok(())
+    }
+
+    /// [`SubeqMessagePassing::forward_with`] over a geometry computed by
+    /// [`SubeqMessagePassing::edge_geometry`] for the same edges.
+    pub fn forward_over<'t, T: Float>(
+        &self,
+        p: &Bound<'t, T>,
+        z: Var<'t, T>,
+        h: Var<'t, T>,
+        geometry: &EdgeGeometry<'t, T>,
+        edges: &EdgeList,
+        edge_scalars: Option<Var<'t, T>>,
+    ) -> Result<(Var<'t, T>, Var<'t, T>)> {
         let cfg = &self.config;
         let (m, s) = (cfg.vectors, cfg.scalars);
         let n = edges.num_nodes;
         let e_cnt = edges.len();
-        if z.shape() != [n, 3, m] || h.shape() != [n, s] || x.shape() != [n, 3, 1] {
+        self.check_nodes(z, h, edges)?;
+        let e = geometry.e;
+        if e.shape() != [e_cnt, 3, 1] || geometry.distance.is_some() != (cfg.distance.size() > 0) {
             return Err(NnError::Config(format!(
-                "message passing expects z [{n}, 3, {m}], h [{n}, {s}], x [{n}, 3, 1]; got {:?}, {:?}, {:?}",
-                z.shape(),
-                h.shape(),
-                x.shape()
+                "message passing over {e_cnt} edges got a geometry of e {:?} and {} distance",
+                e.shape(),
+                if geometry.distance.is_some() { "a" } else { "no" }
             )));
         }
         // Edge features (eqs. vector-interaction, scalar-interaction).
-        let e = x.index_select(0, &edges.dst)?.sub(x.index_select(0, &edges.src)?)?; // [E, 3, 1]
         let zi = z.index_select(0, &edges.src)?;
         let zj = z.index_select(0, &edges.dst)?;
         // W1 [Z_i | Z_j | e (| g)], without building the concatenation.
         let zij = self.w1.forward_channels(p, &[zi, zj, e], cfg.gravity)?; // [E, 3, m]
         let mut scalars = vec![h.index_select(0, &edges.src)?, h.index_select(0, &edges.dst)?];
-        let dist = || -> Result<Var<'t, T>> { Ok(e.reshape(&[e_cnt, 3])?.norm_last(1e-12)) }; // [E, 1]
-        match &cfg.distance {
-            EdgeDistance::Raw => scalars.push(dist()?),
-            EdgeDistance::Rbf(r) => scalars.push(r.forward(dist()?)?),
-            EdgeDistance::None => {}
-        }
+        scalars.extend(geometry.distance);
         match edge_scalars {
             Some(s) if cfg.edge_scalars > 0 && s.shape() == [e_cnt, cfg.edge_scalars] => scalars.push(s),
             None if cfg.edge_scalars == 0 => {}

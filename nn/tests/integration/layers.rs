@@ -133,7 +133,7 @@ fn message_passing_sum_mean_raw_rbf() {
             scalars: 2,
             hidden: 4,
             layers: 2,
-            distance: dist,
+            distance: dist.clone(),
             aggregation: agg,
             gravity: Some([0.0, 0.0, -1.0]),
             edge_scalars: extra,
@@ -147,7 +147,7 @@ fn message_passing_sum_mean_raw_rbf() {
         if extra > 0 {
             inputs.push(uniform(&mut r, &[edges.len(), extra]));
         }
-        check_layer(&store, inputs, |p, v| {
+        check_layer(&store, inputs.clone(), |p, v| {
             let s = v.get(3).copied();
             let (z, h) = mp.forward_with(p, v[0], v[1], v[2], &edges, s)?;
             let (z, h) = mp.forward_with(p, z, h, v[2], &edges, s)?; // two rounds with shared weights
@@ -166,6 +166,43 @@ fn message_passing_sum_mean_raw_rbf() {
             let wrong = tape.constant(uniform(&mut r, &[edges.len(), extra + 1]));
             assert!(mp.forward_with(&p, z, h, x, &edges, Some(wrong)).is_err());
         }
+        // Two rounds over one geometry computed once give the bits of two rounds that each
+        // compute it, outputs and parameter gradients; a geometry of other edges is refused.
+        let two_rounds = |shared: bool| {
+            let tape = tensor::Tape::new();
+            let p = store.bind(&tape);
+            let v: Vec<_> = inputs.iter().map(|t| tape.var(t.clone())).collect();
+            let s = v.get(3).copied();
+            let (z, h) = if shared {
+                let geometry = mp.edge_geometry(v[2], &edges).unwrap();
+                let (z, h) = mp.forward_over(&p, v[0], v[1], &geometry, &edges, s).unwrap();
+                mp.forward_over(&p, z, h, &geometry, &edges, s).unwrap()
+            } else {
+                let (z, h) = mp.forward_with(&p, v[0], v[1], v[2], &edges, s).unwrap();
+                mp.forward_with(&p, z, h, v[2], &edges, s).unwrap()
+            };
+            let out = tensor_cat_sum(z, h).unwrap();
+            let grads = tape.backward(out.square().sum_all()).unwrap();
+            let mut bits: Vec<u64> = out.value().data().iter().map(|x| x.to_bits()).collect();
+            for g in p.grads(&grads).iter().chain([grads.get(v[0]).unwrap(), grads.get(v[1]).unwrap()]) {
+                bits.extend(g.data().iter().map(|x| x.to_bits()));
+            }
+            let gx = grads.get(v[2]).unwrap().clone();
+            (bits, gx)
+        };
+        let ((shared, gx_shared), (apart, gx_apart)) = (two_rounds(true), two_rounds(false));
+        assert_eq!(shared, apart, "{dist:?} {agg:?} {extra}: a shared geometry changed the bits");
+        // The positions' gradient adds the two rounds' contributions in another order.
+        for (a, b) in gx_shared.data().iter().zip(gx_apart.data()) {
+            assert!((a - b).abs() <= 1e-12 * (1.0 + b.abs()), "{a} vs {b}");
+        }
+        let tape = tensor::Tape::new();
+        let p = store.bind(&tape);
+        let other = EdgeList::fully_connected(1, 3);
+        let geometry = mp.edge_geometry(tape.constant(inputs[2].clone()), &EdgeList { num_nodes: 7, ..other }).unwrap();
+        let (z, h) = (tape.constant(inputs[0].clone()), tape.constant(inputs[1].clone()));
+        let s = inputs.get(3).map(|t| tape.constant(t.clone()));
+        assert!(mp.forward_over(&p, z, h, &geometry, &edges, s).is_err());
     }
 }
 
