@@ -285,19 +285,10 @@ impl<T: Float> Tensor<T> {
     /// shares it (else copied on the device).
     #[cfg(feature = "gpu")]
     pub(crate) fn into_device_buffer(self) -> crate::gpu::DeviceBuffer {
-        match self.data {
-            Storage::Device(d) => match Arc::try_unwrap(d) {
-                Ok(d) => d.buf,
-                Err(shared) => crate::gpu::ops::layout::strided_copy(
-                    &shared.buf,
-                    &self.shape,
-                    &crate::shape::strides(&self.shape),
-                    0,
-                    1.0,
-                ),
-            },
-            Storage::Host(_) => unreachable!("into_device_buffer of a host tensor"),
-        }
+        self.try_into_device_buffer().unwrap_or_else(|shared| {
+            let buf = shared.device_buffer().expect("on the device");
+            crate::gpu::ops::layout::strided_copy(buf, &shared.shape, &crate::shape::strides(&shared.shape), 0, 1.0)
+        })
     }
 
     /// The device buffer of a tensor on the GPU.
