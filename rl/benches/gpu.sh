@@ -11,14 +11,18 @@
 #   correct   every op and every model on the GPU against the CPU
 #   matmul    the WGSL matmul rate on the shapes of `shnn` training
 #   gpu       env steps/s of training on the GPU (paper preset), shnn and mlp_hn on
-#             3_ant_claw_centipede, 2_ants, 1_ant, with each iteration's stage timings
+#             3_ant_claw_centipede, 2_ants, 1_ant, with each iteration's stage timings (the
+#             act step on the GPU, the default act_device)
+#   act_cpu   `gpu`'s shnn pair with the act step on the CPU threads (act_device = cpu),
+#             for the act step's ratio on one machine
 #   before    `gpu`'s shnn pair with the baseline binary (gpu_build.sh's BEFORE), in the same
 #             call, for a ratio on one machine
 #   peers     the training-step workloads of ../shared/bench (mlp_step, shnn_step) on the GPU
 #             against the JAX peer on the same GPU (the machine's own JAX), in alternating
 #             rounds, then both on the CPU alone
 #   profile   one `shnn` minibatch's forward and backward on the GPU, op by op
-#   timeline  the same minibatch pass, `shnn_step`, and a training iteration's update, on the
+#   timeline  the host's cost of one launch (launch_overhead); the same minibatch pass,
+#             `shnn_step`, and a training iteration's update, on the
 #             GPU's own clock without waiting between ops (GPU_TIMING, MEBEN_TIMINGS=gpu):
 #             kernels' busy time against the span, by kernel and op
 #   sim       the simulator's scaling from 1 thread to every core
@@ -34,7 +38,7 @@ cp gpu-carry/COMMIT gpu-carry/LEVEL $C/
 [ -e gpu-carry/BEFORE ] && cp gpu-carry/BEFORE $C/
 for f in gpu-carry/*.gz; do gzip -dc "$f" > "$C/$(basename "$f" .gz)" && chmod +x "$C/$(basename "$f" .gz)"; done
 RUNS=${RUNS:-/tmp/gpu-bench}
-SECTIONS=${SECTIONS:-correct matmul gpu before peers profile timeline gpu_more sim cpu}
+SECTIONS=${SECTIONS:-correct matmul gpu act_cpu before peers profile timeline gpu_more sim cpu}
 DEADLINE=${DEADLINE:-540}
 mkdir -p "$RUNS"
 if [ -n "${OUT:-}" ]; then exec > >(tee "$OUT/gpu-bench.log") 2>&1; fi
@@ -92,18 +96,23 @@ else
 fi
 # train <device> <env> <model> <iterations> <limit_s>: env steps/s of a short paper-preset
 # training: the last iteration's rate (the first is a warm-up when there are two), and every
-# iteration's stage timings (MEBEN_TIMINGS). MEBEN names another binary (its line says which).
+# iteration's stage timings (MEBEN_TIMINGS). MEBEN names another binary (its line says which);
+# ACT_DEVICE sets act_device (unset: the configuration's default, `same`; binaries before
+# 2026-12-01 have no such field).
 train() {
-    local bin=${MEBEN:-$C/meben}
-    local dir="$RUNS/$1-${2//\//_}-$3-$(basename "$bin")"
+    local bin=${MEBEN:-$C/meben} act=${ACT_DEVICE:-same}
+    local dir="$RUNS/$1-${2//\//_}-$3-$(basename "$bin")-act_$act"
+    local act_set=()
+    [ -n "${ACT_DEVICE:-}" ] && act_set=(--set "act_device=$ACT_DEVICE")
     rm -rf "$dir"
     # SIGKILL: meben takes SIGTERM as "stop after this iteration", which can take minutes.
     MEBEN_TIMINGS=1 timeout -s KILL "$(limit "$5")" "$bin" train --preset paper --device "$1" --env "$2" --model "$3" \
-        --steps $(($4 * ITER)) "${SIZE[@]}" --set num_evals=0 --set eval_episodes=1 --quiet --out "$dir" \
+        --steps $(($4 * ITER)) "${SIZE[@]}" --set num_evals=0 --set eval_episodes=1 "${act_set[@]}" --quiet --out "$dir" \
         > "$dir.log" 2>&1
     local rc=$?
     local where="CPU only, $CORES threads"
     [ "$1" = gpu ] && where="$(grep -o 'training on GPU: .*' "$dir.log" | head -1 | cut -c18-) + $CORES CPU threads"
+    [ "$1" = gpu ] && [ -z "${MEBEN:-}" ] && where="$where, act_device $act"
     [ -n "${MEBEN:-}" ] && where="$where; binary $(basename "$bin")"
     awk -F, -v dev="$1" -v env="$2" -v model="$3" -v rc=$rc -v m="$MACHINE" -v where="$where" '
       NR > 1 && $1 != "" { s[NR] = $2; w[NR] = $3; n = NR }
@@ -126,11 +135,15 @@ pairs() {
     done
 }
 gpu() {
-    echo "== training on the GPU, 3_ant_claw_centipede (paper preset; simulator and act step on $CORES CPU threads)"
+    echo "== training on the GPU, 3_ant_claw_centipede (paper preset; act step on the GPU, simulator on $CORES CPU threads)"
     pairs gpu 2 120 team_reach/3_ant_claw_centipede:shnn team_reach/3_ant_claw_centipede:mlp_hn
 }
+act_cpu() {
+    echo "== the same shnn training with the act step on the CPU (act_device = cpu; simulator and act step on $CORES CPU threads)"
+    ACT_DEVICE=cpu pairs gpu 2 120 team_reach/3_ant_claw_centipede:shnn
+}
 gpu_more() {
-    echo "== training on the GPU, 2_ants and 1_ant (paper preset; simulator and act step on $CORES CPU threads)"
+    echo "== training on the GPU, 2_ants and 1_ant (paper preset; act step on the GPU, simulator on $CORES CPU threads)"
     pairs gpu 2 60 team_reach/2_ants:shnn team_reach/1_ant:shnn team_reach/2_ants:mlp_hn team_reach/1_ant:mlp_hn
 }
 
@@ -173,6 +186,10 @@ profile() {
 }
 
 timeline() {
+    echo "== the host's cost of a launch (a chain of tiny ops; wall and the calling thread's CPU time)"
+    DEVICE=gpu timeout -s KILL "$(limit 30)" $C/launch_overhead 2>&1 | grep -E "launch_overhead|panicked|rror" \
+        | grep -v XDG | sed "s/\$/ ($MACHINE)/"
+    want || return
     echo "== one shnn minibatch pass and one shnn_step on the GPU's clock (timestamp queries, no waits between ops)"
     local env=team_reach/3_ant_claw_centipede preset=paper
     [ -n "${QUICK:-}" ] && env=team_reach/1_ant preset=quick

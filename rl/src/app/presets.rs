@@ -77,6 +77,7 @@ impl TrainConfig {
             checkpoint_every: 10,
             threads: 0,
             device: tensor::Device::Cpu,
+            act_device: crate::mappo::device::ActDevice::Same,
         };
         match preset {
             Preset::Paper => paper,

@@ -1,17 +1,18 @@
 //! A team's act step, the one place where a policy chooses actions: normalise the raw
 //! observation rows -> the policy forward without gradients ([`Policy::forward`] with `value = false`,
-//! the value network skipped) -> sample `u ~ Normal(loc, std)` (or take `u = loc`) ->
-//! the log-probability of `u`; the action sent to the environment is `tanh(u)`. Training
+//! the value network skipped) on the device the parameters are on -> sample
+//! `u ~ Normal(loc, std)` (or take `u = loc`) -> the log-probability of `u`, both on the
+//! host; the action sent to the environment is `tanh(u)`. Training
 //! (collection), evaluation, rendering, the Python policy and the closed-loop test all act
 //! through an [`Actor`], which holds the team's action-noise streams (one per agent,
 //! MEBEN.md section 8) and its scratch.
 
 use envs::layout::{ObsRows, Observation};
-use models::Policy;
 use models::distribution::{normal_log_prob, std_from_scale};
+use models::{AgentPolicy, Policy};
 use nn::ParamStore;
 use rand_chacha::ChaCha8Rng;
-use tensor::{Tape, Tensor};
+use tensor::{Device, Tape, Tensor};
 
 use crate::error::{Result, RlError};
 use crate::mappo::normalizer::ObsNormalizer;
@@ -80,7 +81,8 @@ impl Actor {
 
     /// Chooses the actions of `model`'s agents (its team `k = model.team()`) for raw
     /// observation rows `obs`, through the observation normaliser `norm` and the parameters
-    /// `store`: writes their columns of `joint.actions` (`tanh(u)`) and `joint.pre_squash`
+    /// `store` (the forward pass runs on their device; from the GPU the means and scales
+    /// come back in one transfer): writes their columns of `joint.actions` (`tanh(u)`) and `joint.pre_squash`
     /// (`u`), `joint.logp[k]` and `joint.assignment[k]`. Errors on a non-finite policy
     /// output and on a joint action of another shape.
     pub fn act(
@@ -101,34 +103,40 @@ impl Actor {
         }
         // Normalise.
         norm.apply_rows(obs, &mut self.normalised);
-        // Forward without gradients; acting reads the policy only (the update recomputes the
-        // values from the stored observations).
-        let tape = Tape::<f32>::new();
+        // Forward without gradients, on the device the parameters are on; acting reads the
+        // policy only (the update recomputes the values from the stored observations).
+        let device = store.values().first().map_or(Device::Cpu, |v| v.device());
+        let tape = Tape::<f32>::on(device);
         let _no_grad = tape.no_grad();
         let p = store.bind(&tape);
         let out = model.forward(&p, &self.normalised.rows(), None, false)?;
+        let heads = host_heads(&tape, &out.agents)?;
+        // Sampling and log-probabilities on the host, whatever the forward's device.
+        let host = Tape::<f32>::new();
+        let _host_no_grad = host.no_grad();
         let spec = model.spec();
         let logp = &mut joint.logp[team];
         logp.clear();
         logp.resize(b, 0.0);
-        for (ai, pol) in out.agents.iter().enumerate() {
-            let (off, dof) = (spec.agent_action_offset[pol.agent], spec.agent_dof[pol.agent]);
-            let loc = pol.loc.value();
-            let std = std_from_scale(pol.scale).value();
-            let (loc, std) = (loc.data(), std.data());
-            if let Some(i) = loc.iter().chain(std).position(|x| !x.is_finite()) {
+        for (ai, (agent, loc, scale)) in heads.into_iter().enumerate() {
+            let (off, dof) = (spec.agent_action_offset[agent], spec.agent_dof[agent]);
+            let (loc, scale) = (host.constant(loc), host.constant(scale));
+            let std_t = std_from_scale(scale);
+            let (loc_v, std_v) = (loc.value(), std_t.value());
+            let (loc_d, std_d) = (loc_v.data(), std_v.data());
+            if let Some(i) = loc_d.iter().chain(std_d).position(|x| !x.is_finite()) {
                 return Err(RlError::NonFinite {
-                    message: format!("policy output of agent {} (entry {i}) is not finite", pol.agent),
+                    message: format!("policy output of agent {agent} (entry {i}) is not finite"),
                 });
             }
             // Sample.
             let mut u = vec![0.0f32; b * dof];
             match self.mode {
-                ActMode::Mean => u.copy_from_slice(loc),
+                ActMode::Mean => u.copy_from_slice(loc_d),
                 ActMode::Sample => {
                     let rng = &mut self.noise[ai];
                     for (k, x) in u.iter_mut().enumerate() {
-                        *x = loc[k] + std[k] * standard_normal(rng) as f32;
+                        *x = loc_d[k] + std_d[k] * standard_normal(rng) as f32;
                     }
                 }
             }
@@ -142,8 +150,8 @@ impl Actor {
             // Log-probability of the pre-squash action (the tanh Jacobian cancels in PPO's
             // ratio).
             if self.mode == ActMode::Sample {
-                let ut = tape.constant(Tensor::new(u, &[b, dof])?);
-                let lp = normal_log_prob(ut, pol.loc, std_from_scale(pol.scale))?.value();
+                let ut = host.constant(Tensor::new(u, &[b, dof])?);
+                let lp = normal_log_prob(ut, loc, std_t)?.value();
                 for (l, x) in logp.iter_mut().zip(lp.data()) {
                     *l += x;
                 }
@@ -152,4 +160,31 @@ impl Actor {
         joint.assignment[team] = out.assignment;
         Ok(())
     }
+}
+
+/// One agent's policy head on the host: its scene index, `loc` and raw `scale` (`[B, dof_a]`).
+type HostHead = (usize, Tensor<f32>, Tensor<f32>);
+
+/// Every agent's `(agent, loc, scale)` on the host. From the GPU they come back in one
+/// transfer: the agents' `[B, dof_a]` means and raw scales side by side in one tensor, cut
+/// apart on the host (one wait for the forward pass instead of one per tensor).
+fn host_heads(tape: &Tape<f32>, agents: &[AgentPolicy<'_, f32>]) -> Result<Vec<HostHead>> {
+    if tape.device() == Device::Cpu {
+        return Ok(agents.iter().map(|a| (a.agent, a.loc.value(), a.scale.value())).collect());
+    }
+    let parts: Vec<_> = agents.iter().flat_map(|a| [a.loc, a.scale]).collect();
+    let joined = tape.cat(&parts, 1)?.value().to_device(Device::Cpu)?;
+    let mut start = 0;
+    let mut column = |width: usize| {
+        let t = tensor::kernels::layout::narrow(&joined, 1, start, width);
+        start += width;
+        t
+    };
+    agents
+        .iter()
+        .map(|a| {
+            let dof = a.loc.shape()[1];
+            Ok((a.agent, column(dof)?, column(dof)?))
+        })
+        .collect()
 }

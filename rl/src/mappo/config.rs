@@ -11,6 +11,7 @@ use std::path::Path;
 use serde::{Deserialize, Serialize};
 
 use crate::error::{Result, RlError};
+use crate::mappo::device::ActDevice;
 
 /// The most env steps of one iteration (`batch_size * num_minibatches * unroll_length`):
 /// 100 times the paper's 163 840, and small enough that the checked products never overflow.
@@ -202,6 +203,11 @@ pub struct TrainConfig {
     /// to `config.toml` only when not `cpu`; absent from files written before it existed.
     #[serde(default, skip_serializing_if = "crate::mappo::device::is_cpu", with = "crate::mappo::device")]
     pub device: tensor::Device,
+    /// Where the act step of collection runs ([`ActDevice`]): `same` (default: on
+    /// `device`) or `cpu`. Like `device`, not part of the run's identity. Written to
+    /// `config.toml` only when not `same`.
+    #[serde(default, skip_serializing_if = "ActDevice::is_same")]
+    pub act_device: ActDevice,
 }
 
 impl TrainConfig {
@@ -224,6 +230,7 @@ impl TrainConfig {
             .unwrap_or_else(|e| unreachable!("a TrainStarts always serialises: {e}"));
         table.entry("train_starts").or_insert(starts);
         table.entry("device").or_insert_with(|| toml::Value::String(self.device.name().into()));
+        table.entry("act_device").or_insert_with(|| toml::Value::String(self.act_device.name().into()));
         table
     }
 

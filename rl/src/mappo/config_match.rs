@@ -9,7 +9,7 @@
 //! caller's:
 //! - resuming, and a run's `config.toml` against its checkpoint: [`SESSION_FIELDS`], which a
 //!   run may change from one training session to the next (the budget, the number of
-//!   evaluations, the checkpoint interval, the threads and the device). A resumed run
+//!   evaluations, the checkpoint interval, the threads and the devices). A resumed run
 //!   writes its new `config.toml` before its next checkpoint, so the two may differ there;
 //! - a sweep resuming one of its runs: [`NEVER_IDENTITY_FIELDS`] and `steps`, but not
 //!   `num_evals`: the sweep file fixes each run's evaluation schedule, which its report reads;
@@ -27,14 +27,14 @@ use crate::error::{Result, RlError};
 use crate::mappo::config::TrainConfig;
 
 /// The fields no run's results depend on, which are never part of its identity: the
-/// checkpoint interval, the threads and the device (a run resumes on either; the GPU's
-/// results differ from the CPU's by f32 rounding).
-pub const NEVER_IDENTITY_FIELDS: [&str; 3] = ["checkpoint_every", "threads", "device"];
+/// checkpoint interval, the threads and the devices of the updates and of the act step (a
+/// run resumes on either; the GPU's results differ from the CPU's by f32 rounding).
+pub const NEVER_IDENTITY_FIELDS: [&str; 4] = ["checkpoint_every", "threads", "device", "act_device"];
 
 /// The configuration fields that may differ between a run's sessions without making it
 /// another run: [`NEVER_IDENTITY_FIELDS`], the budget `steps` (raised to train longer) and
 /// `num_evals`.
-pub const SESSION_FIELDS: [&str; 5] = ["steps", "num_evals", "checkpoint_every", "threads", "device"];
+pub const SESSION_FIELDS: [&str; 6] = ["steps", "num_evals", "checkpoint_every", "threads", "device", "act_device"];
 
 /// One field on which two configurations disagree.
 #[derive(Clone, Debug, PartialEq)]

@@ -5,14 +5,19 @@
 //! run; each minibatch is uploaded once, its forward and backward passes, the gradient checks,
 //! clipping and the Adam step run there, and values come back only for GAE's values, the loss
 //! statistics, the non-finite checks' verdicts and, once per iteration, the parameters the act
-//! step reads ([`crate::mappo::trainer`]). The act step (collection, evaluation) and the
-//! simulator stay on the CPU. The device is not part of a run's identity: a run started on one
+//! step's host copy ([`crate::mappo::trainer`]). The simulator stays on the CPU. The device is not part of a run's identity: a run started on one
 //! device resumes on the other (the results differ by f32 rounding, not bit for bit).
+//!
+//! `act_device` says where the act step runs: with the updates (`same`, the default; on the
+//! GPU the policy's forward pass of every collection step runs there on the parameters the
+//! updates write, and only its means and scales come back) or on the CPU (`cpu`, the host
+//! copy of the parameters). A training's periodic evaluations act where its collection does;
+//! `meben eval`, rendering and the Python policy act on the CPU.
 //!
 //! In a configuration the device is written as its name; `config.toml` leaves it out when it
 //! is `cpu`, so the files of CPU runs read as before, also in earlier builds.
 
-use serde::{Deserialize, Deserializer, Serializer};
+use serde::{Deserialize, Deserializer, Serialize, Serializer};
 use tensor::Device;
 
 use crate::error::Result;
@@ -41,6 +46,45 @@ fn gpu_adapter() -> Result<Option<String>> {
         "gpu",
         "this build has no GPU device: rebuild with --features gpu (cargo build --release -p rl --features gpu)",
     ))
+}
+
+/// Where a training's act step runs (`act_device`): the policy's forward pass of every
+/// collection step, on that step's observations.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ActDevice {
+    /// Where the updates run (`device`), the default: with `device = "gpu"` the act step
+    /// reads the parameters the updates write on the GPU, and only each step's means and
+    /// scales come back (one transfer); sampling and log-probabilities stay on the host.
+    #[default]
+    Same,
+    /// On the CPU whatever the updates' device: the act step reads the host copy of the
+    /// parameters, refreshed after every update phase. A GPU run then collects exactly the
+    /// rollout a CPU run would from the same state.
+    Cpu,
+}
+
+impl ActDevice {
+    /// Whether this is the default ([`ActDevice::Same`], left out of `config.toml`).
+    pub fn is_same(&self) -> bool {
+        *self == ActDevice::Same
+    }
+
+    /// The name a configuration writes (`same`, `cpu`).
+    pub fn name(self) -> &'static str {
+        match self {
+            ActDevice::Same => "same",
+            ActDevice::Cpu => "cpu",
+        }
+    }
+
+    /// The device the act step runs on when the updates run on `update`.
+    pub fn resolve(self, update: Device) -> Device {
+        match self {
+            ActDevice::Same => update,
+            ActDevice::Cpu => Device::Cpu,
+        }
+    }
 }
 
 /// Whether `device` is the CPU (the default, left out of `config.toml`).

@@ -15,6 +15,7 @@ use envs::tasks::placement::sample_start;
 use envs::tasks::vec_env::env_rng;
 use envs::tasks::{Outcome, Scene, Start, StartMode, TaskSpec, VecEnv};
 use models::Policy;
+use nn::ParamStore;
 use serde::{Deserialize, Serialize};
 
 use crate::error::Result;
@@ -165,7 +166,20 @@ pub fn eval_envs(env: &str, options: &EvalOptions) -> Result<VecEnv> {
 /// Plays `options.episodes` episodes of `env` with `teams` (not changed: their models are
 /// cloned so that the training's random streams are untouched) and summarises them.
 pub fn evaluate(env: &str, teams: &[Team], options: &EvalOptions) -> Result<EvalSummary> {
-    let summary = evaluate_unless_stopped(env, teams, options, &StopFlag::new())?;
+    let stores: Vec<&ParamStore<f32>> = teams.iter().map(|t| &t.store).collect();
+    evaluate_on(env, teams, &stores, options)
+}
+
+/// [`evaluate`] with each team's policy reading the parameters `stores[k]` instead of its
+/// host copy [`Team::store`]: the act step's forward pass runs on their device (the
+/// trainer's copies on the GPU, [`crate::mappo::device::ActDevice`]).
+pub fn evaluate_on(
+    env: &str,
+    teams: &[Team],
+    stores: &[&ParamStore<f32>],
+    options: &EvalOptions,
+) -> Result<EvalSummary> {
+    let summary = play(env, teams, stores, options, &StopFlag::new())?;
     Ok(summary.expect("a flag that is never set never stops an evaluation"))
 }
 
@@ -179,6 +193,25 @@ pub fn evaluate_unless_stopped(
     options: &EvalOptions,
     stop: &StopFlag,
 ) -> Result<Option<EvalSummary>> {
+    let stores: Vec<&ParamStore<f32>> = teams.iter().map(|t| &t.store).collect();
+    play(env, teams, &stores, options, stop)
+}
+
+/// The evaluation's episodes, each team acting with the parameters `stores[k]`.
+fn play(
+    env: &str,
+    teams: &[Team],
+    stores: &[&ParamStore<f32>],
+    options: &EvalOptions,
+    stop: &StopFlag,
+) -> Result<Option<EvalSummary>> {
+    if stores.len() != teams.len() {
+        return Err(crate::RlError::Model(models::ModelError::Input(format!(
+            "{} parameter stores for {} teams",
+            stores.len(),
+            teams.len()
+        ))));
+    }
     let spec = TaskSpec::from_name(env)?;
     let mut venv = eval_envs(env, options)?;
     let (b, na, nt) = (options.episodes, venv.n_actions(), venv.scene().n_teams());
@@ -198,8 +231,8 @@ pub fn evaluate_unless_stopped(
         if stop.is_requested() {
             return Ok(None);
         }
-        for (team, (model, actor)) in teams.iter().zip(&mut players) {
-            actor.act(model.as_mut(), &team.store, &team.norm, venv.obs().rows(), &mut joint)?;
+        for ((team, store), (model, actor)) in teams.iter().zip(stores).zip(&mut players) {
+            actor.act(model.as_mut(), store, &team.norm, venv.obs().rows(), &mut joint)?;
         }
         let out = venv.step(&joint.actions)?;
         for e in 0..b {

@@ -23,11 +23,15 @@
 //! every team's parameters and Adam moments live there from the trainer's construction (or
 //! resumption) on, each minibatch goes to a GPU tape (`Tape::on`: uploaded once), and the
 //! gradients' non-finite check (one value back), the clipping and the Adam step (f32 moments,
-//! [`nn::Adam`]) run there. Values come to the host for GAE (the values), the loss
-//! statistics, and, once per iteration after the update phase, the parameters: the act step
-//! (collection, evaluation) reads a host copy of them ([`Team::store`]) and runs on the CPU,
-//! as the simulator does. A checkpoint holds the host copies and the moments brought back
-//! ([`nn::Adam::sync_to_host`]), so it is the same file whichever device wrote it. With
+//! [`nn::Adam`]) run there. The act step of collection runs there too (`act_device =
+//! "same"`, the default): the policy's forward pass reads the updates' parameters on the
+//! GPU, and each step's means and scales come back in one transfer for sampling on the host
+//! ([`crate::mappo::actor`]); with `act_device = "cpu"` it reads the host copy and runs on
+//! the CPU, as the simulator always does. Values come to the host for GAE (the values), the
+//! loss statistics, and, once per iteration after the update phase, the parameters: the host
+//! copy ([`Team::store`]) that evaluation, checkpoints and a CPU act step read. A checkpoint
+//! holds the host copies and the moments brought back ([`nn::Adam::sync_to_host`]), so it
+//! is the same file whichever device wrote it. With
 //! `device = "cpu"` (the default) nothing of this happens: the same code as before the GPU
 //! existed, bit for bit.
 //!
@@ -47,7 +51,7 @@ use crate::mappo::checkpoint::{Checkpoint, TeamState, VERSION};
 use crate::mappo::config::{NormStart, TrainConfig};
 use crate::mappo::config_match;
 use crate::mappo::device::check_device;
-use crate::mappo::evaluate::{EvalOptions, EvalSummary, evaluate};
+use crate::mappo::evaluate::{EvalOptions, EvalSummary, evaluate, evaluate_on};
 use crate::mappo::minibatch::Minibatch;
 use crate::mappo::ppo::{self, LossStats, PpoParams};
 use crate::mappo::rollout::Rollout;
@@ -476,10 +480,19 @@ impl Trainer {
         let scale = self.config.reward_scaling as f32;
         let mut stats = EpisodeStats::new(self.spec.n_teams);
         self.rollout.begin(self.env.obs());
+        let act_on_device = self.acts_on_device();
         let mut mark = Instant::now();
         while !self.rollout.is_full() {
-            for team in &mut self.teams {
-                team.act(self.env.obs().rows(), &mut self.joint)?;
+            for (ti, team) in self.teams.iter_mut().enumerate() {
+                // The parameters the act step reads: the updates' copy on the GPU when it acts
+                // there, else the team's host copy.
+                match self.device_stores.get(ti).filter(|_| act_on_device) {
+                    Some(on_device) => {
+                        let obs = self.env.obs().rows();
+                        team.actor.act(team.model.as_mut(), on_device, &team.norm, obs, &mut self.joint)?
+                    }
+                    None => team.act(self.env.obs().rows(), &mut self.joint)?,
+                }
             }
             lap(&mut mark, &mut timings.act_s);
             let out = self.env.step(&self.joint.actions)?;
@@ -557,9 +570,20 @@ impl Trainer {
         Ok(all)
     }
 
-    /// Evaluates the current policies (module [`crate::mappo::evaluate`](mod@crate::mappo::evaluate)).
+    /// Evaluates the current policies (module [`crate::mappo::evaluate`](mod@crate::mappo::evaluate)),
+    /// acting where collection acts (`act_device`).
     pub fn evaluate(&self, options: &EvalOptions) -> Result<EvalSummary> {
+        if self.acts_on_device() {
+            let stores: Vec<&ParamStore<f32>> = self.device_stores.iter().collect();
+            return evaluate_on(&self.config.env, &self.teams, &stores, options);
+        }
         evaluate(&self.config.env, &self.teams, options)
+    }
+
+    /// Whether the act step reads the updates' parameters on their device (`act_device`
+    /// resolves to the GPU and the updates run there).
+    fn acts_on_device(&self) -> bool {
+        !self.device_stores.is_empty() && self.config.act_device.resolve(self.config.device) != Device::Cpu
     }
 
     /// The evaluation options of the run's `k`-th scheduled evaluation, one per rotation of

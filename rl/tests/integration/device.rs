@@ -1,12 +1,13 @@
-//! The `device` field of a training configuration, in any build: its validation, its place
-//! in `config.toml` (absent when `cpu`, so existing files read and compare as before), and
-//! that it is not part of a run's identity (a checkpoint written on one device resumes on
-//! the other).
+//! The `device` and `act_device` fields of a training configuration, in any build: their
+//! validation, their place in `config.toml` (absent at their defaults, so existing files
+//! read and compare as before), and that they are not part of a run's identity (a
+//! checkpoint written on one device resumes on the other).
 
 use crate::common;
 
 use std::path::Path;
 
+use rl::mappo::device::ActDevice;
 use rl::{Preset, TrainConfig, Trainer};
 use tensor::Device;
 
@@ -44,6 +45,49 @@ fn the_device_is_written_only_when_it_is_the_gpu_and_read_in_any_build() {
     assert_eq!(TrainConfig::load(&path).unwrap(), cpu);
     let set = [("device".to_string(), "gpu".to_string())];
     assert_eq!(TrainConfig::resolve(Some(Preset::Quick), None, &set).unwrap(), gpu);
+}
+
+/// `act_device`: `same` by default and then absent from `config.toml` (files written before
+/// the field read as `same`), `cpu` written and read back, from a file or `--set`; another
+/// value is an error naming the field, the value and the accepted ones. It resolves to the
+/// updates' device or the CPU, and a checkpoint resumes under the other value.
+#[test]
+fn the_act_device_is_written_only_away_from_its_default_and_is_not_part_of_a_runs_identity() {
+    let same = TrainConfig::preset(Preset::Quick, "team_reach/1_ant");
+    assert_eq!(same.act_device, ActDevice::Same);
+    assert!(!same.to_toml().contains("act_device"), "config.toml of existing runs is unchanged");
+    assert_eq!(same.to_full_table()["act_device"].as_str(), Some("same"), "a field a file or --set may name");
+    let cpu = TrainConfig { act_device: ActDevice::Cpu, ..same.clone() };
+    assert!(cpu.to_toml().contains("act_device = \"cpu\""));
+    let tmp = common::TempDir::new("act-device");
+    let path = tmp.0.join("config.toml");
+    cpu.save(&path).unwrap();
+    assert_eq!(TrainConfig::load(&path).unwrap(), cpu);
+    let set = |v: &str| TrainConfig::resolve(Some(Preset::Quick), None, &[("act_device".to_string(), v.to_string())]);
+    assert_eq!(set("cpu").unwrap(), cpu);
+    assert_eq!(set("\"same\"").unwrap(), same);
+    let e = set("gpu").unwrap_err().to_string();
+    for w in ["command line", "act_device", "gpu", "same", "cpu"] {
+        assert!(e.contains(w), "{e} (missing {w})");
+    }
+    std::fs::write(&path, format!("{}act_device = \"tpu\"\n", same.to_toml())).unwrap();
+    let e = TrainConfig::load(&path).unwrap_err().to_string();
+    for w in ["config.toml", "act_device", "tpu"] {
+        assert!(e.contains(w), "{e} (missing {w})");
+    }
+    assert_eq!(ActDevice::Same.resolve(Device::Gpu), Device::Gpu);
+    assert_eq!(ActDevice::Cpu.resolve(Device::Gpu), Device::Cpu);
+    assert_eq!(ActDevice::Same.resolve(Device::Cpu), Device::Cpu);
+    // Not part of the run's identity: a checkpoint of either value resumes, to the same bits
+    // on the CPU (where both act on the CPU).
+    let config = common::tiny("team_reach/1_ant", "mlp_hn", 2, &[("num_evals", "0")]);
+    let mut t = Trainer::new(&config).unwrap();
+    t.iterate().unwrap();
+    let state = t.checkpoint(0.0, &[]).unwrap();
+    let on_cpu = TrainConfig { act_device: ActDevice::Cpu, ..config };
+    let mut resumed = Trainer::from_checkpoint(&state, &on_cpu, Path::new("checkpoint.json")).unwrap();
+    assert_eq!(resumed.config.act_device, ActDevice::Cpu);
+    assert_eq!(resumed.iterate().unwrap().losses, t.iterate().unwrap().losses);
 }
 
 /// A checkpoint whose configuration says `gpu` resumes on the CPU (the device is not part

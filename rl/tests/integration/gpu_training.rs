@@ -2,8 +2,9 @@
 //! the CPU where a kernel launch costs far more than on a GPU, hence the tiny sizes: 4
 //! environments, 2 minibatches of 4 unrolls of 5 steps, one epoch).
 //!
-//! **Tolerance of GPU against CPU metrics.** The act step runs on the CPU, so from the same
-//! state both devices collect the same rollout (checked exactly); they differ only in the
+//! **Tolerance of GPU against CPU metrics.** With `act_device = "cpu"` the act step runs on
+//! the CPU, so from the same state both devices collect the same rollout (checked exactly);
+//! they differ only in the
 //! update's arithmetic: the GPU's kernels round in f32 in another order (sums, matrix
 //! products; the `tensor` crate's GPU tests allow 1e-4 relative per op) and Adam keeps its
 //! moments in f32 there. Each metric is a mean over the iteration's 40 transitions of
@@ -22,7 +23,10 @@ use crate::common;
 use std::path::Path;
 
 use common::{TempDir, metrics};
+use rl::mappo::actor::JointAction;
 use rl::mappo::checkpoint::Checkpoint;
+use rl::mappo::device::ActDevice;
+use rl::mappo::evaluate::EvalOptions;
 use rl::{RunDir, TrainConfig, TrainOptions, Trainer, train};
 use tensor::Device;
 
@@ -49,16 +53,17 @@ fn close(name: &str, gpu: f64, cpu: f64) -> bool {
 }
 
 /// Three iterations of each model on the CPU; before each, the CPU's state goes to a GPU
-/// trainer that does the same iteration: the same rollout, the update's metrics and the
-/// parameters within the tolerance (module docs).
+/// trainer acting on the CPU (`act_device = "cpu"`) that does the same iteration: the same
+/// rollout, the update's metrics and the parameters within the tolerance (module docs).
 #[test]
 fn gpu_iterations_follow_the_cpu_from_the_same_state() {
     for model in ["shnn", "mlp_hn"] {
         let mut cpu = Trainer::new(&tiny(model, Device::Cpu)).unwrap();
         let lr = cpu.config.learning_rate;
+        let on_gpu = TrainConfig { act_device: ActDevice::Cpu, ..tiny(model, Device::Gpu) };
         for i in 0..3 {
             let state = cpu.checkpoint(0.0, &[]).unwrap();
-            let mut gpu = Trainer::from_checkpoint(&state, &tiny(model, Device::Gpu), Path::new("memory")).unwrap();
+            let mut gpu = Trainer::from_checkpoint(&state, &on_gpu, Path::new("memory")).unwrap();
             let g = gpu.iterate().unwrap();
             let c = cpu.iterate().unwrap();
             assert_eq!(g.episodes, c.episodes, "{model}, iteration {i}: the act step runs on the CPU");
@@ -72,6 +77,74 @@ fn gpu_iterations_follow_the_cpu_from_the_same_state() {
             }
         }
     }
+}
+
+/// The act step with its forward pass on the GPU against the CPU's, from the same state
+/// (parameters, normaliser, noise streams, observations), for one agent and for several
+/// (their means and scales come back in one transfer and are cut apart on the host): the
+/// pre-squash actions, actions and log-probabilities within `1e-4 |cpu| + 1e-5` (the
+/// forward pass rounds otherwise, the `tensor` crate's GPU tests allow 1e-4 relative per op;
+/// the noise is the same draws), the task assignment the same.
+#[test]
+fn the_act_step_on_the_gpu_follows_the_cpu() {
+    for (env, model) in [("team_reach/1_ant", "shnn"), ("team_reach/2_ants", "shnn"), ("team_reach/2_ants", "mlp_hn")] {
+        let config = common::tiny(env, model, 3, &[("num_envs", "4")]);
+        let mut trainer = Trainer::new(&config).unwrap();
+        // Normaliser statistics from a few steps, so that normalising is not the identity.
+        trainer.collect().unwrap();
+        let mut norm = trainer.teams[0].norm.clone();
+        for rows in trainer.rollout().visited_obs() {
+            norm.update(rows.vectors, rows.scalars);
+        }
+        trainer.teams[0].norm = norm;
+        let team = &trainer.teams[0];
+        let mut on_gpu = team.store.clone();
+        on_gpu.to_device(Device::Gpu).unwrap();
+        let (envs, na) = (config.num_envs, trainer.env.n_actions());
+        let act = |store| {
+            let (mut model, mut actor) = (team.model.clone(), team.actor.clone());
+            let mut joint = JointAction::new(envs, na, 1);
+            actor.act(model.as_mut(), store, &team.norm, trainer.env.obs().rows(), &mut joint).unwrap();
+            joint
+        };
+        let (g, c) = (act(&on_gpu), act(&team.store));
+        let near = |a: &[f32], b: &[f32], what: &str| {
+            assert_eq!(a.len(), b.len());
+            for (k, (x, y)) in a.iter().zip(b).enumerate() {
+                let (x, y) = (f64::from(*x), f64::from(*y));
+                assert!(
+                    (x - y).abs() <= 1e-5 + 1e-4 * y.abs(),
+                    "{env} {model}: {what}[{k}] {x} on the GPU, {y} on the CPU"
+                );
+            }
+        };
+        near(&g.pre_squash, &c.pre_squash, "pre_squash");
+        near(&g.actions, &c.actions, "actions");
+        near(&g.logp[0], &c.logp[0], "logp");
+        assert!(c.pre_squash.iter().any(|&u| u != 0.0), "{env} {model}: every action written");
+        assert_eq!(g.assignment, c.assignment, "{env} {model}");
+    }
+}
+
+/// A GPU run evaluates where it acts: with `act_device = "same"` its evaluation launches
+/// kernels (the policy's forward pass on the GPU; one evaluation of two 1000-step episodes,
+/// about 30 s on lavapipe, so the same seed's bits are left to the training test above);
+/// with `act_device = "cpu"` it launches none and is the host's evaluation exactly.
+#[test]
+fn a_gpu_run_evaluates_where_it_acts() {
+    let gpu = tiny("mlp_hn", Device::Gpu);
+    let launches = || tensor::gpu::gpu().unwrap().stats().launches;
+    let options = EvalOptions::new(2, false, 7, gpu.start_mode());
+    let trainer = Trainer::new(&gpu).unwrap();
+    let before = launches();
+    let a = trainer.evaluate(&options).unwrap();
+    assert!(launches() > before, "the act step's forward pass ran on the GPU");
+    assert_eq!(a.episodes, 2);
+    let on_cpu = Trainer::new(&TrainConfig { act_device: ActDevice::Cpu, ..gpu }).unwrap();
+    let before = launches();
+    let c = on_cpu.evaluate(&options).unwrap();
+    assert_eq!(launches(), before, "act_device = cpu: no kernel");
+    assert_eq!(c, rl::mappo::evaluate::evaluate(&on_cpu.config.env, &on_cpu.teams, &options).unwrap());
 }
 
 /// The same seed twice on the GPU, one run stopped after two iterations and resumed there:
