@@ -186,6 +186,11 @@ struct EvalArgs {
     /// Seed of the evaluation's starts and noise.
     #[arg(long, default_value_t = crate::mappo::evaluate::DEFAULT_EVAL_SEED)]
     seed: u64,
+    /// Where the policy's forward pass runs: cpu (default) or gpu (a build with --features
+    /// gpu; the parameters are placed there, sampling stays on the host). The simulator runs
+    /// on the CPU either way; GPU results differ from the CPU's by f32 rounding.
+    #[arg(long, default_value = "cpu")]
+    device: String,
 }
 
 /// `X,Y` as two finite numbers.
@@ -469,6 +474,13 @@ fn load_teams(run: Option<&PathBuf>, policy: Option<&str>) -> Result<(TrainConfi
 }
 
 fn cmd_eval(a: EvalArgs) -> Result<(), String> {
+    let device = a
+        .device
+        .parse::<tensor::Device>()
+        .map_err(|e| RlError::config("command line", "--device", &a.device, e).to_string())?;
+    if let Some(adapter) = crate::mappo::device::check_device(device).map_err(|e| e.to_string())? {
+        eprintln!("meben: evaluating on GPU: {adapter}");
+    }
     let (config, teams) = load_teams(a.run.as_ref(), a.policy.as_deref())?;
     if a.episodes == 0 {
         return Err("--episodes must be at least 1".into());
@@ -494,7 +506,7 @@ fn cmd_eval(a: EvalArgs) -> Result<(), String> {
         translation: a.translate,
     }
     .options(&config);
-    let e = crate::mappo::evaluate::evaluate(&config.env, &teams, &options).map_err(|e| e.to_string())?;
+    let e = evaluate_on_device(&config.env, &teams, &options, device)?;
     print_eval(config.is_sumo(), &e);
     let text = serde_json::to_string_pretty(&e).map_err(|e| e.to_string())?;
     let in_run = a.run.as_ref().map(|r| r.join(eval_file_name(a.rotate, a.translate, a.fixed)));
@@ -503,6 +515,28 @@ fn cmd_eval(a: EvalArgs) -> Result<(), String> {
         eprintln!("meben: wrote {}", path.display());
     }
     Ok(())
+}
+
+/// `teams`' evaluation with the policies' forward passes on `device` (checked already): on
+/// the GPU each team's parameters are placed there first.
+fn evaluate_on_device(
+    env: &str,
+    teams: &[crate::Team],
+    options: &crate::mappo::evaluate::EvalOptions,
+    device: tensor::Device,
+) -> Result<crate::mappo::evaluate::EvalSummary, String> {
+    use crate::mappo::evaluate::{evaluate, evaluate_on};
+    if device == tensor::Device::Cpu {
+        return evaluate(env, teams, options).map_err(|e| e.to_string());
+    }
+    let mut stores = Vec::with_capacity(teams.len());
+    for t in teams {
+        let mut store = t.store.clone();
+        store.to_device(device).map_err(|e| e.to_string())?;
+        stores.push(store);
+    }
+    let stores: Vec<&nn::ParamStore<f32>> = stores.iter().collect();
+    evaluate_on(env, teams, &stores, options).map_err(|e| e.to_string())
 }
 
 /// The file an evaluation is written to: `eval.json`, `eval_fixed.json`,

@@ -152,6 +152,10 @@ fn bad_input_gives_clear_errors() {
         fails_with(&["eval", "--run", nowhere, "--translate", bad], &["--translate", bad]);
     }
     fails_with(&["eval", "--run", nowhere, "--stochastic", "--mean"], &["--stochastic", "--mean"]);
+    fails_with(&["eval", "--run", nowhere, "--device", "tpu"], &["--device", "tpu", "\"cpu\" or \"gpu\""]);
+    if !cfg!(feature = "gpu") {
+        fails_with(&["eval", "--run", nowhere, "--device", "gpu"], &["device", "rebuild with --features gpu"]);
+    }
     fails_with(&["train", "--set", "eval_rotations=[90.0]", "--out", out_s], &["eval_rotations", "first rotation"]);
     assert!(!Path::new(out_s).join("checkpoint.json").exists());
 }

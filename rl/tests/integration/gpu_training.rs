@@ -147,6 +147,25 @@ fn a_gpu_run_evaluates_where_it_acts() {
     assert_eq!(c, rl::mappo::evaluate::evaluate(&on_cpu.config.env, &on_cpu.teams, &options).unwrap());
 }
 
+/// `meben eval --device gpu` names the adapter and evaluates with the policy on the GPU.
+#[test]
+fn the_program_evaluates_on_the_gpu() {
+    let tmp = TempDir::new("gpu-eval");
+    let run = RunDir::new(tmp.0.join("r"));
+    let config = TrainConfig { num_evals: 0, ..tiny("mlp_hn", Device::Cpu) };
+    train(&TrainConfig { steps: 40, ..config }, &run, &TrainOptions::default()).unwrap();
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_meben"))
+        .args(["eval", "--device", "gpu", "--episodes", "2", "--run"])
+        .arg(run.root())
+        .output()
+        .unwrap();
+    let (stdout, stderr) = (String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr));
+    assert!(o.status.success(), "{stderr}");
+    let adapter = tensor::gpu::gpu().unwrap().adapter().to_string();
+    assert!(stderr.contains(&format!("meben: evaluating on GPU: {adapter}")), "{stderr}");
+    assert!(stdout.contains("episodes 2"), "{stdout}");
+}
+
 /// The same seed twice on the GPU, one run stopped after two iterations and resumed there:
 /// identical metrics rows (wall-time columns aside). The checkpoint of the stopped run,
 /// resumed on the CPU, finishes the run there (not bit-identical: the third iteration's
