@@ -2,8 +2,8 @@
 //! observation rows -> the policy forward without gradients ([`Policy::forward`] with `value = false`,
 //! the value network skipped) on the device the parameters are on -> sample
 //! `u ~ Normal(loc, std)` (or take `u = loc`) -> the log-probability of `u`, both on the
-//! host; the action sent to the environment is `tanh(u)`. Training
-//! (collection), evaluation, rendering, the Python policy and the closed-loop test all act
+//! host; the action sent to the environment is `tanh(u)`. Training (collection),
+//! evaluation, rendering, the Python policy and the closed-loop test all act
 //! through an [`Actor`], which holds the team's action-noise streams (one per agent,
 //! MEBEN.md section 8) and its scratch.
 
@@ -82,8 +82,8 @@ impl Actor {
     /// Chooses the actions of `model`'s agents (its team `k = model.team()`) for raw
     /// observation rows `obs`, through the observation normaliser `norm` and the parameters
     /// `store` (the forward pass runs on their device; from the GPU the means and scales
-    /// come back in one transfer): writes their columns of `joint.actions` (`tanh(u)`) and `joint.pre_squash`
-    /// (`u`), `joint.logp[k]` and `joint.assignment[k]`. Errors on a non-finite policy
+    /// come back in one transfer): writes their columns of `joint.actions` (`tanh(u)`) and
+    /// `joint.pre_squash` (`u`), `joint.logp[k]` and `joint.assignment[k]`. Errors on a non-finite policy
     /// output and on a joint action of another shape.
     pub fn act(
         &mut self,

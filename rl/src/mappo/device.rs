@@ -5,14 +5,15 @@
 //! run; each minibatch is uploaded once, its forward and backward passes, the gradient checks,
 //! clipping and the Adam step run there, and values come back only for GAE's values, the loss
 //! statistics, the non-finite checks' verdicts and, once per iteration, the parameters the act
-//! step's host copy ([`crate::mappo::trainer`]). The simulator stays on the CPU. The device is not part of a run's identity: a run started on one
-//! device resumes on the other (the results differ by f32 rounding, not bit for bit).
+//! step's host copy ([`crate::mappo::trainer`]). The simulator stays on the CPU. The device
+//! is not part of a run's identity: a run started on one device resumes on the other (the
+//! results differ by f32 rounding, not bit for bit).
 //!
 //! `act_device` says where the act step runs: with the updates (`same`, the default; on the
 //! GPU the policy's forward pass of every collection step runs there on the parameters the
 //! updates write, and only its means and scales come back) or on the CPU (`cpu`, the host
 //! copy of the parameters). A training's periodic evaluations act where its collection does;
-//! `meben eval`, rendering and the Python policy act on the CPU.
+//! `meben eval` on the CPU unless `--device gpu`; rendering and the Python policy on the CPU.
 //!
 //! In a configuration the device is written as its name; `config.toml` leaves it out when it
 //! is `cpu`, so the files of CPU runs read as before, also in earlier builds.
