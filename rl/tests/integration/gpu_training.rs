@@ -80,50 +80,64 @@ fn gpu_iterations_follow_the_cpu_from_the_same_state() {
 }
 
 /// The act step with its forward pass on the GPU against the CPU's, from the same state
-/// (parameters, normaliser, noise streams, observations), for one agent and for several
-/// (their means and scales come back in one transfer and are cut apart on the host): the
+/// (parameters, normaliser, noise streams, observations), for one agent, for several
+/// (their means and scales come back in one transfer and are cut apart on the host) and for
+/// both teams of Team Sumo (each reading the scene from its own side): the
 /// pre-squash actions, actions and log-probabilities within `1e-4 |cpu| + 1e-5` (the
 /// forward pass rounds otherwise, the `tensor` crate's GPU tests allow 1e-4 relative per op;
 /// the noise is the same draws), the task assignment the same.
 #[test]
 fn the_act_step_on_the_gpu_follows_the_cpu() {
-    for (env, model) in [("team_reach/1_ant", "shnn"), ("team_reach/2_ants", "shnn"), ("team_reach/2_ants", "mlp_hn")] {
+    let cases = [
+        ("team_reach/1_ant", "shnn"),
+        ("team_reach/2_ants", "shnn"),
+        ("team_reach/2_ants", "mlp_hn"),
+        ("team_sumo/2_ants", "shnn"),
+    ];
+    for (env, model) in cases {
         let config = common::tiny(env, model, 3, &[("num_envs", "4")]);
         let mut trainer = Trainer::new(&config).unwrap();
         // Normaliser statistics from a few steps, so that normalising is not the identity.
         trainer.collect().unwrap();
-        let mut norm = trainer.teams[0].norm.clone();
-        for rows in trainer.rollout().visited_obs() {
-            norm.update(rows.vectors, rows.scalars);
-        }
-        trainer.teams[0].norm = norm;
-        let team = &trainer.teams[0];
-        let mut on_gpu = team.store.clone();
-        on_gpu.to_device(Device::Gpu).unwrap();
-        let (envs, na) = (config.num_envs, trainer.env.n_actions());
-        let act = |store| {
-            let (mut model, mut actor) = (team.model.clone(), team.actor.clone());
-            let mut joint = JointAction::new(envs, na, 1);
-            actor.act(model.as_mut(), store, &team.norm, trainer.env.obs().rows(), &mut joint).unwrap();
-            joint
-        };
-        let (g, c) = (act(&on_gpu), act(&team.store));
-        let near = |a: &[f32], b: &[f32], what: &str| {
-            assert_eq!(a.len(), b.len());
-            for (k, (x, y)) in a.iter().zip(b).enumerate() {
-                let (x, y) = (f64::from(*x), f64::from(*y));
-                assert!(
-                    (x - y).abs() <= 1e-5 + 1e-4 * y.abs(),
-                    "{env} {model}: {what}[{k}] {x} on the GPU, {y} on the CPU"
-                );
+        for k in 0..trainer.teams.len() {
+            let mut norm = trainer.teams[k].norm.clone();
+            for rows in trainer.rollout().visited_obs() {
+                norm.update(rows.vectors, rows.scalars);
             }
-        };
-        near(&g.pre_squash, &c.pre_squash, "pre_squash");
-        near(&g.actions, &c.actions, "actions");
-        near(&g.logp[0], &c.logp[0], "logp");
-        assert!(c.pre_squash.iter().any(|&u| u != 0.0), "{env} {model}: every action written");
-        assert_eq!(g.assignment, c.assignment, "{env} {model}");
+            trainer.teams[k].norm = norm;
+        }
+        assert_eq!(trainer.teams.len(), if env.starts_with("team_sumo") { 2 } else { 1 }, "{env}");
+        for team in &trainer.teams {
+            check_act_step_on_the_gpu(&trainer, team, &format!("{env} {model}, team {}", team.index));
+        }
     }
+}
+
+/// One team's act step from the trainer's current observations, its forward pass on the GPU
+/// and on the CPU ([`the_act_step_on_the_gpu_follows_the_cpu`]).
+fn check_act_step_on_the_gpu(trainer: &Trainer, team: &rl::Team, case: &str) {
+    let mut on_gpu = team.store.clone();
+    on_gpu.to_device(Device::Gpu).unwrap();
+    let (envs, na, nt) = (trainer.config.num_envs, trainer.env.n_actions(), trainer.teams.len());
+    let act = |store| {
+        let (mut model, mut actor) = (team.model.clone(), team.actor.clone());
+        let mut joint = JointAction::new(envs, na, nt);
+        actor.act(model.as_mut(), store, &team.norm, trainer.env.obs().rows(), &mut joint).unwrap();
+        joint
+    };
+    let (g, c) = (act(&on_gpu), act(&team.store));
+    let near = |a: &[f32], b: &[f32], what: &str| {
+        assert_eq!(a.len(), b.len());
+        for (k, (x, y)) in a.iter().zip(b).enumerate() {
+            let (x, y) = (f64::from(*x), f64::from(*y));
+            assert!((x - y).abs() <= 1e-5 + 1e-4 * y.abs(), "{case}: {what}[{k}] {x} on the GPU, {y} on the CPU");
+        }
+    };
+    near(&g.pre_squash, &c.pre_squash, "pre_squash");
+    near(&g.actions, &c.actions, "actions");
+    near(&g.logp[team.index], &c.logp[team.index], "logp");
+    assert!(c.logp[team.index].iter().all(|&l| l != 0.0), "{case}: every log-probability written");
+    assert_eq!(g.assignment, c.assignment, "{case}");
 }
 
 /// A GPU run evaluates where it acts: with `act_device = "same"` its evaluation launches
