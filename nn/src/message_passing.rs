@@ -201,7 +201,6 @@ impl SubeqMessagePassing {
         edges: &EdgeList,
         edge_scalars: Option<Var<'t, T>>,
     ) -> Result<(Var<'t, T>, Var<'t, T>)> {
-        self.check_nodes(z, h, edges)?;
         let geometry = self.edge_geometry(x, edges)?;
         self.forward_over(p, z, h, &geometry, edges, edge_scalars)
     }

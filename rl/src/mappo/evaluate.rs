@@ -166,8 +166,8 @@ pub fn eval_envs(env: &str, options: &EvalOptions) -> Result<VecEnv> {
 /// Plays `options.episodes` episodes of `env` with `teams` (not changed: their models are
 /// cloned so that the training's random streams are untouched) and summarises them.
 pub fn evaluate(env: &str, teams: &[Team], options: &EvalOptions) -> Result<EvalSummary> {
-    let stores: Vec<&ParamStore<f32>> = teams.iter().map(|t| &t.store).collect();
-    evaluate_on(env, teams, &stores, options)
+    let summary = evaluate_unless_stopped(env, teams, options, &StopFlag::new())?;
+    Ok(summary.expect("a flag that is never set never stops an evaluation"))
 }
 
 /// [`evaluate`] with each team's policy reading the parameters `stores[k]` instead of its

@@ -580,10 +580,10 @@ impl Trainer {
         evaluate(&self.config.env, &self.teams, options)
     }
 
-    /// Whether the act step reads the updates' parameters on their device (`act_device`
-    /// resolves to the GPU and the updates run there).
+    /// Whether the act step reads the updates' parameters on the GPU (`act_device` resolves
+    /// to the GPU, which it does only when the updates run there: `device_stores` holds them).
     fn acts_on_device(&self) -> bool {
-        !self.device_stores.is_empty() && self.config.act_device.resolve(self.config.device) != Device::Cpu
+        self.config.act_device.resolve(self.config.device) == Device::Gpu
     }
 
     /// The evaluation options of the run's `k`-th scheduled evaluation, one per rotation of
