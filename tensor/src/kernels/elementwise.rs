@@ -11,7 +11,7 @@ use crate::tensor::Tensor;
 /// `y = op(x)` element-wise.
 pub fn unary<T: Float>(x: &Tensor<T>, op: UnaryOp) -> Tensor<T> {
     let xd = x.data();
-    let mut out = crate::pool::zeros(xd.len());
+    let mut out = crate::pool::for_overwrite(xd.len());
     fill_chunks(&mut out, |start, ch| {
         let n = ch.len();
         for (o, &v) in ch.iter_mut().zip(&xd[start..start + n]) {
@@ -23,7 +23,7 @@ pub fn unary<T: Float>(x: &Tensor<T>, op: UnaryOp) -> Tensor<T> {
 
 /// `g * dy/dx` element-wise, the backward of [`unary`].
 pub fn unary_backward<T: Float>(g: &[T], x: &[T], y: &[T], op: UnaryOp) -> Vec<T> {
-    let mut out = crate::pool::zeros(g.len());
+    let mut out = crate::pool::for_overwrite(g.len());
     fill_chunks(&mut out, |s, ch| {
         let n = ch.len();
         for (((o, &gi), &xi), &yi) in ch.iter_mut().zip(&g[s..s + n]).zip(&x[s..s + n]).zip(&y[s..s + n]) {
@@ -52,7 +52,7 @@ pub(crate) fn binary_into_shape<T: Float>(
     f: impl Fn(T, T) -> T + Sync,
 ) -> Vec<T> {
     let n = numel(shape);
-    let mut out = crate::pool::zeros(n);
+    let mut out = crate::pool::for_overwrite(n);
     if a.len() == n && b.len() == n {
         fill_chunks(&mut out, |s, ch| {
             let n = ch.len();
@@ -122,7 +122,7 @@ pub(crate) fn row_scale_backward<T: Float>(
 ) -> (Option<Vec<T>>, Option<Vec<T>>) {
     let m = a.len() / b.len().max(1);
     let ga = wa.then(|| {
-        let mut out = crate::pool::zeros(g.len());
+        let mut out = crate::pool::for_overwrite(g.len());
         super::for_rows(&mut out, m, |r, row| {
             let s = if div { T::ONE / b[r] } else { b[r] };
             for (o, &gv) in row.iter_mut().zip(&g[r * m..(r + 1) * m]) {
@@ -132,7 +132,7 @@ pub(crate) fn row_scale_backward<T: Float>(
         out
     });
     let gb = wb.then(|| {
-        let mut out = crate::pool::zeros(b.len());
+        let mut out = crate::pool::for_overwrite(b.len());
         super::fill_chunks(&mut out, |start, ch| {
             for (i, o) in ch.iter_mut().enumerate() {
                 let r = start + i;
@@ -178,7 +178,7 @@ pub fn where_select<T: Float>(mask: &[bool], shape: &[usize], a: &Tensor<T>, b: 
     let sa = broadcast_strides(a.shape(), shape);
     let sb = broadcast_strides(b.shape(), shape);
     let (ad, bd) = (a.data(), b.data());
-    let mut out = crate::pool::zeros(n);
+    let mut out = crate::pool::for_overwrite(n);
     for_each_run2(shape, &sa, &sb, |o, oa, ob, len, da, db| {
         for k in 0..len {
             out[o + k] = if mask[o + k] { ad[oa + k * da] } else { bd[ob + k * db] };

@@ -95,7 +95,7 @@ pub fn gather<T: Float>(x: &Tensor<T>, axis: usize, idx_shape: &[usize], idx: &[
     let (outer, n, inner) = split_at_axis(x.shape(), axis);
     let m = idx_shape[axis];
     let xd = x.data();
-    let mut out = crate::pool::zeros(idx.len());
+    let mut out = crate::pool::for_overwrite(idx.len());
     for o in 0..outer {
         for j in 0..m {
             for i in 0..inner {
@@ -174,7 +174,7 @@ pub(crate) fn segment_backward<T: Float>(
     mean: bool,
 ) -> Vec<T> {
     let counts = if mean { segment_counts(seg, num_segments) } else { vec![] };
-    let mut dx = crate::pool::zeros(seg.len() * inner);
+    let mut dx = crate::pool::for_overwrite(seg.len() * inner);
     for (r, &s) in seg.iter().enumerate() {
         let scale = if mean { T::ONE / T::from_f64(counts[s] as f64) } else { T::ONE };
         let src = &g[s * inner..(s + 1) * inner];

@@ -4,22 +4,47 @@ use crate::element::Float;
 use crate::error::{Result, TensorError, check_axis, invalid, mismatch};
 use crate::shape::{broadcast_shapes, broadcast_strides, for_each_run2, numel, split_at_axis, strides};
 use crate::tensor::Tensor;
+use rayon::prelude::*;
 
 /// Reorders the axes: output axis `i` is input axis `perm[i]` (copies into row-major order).
 pub fn permute<T: Float>(x: &Tensor<T>, perm: &[usize]) -> Result<Tensor<T>> {
-    let r = x.rank();
     let shape = permuted_shape(x.shape(), perm)?;
     let st = strides(x.shape());
     let src_strides: Vec<usize> = perm.iter().map(|&p| st[p]).collect();
-    let zero = vec![0; r];
-    let xd = x.data();
-    let mut out = crate::pool::zeros(x.numel());
-    for_each_run2(&shape, &src_strides, &zero, |o, oa, _, len, da, _| {
-        for k in 0..len {
-            out[o + k] = xd[oa + k * da];
-        }
-    });
+    let mut out = crate::pool::for_overwrite(x.numel());
+    copy_strided(&mut out, &shape, &src_strides, x.data());
     Ok(Tensor::from_parts(out, shape))
+}
+
+/// `out[i] = src[offset(i)]` for every row-major index `i` of `shape`, where `offset` walks
+/// `src` with the strides `strides` (one per axis, 0 for a broadcast axis). Large outputs are
+/// copied in parallel, in blocks of whole indices of the first axis; every element is a copy,
+/// so the bits cannot depend on the split or the thread count.
+fn copy_strided<T: Float>(out: &mut [T], shape: &[usize], strides: &[usize], src: &[T]) {
+    let zero = vec![0; shape.len()];
+    let copy = |out: &mut [T], shape: &[usize], base: usize| {
+        for_each_run2(shape, strides, &zero, |o, oa, _, len, da, _| {
+            let (dst, start) = (&mut out[o..o + len], base + oa);
+            if da == 1 {
+                dst.copy_from_slice(&src[start..start + len]);
+            } else {
+                dst.iter_mut().enumerate().for_each(|(k, d)| *d = src[start + k * da]);
+            }
+        });
+    };
+    if shape.is_empty() || shape[0] < 2 || out.len() < super::PAR_MIN {
+        copy(out, shape, 0);
+        return;
+    }
+    // Elements per index of the first axis, and indices per block (at least PAR_CHUNK
+    // elements a block).
+    let per = out.len() / shape[0];
+    let rows = super::PAR_CHUNK.div_ceil(per);
+    out.par_chunks_mut(rows * per).enumerate().for_each(|(b, block)| {
+        let mut sub = shape.to_vec();
+        sub[0] = block.len() / per;
+        copy(block, &sub, b * rows * strides[0]);
+    });
 }
 
 /// The shape after permuting the axes of `shape` by `perm`; fails if `perm` is not a
@@ -153,13 +178,7 @@ pub(crate) fn check_expand(from: &[usize], to: &[usize]) -> Result<()> {
 pub fn expand<T: Float>(x: &Tensor<T>, shape: &[usize]) -> Result<Tensor<T>> {
     check_expand(x.shape(), shape)?;
     let sx = broadcast_strides(x.shape(), shape);
-    let zero = vec![0; shape.len()];
-    let xd = x.data();
-    let mut out = crate::pool::zeros(numel(shape));
-    for_each_run2(shape, &sx, &zero, |o, oa, _, len, da, _| {
-        for k in 0..len {
-            out[o + k] = xd[oa + k * da];
-        }
-    });
+    let mut out = crate::pool::for_overwrite(numel(shape));
+    copy_strided(&mut out, shape, &sx, x.data());
     Ok(Tensor::from_parts(out, shape.to_vec()))
 }

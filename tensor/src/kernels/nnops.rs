@@ -11,7 +11,7 @@ use crate::tensor::Tensor;
 pub fn softmax<T: Float>(x: &Tensor<T>) -> Tensor<T> {
     let n = x.shape().last().copied().unwrap_or(1);
     let xd = x.data();
-    let mut out = crate::pool::zeros(x.numel());
+    let mut out = crate::pool::for_overwrite(x.numel());
     for_rows(&mut out, n, |r, row| {
         let src = &xd[r * n..(r + 1) * n];
         let mx = src.iter().copied().fold(T::neg_infinity(), T::max);
@@ -28,7 +28,7 @@ pub fn softmax<T: Float>(x: &Tensor<T>) -> Tensor<T> {
 
 /// Gradient of softmax: `dx = y * (g - sum(g * y))` row by row.
 pub fn softmax_backward<T: Float>(y: &[T], g: &[T], n: usize) -> Vec<T> {
-    let mut out = crate::pool::zeros(y.len());
+    let mut out = crate::pool::for_overwrite(y.len());
     for_rows(&mut out, n, |r, row| {
         let (yr, gr) = (&y[r * n..(r + 1) * n], &g[r * n..(r + 1) * n]);
         let dot: T = yr.iter().zip(gr).map(|(&a, &b)| a * b).sum();
@@ -191,7 +191,7 @@ pub fn norm_last<T: Float>(x: &Tensor<T>, eps: f64) -> Tensor<T> {
     let rows = x.numel().checked_div(n).unwrap_or(0);
     let xd = x.data();
     let eps = T::from_f64(eps);
-    let mut out = crate::pool::zeros(rows);
+    let mut out = crate::pool::for_overwrite(rows);
     let body = |r: usize, o: &mut T| {
         let s = super::reduce::sum8(xd[r * n..(r + 1) * n].iter().map(|&v| v * v));
         *o = (s + eps).sqrt();
@@ -211,7 +211,7 @@ pub fn norm_last<T: Float>(x: &Tensor<T>, eps: f64) -> Tensor<T> {
 
 /// Gradient of [`norm_last`]: `dx = g x / y` row by row.
 pub fn norm_last_backward<T: Float>(x: &[T], y: &[T], g: &[T], n: usize) -> Vec<T> {
-    let mut out = crate::pool::zeros(x.len());
+    let mut out = crate::pool::for_overwrite(x.len());
     for_rows(&mut out, n, |r, row| {
         let s = g[r] / y[r];
         for (o, &xv) in row.iter_mut().zip(&x[r * n..(r + 1) * n]) {
@@ -235,7 +235,7 @@ fn row_stats<T: Float>(row: &[T], eps: f64) -> (T, T) {
 pub fn standardize<T: Float>(x: &Tensor<T>, eps: f64) -> Tensor<T> {
     let n = x.shape().last().copied().unwrap_or(1);
     let xd = x.data();
-    let mut out = crate::pool::zeros(x.numel());
+    let mut out = crate::pool::for_overwrite(x.numel());
     for_rows(&mut out, n, |r, row| {
         let src = &xd[r * n..(r + 1) * n];
         let (mean, inv) = row_stats(src, eps);
@@ -249,7 +249,7 @@ pub fn standardize<T: Float>(x: &Tensor<T>, eps: f64) -> Tensor<T> {
 /// Gradient of [`standardize`]: with `y` the output and `s = 1/sqrt(var + eps)`,
 /// `dx = s (g - mean(g) - y mean(g y))` row by row.
 pub fn standardize_backward<T: Float>(x: &[T], y: &[T], g: &[T], n: usize, eps: f64) -> Vec<T> {
-    let mut out = crate::pool::zeros(x.len());
+    let mut out = crate::pool::for_overwrite(x.len());
     let nf = T::from_f64(n as f64);
     for_rows(&mut out, n, |r, row| {
         let (xr, yr, gr) = (&x[r * n..(r + 1) * n], &y[r * n..(r + 1) * n], &g[r * n..(r + 1) * n]);

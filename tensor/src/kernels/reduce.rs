@@ -227,7 +227,7 @@ pub(crate) fn reduce_backward<T: Float>(
         ReduceOp::Max => max_backward(x, y, g, outer, len, inner),
         ReduceOp::Sum | ReduceOp::Mean => {
             let s = if op == ReduceOp::Mean { T::ONE / T::from_f64(len as f64) } else { T::ONE };
-            let mut dx = crate::pool::zeros(x.len());
+            let mut dx = crate::pool::for_overwrite(x.len());
             for o in 0..outer {
                 let gr = &g[o * inner..(o + 1) * inner];
                 for k in 0..len {

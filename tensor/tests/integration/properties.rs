@@ -295,6 +295,110 @@ fn reductions_and_permutes_match_naive() {
     }
 }
 
+/// Every permutation of the axes of a shape (Heap's algorithm).
+fn permutations(n: usize) -> Vec<Vec<usize>> {
+    fn heap(k: usize, p: &mut Vec<usize>, out: &mut Vec<Vec<usize>>) {
+        if k <= 1 {
+            out.push(p.clone());
+            return;
+        }
+        for i in 0..k {
+            heap(k - 1, p, out);
+            let j = if k.is_multiple_of(2) { i } else { 0 };
+            p.swap(j, k - 1);
+        }
+    }
+    let mut out = Vec::new();
+    heap(n, &mut (0..n).collect(), &mut out);
+    out
+}
+
+#[test]
+fn large_permutes_and_expands_match_naive() {
+    // Large enough for the parallel copy in blocks of the first axis: blocks of many first-axis
+    // indices with a shorter last block ([1000, 37]), one index a block ([2, 3, 8000]), and
+    // every permutation of a rank-4 shape. The buffers come from the pool with whatever an
+    // earlier op left in them, so a missed element would show.
+    let mut r = rng(107);
+    for s in [vec![7, 50, 3, 40], vec![1000, 37], vec![2, 3, 8000]] {
+        let x = uniform(&mut r, &s);
+        for perm in permutations(s.len()) {
+            let tape = Tape::new();
+            let p = tape.constant(x.clone()).permute(&perm).unwrap().value();
+            let ps: Vec<usize> = perm.iter().map(|&d| s[d]).collect();
+            assert_eq!(p.shape(), &ps[..]);
+            for i in 0..p.numel() {
+                let pidx = unravel(i, &ps);
+                let mut src = vec![0; s.len()];
+                for (d, &pd) in perm.iter().enumerate() {
+                    src[pd] = pidx[d];
+                }
+                let o: usize = src.iter().zip(strides(&s)).map(|(a, b)| a * b).sum();
+                assert_eq!(p.data()[i], x.data()[o], "{s:?} {perm:?} at {pidx:?}");
+            }
+        }
+    }
+    for (from, to) in [(vec![1, 37], vec![1000, 37]), (vec![1000, 1], vec![1000, 40]), (vec![5, 1, 9], vec![5, 800, 9])]
+    {
+        let x = uniform(&mut r, &from);
+        let tape = Tape::new();
+        let e = tape.constant(x.clone()).expand(&to).unwrap().value();
+        assert_eq!(e.shape(), &to[..]);
+        for i in 0..e.numel() {
+            assert_eq!(e.data()[i], at_broadcast(&x, &to, &unravel(i, &to)), "{from:?} -> {to:?}");
+        }
+    }
+}
+
+#[test]
+fn kernels_write_every_element_of_a_recycled_buffer() {
+    // Kernels take their outputs from the pool without zeroing them (`pool::for_overwrite`),
+    // so each must write every element. With the pool full of NaN buffers of the sizes used,
+    // an element left unwritten would come out NaN.
+    let (rows, cols) = (7000, 10);
+    let n = rows * cols;
+    for _ in 0..60 {
+        tensor::pool::recycle(vec![f64::NAN; n]);
+        tensor::pool::recycle(vec![f64::NAN; 2 * n]);
+    }
+    let mut r = rng(108);
+    let tape = Tape::new();
+    let x = tape.var(uniform(&mut r, &[rows, cols]));
+    let bias = tape.var(uniform(&mut r, &[cols]));
+    let per_row = tape.var(positive(&mut r, &[rows, 1]));
+    let den = tape.var(positive(&mut r, &[rows, cols]));
+    // Unary, bias row, one value per row, equal shapes, and their gradients.
+    let a = x.tanh().add(bias).unwrap().mul(per_row).unwrap().div(den).unwrap();
+    let rows_out = a.softmax().standardize(1e-5);
+    let norms = a.norm_last(1e-8).mean_all().unwrap();
+    let moved = rows_out.permute(&[1, 0]).unwrap();
+    let wide = a.reshape(&[rows, 1, cols]).unwrap().expand(&[rows, 2, cols]).unwrap();
+    let idx: Vec<usize> = (0..n).map(|i| (i * 7 + 3) % cols).collect();
+    let gathered = a.gather(1, &[rows, cols], &idx).unwrap();
+    let mask: Vec<bool> = (0..n).map(|i| i % 3 == 0).collect();
+    let picked = tape.where_select(&mask, a, x).unwrap();
+    let seg: Vec<usize> = (0..rows).map(|i| i / 7).collect();
+    let segments = x.segment_mean(&seg, rows / 7).unwrap();
+    let means = a.mean(1, true).unwrap();
+    let parts = [moved, wide, gathered, picked, segments, means];
+    let mut loss = norms;
+    for p in parts {
+        loss = loss.add(p.square().mean_all().unwrap()).unwrap();
+    }
+    let g = tape.backward(loss).unwrap();
+    for (name, v) in
+        [("moved", moved), ("wide", wide), ("gathered", gathered), ("picked", picked), ("rows_out", rows_out)]
+    {
+        assert!(v.value().data().iter().all(|v| v.is_finite()), "{name} has an unwritten element");
+    }
+    for (name, v) in [("x", x), ("bias", bias), ("per_row", per_row), ("den", den)] {
+        assert!(
+            g.get(v).unwrap().data().iter().all(|v| v.is_finite()),
+            "the gradient of {name} has an unwritten element"
+        );
+    }
+}
+
 #[test]
 fn large_layer_with_bias_and_activation_and_its_bias_gradient_match_naive() {
     // Large enough for the product split into row blocks (bias and activation per block) and
