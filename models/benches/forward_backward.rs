@@ -3,7 +3,9 @@
 //! models `shnn`, `mlp_hn`, `shtransformer` and `shgnn`, in f32. The minibatch is 512
 //! observations of the vectorised environment (after a few random steps) replicated 10
 //! times. The loss sums the means of every agent's `loc`, `std` and the value, so the
-//! backward pass reaches every parameter. Prints `<env> <model> median_ms=...` per pair.
+//! backward pass reaches every parameter. Prints `<env> <model> median_ms=...` per pair, with
+//! the buffer pool's counters since the process started (misses, evictions, peak and cap:
+//! `tensor::pool`).
 //!
 //! Run: `cargo bench -p models --bench forward_backward [-- <filter>]` (the filter is a
 //! substring of `<env> <model>`). `TENSOR_PROFILE=1` prints the per-op forward/backward
@@ -74,7 +76,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             }
             times.sort_by(f64::total_cmp);
             let median = times[STEPS / 2];
-            println!("{label} median_ms={median:.1} (B={MINIBATCH}, params={})", model.num_params(&store));
+            let pool = tensor::pool::stats::<f32>();
+            println!(
+                "{label} median_ms={median:.1} (B={MINIBATCH}, params={}) pool_misses={} pool_evicted={} pool_peak_mb={} pool_cap_mb={}",
+                model.num_params(&store),
+                pool.misses,
+                pool.evicted,
+                pool.peak_pooled_bytes >> 20,
+                tensor::pool::max_pooled_bytes() >> 20
+            );
         }
     }
     Ok(())

@@ -243,11 +243,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             );
             let ps = tensor::pool::stats::<f32>();
             let mb_line = format!(
-                "{mb_line} pool_hits={} pool_misses={} pool_evicted={} pool_peak_mb={}",
+                "{mb_line} pool_hits={} pool_misses={} pool_evicted={} pool_peak_mb={} pool_cap_mb={}",
                 ps.hits,
                 ps.misses,
                 ps.evicted,
-                ps.peak_pooled_bytes >> 20
+                ps.peak_pooled_bytes >> 20,
+                tensor::pool::max_pooled_bytes() >> 20
             );
             if iterations == 0 {
                 println!("{label} {mb_line}");

@@ -14,10 +14,48 @@ use crate::element::Float;
 
 /// Buffers smaller than this (in elements) are left to the allocator.
 pub const MIN_POOLED: usize = 1 << 16;
+/// The least the pool may keep per element type (the cap where the machine's memory is not
+/// known, or is small).
+const MIN_CAP_BYTES: usize = 4 << 30;
+
 /// At most this many bytes are kept per element type; beyond it the buffers given back
 /// longest ago are freed first (a buffer of a size nobody asks for again, such as a one-off
-/// input, ages out instead of filling the pool for good).
-const MAX_POOLED_BYTES: usize = 4 << 30;
+/// input, ages out instead of filling the pool for good). `TENSOR_POOL_MAX_MB` (MiB) when
+/// set; else a third of the machine's memory (`/proc/meminfo`), at least 4 GiB. A training
+/// step whose buffers do not all fit frees and allocates again every step, and the kernel
+/// clears the fresh pages (`PoolStats::evicted` grows step after step): the 7.1 GB step of
+/// `shtransformer` on `team_reach/2_ants` did under the former fixed 4 GiB.
+pub fn max_pooled_bytes() -> usize {
+    static CAP: std::sync::OnceLock<usize> = std::sync::OnceLock::new();
+    *CAP.get_or_init(|| {
+        let set = std::env::var("TENSOR_POOL_MAX_MB").ok();
+        cap_bytes(set.as_deref(), physical_memory_bytes()).unwrap_or_else(|msg| {
+            eprintln!("tensor: {msg}; the buffer pool keeps its default cap");
+            cap_bytes(None, physical_memory_bytes()).unwrap_or(MIN_CAP_BYTES)
+        })
+    })
+}
+
+/// The cap for a `TENSOR_POOL_MAX_MB` setting (`None`: unset) on a machine of `memory`
+/// bytes; an error naming the variable and value when it is not a whole number of MiB.
+fn cap_bytes(setting: Option<&str>, memory: Option<usize>) -> Result<usize, String> {
+    match setting {
+        Some(v) => v
+            .trim()
+            .parse::<usize>()
+            .map(|mb| mb.saturating_mul(1 << 20))
+            .map_err(|_| format!("TENSOR_POOL_MAX_MB={v:?} is not a whole number of MiB")),
+        None => Ok((memory.unwrap_or(0) / 3).max(MIN_CAP_BYTES)),
+    }
+}
+
+/// The machine's memory (`MemTotal` of `/proc/meminfo`), where the system says it.
+fn physical_memory_bytes() -> Option<usize> {
+    let info = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = info.lines().find(|l| l.starts_with("MemTotal:"))?;
+    let kb: usize = line.split_whitespace().nth(1)?.parse().ok()?;
+    kb.checked_mul(1024)
+}
 
 /// What a pool has done since the process started: a researcher's check that a training step
 /// reuses its buffers (`misses` should stop growing after the first steps).
@@ -158,7 +196,7 @@ pub fn recycle<T: Float>(v: Vec<T>) {
         return;
     }
     if let Ok(mut free) = T::pool().free.lock() {
-        free.put(v, MAX_POOLED_BYTES);
+        free.put(v, max_pooled_bytes());
     }
 }
 
@@ -222,6 +260,27 @@ mod tests {
         // Shorter: truncated.
         let u: Vec<f64> = for_overwrite(n - 100);
         assert_eq!((u.as_ptr(), u.len()), (ptr, n - 100));
+    }
+
+    #[test]
+    fn the_cap_is_a_third_of_the_memory_or_the_setting() {
+        let gib = 1usize << 30;
+        assert_eq!(cap_bytes(None, Some(24 * gib)), Ok(8 * gib));
+        // Never under 4 GiB, also where the memory is unknown.
+        assert_eq!(cap_bytes(None, Some(6 * gib)), Ok(4 * gib));
+        assert_eq!(cap_bytes(None, None), Ok(4 * gib));
+        assert_eq!(cap_bytes(Some(" 512 "), Some(24 * gib)), Ok(512 << 20));
+        assert_eq!(cap_bytes(Some("0"), None), Ok(0));
+        let err = cap_bytes(Some("8GB"), None).unwrap_err();
+        assert!(err.contains("TENSOR_POOL_MAX_MB") && err.contains("8GB"), "{err}");
+        // This machine says its memory (Linux), and the cap in force is at least 4 GiB
+        // unless set.
+        if cfg!(target_os = "linux") {
+            assert!(physical_memory_bytes().is_some_and(|m| m > 0));
+        }
+        if std::env::var_os("TENSOR_POOL_MAX_MB").is_none() {
+            assert!(max_pooled_bytes() >= 4 * gib);
+        }
     }
 
     #[test]
