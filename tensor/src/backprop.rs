@@ -37,6 +37,9 @@ pub(crate) fn propagate<T: Float>(nodes: &[Node<T>], id: NodeId, g: Tensor<T>, s
         Op::Binary(a, b, op) => {
             let wants = (store.wants(*a), store.wants(*b));
             let (ga, gb) = k::binary_backward(&g, val(*a), val(*b), y, *op, wants)?;
+            // An add may hand `g`'s own storage to its inputs: released here, so the last of
+            // them to be stored takes it without a copy.
+            drop(g);
             if let Some(ga) = ga {
                 store.add(*a, ga);
             }

@@ -393,6 +393,19 @@ pub(crate) fn binary_backward<T: Float>(
     op: BinaryOp,
     wants: (bool, bool),
 ) -> Result<GradPair<T>> {
+    let (wa, wb) = wants;
+    if matches!(op, BinaryOp::Add | BinaryOp::Sub) {
+        // No kernel but a negation, on either device: `g` itself (its storage shared, not
+        // copied) for `a` and, of an add, for `b`, summed over the broadcast dims where an
+        // operand has fewer elements.
+        let ga = wa.then(|| sum_to_shape(g, a.shape())).transpose()?;
+        let gb = match (wb, op) {
+            (false, _) => None,
+            (true, BinaryOp::Add) => Some(sum_to_shape(g, b.shape())?),
+            (true, _) => Some(sum_to_shape(&unary(g, UnaryOp::Neg), b.shape())?),
+        };
+        return Ok((ga, gb));
+    }
     match device_of(&[g, a, b, y]) {
         Device::Cpu => {
             let (ga, gb) = elementwise::binary_backward(g.data(), a, b, y, op, wants);
@@ -402,27 +415,20 @@ pub(crate) fn binary_backward<T: Float>(
             ))
         }
         Device::Gpu => on_gpu! {
-            // The rules of `elementwise::binary_backward`: add and sub need no kernel but a
-            // negation; the others compute both gradients in one launch, `b` scaling rows of
-            // `a` with the rows' sums inside it (as the CPU's fast path does).
+            // The rules of `elementwise::binary_backward` (mul, div, minimum, maximum): both
+            // gradients in one launch, `b` scaling rows of `a` with the rows' sums inside it
+            // (as the CPU's fast path does).
             use crate::gpu::ops::elementwise as gpu;
             let shape = y.shape();
-            let (wa, wb) = wants;
             let full = |t: Tensor<T>, target: &Tensor<T>| -> Result<Tensor<T>> { sum_to_shape(&t, target.shape()) };
-            let (ga, gb) = match op {
-                BinaryOp::Add => (wa.then(|| g.clone()), wb.then(|| g.clone())),
-                BinaryOp::Sub => (wa.then(|| g.clone()), wb.then(|| unary(g, UnaryOp::Neg))),
-                _ => {
-                    let (gd, ad, bd, yd) = (dev::up(g)?, dev::up(a)?, dev::up(b)?, dev::up(y)?);
-                    let (gbuf, abuf, bbuf) = (dev::buf(&gd), dev::buf(&ad), dev::buf(&bd));
-                    if matches!(op, BinaryOp::Div | BinaryOp::Mul) && a.numel() == y.numel() && elementwise::is_row_broadcast(b.shape(), shape) {
-                        let (ga, gb) = gpu::row_scale_backward(gbuf, abuf, bbuf, op == BinaryOp::Div, wants);
-                        return Ok((ga.map(|v| dev::out(v, a.shape().to_vec())), gb.map(|v| dev::out(v, b.shape().to_vec()))));
-                    }
-                    let (ga, gb) = gpu::binary_backward(gbuf, abuf, a.shape(), bbuf, b.shape(), dev::buf(&yd), shape, op, wants);
-                    (ga.map(|v| dev::out(v, shape.to_vec())), gb.map(|v| dev::out(v, shape.to_vec())))
-                },
-            };
+            let (gd, ad, bd, yd) = (dev::up(g)?, dev::up(a)?, dev::up(b)?, dev::up(y)?);
+            let (gbuf, abuf, bbuf) = (dev::buf(&gd), dev::buf(&ad), dev::buf(&bd));
+            if matches!(op, BinaryOp::Div | BinaryOp::Mul) && a.numel() == y.numel() && elementwise::is_row_broadcast(b.shape(), shape) {
+                let (ga, gb) = gpu::row_scale_backward(gbuf, abuf, bbuf, op == BinaryOp::Div, wants);
+                return Ok((ga.map(|v| dev::out(v, a.shape().to_vec())), gb.map(|v| dev::out(v, b.shape().to_vec()))));
+            }
+            let (ga, gb) = gpu::binary_backward(gbuf, abuf, a.shape(), bbuf, b.shape(), dev::buf(&yd), shape, op, wants);
+            let (ga, gb) = (ga.map(|v| dev::out(v, shape.to_vec())), gb.map(|v| dev::out(v, shape.to_vec())));
             Ok((ga.map(|t| full(t, a)).transpose()?, gb.map(|t| full(t, b)).transpose()?))
         },
     }

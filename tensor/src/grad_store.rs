@@ -78,9 +78,9 @@ impl<T: Float> GradStore<T> {
     pub(crate) fn add(&mut self, id: NodeId, t: Tensor<T>) {
         match (&mut self.grads[id], on_device(&t)) {
             (Some(Grad::Host(g)), false) => {
-                let v = t.into_vec();
-                g.iter_mut().zip(&v).for_each(|(a, &b)| *a += b);
-                pool::recycle(v);
+                // Read in place (`t` may share its storage: an add's gradient passed on to
+                // both inputs); its buffer goes back to the pool when the last owner drops.
+                g.iter_mut().zip(t.data()).for_each(|(a, &b)| *a += b);
             }
             #[cfg(feature = "gpu")]
             (Some(Grad::Device(g)), true) => {

@@ -227,7 +227,8 @@ impl<T: Float> Tensor<T> {
         match self.data {
             Storage::Host(b) => match Arc::try_unwrap(b) {
                 Ok(mut b) => std::mem::take(&mut b.0),
-                Err(shared) => shared.0.clone(),
+                // Still shared: a copy, into a recycled buffer.
+                Err(shared) => crate::pool::map(&shared.0, |v| v),
             },
             #[cfg(feature = "gpu")]
             Storage::Device(_) => self.to_vec(),
