@@ -20,6 +20,9 @@
 #   peers     the training-step workloads of ../shared/bench (mlp_step, shnn_step) on the GPU
 #             against the JAX peer on the same GPU (the machine's own JAX), in alternating
 #             rounds, then both on the CPU alone
+#   reduce    reductions at paper sizes (bias gradients, means) with the kernel's lanes
+#             and with one thread per output (TENSOR_GPU_REDUCE_LANES=1), alternated; then
+#             the paper-size `shnn` minibatch pass with each, for the ratio in one call
 #   profile   one `shnn` minibatch's forward and backward on the GPU, op by op
 #   timeline  the host's cost of one launch (launch_overhead); the same minibatch pass,
 #             `shnn_step`, and a training iteration's update, on the
@@ -38,7 +41,7 @@ cp gpu-carry/COMMIT gpu-carry/LEVEL $C/
 [ -e gpu-carry/BEFORE ] && cp gpu-carry/BEFORE $C/
 for f in gpu-carry/*.gz; do gzip -dc "$f" > "$C/$(basename "$f" .gz)" && chmod +x "$C/$(basename "$f" .gz)"; done
 RUNS=${RUNS:-/tmp/gpu-bench}
-SECTIONS=${SECTIONS:-correct matmul gpu act_cpu before peers profile timeline gpu_more sim cpu}
+SECTIONS=${SECTIONS:-correct matmul gpu act_cpu before peers reduce profile timeline gpu_more sim cpu}
 DEADLINE=${DEADLINE:-540}
 mkdir -p "$RUNS"
 if [ -n "${OUT:-}" ]; then exec > >(tee "$OUT/gpu-bench.log") 2>&1; fi
@@ -174,6 +177,30 @@ peers() {
     timeout -s KILL "$(limit 60)" $C/train_step 2>&1 | grep -E "step|panicked|rror" | sed "s/\$/ (this library, $CORES CPU threads)/"
     want || return
     JAX_PLATFORMS=cpu timeout -s KILL "$(limit 90)" python3 $jax 2>&1 | grep -E "step|panicked|rror" | sed "s/\$/ (JAX on the CPU, $CORES cores)/"
+}
+
+reduce() {
+    echo "== reductions on the GPU: up to 256 threads per output (lanes) against one (TENSOR_GPU_REDUCE_LANES=1)"
+    if [ ! -x $C/reductions ]; then
+        echo "reduce: skipped (no gpu-carry/reductions.gz: a gpu_build.sh of before 2026-12-01)"
+        return
+    fi
+    local rows=153600 env=team_reach/3_ant_claw_centipede preset=paper
+    [ -n "${QUICK:-}" ] && rows=10240 env=team_reach/1_ant preset=quick
+    for round in 1 2; do
+        for lanes in 256 1; do
+            want || return
+            N=$rows DEVICE=gpu TENSOR_GPU_REDUCE_LANES=$lanes timeout -s KILL "$(limit 60)" $C/reductions 2>&1 \
+                | grep -E "reduce|panicked|rror" | grep -v XDG | sed "s/\$/ (lanes $lanes, round $round)/"
+        done
+    done
+    echo "-- one shnn minibatch pass ($env, $preset preset), forward and backward, with each"
+    for lanes in 256 1; do
+        want || return
+        TENSOR_GPU_REDUCE_LANES=$lanes DEVICE=gpu PRESET=$preset ITERATIONS=0 MINIBATCH_REPS=5 BENCH_ENVS=$env \
+            BENCH_MODELS=shnn timeout -s KILL "$(limit 90)" $C/train_throughput 2>&1 | grep -o "minibatch_ms=[0-9.]*" \
+            | sed "s/\$/ (lanes $lanes)/"
+    done
 }
 
 profile() {

@@ -36,6 +36,7 @@ if [ -e gpu-carry/meben_before ] && cmp -s gpu-carry/meben gpu-carry/meben_befor
 fi
 cargo bench --no-run -p tensor --features gpu --bench matmul_rate
 cargo bench --no-run -p tensor --features gpu --bench launch_overhead
+cargo bench --no-run -p tensor --features gpu --bench reductions
 cargo bench --no-run -p envs --bench tasks
 cargo bench --no-run -p rl --features gpu --bench train_throughput
 cargo bench --no-run -p nn --features gpu --bench train_step
@@ -51,6 +52,7 @@ cargo test --no-run --release -p tensor --features gpu --lib
 cp "$(test_exe -p models --features gpu --test integration)" gpu-carry/gpu_models
 cp "$(newest matmul_rate)" gpu-carry/matmul_rate
 cp "$(newest launch_overhead)" gpu-carry/launch_overhead
+cp "$(newest reductions)" gpu-carry/reductions
 cp "$(newest tasks)" gpu-carry/tasks
 cp "$(newest train_throughput)" gpu-carry/train_throughput
 cp "$(newest train_step)" gpu-carry/train_step
@@ -62,7 +64,7 @@ else
 fi
 # The library's unit tests (gpu.sh runs those of the device's kernels: `gpu::`).
 cp "$(newest tensor)" gpu-carry/gpu_unit
-BINS="meben matmul_rate launch_overhead tasks train_throughput train_step gpu_ops gpu_unit gpu_models"
+BINS="meben matmul_rate launch_overhead reductions tasks train_throughput train_step gpu_ops gpu_unit gpu_models"
 [ -e gpu-carry/meben_before ] && BINS="$BINS meben_before"
 # Stripped and compressed (about 3x), so they and the tree stay well inside the 64 MiB a
 # call carries; gpu.sh unpacks them.

@@ -237,6 +237,20 @@ fn reductions_on_the_gpu_match_the_cpu_forward_and_backward() {
     // A long axis: the two-pass reduction (chunks of 1024, then their sum).
     let long = randn(2, &[5000]);
     check("sum of 5000", &[long], Tol(1e-4, 1e-3), &|_, v| Ok(v[0].sum_all()));
+    // Several threads per output (reduce_axis.wgsl's lanes): a layer's bias gradient (rows
+    // summed, 64 columns side by side, two passes), outputs that share a workgroup across
+    // rows of `outer` (inner 5), an axis shorter than a lane's share, and maxima over long
+    // axes of every sign (the lanes' tree must keep the first pass's maximum).
+    let rows = randn(3, &[3000, 64]);
+    check("bias gradient of 3000 rows", std::slice::from_ref(&rows), Tol(1e-4, 1e-3), &|_, v| v[0].sum(0, false));
+    check("max of 3000 rows", &[rows], EXACT, &|_, v| v[0].max(0, false));
+    let mixed = randn(4, &[7, 300, 5]);
+    check("sum 1 of [7, 300, 5]", std::slice::from_ref(&mixed), SUMS, &|_, v| v[0].sum(1, false));
+    check("mean 1 of [7, 300, 5]", std::slice::from_ref(&mixed), SUMS, &|_, v| v[0].mean(1, true));
+    check("max 1 of [7, 300, 5]", &[mixed], EXACT, &|_, v| v[0].max(1, false));
+    let short = randn(5, &[9, 6, 2]);
+    check("sum 1 of [9, 6, 2]", &[short], SUMS, &|_, v| v[0].sum(1, false));
+    check("max of 4100 negatives", &[randn(6, &[4100])], EXACT, &|_, v| v[0].add_scalar(-3.0).max_all());
 }
 
 #[test]

@@ -7,10 +7,17 @@ use crate::gpu::{DeviceBuffer, device};
 const REDUCE_AXIS: Kernel = kernel!("reduce_axis", "reduce_axis.wgsl");
 const MAX_BACKWARD: Kernel = kernel!("max_backward", "max_backward.wgsl");
 
-/// Entries of the reduced axis one thread sums before a second pass adds the partial sums:
-/// a long axis (a sum over every element) is split into fixed chunks, so the order depends
-/// on the shape only.
+/// Entries of the reduced axis one pass reduces per output before a second pass combines
+/// the partials: a long axis (a sum over every element) is split into fixed chunks, so the
+/// order depends on the shape only.
 const CHUNK: usize = 1024;
+
+/// Threads of one workgroup (`reduce_axis.wgsl`'s `@workgroup_size`).
+const GROUP: usize = 256;
+
+/// Outputs side by side in a workgroup when the reduced entries are `inner` apart: enough
+/// neighbouring columns for a warp's reads to fill whole cache lines.
+const COLUMNS: usize = 32;
 
 /// `out[o, i] = reduce_k x[o, k, i]` (`max` or a sum), times `scale`.
 pub(crate) fn reduce_axis(
@@ -30,6 +37,41 @@ pub(crate) fn reduce_axis(
     pass(x, outer, len, inner, len.max(1), 1, max, scale)
 }
 
+/// The threads that share one output (a power of two, at most a workgroup): as many as
+/// leave [`COLUMNS`] outputs side by side (all 256 threads on one output when `inner` is 1),
+/// but no more than give each thread 4 entries of its `chunk`, nor than `cap`. From the
+/// shape alone (and the process's cap), so the order of the sums is fixed.
+fn lanes(chunk: usize, inner: usize, cap: usize) -> usize {
+    let side_by_side = inner.next_power_of_two().min(COLUMNS);
+    let by_entries = (chunk / 4).max(1);
+    let by_entries = 1usize << by_entries.ilog2();
+    (GROUP / side_by_side).min(by_entries).min(cap)
+}
+
+/// The most threads per output: `TENSOR_GPU_REDUCE_LANES` when set (a power of two from 1 to
+/// 256; 1 is one thread per output, the kernel of before 2026-12-01, for a paired timing on
+/// one machine), else 256. A bad value is reported on stderr and the default kept.
+fn lanes_cap() -> usize {
+    static CAP: std::sync::OnceLock<usize> = std::sync::OnceLock::new();
+    *CAP.get_or_init(|| {
+        let set = std::env::var("TENSOR_GPU_REDUCE_LANES").ok();
+        parse_lanes_cap(set.as_deref()).unwrap_or_else(|msg| {
+            eprintln!("tensor: {msg}; GPU reductions use up to {GROUP} threads per output");
+            GROUP
+        })
+    })
+}
+
+/// The cap for a `TENSOR_GPU_REDUCE_LANES` setting (`None`: unset); an error naming the
+/// variable and value when it is not a power of two from 1 to 256.
+fn parse_lanes_cap(setting: Option<&str>) -> Result<usize, String> {
+    let Some(v) = setting else { return Ok(GROUP) };
+    match v.trim().parse::<usize>() {
+        Ok(n) if n.is_power_of_two() && n <= GROUP => Ok(n),
+        _ => Err(format!("TENSOR_GPU_REDUCE_LANES={v:?} is not a power of two from 1 to {GROUP}")),
+    }
+}
+
 #[allow(clippy::too_many_arguments)]
 fn pass(
     x: &DeviceBuffer,
@@ -43,8 +85,14 @@ fn pass(
 ) -> DeviceBuffer {
     let n = outer * chunks * inner;
     let out = DeviceBuffer::uninit(n);
-    let params = [u(outer), u(len), u(inner), u(chunk), u(chunks), max as u32, bits(scale)];
-    device().launch_1d(&REDUCE_AXIS, &params, &[x.buffer(), out.buffer()], n);
+    let lanes = lanes(chunk, inner, lanes_cap());
+    // Contiguous entries (inner 1): an output's lanes side by side, else its neighbours.
+    let lanes_fast = inner == 1;
+    let params =
+        [u(outer), u(len), u(inner), u(chunk), u(chunks), max as u32, bits(scale), u(lanes), lanes_fast as u32];
+    // One workgroup for every GROUP / lanes outputs.
+    let groups = n.div_ceil(GROUP / lanes);
+    device().launch(&REDUCE_AXIS, &params, &[x.buffer(), out.buffer()], groups as u32);
     out
 }
 
@@ -65,4 +113,40 @@ pub(crate) fn max_backward(
         outer * inner,
     );
     dx
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The lanes follow the shape: a bias gradient's 64 columns keep 32 outputs side by side
+    /// (8 lanes), a sum over contiguous entries takes the whole workgroup, a short axis few
+    /// lanes, and the cap bounds them all.
+    #[test]
+    fn lanes_follow_the_shape_and_the_cap() {
+        assert_eq!(lanes(CHUNK, 64, GROUP), 8);
+        assert_eq!(lanes(CHUNK, 1, GROUP), 256);
+        assert_eq!(lanes(150, 64, GROUP), 8, "the second pass of a bias gradient");
+        assert_eq!(lanes(5, 1, GROUP), 1);
+        assert_eq!(lanes(64, 1, GROUP), 16, "at least 4 entries a lane");
+        assert_eq!(lanes(CHUNK, 3, GROUP), 64);
+        assert_eq!(lanes(CHUNK, 5000, GROUP), 8);
+        assert_eq!(lanes(CHUNK, 1, 1), 1, "the cap of 1: one thread per output");
+        assert_eq!(lanes(CHUNK, 1, 32), 32);
+        for (chunk, inner) in [(1, 1), (7, 2), (1024, 17), (300, 300)] {
+            let l = lanes(chunk, inner, GROUP);
+            assert!(l.is_power_of_two() && l <= GROUP && GROUP.is_multiple_of(l), "{chunk} {inner}: {l}");
+        }
+    }
+
+    #[test]
+    fn the_lanes_setting_is_a_power_of_two_up_to_a_workgroup() {
+        assert_eq!(parse_lanes_cap(None), Ok(GROUP));
+        assert_eq!(parse_lanes_cap(Some("1")), Ok(1));
+        assert_eq!(parse_lanes_cap(Some(" 64 ")), Ok(64));
+        for bad in ["0", "3", "512", "many", ""] {
+            let err = parse_lanes_cap(Some(bad)).unwrap_err();
+            assert!(err.contains("TENSOR_GPU_REDUCE_LANES") && err.contains(&format!("{bad:?}")), "{err}");
+        }
+    }
 }
