@@ -270,6 +270,19 @@ impl Adam {
     /// parameter or a gradient is on the GPU, the whole step runs there with f32 moments
     /// (type docs) and the parameters end up on the GPU.
     pub fn step<T: Float>(&mut self, store: &mut ParamStore<T>, grads: &[Tensor<T>]) -> Result<()> {
+        self.step_with(store, grads, None)
+    }
+
+    /// [`Adam::step`] with every gradient element first clipped to `[-limit, limit]`: the
+    /// same values as [`clip_elementwise`] then [`Adam::step`], bit for bit, without writing
+    /// the clipped gradients anywhere (on the GPU the clip runs inside the Adam kernel: one
+    /// launch per parameter instead of two).
+    pub fn step_clipped<T: Float>(&mut self, store: &mut ParamStore<T>, grads: &[Tensor<T>], limit: f64) -> Result<()> {
+        self.step_with(store, grads, Some(limit))
+    }
+
+    /// [`Adam::step`], clipping the gradients' elements to `[-limit, limit]` when given.
+    fn step_with<T: Float>(&mut self, store: &mut ParamStore<T>, grads: &[Tensor<T>], clip: Option<f64>) -> Result<()> {
         if grads.len() != store.len() || self.m.len() != store.len() {
             return Err(NnError::Config(format!(
                 "Adam: {} gradients and {} moment buffers for {} parameters",
@@ -293,7 +306,7 @@ impl Adam {
         let c1 = 1.0 / (1.0 - b1.powi(t));
         let c2 = 1.0 / (1.0 - b2.powi(t));
         if store.values().iter().chain(grads).any(|x| x.device() != Device::Cpu) {
-            return self.step_on_device(store, grads, StepConstants { lr, beta1: b1, beta2: b2, c1, c2, eps });
+            return self.step_on_device(store, grads, StepConstants { lr, beta1: b1, beta2: b2, c1, c2, eps, clip });
         }
         if !self.device_m.is_empty() {
             // The moments were last updated on the GPU.
@@ -303,6 +316,11 @@ impl Adam {
         values.par_iter_mut().zip(grads.par_iter()).zip(self.m.par_iter_mut().zip(self.v.par_iter_mut())).for_each(
             |((p, g), (m, v))| {
                 for (((pv, &gv), mv), vv) in p.data_mut().iter_mut().zip(g.data()).zip(m.iter_mut()).zip(v.iter_mut()) {
+                    // clip_elementwise's rule, in the gradient's precision.
+                    let gv = match clip {
+                        Some(limit) => gv.max(T::from_f64(-limit)).min(T::from_f64(limit)),
+                        None => gv,
+                    };
                     let gv = gv.to_f64();
                     *mv = b1 * *mv + (1.0 - b1) * gv;
                     *vv = b2 * *vv + (1.0 - b2) * gv * gv;
@@ -322,7 +340,15 @@ impl Adam {
         grads: &[Tensor<T>],
         s: StepConstants,
     ) -> Result<()> {
-        let step = tensor::gpu::AdamStep { lr: s.lr, beta1: s.beta1, beta2: s.beta2, c1: s.c1, c2: s.c2, eps: s.eps };
+        let step = tensor::gpu::AdamStep {
+            lr: s.lr,
+            beta1: s.beta1,
+            beta2: s.beta2,
+            c1: s.c1,
+            c2: s.c2,
+            eps: s.eps,
+            clip: s.clip,
+        };
         self.to_device(Device::Gpu)?;
         let values = store.values_mut();
         for (i, (p, g)) in values.iter_mut().zip(grads).enumerate() {
@@ -342,7 +368,7 @@ impl Adam {
 }
 
 /// The constants of one Adam step: the learning rate, the decays, the bias corrections
-/// `c1 = 1/(1-b1^t)`, `c2 = 1/(1-b2^t)` and `eps`.
+/// `c1 = 1/(1-b1^t)`, `c2 = 1/(1-b2^t)`, `eps`, and the gradients' clip limit if any.
 #[cfg_attr(not(feature = "gpu"), allow(dead_code))]
 struct StepConstants {
     lr: f64,
@@ -351,6 +377,7 @@ struct StepConstants {
     c1: f64,
     c2: f64,
     eps: f64,
+    clip: Option<f64>,
 }
 
 #[cfg(test)]

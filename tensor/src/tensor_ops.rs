@@ -34,23 +34,21 @@ impl<T: Float> Tensor<T> {
 }
 
 /// The index of the first tensor holding a NaN or an infinity, if any. On the GPU every
-/// tensor is checked there and only the counts come back (one transfer for all of them).
+/// tensor is checked there, one launch each, and only their flags come back (one transfer
+/// for all of them).
 pub fn first_non_finite<T: Float>(ts: &[Tensor<T>]) -> Result<Option<usize>> {
     if crate::dispatch::device_of(&ts.iter().collect::<Vec<_>>()) == Device::Cpu {
         return Ok(ts.iter().position(|t| !t.all_finite()));
     }
     #[cfg(feature = "gpu")]
     {
-        let mut counts = Vec::with_capacity(ts.len());
-        for t in ts {
-            let t = t.to_device(Device::Gpu)?;
-            let flags = crate::gpu::ops::optim::non_finite_flags(t.device_buffer().expect("on the GPU"));
-            let flags: Tensor<T> = Tensor::from_device(flags, vec![t.numel()]);
-            counts.push(crate::dispatch::reduce(&flags, ReduceOp::Sum, None, true)?);
-        }
-        let refs: Vec<&Tensor<T>> = counts.iter().collect();
-        let all = crate::dispatch::cat(&refs, 0)?;
-        Ok(all.data().iter().position(|&c| c != T::ZERO))
+        // One flag per tensor comes back, in one download (a host tensor in the list is
+        // uploaded first).
+        let placed: Vec<Tensor<T>> = ts.iter().map(|t| t.to_device(Device::Gpu)).collect::<Result<_>>()?;
+        let bufs: Vec<&crate::gpu::DeviceBuffer> =
+            placed.iter().map(|t| t.device_buffer().expect("on the GPU")).collect();
+        let flags = crate::gpu::ops::optim::non_finite_any(&bufs).download();
+        Ok(flags.iter().position(|&f| f != 0.0))
     }
     #[cfg(not(feature = "gpu"))]
     unreachable!("no tensor is on the GPU without the `gpu` feature")

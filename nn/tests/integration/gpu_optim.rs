@@ -65,6 +65,30 @@ fn clipping_on_the_gpu_matches_the_host() {
     }
 }
 
+/// `Adam::step_clipped` is `clip_elementwise` then `Adam::step`, bit for bit, on each device
+/// (on the GPU the clip runs inside the Adam kernel; `tensor`'s `gpu_ops` counts its one
+/// launch a parameter, which this file's parallel tests would disturb).
+#[test]
+fn a_clipped_step_is_the_clip_then_the_step_on_both_devices() {
+    for device in [Device::Cpu, Device::Gpu] {
+        let (mut store, mlp) = model();
+        store.to_device(device).unwrap();
+        let (mut apart, mut fused) = (store.clone(), store.clone());
+        let config = AdamConfig { lr: LrSchedule::Constant(1e-2), ..AdamConfig::default() };
+        let (mut adam_apart, mut adam_fused) = (Adam::new(config, &store), Adam::new(config, &store));
+        for k in 0..3 {
+            let mut g = grads(&apart, &mlp, k);
+            assert!(host(&g).iter().flatten().any(|v| v.abs() > 0.05), "the clip bites");
+            clip_elementwise(&mut g, 0.05);
+            adam_apart.step(&mut apart, &g).unwrap();
+            let g = grads(&fused, &mlp, k);
+            adam_fused.step_clipped(&mut fused, &g, 0.05).unwrap();
+        }
+        assert_eq!(host(fused.values()), host(apart.values()), "{device}: the parameters");
+        assert_ne!(host(fused.values()), host(store.values()), "{device}: the steps moved them");
+    }
+}
+
 #[test]
 fn adam_on_the_gpu_follows_the_host_and_its_state_saves_and_resumes() {
     let lr = 1e-2;

@@ -541,7 +541,7 @@ impl Trainer {
                     }
                     lap(&mut mark, &mut timings.loss_s);
                     // Backward, every gradient element clipped, one Adam step.
-                    let mut grads = p.grads(&tape.backward(loss)?);
+                    let grads = p.grads(&tape.backward(loss)?);
                     if let Some(i) = tensor::first_non_finite(&grads)? {
                         return Err(RlError::NonFinite {
                             message: format!("gradient of {} of {}", store.names()[i], at.describe(&stats)),
@@ -549,9 +549,10 @@ impl Trainer {
                     }
                     lap(&mut mark, &mut timings.backward_s);
                     if c.grad_clip > 0.0 {
-                        nn::clip_elementwise(&mut grads, c.grad_clip);
+                        team.adam.step_clipped(store, &grads, c.grad_clip)?;
+                    } else {
+                        team.adam.step(store, &grads)?;
                     }
-                    team.adam.step(store, &grads)?;
                     lap(&mut mark, &mut timings.optimizer_s);
                     sum.add(&stats);
                     count += 1.0;

@@ -557,6 +557,23 @@ fn optimiser_kernels_match_the_host_formulas() {
     let mut inf = x.clone();
     inf.data_mut()[0] = f32::NEG_INFINITY;
     assert!(!inf.to_device(Device::Gpu).unwrap().all_finite());
+    // A list like a model's gradients: an empty tensor, finite ones, and two with non-finite
+    // values past the first workgroup (the last element of 70,000; an infinity deep inside
+    // another): the first of them is reported, after one launch per non-empty tensor.
+    let mut long_nan = randn(25, &[70_000]);
+    long_nan.data_mut()[69_999] = f32::NAN;
+    let mut deep_inf = randn(26, &[300, 10]);
+    deep_inf.data_mut()[2_345] = f32::INFINITY;
+    let list: Vec<Tensor<f32>> = [Tensor::<f32>::zeros(&[0]), randn(27, &[5000]), long_nan, x.clone(), deep_inf]
+        .iter()
+        .map(|t| t.to_device(Device::Gpu).unwrap())
+        .collect();
+    let gpu = tensor::gpu::gpu().unwrap();
+    gpu.start_timing().unwrap();
+    assert_eq!(tensor::first_non_finite(&list).unwrap(), Some(2));
+    assert_eq!(gpu.stop_timing().unwrap().launches, 4, "one launch per non-empty tensor");
+    assert_eq!(tensor::first_non_finite(&list[3..]).unwrap(), Some(1));
+    assert_eq!(tensor::first_non_finite(&list[..2]).unwrap(), None);
     // Adam: two steps against the formula in f64.
     let (b1, b2, eps, lr) = (0.9f64, 0.999f64, 1e-8f64, 3e-3f64);
     let (mut p, mut m, mut v) = (x.clone(), vec![0.0f64; 300], vec![0.0f64; 300]);
@@ -568,7 +585,7 @@ fn optimiser_kernels_match_the_host_formulas() {
     for t in 1..=2 {
         let g = randn(30 + t, &[300]);
         let (c1, c2) = (1.0 / (1.0 - b1.powi(t as i32)), 1.0 / (1.0 - b2.powi(t as i32)));
-        let step = tensor::gpu::AdamStep { lr, beta1: b1, beta2: b2, c1, c2, eps };
+        let step = tensor::gpu::AdamStep { lr, beta1: b1, beta2: b2, c1, c2, eps, clip: None };
         (pd, md, vd) = tensor::adam_update(&pd, &g.to_device(Device::Gpu).unwrap(), &md, &vd, step).unwrap();
         let pv = p.data_mut();
         for i in 0..300 {
@@ -579,4 +596,22 @@ fn optimiser_kernels_match_the_host_formulas() {
         }
     }
     close("adam parameters", &pd.to_device(Device::Cpu).unwrap(), &p, Tol(1e-6, 1e-6));
+    // With the clip inside the kernel: the same bits as clamping first (the `clamp` op),
+    // then the plain step; and a clip that bites (values up to 1, limit 0.1) changes them.
+    let g = randn(40, &[300]).to_device(Device::Gpu).unwrap();
+    let step =
+        tensor::gpu::AdamStep { lr, beta1: b1, beta2: b2, c1: 1.0 / (1.0 - b1), c2: 1.0 / (1.0 - b2), eps, clip: None };
+    let clamped = g.map_unary(tensor::UnaryOp::Clamp(-0.1, 0.1));
+    let plain = tensor::adam_update(&pd, &clamped, &md, &vd, step).unwrap();
+    let gpu = tensor::gpu::gpu().unwrap();
+    gpu.start_timing().unwrap();
+    let fused = tensor::adam_update(&pd, &g, &md, &vd, tensor::gpu::AdamStep { clip: Some(0.1), ..step }).unwrap();
+    assert_eq!(gpu.stop_timing().unwrap().launches, 1, "the clip inside the Adam launch");
+    let unclipped = tensor::adam_update(&pd, &g, &md, &vd, step).unwrap();
+    for (what, a, b) in
+        [("parameter", &plain.0, &fused.0), ("first moment", &plain.1, &fused.1), ("second moment", &plain.2, &fused.2)]
+    {
+        assert_eq!(a.to_vec(), b.to_vec(), "adam with the clip inside: {what}");
+    }
+    assert_ne!(unclipped.1.to_vec(), fused.1.to_vec(), "the clip changes the first moment");
 }

@@ -1,7 +1,8 @@
 // One Adam step (torch.optim.Adam without weight decay), element by element, into new
 // buffers: m' = b1 m + (1-b1) g, v' = b2 v + (1-b2) g^2,
 // p' = p - lr (m' c1) / (sqrt(v' c2) + eps), with c1 = 1/(1-b1^t), c2 = 1/(1-b2^t).
-// p = [n, lr, b1, b2, c1, c2, eps] (constants as f32 bits).
+// p = [n, lr, b1, b2, c1, c2, eps, clip, lo, hi] (constants as f32 bits): when clip is 1,
+// g is first clipped to [lo, hi] as the clamp op does (unary_fns.wgsl).
 @group(0) @binding(1) var<storage, read> param: array<f32>;
 @group(0) @binding(2) var<storage, read> grad: array<f32>;
 @group(0) @binding(3) var<storage, read> m: array<f32>;
@@ -15,7 +16,10 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) nwg: vec3
         @builtin(local_invocation_index) li: u32) {
     let i = linear_id(wg, nwg, li);
     if i >= p[0] { return; }
-    let g = grad[i];
+    var g = grad[i];
+    if p[7] != 0u {
+        g = min(max(g, pf(8u)), pf(9u));
+    }
     let b1 = pf(2u);
     let b2 = pf(3u);
     let m1 = b1 * m[i] + (1.0 - b1) * g;
