@@ -12,29 +12,14 @@
 //! kernel of before 2026-12-01 for a paired timing in one call (docs/TENSOR.md).
 
 use std::hint::black_box;
-use std::time::Instant;
 
 #[global_allocator]
 static ALLOC: mimalloc::MiMalloc = mimalloc::MiMalloc;
 
 use tensor::{Device, Tape, Tensor};
 
-const SAMPLES: usize = 15;
-
-fn median_ms(mut f: impl FnMut()) -> f64 {
-    for _ in 0..3 {
-        f();
-    }
-    let mut t: Vec<f64> = (0..SAMPLES)
-        .map(|_| {
-            let s = Instant::now();
-            f();
-            s.elapsed().as_secs_f64() * 1e3
-        })
-        .collect();
-    t.sort_by(f64::total_cmp);
-    t[SAMPLES / 2]
-}
+mod common;
+use common::median_ms;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let n: usize = std::env::var("N").ok().and_then(|v| v.parse().ok()).unwrap_or(153_600);

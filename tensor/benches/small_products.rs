@@ -21,7 +21,6 @@
 //! Run: `cargo bench -p tensor --bench small_products`.
 
 use std::hint::black_box;
-use std::time::Instant;
 
 #[global_allocator]
 static ALLOC: mimalloc::MiMalloc = mimalloc::MiMalloc;
@@ -29,22 +28,8 @@ static ALLOC: mimalloc::MiMalloc = mimalloc::MiMalloc;
 use tensor::kernels::matmul::{MatMulPlan, matmul, small_batched_backward};
 use tensor::{Device, Tensor};
 
-const SAMPLES: usize = 15;
-
-fn median_ms(mut f: impl FnMut()) -> f64 {
-    for _ in 0..3 {
-        f();
-    }
-    let mut t: Vec<f64> = (0..SAMPLES)
-        .map(|_| {
-            let s = Instant::now();
-            f();
-            s.elapsed().as_secs_f64() * 1e3
-        })
-        .collect();
-    t.sort_by(f64::total_cmp);
-    t[SAMPLES / 2]
-}
+mod common;
+use common::median_ms;
 
 fn filled(shape: &[usize], seed: usize) -> Tensor<f32> {
     let n: usize = shape.iter().product();
