@@ -312,13 +312,14 @@ impl Adam {
             // The moments were last updated on the GPU.
             self.to_device(Device::Cpu)?;
         }
+        let bounds = clip.map(|limit| (T::from_f64(-limit), T::from_f64(limit)));
         let values = store.values_mut();
         values.par_iter_mut().zip(grads.par_iter()).zip(self.m.par_iter_mut().zip(self.v.par_iter_mut())).for_each(
             |((p, g), (m, v))| {
                 for (((pv, &gv), mv), vv) in p.data_mut().iter_mut().zip(g.data()).zip(m.iter_mut()).zip(v.iter_mut()) {
                     // clip_elementwise's rule, in the gradient's precision.
-                    let gv = match clip {
-                        Some(limit) => gv.max(T::from_f64(-limit)).min(T::from_f64(limit)),
+                    let gv = match bounds {
+                        Some((lo, hi)) => gv.max(lo).min(hi),
                         None => gv,
                     };
                     let gv = gv.to_f64();

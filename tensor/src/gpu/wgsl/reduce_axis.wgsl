@@ -42,11 +42,12 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) nwg: vec3
         lane_step = 1u;
     }
     let t = (wg.x + wg.y * nwg.x) * w + q;
+    let outputs = p[0] * chunks * inner;
     var acc = 0.0;
     if is_max {
         acc = bitcast<f32>(0xff800000u);
     }
-    if t < p[0] * chunks * inner {
+    if t < outputs {
         let i = t % inner;
         let c = (t / inner) % chunks;
         let o = t / (inner * chunks);
@@ -63,7 +64,7 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) nwg: vec3
         }
         workgroupBarrier();
     }
-    if r == 0u && t < p[0] * chunks * inner {
+    if r == 0u && t < outputs {
         out[t] = partial[li] * pf(6u);
     }
 }
