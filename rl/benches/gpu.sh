@@ -23,6 +23,10 @@
 #   reduce    reductions at paper sizes (bias gradients, means) with the kernel's lanes
 #             and with one thread per output (TENSOR_GPU_REDUCE_LANES=1), alternated; then
 #             the paper-size `shnn` minibatch pass with each, for the ratio in one call
+#   tile      the tiled product's 128 x 64 tile against the 64 x 64 one
+#             (TENSOR_GPU_MATMUL_TILE; the same bits): the matmul rate with each, alternated
+#             twice, then the paper-size `shnn` minibatch pass and a two-iteration training
+#             run with each
 #   profile   one `shnn` minibatch's forward and backward on the GPU, op by op
 #   timeline  the host's cost of one launch (launch_overhead); the same minibatch pass,
 #             `shnn_step`, and a training iteration's update, on the
@@ -41,7 +45,7 @@ cp gpu-carry/COMMIT gpu-carry/LEVEL $C/
 [ -e gpu-carry/BEFORE ] && cp gpu-carry/BEFORE $C/
 for f in gpu-carry/*.gz; do gzip -dc "$f" > "$C/$(basename "$f" .gz)" && chmod +x "$C/$(basename "$f" .gz)"; done
 RUNS=${RUNS:-/tmp/gpu-bench}
-SECTIONS=${SECTIONS:-correct matmul gpu act_cpu before peers reduce profile timeline gpu_more sim cpu}
+SECTIONS=${SECTIONS:-correct matmul gpu act_cpu before peers reduce tile profile timeline gpu_more sim cpu}
 DEADLINE=${DEADLINE:-540}
 mkdir -p "$RUNS"
 if [ -n "${OUT:-}" ]; then exec > >(tee "$OUT/gpu-bench.log") 2>&1; fi
@@ -200,6 +204,31 @@ reduce() {
         TENSOR_GPU_REDUCE_LANES=$lanes DEVICE=gpu PRESET=$preset ITERATIONS=0 MINIBATCH_REPS=5 BENCH_ENVS=$env \
             BENCH_MODELS=shnn timeout -s KILL "$(limit 90)" $C/train_throughput 2>&1 | grep -o "minibatch_ms=[0-9.]*" \
             | sed "s/\$/ (lanes $lanes)/"
+    done
+}
+
+tile() {
+    echo "== the tiled product: 128 x 64 tiles against 64 x 64 (TENSOR_GPU_MATMUL_TILE), alternated"
+    local mm_limit=90 env=team_reach/3_ant_claw_centipede preset=paper
+    [ -n "${QUICK:-}" ] && mm_limit=30 env=team_reach/1_ant preset=quick
+    for round in 1 2; do
+        for t in 128 64; do
+            want || return
+            TENSOR_GPU_MATMUL_TILE=$t timeout -s KILL "$(limit $mm_limit)" $C/matmul_rate --device gpu 2>&1 \
+                | grep -E "matmul|rate|panicked|rror" | grep -v XDG | sed "s/\$/ (tile $t, round $round)/"
+        done
+    done
+    echo "-- one shnn minibatch pass ($env, $preset preset), forward and backward, with each"
+    for t in 128 64; do
+        want || return
+        TENSOR_GPU_MATMUL_TILE=$t DEVICE=gpu PRESET=$preset ITERATIONS=0 MINIBATCH_REPS=5 BENCH_ENVS=$env \
+            BENCH_MODELS=shnn timeout -s KILL "$(limit 90)" $C/train_throughput 2>&1 | grep -o "minibatch_ms=[0-9.]*" \
+            | sed "s/\$/ (tile $t)/"
+    done
+    echo "-- shnn training on $env with each tile (the second iteration's rate)"
+    for t in 128 64; do
+        want || return
+        TENSOR_GPU_MATMUL_TILE=$t train gpu $env shnn 2 120 | sed "s/\$/ (tile $t)/"
     done
 }
 

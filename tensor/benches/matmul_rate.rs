@@ -25,7 +25,9 @@
 //! tensor --features gpu --bench matmul_rate -- --device gpu` times the WGSL product of the
 //! same shapes on the GPU instead (operands already on the device, the time to the end of
 //! the kernel; `gpu_gflops=`, then `gpu_matmul_rate_gflops=` over the large shapes), after
-//! checking each product against the CPU's.
+//! checking each product against the CPU's; then the paper-size layer products of
+//! [`GPU_SHAPES`] and their median, `gpu_layer_rate_gflops=`. `TENSOR_GPU_MATMUL_TILE=128`
+//! times the 128 x 64 tile instead of the 64 x 64 one (the line names the tile).
 
 use std::hint::black_box;
 use std::time::{Duration, Instant};
@@ -47,6 +49,13 @@ const SHAPES: [(usize, usize, usize); 7] = [
     (2048, 128, 256),
     (2048, 2048, 2048),
 ];
+
+/// `(m, k, n)`: on the GPU, also the paper preset's message-passing layers of `shnn` on
+/// `3_ant_claw_centipede` (153,600 and 30,720 edge rows; `docs/PERFORMANCE.md`'s products by
+/// shape), timed after [`SHAPES`].
+#[cfg(feature = "gpu")]
+const GPU_SHAPES: [(usize, usize, usize); 4] =
+    [(153600, 1024, 64), (153600, 64, 1024), (153600, 64, 64), (30720, 64, 64)];
 
 /// Products with at least this many multiply-adds enter the final rate.
 const LARGE_WORK: usize = 1 << 28;
@@ -97,9 +106,10 @@ fn median(mut v: Vec<f64>) -> f64 {
 fn gpu_main() {
     use tensor::Device;
     let gpu = tensor::gpu::gpu().expect("a GPU adapter");
-    eprintln!("matmul_rate: f32 on the GPU: {}, median of {SAMPLES} samples", gpu.adapter());
-    let mut large = Vec::new();
-    for (m, k, n) in SHAPES {
+    let tile = std::env::var("TENSOR_GPU_MATMUL_TILE").unwrap_or_else(|_| "64".into());
+    eprintln!("matmul_rate: f32 on the GPU: {}, median of {SAMPLES} samples, {tile}-row tiles", gpu.adapter());
+    let (mut large, mut layers) = (Vec::new(), Vec::new());
+    for (m, k, n) in SHAPES.into_iter().chain(GPU_SHAPES) {
         let a = Tensor::new(matrix(m, k, 0.1), &[m, k]).expect("shape matches data");
         let b = Tensor::new(matrix(k, n, 0.7), &[k, n]).expect("shape matches data");
         let g = Tensor::new(matrix(m, n, 0.3), &[m, n]).expect("shape matches data");
@@ -124,11 +134,14 @@ fn gpu_main() {
             flops / dx * 1e-9,
             flops / dw * 1e-9
         );
-        if m * k * n >= LARGE_WORK {
+        if !SHAPES.contains(&(m, k, n)) {
+            layers.push(flops / fw * 1e-9);
+        } else if m * k * n >= LARGE_WORK {
             large.push(flops / fw * 1e-9);
         }
     }
     println!("gpu_matmul_rate_gflops={:.1}", median(large));
+    println!("gpu_layer_rate_gflops={:.1}", median(layers));
 }
 
 fn main() {

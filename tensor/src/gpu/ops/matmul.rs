@@ -4,7 +4,9 @@
 //! `kernels/nnops.rs`).
 //!
 //! One tiled kernel (`wgsl/matmul.wgsl`): 64 x 64 output tiles per workgroup of 16 x 16
-//! threads, 4 x 4 outputs per thread, the inner dim in steps of 16 through workgroup memory.
+//! threads, 4 x 4 outputs per thread, the inner dim in steps of 16 through workgroup memory;
+//! or, with `TENSOR_GPU_MATMUL_TILE=128` ([`MatMulTile`]), 128 x 64 tiles of 8 x 4 outputs
+//! per thread (the same bits: each output's sum is the same sequence of fused multiply-adds).
 //! Batched products of small matrices (each entry's output at most a quarter of a tile, k at
 //! most 64: the subequivariant layers' Gram matrices and vector mixings) go to
 //! `wgsl/matmul_small.wgsl`, one thread per output, which gives the tiled kernel's bits.
@@ -23,11 +25,14 @@ use crate::gpu::{DeviceBuffer, device};
 use crate::kernels::matmul::MatMulPlan;
 use crate::op::Activation;
 
-const MATMUL: Kernel = kernel!("matmul", "matmul_activation.wgsl", "matmul.wgsl");
+const MATMUL: Kernel = kernel!("matmul", "matmul_activation.wgsl", "matmul_tile_64.wgsl", "matmul.wgsl");
+const MATMUL_TALL: Kernel = kernel!("matmul_tall", "matmul_activation.wgsl", "matmul_tile_128.wgsl", "matmul.wgsl");
 const MATMUL_REDUCE: Kernel = kernel!("matmul_reduce", "matmul_activation.wgsl", "matmul_reduce.wgsl");
 const MATMUL_SMALL: Kernel = kernel!("matmul_small", "matmul_activation.wgsl", "matmul_small.wgsl");
 
-/// Output rows of the tile one workgroup computes (`TILE_M` in `matmul.wgsl`).
+/// Output rows of the 64 x 64 tile (`TILE_M` in `matmul.wgsl` with `matmul_tile_64.wgsl`),
+/// which also decides a product's split of k ([`split_k`]) and the small-matrix kernel's
+/// limit, whichever tile computes it.
 const TILE_M: usize = 64;
 /// Output columns of the tile one workgroup computes (`TILE_N` in `matmul.wgsl`).
 const TILE_N: usize = 64;
@@ -51,6 +56,59 @@ fn split_k(groups: usize, k: usize) -> (usize, usize) {
     }
     let per = k.div_ceil(want).next_multiple_of(TILE_K);
     (k.div_ceil(per), per)
+}
+
+/// The output tile of the tiled kernel (`matmul.wgsl`): its rows per workgroup.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum MatMulTile {
+    /// 64 x 64, 4 x 4 outputs per thread (the default: the kernel measured on the H100 and
+    /// H200 in `docs/PERFORMANCE.md`).
+    Rows64,
+    /// 128 x 64, 8 x 4 outputs per thread: 32 multiply-adds per 12 values read from
+    /// workgroup memory instead of 16 per 8, for the tall products of the layers.
+    Rows128,
+}
+
+impl MatMulTile {
+    /// Output rows of one workgroup's tile.
+    fn rows(self) -> usize {
+        match self {
+            MatMulTile::Rows64 => 64,
+            MatMulTile::Rows128 => 128,
+        }
+    }
+
+    /// The kernel computing tiles of this size.
+    fn kernel(self) -> &'static Kernel {
+        match self {
+            MatMulTile::Rows64 => &MATMUL,
+            MatMulTile::Rows128 => &MATMUL_TALL,
+        }
+    }
+}
+
+/// The tile of every tiled product: `TENSOR_GPU_MATMUL_TILE` when set (`64` or `128`, for a
+/// paired timing on one machine), else 64 x 64. A bad value is reported on stderr and the
+/// default kept.
+fn tile() -> MatMulTile {
+    static TILE: std::sync::OnceLock<MatMulTile> = std::sync::OnceLock::new();
+    *TILE.get_or_init(|| {
+        let set = std::env::var("TENSOR_GPU_MATMUL_TILE").ok();
+        parse_tile(set.as_deref()).unwrap_or_else(|msg| {
+            eprintln!("tensor: {msg}; GPU products use 64 x 64 tiles");
+            MatMulTile::Rows64
+        })
+    })
+}
+
+/// The tile for a `TENSOR_GPU_MATMUL_TILE` setting (`None`: unset); an error naming the
+/// variable and value when it is neither `64` nor `128`.
+fn parse_tile(setting: Option<&str>) -> Result<MatMulTile, String> {
+    match setting.map(str::trim) {
+        None | Some("64") => Ok(MatMulTile::Rows64),
+        Some("128") => Ok(MatMulTile::Rows128),
+        Some(_) => Err(format!("TENSOR_GPU_MATMUL_TILE={:?} is neither 64 nor 128", setting.unwrap_or_default())),
+    }
 }
 
 /// The largest output of one batch entry (`m * n`) the small-matrix kernel takes: a quarter
@@ -115,9 +173,8 @@ pub(crate) fn matmul_into(
     bias: Option<&DeviceBuffer>,
     act: Activation,
 ) {
-    let small = is_small(plan.m, plan.k, plan.n);
     let (out, b, bias) = (Placed::whole(out), Placed::whole(b), bias.map(Placed::whole));
-    matmul_into_with(small, out, accumulate, a, ta, b, tb, plan, bias, act);
+    matmul_into_with(Route::of(plan), out, accumulate, a, ta, b, tb, plan, bias, act);
 }
 
 /// A matrix inside a buffer: it starts at element `base` and its stored rows are `ld`
@@ -167,14 +224,30 @@ pub(crate) fn matmul_into_at(
     bias: Option<Placed<'_>>,
     act: Activation,
 ) {
-    let small = is_small(plan.m, plan.k, plan.n);
-    matmul_into_with(small, out, accumulate, a, ta, b, tb, plan, bias, act);
+    matmul_into_with(Route::of(plan), out, accumulate, a, ta, b, tb, plan, bias, act);
 }
 
-/// [`matmul_into_at`] on the small-matrix kernel (`small`) or the tiled one.
+/// Which kernel computes a product.
+#[derive(Clone, Copy, Debug)]
+enum Route {
+    /// `matmul_small.wgsl`, one thread per output.
+    Small,
+    /// `matmul.wgsl` with this tile.
+    Tiled(MatMulTile),
+}
+
+impl Route {
+    /// The small-matrix kernel for small products ([`is_small`]), else the tiled one with
+    /// the tile of [`tile`].
+    fn of(plan: &MatMulPlan) -> Self {
+        if is_small(plan.m, plan.k, plan.n) { Route::Small } else { Route::Tiled(tile()) }
+    }
+}
+
+/// [`matmul_into_at`] on the kernel `route` names.
 #[allow(clippy::too_many_arguments)]
 fn matmul_into_with(
-    small: bool,
+    route: Route,
     out: Placed<'_>,
     accumulate: bool,
     a: &DeviceBuffer,
@@ -213,8 +286,9 @@ fn matmul_into_with(
     let has_bias = bias.is_some();
     let bias_base = bias.map_or(0, |b| b.base);
     let tiles_n = n.div_ceil(TILE_N);
-    let per_batch = m.div_ceil(TILE_M) * tiles_n;
-    let groups = per_batch * batches;
+    // The split of k counts 64 x 64 tiles whichever tile computes the product: the same
+    // slices, so the same bits.
+    let groups = m.div_ceil(TILE_M) * tiles_n * batches;
     if groups == 0 {
         return;
     }
@@ -249,14 +323,18 @@ fn matmul_into_with(
         u(bias_base),
     ];
     let total = batches * m * n;
-    if small {
-        device().launch_1d(&MATMUL_SMALL, &shared, &with_output(inputs, out), total);
-        return;
-    }
+    let tile = match route {
+        Route::Small => {
+            device().launch_1d(&MATMUL_SMALL, &shared, &with_output(inputs, out), total);
+            return;
+        }
+        Route::Tiled(tile) => tile,
+    };
+    let per_batch = m.div_ceil(tile.rows()) * tiles_n;
     let (slices, k_per_slice) = split_k(groups, k);
     if slices == 1 {
         let params = [&shared[..], &[u(tiles_n), u(per_batch), u(slices), u(k_per_slice)]].concat();
-        device().launch(&MATMUL, &params, &with_output(inputs, out), u(groups));
+        device().launch(tile.kernel(), &params, &with_output(inputs, out), u(per_batch * batches));
         return;
     }
     // Split k: the slices' partial sums (packed from element 0 of their own buffer), then
@@ -265,7 +343,7 @@ fn matmul_into_with(
     params[OUT_BASE] = 0;
     params[OUT_LD] = u(n);
     let parts = DeviceBuffer::uninit(slices * total);
-    device().launch(&MATMUL, &params, &with_output(inputs, &parts), u(groups * slices));
+    device().launch(tile.kernel(), &params, &with_output(inputs, &parts), u(per_batch * batches * slices));
     let params = [
         u(total),
         u(n),
@@ -658,14 +736,15 @@ mod tests {
                 let (ad, bd) = (DeviceBuffer::upload(a.data()), DeviceBuffer::upload(b.data()));
                 let bias = DeviceBuffer::upload(&values(n, 103));
                 let old = values(batch * m * n, 104);
-                let run = |small: bool, act: Activation| {
+                let run = |route: Route, act: Activation| {
                     let out = DeviceBuffer::upload(&old);
                     let (o, b) = (Placed::whole(&out), Placed::whole(&bd));
-                    matmul_into_with(small, o, true, &ad, ta, b, tb, &plan, Some(Placed::whole(&bias)), act);
+                    matmul_into_with(route, o, true, &ad, ta, b, tb, &plan, Some(Placed::whole(&bias)), act);
                     bits(&out.download())
                 };
                 for act in [Activation::Identity, Activation::Tanh] {
-                    assert_eq!(run(true, act), run(false, act), "m={m} k={k} n={n} ta={ta} tb={tb} {act:?}");
+                    let tiled = Route::Tiled(MatMulTile::Rows64);
+                    assert_eq!(run(Route::Small, act), run(tiled, act), "m={m} k={k} n={n} ta={ta} tb={tb} {act:?}");
                 }
             }
         }
@@ -674,6 +753,72 @@ mod tests {
         let a = tensor(&[batch, 3, 32], 105);
         let w = tensor(&[32, 32], 106);
         compare("shared weight", &a, false, &w, false, true);
+    }
+
+    /// The 128 x 64 tile gives the 64 x 64 tile's bits: every output is the same sequence of
+    /// fused multiply-adds, and the split of k does not depend on the tile. Shapes with
+    /// partial tiles of either size, split k (few tiles over a long k), batches, both
+    /// transposes, accumulation, the epilogue and a block of a weight read and written in
+    /// place.
+    #[test]
+    fn both_tiles_give_the_same_bits() {
+        let shapes = [(129, 40, 70, 1), (127, 17, 64, 3), (200, 70, 1, 1), (64, 5000, 70, 1), (300, 1153, 64, 1)];
+        for (m, k, n, batch) in shapes {
+            assert!(!is_small(m, k, n));
+            for (ta, tb) in [(false, false), (true, false), (false, true), (true, true)] {
+                let a = tensor(&[[batch].as_slice(), &stored(m, k, ta)].concat(), 111);
+                let b = tensor(&[[batch].as_slice(), &stored(k, n, tb)].concat(), 112);
+                let plan = MatMulPlan::new(a.shape(), b.shape(), ta, tb).unwrap();
+                let (ad, bd) = (DeviceBuffer::upload(a.data()), DeviceBuffer::upload(b.data()));
+                let bias = DeviceBuffer::upload(&values(n, 113));
+                let old = values(batch * m * n, 114);
+                for (accumulate, with_bias, act) in [
+                    (false, false, Activation::Identity),
+                    (true, true, Activation::Tanh),
+                    (false, true, Activation::Relu),
+                ] {
+                    let run = |tile: MatMulTile| {
+                        let out = DeviceBuffer::upload(&old);
+                        let bias = with_bias.then(|| Placed::whole(&bias));
+                        let (o, b) = (Placed::whole(&out), Placed::whole(&bd));
+                        matmul_into_with(Route::Tiled(tile), o, accumulate, &ad, ta, b, tb, &plan, bias, act);
+                        bits(&out.download())
+                    };
+                    let (narrow, tall) = (run(MatMulTile::Rows64), run(MatMulTile::Rows128));
+                    let what =
+                        format!("m={m} k={k} n={n} batch={batch} ta={ta} tb={tb} {accumulate} {with_bias} {act:?}");
+                    assert_eq!(narrow, tall, "{what}");
+                }
+            }
+        }
+        // A block of columns of a wider weight, read and accumulated into in place.
+        let (rows, k, width, col, n) = (150, 48, 100, 20, 64);
+        let x = tensor(&[rows, k], 115);
+        let w = tensor(&[k, width], 116);
+        let (xd, wd) = (DeviceBuffer::upload(x.data()), DeviceBuffer::upload(w.data()));
+        let old = values(rows * width, 117);
+        let plan = MatMulPlan::single(rows, k, n);
+        let run = |tile: MatMulTile| {
+            let out = DeviceBuffer::upload(&old);
+            let (o, b) = (Placed::block(&out, col, width), Placed::block(&wd, col, width));
+            matmul_into_with(Route::Tiled(tile), o, true, &xd, false, b, false, &plan, None, Activation::Identity);
+            bits(&out.download())
+        };
+        assert_eq!(run(MatMulTile::Rows64), run(MatMulTile::Rows128), "a block in place");
+        // And the tiled kernel against the CPU.
+        compare("tall tile", &tensor(&[257, 70], 118), false, &tensor(&[70, 65], 119), false, true);
+    }
+
+    /// A bad `TENSOR_GPU_MATMUL_TILE` is an error naming the variable and the value.
+    #[test]
+    fn tile_settings_parse() {
+        assert_eq!(parse_tile(None), Ok(MatMulTile::Rows64));
+        assert_eq!(parse_tile(Some("64")), Ok(MatMulTile::Rows64));
+        assert_eq!(parse_tile(Some(" 128 ")), Ok(MatMulTile::Rows128));
+        for bad in ["32", "256", "tall", ""] {
+            let err = parse_tile(Some(bad)).unwrap_err();
+            assert!(err.contains("TENSOR_GPU_MATMUL_TILE") && err.contains(&format!("{bad:?}")), "{err}");
+        }
     }
 
     /// The model's tall, skinny layer products and their backward products.

@@ -17,19 +17,23 @@
 // order and applies the epilogue. The order of the sum is fixed by the shapes, so a product
 // still has the same bits on every run.
 //
-// Tiling: a workgroup of 16 x 16 threads computes a 64 x 64 tile of one batch entry's output,
-// each thread a 4 x 4 micro-tile (rows 4*ty.., columns 4*tx..). The inner dim goes in steps of
-// 16: the workgroup loads the 64 x 16 block of op(A) and the 16 x 64 block of op(B) into
-// workgroup memory (4 values of each per thread, out-of-range ones as 0), then each thread
-// adds the products of that step. Every output element is summed by one thread over k in
-// increasing order (no atomics, no split of k), so the result has the same bits on every run.
-//
+// Tiling: a workgroup of 16 x 16 threads computes a TILE_M x 64 tile of one batch entry's
+// output, each thread a MICRO_M x 4 micro-tile (rows MICRO_M*ty.., columns 4*tx..). MICRO_M
+// is 4 (64 x 64 tiles) or 8 (128 x 64 tiles, fewer loads from workgroup memory per product),
+// set by the file before this one (matmul_tile_64.wgsl, matmul_tile_128.wgsl; ops/matmul.rs
+// picks). The inner dim goes in steps of 16: the workgroup loads the TILE_M x 16 block of
+// op(A) and the 16 x 64 block of op(B) into workgroup memory (out-of-range values as 0), then
+// each thread adds the products of that step. Every output element is summed by one thread
+// over k in increasing order (no atomics; a split of k is fixed by the shapes, not by the
+// tile), so the result has the same bits on every run, and with either tile.
+
 // The workgroups are numbered linearly (wg.x + wg.y * num_workgroups.x, see Gpu::launch): the
 // slice, the batch entry, then the tile row, then the tile column.
 //
-// The accumulators are four vec4 registers (c0..c3), never indexed by a runtime value: an
-// array indexed at run time is placed in (slow) local memory by GPU compilers. Full steps of
-// k run a loop of constant length (unrolled); only the last, partial step loops over fewer.
+// The accumulators are MICRO_M vec4 registers (c0..c7, the last four only with MICRO_M 8),
+// never indexed by a runtime value: an array indexed at run time is placed in (slow) local
+// memory by GPU compilers. Full steps of k run a loop of constant length (unrolled); only
+// the last, partial step loops over fewer.
 @group(0) @binding(1) var<storage, read> a: array<f32>;
 @group(0) @binding(2) var<storage, read> b: array<f32>;
 // (offset of A_b, offset of B_b) in elements, per batch entry (MatMulPlan::offsets).
@@ -38,32 +42,48 @@
 @group(0) @binding(4) var<storage, read> bias: array<f32>;
 @group(0) @binding(5) var<storage, read_write> out: array<f32>;
 
-const TILE_M: u32 = 64u;
+const TILE_M: u32 = 16u * MICRO_M;
 const TILE_N: u32 = 64u;
 const TILE_K: u32 = 16u;
-// vec4s per k-row of a workgroup tile: 16 hold the 64 values, 1 of padding spreads the
-// stores of the cooperative loads over the memory banks.
-const ROW_VEC4: u32 = 17u;
+// vec4s per k-row of a workgroup tile: TILE_M / 4 (TILE_N / 4) hold the values, 1 of
+// padding spreads the stores of the cooperative loads over the memory banks.
+const ROW_VEC4_A: u32 = TILE_M / 4u + 1u;
+const ROW_VEC4_B: u32 = TILE_N / 4u + 1u;
+// Values of each block a thread loads per step of k (256 threads).
+const LOADS_A: u32 = TILE_M * TILE_K / 256u;
+const LOADS_B: u32 = TILE_N * TILE_K / 256u;
 
-// tile_a[kk * ROW_VEC4 + r / 4][r % 4] = op(A)[row0 + r, k0 + kk]
-var<workgroup> tile_a: array<vec4<f32>, 272>;
-// tile_b[kk * ROW_VEC4 + c / 4][c % 4] = op(B)[k0 + kk, col0 + c]
-var<workgroup> tile_b: array<vec4<f32>, 272>;
+// tile_a[kk * ROW_VEC4_A + r / 4][r % 4] = op(A)[row0 + r, k0 + kk]
+var<workgroup> tile_a: array<vec4<f32>, TILE_K * ROW_VEC4_A>;
+// tile_b[kk * ROW_VEC4_B + c / 4][c % 4] = op(B)[k0 + kk, col0 + c]
+var<workgroup> tile_b: array<vec4<f32>, TILE_K * ROW_VEC4_B>;
 
-// acc rows: output (row0 + 4 ty + i, col0 + 4 tx ..) for i = 0..3.
+// acc rows: output (row0 + MICRO_M ty + i, col0 + 4 tx ..) for i = 0..MICRO_M-1.
 var<private> c0: vec4<f32>;
 var<private> c1: vec4<f32>;
 var<private> c2: vec4<f32>;
 var<private> c3: vec4<f32>;
+var<private> c4: vec4<f32>;
+var<private> c5: vec4<f32>;
+var<private> c6: vec4<f32>;
+var<private> c7: vec4<f32>;
 
 // The products of one k of the workgroup tiles.
 fn mac(kk: u32, tx: u32, ty: u32) {
-    let av = tile_a[kk * ROW_VEC4 + ty];
-    let bv = tile_b[kk * ROW_VEC4 + tx];
+    let row = kk * ROW_VEC4_A + (MICRO_M / 4u) * ty;
+    let bv = tile_b[kk * ROW_VEC4_B + tx];
+    let av = tile_a[row];
     c0 = fma(vec4<f32>(av.x), bv, c0);
     c1 = fma(vec4<f32>(av.y), bv, c1);
     c2 = fma(vec4<f32>(av.z), bv, c2);
     c3 = fma(vec4<f32>(av.w), bv, c3);
+    if MICRO_M == 8u {
+        let aw = tile_a[row + 1u];
+        c4 = fma(vec4<f32>(aw.x), bv, c4);
+        c5 = fma(vec4<f32>(aw.y), bv, c5);
+        c6 = fma(vec4<f32>(aw.z), bv, c6);
+        c7 = fma(vec4<f32>(aw.w), bv, c7);
+    }
 }
 
 // Epilogue of one output row: (+ the current value) + bias, activation; one store per element.
@@ -125,10 +145,14 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) nwg: vec3
     c1 = vec4<f32>(0.0);
     c2 = vec4<f32>(0.0);
     c3 = vec4<f32>(0.0);
+    c4 = vec4<f32>(0.0);
+    c5 = vec4<f32>(0.0);
+    c6 = vec4<f32>(0.0);
+    c7 = vec4<f32>(0.0);
     for (var k0 = k_begin; k0 < k_end; k0 += TILE_K) {
-        // Cooperative loads, 4 values of each block per thread; consecutive threads read
+        // Cooperative loads, LOADS_A and LOADS_B values per thread; consecutive threads read
         // consecutive addresses of the stored matrix, whichever way it is stored.
-        for (var t = 0u; t < 4u; t++) {
+        for (var t = 0u; t < LOADS_A; t++) {
             let e = li + 256u * t;
             var r: u32;
             var kk: u32;
@@ -150,9 +174,9 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) nwg: vec3
                     v = a[a_off + gr * k + gk];
                 }
             }
-            tile_a[kk * ROW_VEC4 + r / 4u][r % 4u] = v;
+            tile_a[kk * ROW_VEC4_A + r / 4u][r % 4u] = v;
         }
-        for (var t = 0u; t < 4u; t++) {
+        for (var t = 0u; t < LOADS_B; t++) {
             let e = li + 256u * t;
             var c: u32;
             var kk: u32;
@@ -174,7 +198,7 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) nwg: vec3
                     v = b[b_off + gk * p[15] + gc];
                 }
             }
-            tile_b[kk * ROW_VEC4 + c / 4u][c % 4u] = v;
+            tile_b[kk * ROW_VEC4_B + c / 4u][c % 4u] = v;
         }
         workgroupBarrier();
         // Only the k that exist: no additions of padding zeros.
@@ -199,10 +223,16 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) nwg: vec3
         code = 0u;
     }
     let base = p[14] + (slice * batches + batch) * m * n;
-    let r = row0 + 4u * ty;
+    let r = row0 + MICRO_M * ty;
     let c = col0 + 4u * tx;
     if r < m { store_row(r, c, n, base, c0, accumulate, has_bias, code); }
     if r + 1u < m { store_row(r + 1u, c, n, base, c1, accumulate, has_bias, code); }
     if r + 2u < m { store_row(r + 2u, c, n, base, c2, accumulate, has_bias, code); }
     if r + 3u < m { store_row(r + 3u, c, n, base, c3, accumulate, has_bias, code); }
+    if MICRO_M == 8u {
+        if r + 4u < m { store_row(r + 4u, c, n, base, c4, accumulate, has_bias, code); }
+        if r + 5u < m { store_row(r + 5u, c, n, base, c5, accumulate, has_bias, code); }
+        if r + 6u < m { store_row(r + 6u, c, n, base, c6, accumulate, has_bias, code); }
+        if r + 7u < m { store_row(r + 7u, c, n, base, c7, accumulate, has_bias, code); }
+    }
 }
