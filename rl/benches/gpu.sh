@@ -198,12 +198,20 @@ reduce() {
                 | grep -E "reduce|panicked|rror" | grep -v XDG | sed "s/\$/ (lanes $lanes, round $round)/"
         done
     done
-    echo "-- one shnn minibatch pass ($env, $preset preset), forward and backward, with each"
-    for lanes in 256 1; do
+    passes_with TENSOR_GPU_REDUCE_LANES $env $preset 256 1
+}
+
+# passes_with <variable> <env> <preset> <value>...: the median of five `shnn` minibatch passes
+# (forward and backward) with the variable set to each value in turn.
+passes_with() {
+    local var=$1 task=$2 preset=$3
+    shift 3
+    echo "-- one shnn minibatch pass ($task, $preset preset), forward and backward, with each $var"
+    for v in "$@"; do
         want || return
-        TENSOR_GPU_REDUCE_LANES=$lanes DEVICE=gpu PRESET=$preset ITERATIONS=0 MINIBATCH_REPS=5 BENCH_ENVS=$env \
-            BENCH_MODELS=shnn timeout -s KILL "$(limit 90)" $C/train_throughput 2>&1 | grep -o "minibatch_ms=[0-9.]*" \
-            | sed "s/\$/ (lanes $lanes)/"
+        env "$var=$v" DEVICE=gpu PRESET="$preset" ITERATIONS=0 MINIBATCH_REPS=5 BENCH_ENVS="$task" BENCH_MODELS=shnn \
+            timeout -s KILL "$(limit 90)" $C/train_throughput 2>&1 | grep -o "minibatch_ms=[0-9.]*" \
+            | sed "s/\$/ ($var=$v)/"
     done
 }
 
@@ -218,13 +226,7 @@ tile() {
                 | grep -E "matmul|rate|panicked|rror" | grep -v XDG | sed "s/\$/ (tile $t, round $round)/"
         done
     done
-    echo "-- one shnn minibatch pass ($env, $preset preset), forward and backward, with each"
-    for t in 128 64; do
-        want || return
-        TENSOR_GPU_MATMUL_TILE=$t DEVICE=gpu PRESET=$preset ITERATIONS=0 MINIBATCH_REPS=5 BENCH_ENVS=$env \
-            BENCH_MODELS=shnn timeout -s KILL "$(limit 90)" $C/train_throughput 2>&1 | grep -o "minibatch_ms=[0-9.]*" \
-            | sed "s/\$/ (tile $t)/"
-    done
+    passes_with TENSOR_GPU_MATMUL_TILE $env $preset 128 64
     echo "-- shnn training on $env with each tile (the second iteration's rate)"
     for t in 128 64; do
         want || return

@@ -6,7 +6,8 @@
 //! One tiled kernel (`wgsl/matmul.wgsl`): 64 x 64 output tiles per workgroup of 16 x 16
 //! threads, 4 x 4 outputs per thread, the inner dim in steps of 16 through workgroup memory;
 //! or, with `TENSOR_GPU_MATMUL_TILE=128` ([`MatMulTile`]), 128 x 64 tiles of 8 x 4 outputs
-//! per thread (the same bits: each output's sum is the same sequence of fused multiply-adds).
+//! per thread for the products with enough of them ([`Route::tiled`]; the same bits: each
+//! output's sum is the same sequence of fused multiply-adds).
 //! Batched products of small matrices (each entry's output at most a quarter of a tile, k at
 //! most 64: the subequivariant layers' Gram matrices and vector mixings) go to
 //! `wgsl/matmul_small.wgsl`, one thread per output, which gives the tiled kernel's bits.
@@ -87,8 +88,8 @@ impl MatMulTile {
     }
 }
 
-/// The tile of every tiled product: `TENSOR_GPU_MATMUL_TILE` when set (`64` or `128`, for a
-/// paired timing on one machine), else 64 x 64. A bad value is reported on stderr and the
+/// The tile asked for ([`Route::tiled`] decides per product): `TENSOR_GPU_MATMUL_TILE` when
+/// set (`64` or `128`, for a paired timing on one machine), else 64 x 64. A bad value is reported on stderr and the
 /// default kept.
 fn tile() -> MatMulTile {
     static TILE: std::sync::OnceLock<MatMulTile> = std::sync::OnceLock::new();
@@ -238,9 +239,29 @@ enum Route {
 
 impl Route {
     /// The small-matrix kernel for small products ([`is_small`]), else the tiled one with
-    /// the tile of [`tile`].
+    /// the tile of [`tile`] (see [`Route::tiled`]).
     fn of(plan: &MatMulPlan) -> Self {
-        if is_small(plan.m, plan.k, plan.n) { Route::Small } else { Route::Tiled(tile()) }
+        if is_small(plan.m, plan.k, plan.n) {
+            Route::Small
+        } else {
+            Route::tiled(tile(), plan.m, plan.k, plan.n, plan.batches())
+        }
+    }
+
+    /// The tiled kernel with `chosen`, except that the 128-row tile is taken only where it
+    /// still gives [`TARGET_GROUPS`] workgroups and k is not split: a split product (few
+    /// tiles, long k: the weight gradients) or a short one would launch half the
+    /// workgroups, too few to fill a large GPU. The same bits either way.
+    fn tiled(chosen: MatMulTile, m: usize, k: usize, n: usize, batches: usize) -> Self {
+        let tiles_n = n.div_ceil(TILE_N);
+        let split = split_k(m.div_ceil(TILE_M) * tiles_n * batches, k).0 > 1;
+        let tall_groups = m.div_ceil(MatMulTile::Rows128.rows()) * tiles_n * batches;
+        let tile = if chosen == MatMulTile::Rows128 && !split && tall_groups >= TARGET_GROUPS {
+            MatMulTile::Rows128
+        } else {
+            MatMulTile::Rows64
+        };
+        Route::Tiled(tile)
     }
 }
 
@@ -807,6 +828,21 @@ mod tests {
         assert_eq!(run(MatMulTile::Rows64), run(MatMulTile::Rows128), "a block in place");
         // And the tiled kernel against the CPU.
         compare("tall tile", &tensor(&[257, 70], 118), false, &tensor(&[70, 65], 119), false, true);
+    }
+
+    /// The tall tile goes to tall products only: not to split ones, nor to those it would
+    /// cover with fewer than [`TARGET_GROUPS`] workgroups.
+    #[test]
+    fn the_tall_tile_goes_to_products_with_many_tiles() {
+        let tall = |m, k, n, batches| {
+            matches!(Route::tiled(MatMulTile::Rows128, m, k, n, batches), Route::Tiled(MatMulTile::Rows128))
+        };
+        // A message layer of the paper preset, and its input gradient.
+        assert!(tall(153_600, 1024, 64, 1) && tall(153_600, 64, 1024, 1));
+        // Its weight gradient (k = 153,600 split), a 6,144-row layer (48 tall tiles).
+        assert!(!tall(1024, 153_600, 64, 1) && !tall(6144, 64, 64, 1));
+        // Nothing changes without the setting.
+        assert!(matches!(Route::tiled(MatMulTile::Rows64, 153_600, 1024, 64, 1), Route::Tiled(MatMulTile::Rows64)));
     }
 
     /// A bad `TENSOR_GPU_MATMUL_TILE` is an error naming the variable and the value.
