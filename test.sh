@@ -6,6 +6,10 @@
 set -euo pipefail
 cd "$(dirname "$0")"
 venv=target/pyenv
+# Cargo's target directory, where the programs the Slurm and Python tests run are built
+# (CARGO_TARGET_DIR when set; relative to this directory, as cargo reads it here).
+cargo_target=${CARGO_TARGET_DIR:-target}
+case "$cargo_target" in /*) ;; *) cargo_target=$PWD/$cargo_target ;; esac
 if [ ! -x "$venv/bin/python" ]; then
     "${PYTHON:-python3}" -m venv "$venv"
 fi
@@ -61,7 +65,7 @@ cargo build --release -p rl --bin meben -p envs --example replay_actions
 # localhost: Debian's slurm-wlm and munge, installed when absent (as root), then required.
 # Three array tasks, one requeued mid-run and resumed; every run finished and reported; every
 # daemon it started stopped again (about 20 s; the README's paragraph on sweeps).
-MEBEN="$PWD/target/release/meben" rl/sweeps/slurm_ci.sh
+MEBEN="$cargo_target/release/meben" rl/sweeps/slurm_ci.sh
 python -m pip install --quiet --disable-pip-version-check --no-build-isolation --no-deps --force-reinstall ./python
 # No cache provider: pytest would write .pytest_cache into the source tree.
 python -m pytest -q -p no:cacheprovider python/tests

@@ -10,9 +10,16 @@ import pytest
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 
 
+def target_dir():
+    """Cargo's target directory: CARGO_TARGET_DIR when set (relative to the repository
+    root), else the root's target/."""
+    return ROOT / os.environ.get("CARGO_TARGET_DIR", "target")
+
+
 def rust_program(relative):
-    """A program under target/release; a missing one fails the test (run ./test.sh)."""
-    path = ROOT / "target" / "release" / relative
+    """A program under the target directory's release/ (`target_dir`); a missing one fails
+    the test (run ./test.sh)."""
+    path = target_dir() / "release" / relative
     if not path.is_file():
         pytest.fail(f"{path} is missing: run ./test.sh (it builds the Rust programs first)")
     return path

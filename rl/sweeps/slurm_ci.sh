@@ -31,7 +31,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 root=$PWD
-MEBEN=${MEBEN:-$root/target/release/meben}
+MEBEN=${MEBEN:-${CARGO_TARGET_DIR:-$root/target}/release/meben}
 deadline_s=${SLURM_CI_DEADLINE_S:-600}
 # The daemons and Slurm's commands live in /usr/sbin, which a user's PATH may lack.
 export PATH="$PATH:/usr/sbin:/sbin"
