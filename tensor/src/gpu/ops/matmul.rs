@@ -89,8 +89,8 @@ impl MatMulTile {
 }
 
 /// The tile asked for ([`Route::tiled`] decides per product): `TENSOR_GPU_MATMUL_TILE` when
-/// set (`64` or `128`, for a paired timing on one machine), else 64 x 64. A bad value is reported on stderr and the
-/// default kept.
+/// set (`64` or `128`, for a paired timing on one machine), else 64 x 64. A bad value is
+/// reported on stderr and the default kept.
 fn tile() -> MatMulTile {
     static TILE: std::sync::OnceLock<MatMulTile> = std::sync::OnceLock::new();
     *TILE.get_or_init(|| {
