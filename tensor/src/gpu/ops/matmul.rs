@@ -827,7 +827,7 @@ mod tests {
         };
         assert_eq!(run(MatMulTile::Rows64), run(MatMulTile::Rows128), "a block in place");
         // And the tiled kernel against the CPU.
-        compare("tall tile", &tensor(&[257, 70], 118), false, &tensor(&[70, 65], 119), false, true);
+        compare("tiled kernel", &tensor(&[257, 70], 118), false, &tensor(&[70, 65], 119), false, true);
     }
 
     /// The tall tile goes to tall products only: not to split ones, nor to those it would
