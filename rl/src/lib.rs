@@ -19,7 +19,7 @@ pub mod mappo;
 pub mod stop;
 
 pub use app::presets::Preset;
-pub use app::report::{Report, report};
+pub use app::report::{Report, report, report_at};
 pub use app::run::{RunSummary, TrainOptions, train};
 pub use app::run_dir::{RunDir, RunStatus};
 pub use app::sweep::{RunSelection, Shard, Sweep, SweepOutcome, SweepRun, run_sweep};

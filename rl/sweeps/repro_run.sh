@@ -128,6 +128,13 @@ case "${1:-}" in
       [ -d "$OUT/$exp" ] || continue
       # The report names the directory it was given: relative, as a reader would type it.
       "$BIN" export "$OUT/$exp" "$ROOT/results/$exp" && (cd "$ROOT" && "$BIN" report "results/$exp" --paper results/paper.toml > /dev/null)
+      # Its committed reports at a matched budget (results/<exp>/at_<N>/) are redrawn too:
+      # REPORT_BIN (default BIN) must know `--at-steps`.
+      for at in "$ROOT/results/$exp"/at_*/; do
+        [ -d "$at" ] || continue
+        at=${at%/}
+        (cd "$ROOT" && "${REPORT_BIN:-$BIN}" report "results/$exp" --paper results/paper.toml --at-steps "${at##*/at_}" > /dev/null)
+      done
     done
     du -sh "$ROOT/results"
     ;;

@@ -259,6 +259,10 @@ struct ReportArgs {
     /// beside the paper's figure for the same env, model, start and rotation.
     #[arg(long)]
     paper: Option<PathBuf>,
+    /// Compare at one budget: every run as it stood after this many env steps (its rows up
+    /// to then), written under ROOT/at_<N>/ instead of ROOT.
+    #[arg(long, value_name = "N")]
+    at_steps: Option<u64>,
 }
 
 #[derive(Args)]
@@ -584,7 +588,7 @@ fn cmd_ablate(a: AblateArgs) -> Result<(), String> {
 }
 
 fn cmd_report(a: ReportArgs) -> Result<(), String> {
-    let r = crate::app::report::report(&a.root).map_err(|e| e.to_string())?;
+    let r = crate::app::report::report_at(&a.root, a.at_steps).map_err(|e| e.to_string())?;
     // Every run's own learning curve is redrawn too (runs written by older versions).
     for dir in crate::app::record::find_run_dirs(&a.root).map_err(|e| e.to_string())? {
         crate::app::curve::write_run_curve(&RunDir::new(dir)).map_err(|e| e.to_string())?;
@@ -593,7 +597,7 @@ fn cmd_report(a: ReportArgs) -> Result<(), String> {
     println!("{text}");
     eprintln!("meben: wrote {}", r.markdown.display());
     if let Some(paper) = &a.paper {
-        let path = crate::app::paper::write_paper_table(&a.root, &r.groups, paper).map_err(|e| e.to_string())?;
+        let path = crate::app::paper::write_paper_table(&r.dir, &r.groups, paper).map_err(|e| e.to_string())?;
         eprintln!("meben: wrote {}", path.display());
     }
     Ok(())

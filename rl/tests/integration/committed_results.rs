@@ -3,9 +3,11 @@
 //! experiment's run files alone (`config.toml`, `metrics.csv`, `done.json`, `curve.svg`;
 //! the committed `report.md`, `report.csv` and `curves/` left out of the copy), writes
 //! `report.md`, `report.csv`, every `curves/*.svg` and, with `--paper results/paper.toml`,
-//! the paper-versus-here table `paper.md` byte for byte as committed. It fails
-//! when a report was edited by hand, when the evidence changed without its report being
-//! redrawn, or when `meben report` changed what it draws without the reports being redrawn.
+//! the paper-versus-here table `paper.md` byte for byte as committed; and each committed
+//! report at a matched budget, `results/<experiment>/at_<N>/`, regenerates the same way with
+//! `--at-steps N`. It fails when a report was edited by hand, when the evidence changed
+//! without its report being redrawn, or when `meben report` changed what it draws without
+//! the reports being redrawn.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -14,9 +16,20 @@ use crate::common;
 
 use common::TempDir;
 
-/// The files `meben report --paper` writes into an experiment's directory.
+/// The files `meben report --paper` writes into an experiment's directory (and, with
+/// `--at-steps N`, into its `at_<N>` directory).
 fn is_report_output(rel: &Path) -> bool {
+    let rel = match at_steps_of(rel) {
+        Some(_) => rel.strip_prefix(rel.components().next().unwrap()).unwrap(),
+        None => rel,
+    };
     ["report.md", "report.csv", "paper.md"].iter().any(|f| rel == Path::new(f)) || rel.starts_with("curves")
+}
+
+/// N when `rel` lies under an `at_<N>` directory at the top of an experiment.
+fn at_steps_of(rel: &Path) -> Option<u64> {
+    let first = rel.components().next()?.as_os_str().to_str()?;
+    first.strip_prefix("at_")?.parse().ok()
 }
 
 /// Every file under `dir`, as paths relative to it, sorted.
@@ -66,13 +79,23 @@ fn every_committed_report_regenerates_from_the_committed_run_files() {
             std::fs::create_dir_all(to.parent().unwrap()).unwrap();
             std::fs::copy(exp.join(rel), &to).unwrap();
         }
-        let out = Command::new(env!("CARGO_BIN_EXE_meben"))
-            .current_dir(&scratch.0)
-            .args(["report", &format!("results/{name}"), "--paper"])
-            .arg(results.join("paper.toml"))
-            .output()
-            .unwrap();
-        assert!(out.status.success(), "meben report results/{name} failed: {}", String::from_utf8_lossy(&out.stderr));
+        let mut budgets: Vec<Option<u64>> = files.iter().filter_map(|f| at_steps_of(f)).map(Some).collect();
+        budgets.dedup();
+        budgets.insert(0, None);
+        for at in budgets {
+            let mut cmd = Command::new(env!("CARGO_BIN_EXE_meben"));
+            cmd.current_dir(&scratch.0).args(["report", &format!("results/{name}"), "--paper"]);
+            cmd.arg(results.join("paper.toml"));
+            if let Some(n) = at {
+                cmd.args(["--at-steps", &n.to_string()]);
+            }
+            let out = cmd.output().unwrap();
+            assert!(
+                out.status.success(),
+                "meben report results/{name} (at {at:?} env steps) failed: {}",
+                String::from_utf8_lossy(&out.stderr)
+            );
+        }
 
         let regenerated: Vec<PathBuf> = files_under(&copy).into_iter().filter(|f| is_report_output(f)).collect();
         let committed: Vec<PathBuf> = outputs.into_iter().cloned().collect();
@@ -80,10 +103,11 @@ fn every_committed_report_regenerates_from_the_committed_run_files() {
         for rel in &committed {
             let want = std::fs::read(exp.join(rel)).unwrap();
             let got = std::fs::read(copy.join(rel)).unwrap();
+            let at = at_steps_of(rel).map_or_else(String::new, |n| format!(" --at-steps {n}"));
             assert!(
                 want == got,
                 "results/{name}/{}: regenerated from the run files, it differs from the committed file \
-                 (redraw with `meben report results/{name}` from the repository root)",
+                 (redraw with `meben report results/{name} --paper results/paper.toml{at}` from the repository root)",
                 rel.display()
             );
         }

@@ -300,6 +300,56 @@ fn report_counts_in_words_and_never_writes_negative_zero() {
 }
 
 #[test]
+fn a_report_at_a_budget_values_every_run_by_its_last_evaluation_up_to_it() {
+    // Two groups at different points: `mlp` finished at 3M env steps, `shnn` stopped at 2M.
+    // At 2M env steps both are valued by their evaluation at 2M, the group rows say 2M
+    // with no "of", and the whole runs' report is left as it was.
+    let tmp = TempDir::new("at-steps");
+    let root = &tmp.0;
+    for (model, rows) in [("mlp", vec![(1e6, 0.1), (2e6, 0.2), (3e6, 0.9)]), ("shnn", vec![(1e6, 0.3), (2e6, 0.4)])] {
+        let cfg = TrainConfig { steps: 3_000_000, num_evals: 3, ..config("team_reach/1_ant", model, 0) };
+        let rows: Vec<Vec<(&'static str, f64)>> =
+            rows.iter().map(|&(x, y)| vec![("env_steps", x), ("wall_s", x / 1e3), ("eval_success_rate", y)]).collect();
+        let rows: Vec<&[(&'static str, f64)]> = rows.iter().map(|r| r.as_slice()).collect();
+        write_run(&root.join(format!("team_reach_1_ant/{model}/seed0")), &cfg, &rows);
+    }
+    let whole = report(root).unwrap();
+    let finals = |r: &rl::Report| r.groups.iter().map(|g| (g.model.clone(), g.finals.clone())).collect::<Vec<_>>();
+    assert_eq!(finals(&whole), [("mlp".into(), vec![90.0]), ("shnn".into(), vec![40.0])]);
+    let whole_md = std::fs::read_to_string(&whole.markdown).unwrap();
+
+    let at = rl::report_at(root, Some(2_000_000)).unwrap();
+    assert_eq!(at.dir, root.join("at_2000000"));
+    assert_eq!((at.markdown.clone(), at.csv.clone()), (at.dir.join("report.md"), at.dir.join("report.csv")));
+    assert_eq!(finals(&at), [("mlp".into(), vec![20.0]), ("shnn".into(), vec![40.0])]);
+    assert!(at.groups.iter().all(|g| g.env_steps == (2_000_000, 2_000_000) && g.target_steps == 2_000_000));
+    let md = std::fs::read_to_string(&at.markdown).unwrap();
+    assert!(
+        md.contains("at 2000000 env steps") && md.lines().filter(|l| l.starts_with('|')).all(|l| !l.contains(" of "))
+    );
+    assert!(at.curves.iter().all(|c| c.starts_with(&at.dir) && c.is_file()));
+    assert_eq!(std::fs::read_to_string(&whole.markdown).unwrap(), whole_md);
+    // Before any evaluation, every run is pending; zero steps is refused by name.
+    let early = rl::report_at(root, Some(500_000)).unwrap();
+    assert!(early.groups.is_empty() && early.pending.len() == 2, "{:?}", early.pending);
+    let e = rl::report_at(root, Some(0)).unwrap_err().to_string();
+    assert!(e.contains("--at-steps") && e.contains('0'), "{e}");
+
+    // The program: `--at-steps` with `--paper` writes both tables under at_<N>/.
+    let paper = root.join("paper.toml");
+    std::fs::write(
+        &paper,
+        "[[figure]]\ntable = \"t\"\nenv = \"team_reach/1_ant\"\nmodel = \"shnn\"\nmean = 60.0\nspread = 3.0\n",
+    )
+    .unwrap();
+    let (ok, _, err) =
+        common::meben(&["report", root.to_str().unwrap(), "--at-steps", "1000000", "--paper", paper.to_str().unwrap()]);
+    assert!(ok, "{err}");
+    let table = std::fs::read_to_string(root.join("at_1000000/paper.md")).unwrap();
+    assert!(table.contains("| `shnn` | random | success | 30.00 ± 0.00 | 1 | 1M |"), "{table}");
+}
+
+#[test]
 fn report_errors_name_the_directory_and_the_damaged_file() {
     let tmp = TempDir::new("errors");
     let msg = report(&tmp.0).unwrap_err().to_string();

@@ -319,14 +319,28 @@ fn a_figure_matches_only_to_its_decimals() {
 }
 
 /// Every experiment's generated paper-versus-here table (`results/<experiment>/paper.md`,
-/// which `committed_results` regenerates byte for byte) is quoted in `docs/RESULTS.md`
+/// and `results/<experiment>/at_<N>/paper.md` at a matched budget, which
+/// `committed_results` regenerates byte for byte) is quoted in `docs/RESULTS.md`
 /// exactly as generated: the document's final rates are never typed by hand.
 #[test]
 fn every_generated_paper_table_is_quoted_verbatim() {
     let doc = std::fs::read_to_string(root().join("docs/RESULTS.md")).unwrap();
     let mut quoted = 0;
+    let mut tables = Vec::new();
     for entry in std::fs::read_dir(root().join("results")).unwrap() {
-        let table = entry.unwrap().path().join("paper.md");
+        let exp = entry.unwrap().path();
+        tables.push(exp.join("paper.md"));
+        // Its reports at a matched budget (`meben report --at-steps N`), if any.
+        if exp.is_dir() {
+            for sub in std::fs::read_dir(&exp).unwrap() {
+                let sub = sub.unwrap().path();
+                if sub.file_name().and_then(|n| n.to_str()).is_some_and(|n| n.starts_with("at_")) {
+                    tables.push(sub.join("paper.md"));
+                }
+            }
+        }
+    }
+    for table in tables {
         if table.is_file() {
             let text = std::fs::read_to_string(&table).unwrap();
             assert!(doc.contains(&text), "docs/RESULTS.md does not quote {} as generated", table.display());

@@ -46,6 +46,21 @@ impl RunRecord {
     pub fn rows(&self) -> &[IterationRow] {
         &self.metrics.rows
     }
+
+    /// This run as it stood once it had collected `steps` env steps: only its rows with
+    /// `env_steps <= steps`, and a budget of at most `steps`. A run that trained past them
+    /// is no longer finished there (no `done.json` summary); one that stopped before them
+    /// is unchanged. What `meben report --at-steps` reads, to compare runs at one budget.
+    pub fn up_to(mut self, steps: u64) -> RunRecord {
+        let before = self.metrics.rows.len();
+        self.metrics.rows.retain(|r| r.env_steps <= steps);
+        if self.metrics.rows.len() < before {
+            self.finished = false;
+            self.summary = None;
+        }
+        self.config.steps = self.config.steps.min(steps);
+        self
+    }
 }
 
 /// A run's summary, `done.json`, if it exists and reads as one: a damaged or foreign
@@ -121,6 +136,17 @@ mod tests {
         let summary = RunSummary { iterations: 2, env_steps: 200, wall_s: 5.0, ..Default::default() };
         std::fs::write(run.done(), serde_json::to_string(&summary).unwrap()).unwrap();
         assert_eq!(RunRecord::read(&dir).unwrap().summary, Some(summary));
+
+        // Up to 150 env steps: the first row, a budget of 150, no longer finished; up to
+        // 200, every row and still finished, with a budget of 200; up to more than its
+        // budget, the whole run.
+        let early = RunRecord::read(&dir).unwrap().up_to(150);
+        assert_eq!(early.rows().iter().map(|r| r.iteration).collect::<Vec<_>>(), [1]);
+        assert_eq!((early.config.steps, early.finished, early.summary.is_none()), (150, false, true));
+        let whole = RunRecord::read(&dir).unwrap();
+        let at_end = whole.clone().up_to(200);
+        assert_eq!((at_end.rows(), at_end.finished, at_end.config.steps), (whole.rows(), true, 200));
+        assert_eq!(whole.clone().up_to(u64::MAX), whole);
 
         std::fs::write(run.metrics(), "iteration,env_steps\n1,x\n").unwrap();
         let e = RunRecord::read(&dir).unwrap_err().to_string();

@@ -40,6 +40,12 @@
 //! Written under the root: `report.md` (a table per environment and its curves),
 //! `report.csv` (one line per group) and `curves/<env>.svg` (env name made file-name safe).
 //!
+//! At a matched budget ([`report_at`], `meben report ROOT --at-steps N`): every run is read
+//! as it stood after N env steps ([`RunRecord::up_to`]: its rows up to then, a budget of at
+//! most N), so that groups whose runs are at different points compare at one budget: each
+//! final value is the run's last evaluation at or before N. The same files are written
+//! under `ROOT/at_<N>/` ([`at_steps_dir`]), leaving the whole runs' report as it is.
+//!
 //! The runs are read by [`crate::app::record`]; [`aggregate`] makes the groups and their
 //! statistics ([`stats`]), [`render`] writes them as Markdown, CSV and SVG.
 
@@ -62,21 +68,37 @@ use crate::error::{Result, RlError};
 pub struct Report {
     /// The directory searched.
     pub root: PathBuf,
+    /// The directory written: the root, or [`at_steps_dir`] at a matched budget.
+    pub dir: PathBuf,
     /// The groups, by environment (built-in order first), then variant.
     pub groups: Vec<GroupReport>,
     /// Run directories without any value yet (relative to the root), with the reason.
     pub pending: Vec<(PathBuf, String)>,
-    /// `<root>/report.md`.
+    /// `<dir>/report.md`.
     pub markdown: PathBuf,
-    /// `<root>/report.csv`.
+    /// `<dir>/report.csv`.
     pub csv: PathBuf,
-    /// `<root>/curves/<env>.svg`, one per environment.
+    /// `<dir>/curves/<env>.svg`, one per environment.
     pub curves: Vec<PathBuf>,
 }
 
 /// Reads every run under `root`, writes `report.md`, `report.csv` and `curves/*.svg`
 /// there (module docs), prints the path of `report.md`, and returns what it found.
 pub fn report(root: &Path) -> Result<Report> {
+    report_at(root, None)
+}
+
+/// Where [`report_at`] writes the report at `steps` env steps: `<root>/at_<steps>`.
+pub fn at_steps_dir(root: &Path, steps: u64) -> PathBuf {
+    root.join(format!("at_{steps}"))
+}
+
+/// [`report`], or with `at_steps` the report of every run as it stood after that many env
+/// steps, written under [`at_steps_dir`] (module docs). Zero steps is an error.
+pub fn report_at(root: &Path, at_steps: Option<u64>) -> Result<Report> {
+    if at_steps == Some(0) {
+        return Err(RlError::config("meben report", "--at-steps", 0, "a number of env steps above 0"));
+    }
     let dirs = find_run_dirs(root)?;
     if dirs.is_empty() {
         return Err(RlError::file(
@@ -86,25 +108,29 @@ pub fn report(root: &Path) -> Result<Report> {
     }
     let mut records = Vec::with_capacity(dirs.len());
     for dir in &dirs {
-        records.push((dir.strip_prefix(root).unwrap_or(dir).to_path_buf(), RunRecord::read(dir)?));
+        let record = RunRecord::read(dir)?;
+        let record = match at_steps {
+            Some(steps) => record.up_to(steps),
+            None => record,
+        };
+        records.push((dir.strip_prefix(root).unwrap_or(dir).to_path_buf(), record));
     }
     let (groups, pending) = group_runs(&records);
 
-    let markdown = root.join("report.md");
-    let csv = root.join("report.csv");
-    let curves_dir = root.join("curves");
+    let out = at_steps.map_or_else(|| root.to_path_buf(), |steps| at_steps_dir(root, steps));
+    let markdown = out.join("report.md");
+    let csv = out.join("report.csv");
+    let curves_dir = out.join("curves");
     let mut curves = Vec::new();
-    if !groups.is_empty() {
-        std::fs::create_dir_all(&curves_dir)
-            .map_err(|e| RlError::file(&curves_dir, format!("cannot create the directory: {e}")))?;
-    }
+    let needed = if groups.is_empty() { &out } else { &curves_dir };
+    std::fs::create_dir_all(needed).map_err(|e| RlError::file(needed, format!("cannot create the directory: {e}")))?;
     for env in render::envs_in_order(&groups) {
         let path = curves_dir.join(format!("{}.svg", sanitize_component(env)));
         nn::write_atomic(&path, curve_plot(env, &groups).to_svg().as_bytes())?;
         curves.push(path);
     }
-    nn::write_atomic(&markdown, render_markdown(root, &groups, &pending).as_bytes())?;
+    nn::write_atomic(&markdown, render_markdown(root, at_steps, &groups, &pending).as_bytes())?;
     nn::write_atomic(&csv, render_csv(&groups).as_bytes())?;
     println!("{}", markdown.display());
-    Ok(Report { root: root.to_path_buf(), groups, pending, markdown, csv, curves })
+    Ok(Report { root: root.to_path_buf(), dir: out, groups, pending, markdown, csv, curves })
 }

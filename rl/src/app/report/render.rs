@@ -105,11 +105,30 @@ pub(crate) fn count(n: usize, noun: &str) -> String {
     if n == 1 { format!("1 {noun}") } else { format!("{n} {noun}s") }
 }
 
-/// `report.md`: the runs under `root` in `groups`, and those `pending` without a value yet.
-pub fn render_markdown(root: &Path, groups: &[GroupReport], pending: &[(PathBuf, String)]) -> String {
+/// `report.md`: the runs under `root` in `groups`, and those `pending` without a value yet;
+/// with `at_steps`, a report at that budget ([`super::report_at`]), which its heading says.
+pub fn render_markdown(
+    root: &Path,
+    at_steps: Option<u64>,
+    groups: &[GroupReport],
+    pending: &[(PathBuf, String)],
+) -> String {
     let mut md = String::new();
     let runs: usize = groups.iter().map(|g| g.runs.len()).sum();
-    let _ = writeln!(md, "# Report: `{}`\n", root.display());
+    match at_steps {
+        None => {
+            let _ = writeln!(md, "# Report: `{}`\n", root.display());
+        }
+        Some(steps) => {
+            let _ = writeln!(
+                md,
+                "# Report: `{}` at {steps} env steps\n\nEvery run as it stood after {steps} env steps \
+                 (`meben report --at-steps {steps}`): its rows of `metrics.csv` up to then, its budget at most \
+                 {steps}; the rows after them are left out of every figure and curve below.\n",
+                root.display()
+            );
+        }
+    }
     let _ = writeln!(
         md,
         "{} in {}. Final value of a run: its metric in the last row of `metrics.csv` that has it \
