@@ -14,7 +14,9 @@
 # checkpoint (exit 130), and the worker with it.
 #
 # OUT (default /tmp/runs/repro) holds the runs; BIN (default target/release/meben) is the
-# program (build it first: cargo build --release); THREADS (default 1) the threads a run
+# program (build it first: cargo build --release); REPORT_BIN (default BIN) the one that
+# redraws the reports at a matched budget (results/<exp>/at_<N>/: it must know
+# `meben report --at-steps`, which binaries before 0445b8f do not); THREADS (default 1) the threads a run
 # uses: 2 for a worker left alone on the 2-core machine (its last runs), whose rows are the
 # same at any thread count (docs/PERFORMANCE.md). Start the workers under `nice` as shown,
 # so that builds and tests run beside them at full speed: every thread a worker creates
@@ -128,8 +130,7 @@ case "${1:-}" in
       [ -d "$OUT/$exp" ] || continue
       # The report names the directory it was given: relative, as a reader would type it.
       "$BIN" export "$OUT/$exp" "$ROOT/results/$exp" && (cd "$ROOT" && "$BIN" report "results/$exp" --paper results/paper.toml > /dev/null)
-      # Its committed reports at a matched budget (results/<exp>/at_<N>/) are redrawn too:
-      # REPORT_BIN (default BIN) must know `--at-steps`.
+      # Its committed reports at a matched budget (results/<exp>/at_<N>/) are redrawn too.
       for at in "$ROOT/results/$exp"/at_*/; do
         [ -d "$at" ] || continue
         at=${at%/}

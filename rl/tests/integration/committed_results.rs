@@ -28,8 +28,7 @@ fn is_report_output(rel: &Path) -> bool {
 
 /// N when `rel` lies under an `at_<N>` directory at the top of an experiment.
 fn at_steps_of(rel: &Path) -> Option<u64> {
-    let first = rel.components().next()?.as_os_str().to_str()?;
-    first.strip_prefix("at_")?.parse().ok()
+    rl::app::report::at_steps_of(rel.components().next()?.as_os_str().to_str()?)
 }
 
 /// Every file under `dir`, as paths relative to it, sorted.
@@ -79,10 +78,9 @@ fn every_committed_report_regenerates_from_the_committed_run_files() {
             std::fs::create_dir_all(to.parent().unwrap()).unwrap();
             std::fs::copy(exp.join(rel), &to).unwrap();
         }
-        let mut budgets: Vec<Option<u64>> = files.iter().filter_map(|f| at_steps_of(f)).map(Some).collect();
-        budgets.dedup();
-        budgets.insert(0, None);
-        for at in budgets {
+        // The whole runs' report, then one per committed matched budget.
+        let budgets: std::collections::BTreeSet<u64> = files.iter().filter_map(|f| at_steps_of(f)).collect();
+        for at in std::iter::once(None).chain(budgets.into_iter().map(Some)) {
             let mut cmd = Command::new(env!("CARGO_BIN_EXE_meben"));
             cmd.current_dir(&scratch.0).args(["report", &format!("results/{name}"), "--paper"]);
             cmd.arg(results.join("paper.toml"));

@@ -320,6 +320,8 @@ fn a_report_at_a_budget_values_every_run_by_its_last_evaluation_up_to_it() {
 
     let at = rl::report_at(root, Some(2_000_000)).unwrap();
     assert_eq!(at.dir, root.join("at_2000000"));
+    let name = |n: &str| rl::app::report::at_steps_of(n);
+    assert_eq!((name("at_2000000"), name("at_"), name("curves"), name("at_2M")), (Some(2_000_000), None, None, None));
     assert_eq!((at.markdown.clone(), at.csv.clone()), (at.dir.join("report.md"), at.dir.join("report.csv")));
     assert_eq!(finals(&at), [("mlp".into(), vec![20.0]), ("shnn".into(), vec![40.0])]);
     assert!(at.groups.iter().all(|g| g.env_steps == (2_000_000, 2_000_000) && g.target_steps == 2_000_000));
@@ -333,7 +335,7 @@ fn a_report_at_a_budget_values_every_run_by_its_last_evaluation_up_to_it() {
     let early = rl::report_at(root, Some(500_000)).unwrap();
     assert!(early.groups.is_empty() && early.pending.len() == 2, "{:?}", early.pending);
     let e = rl::report_at(root, Some(0)).unwrap_err().to_string();
-    assert!(e.contains("--at-steps") && e.contains('0'), "{e}");
+    assert!(e.contains("--at-steps") && e.contains("\"0\""), "{e}");
 
     // The program: `--at-steps` with `--paper` writes both tables under at_<N>/.
     let paper = root.join("paper.toml");

@@ -334,7 +334,7 @@ fn every_generated_paper_table_is_quoted_verbatim() {
         if exp.is_dir() {
             for sub in std::fs::read_dir(&exp).unwrap() {
                 let sub = sub.unwrap().path();
-                if sub.file_name().and_then(|n| n.to_str()).is_some_and(|n| n.starts_with("at_")) {
+                if sub.file_name().and_then(|n| n.to_str()).and_then(rl::app::report::at_steps_of).is_some() {
                     tables.push(sub.join("paper.md"));
                 }
             }

@@ -93,6 +93,12 @@ pub fn at_steps_dir(root: &Path, steps: u64) -> PathBuf {
     root.join(format!("at_{steps}"))
 }
 
+/// The env steps of a directory named as [`at_steps_dir`] names it (`at_7208960`), or
+/// `None` for any other name.
+pub fn at_steps_of(dir_name: &str) -> Option<u64> {
+    dir_name.strip_prefix("at_")?.parse().ok()
+}
+
 /// [`report`], or with `at_steps` the report of every run as it stood after that many env
 /// steps, written under [`at_steps_dir`] (module docs). Zero steps is an error.
 pub fn report_at(root: &Path, at_steps: Option<u64>) -> Result<Report> {
