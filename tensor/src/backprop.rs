@@ -31,7 +31,7 @@ pub(crate) fn propagate<T: Float>(nodes: &[Node<T>], id: NodeId, g: Tensor<T>, s
             if store.wants(*x) {
                 // d(x + c)/dx = 1: the gradient passes as it is (no kernel; `g * 1` is `g`).
                 let dx = if matches!(op, UnaryOp::AddScalar(_)) { g } else { k::unary_backward(&g, val(*x), y, *op)? };
-                store.add(*x, dx);
+                store.add(*x, dx)?;
             }
         }
         Op::Binary(a, b, op) => {
@@ -41,15 +41,15 @@ pub(crate) fn propagate<T: Float>(nodes: &[Node<T>], id: NodeId, g: Tensor<T>, s
             // them to be stored takes it without a copy.
             drop(g);
             if let Some(ga) = ga {
-                store.add(*a, ga);
+                store.add(*a, ga)?;
             }
             if let Some(gb) = gb {
-                store.add(*b, gb);
+                store.add(*b, gb)?;
             }
         }
         Op::Reduce { x, op, axis, keepdim: _ } => {
             if store.wants(*x) {
-                store.add(*x, k::reduce_backward(val(*x), y, &g, *op, *axis)?);
+                store.add(*x, k::reduce_backward(val(*x), y, &g, *op, *axis)?)?;
             }
         }
         Op::MatMul { a, b, ta, tb } => {
@@ -102,7 +102,7 @@ pub(crate) fn propagate<T: Float>(nodes: &[Node<T>], id: NodeId, g: Tensor<T>, s
                 let sum = k::reduce(&rows_view, crate::op::ReduceOp::Sum, Some(0), false)?;
                 let b_shape = val(*b).shape();
                 if b_shape == [n] {
-                    store.add(*b, sum);
+                    store.add(*b, sum)?;
                 } else {
                     store.add_narrow_backward(*b, b_shape, &sum, 0, *col)?;
                 }
@@ -110,33 +110,33 @@ pub(crate) fn propagate<T: Float>(nodes: &[Node<T>], id: NodeId, g: Tensor<T>, s
         }
         Op::Softmax(x) => {
             if store.wants(*x) {
-                store.add(*x, k::softmax_backward(y, &g)?);
+                store.add(*x, k::softmax_backward(y, &g)?)?;
             }
         }
         Op::NormLast { x, .. } => {
             if store.wants(*x) {
-                store.add(*x, k::norm_last_backward(val(*x), y, &g)?);
+                store.add(*x, k::norm_last_backward(val(*x), y, &g)?)?;
             }
         }
         Op::Standardize { x, eps } => {
             if store.wants(*x) {
-                store.add(*x, k::standardize_backward(val(*x), y, &g, *eps)?);
+                store.add(*x, k::standardize_backward(val(*x), y, &g, *eps)?)?;
             }
         }
         Op::Reshape(x) => {
             if store.wants(*x) {
-                store.add(*x, g.into_reshaped(val(*x).shape())?);
+                store.add(*x, g.into_reshaped(val(*x).shape())?)?;
             }
         }
         Op::Permute(x, perm) => {
             if store.wants(*x) {
                 let inv = crate::kernels::layout::inverse_permutation(perm);
-                store.add(*x, k::permute(&g, &inv)?);
+                store.add(*x, k::permute(&g, &inv)?)?;
             }
         }
         Op::Expand(x) => {
             if store.wants(*x) {
-                store.add(*x, k::sum_to_shape(&g, val(*x).shape())?);
+                store.add(*x, k::sum_to_shape(&g, val(*x).shape())?)?;
             }
         }
         Op::Narrow { x, axis, start } => {
@@ -162,10 +162,10 @@ pub(crate) fn propagate<T: Float>(nodes: &[Node<T>], id: NodeId, g: Tensor<T>, s
         }
         Op::IndexAdd { x, src, axis, idx } => {
             if store.wants(*src) {
-                store.add(*src, k::index_select(&g, *axis, idx)?);
+                store.add(*src, k::index_select(&g, *axis, idx)?)?;
             }
             if store.wants(*x) {
-                store.add(*x, g);
+                store.add(*x, g)?;
             }
         }
         Op::Gather { x, axis, idx } => {
@@ -175,13 +175,13 @@ pub(crate) fn propagate<T: Float>(nodes: &[Node<T>], id: NodeId, g: Tensor<T>, s
         }
         Op::Segment { x, seg, mean } => {
             if store.wants(*x) {
-                store.add(*x, k::segment_backward(val(*x).shape(), &g, seg, *mean)?);
+                store.add(*x, k::segment_backward(val(*x).shape(), &g, seg, *mean)?)?;
             }
         }
         Op::Where { a, b, mask } => {
             for (input, pick) in [(*a, true), (*b, false)] {
                 if store.wants(input) {
-                    store.add(input, k::where_backward(&g, mask, pick, val(input).shape())?);
+                    store.add(input, k::where_backward(&g, mask, pick, val(input).shape())?)?;
                 }
             }
         }

@@ -20,6 +20,7 @@
 //! assert_eq!(grads.get(x).unwrap().data(), &[2.0, 4.0, 6.0]);
 //! ```
 
+mod backend;
 mod backprop;
 pub mod device;
 mod dispatch;
@@ -28,6 +29,9 @@ pub mod error;
 pub mod flops;
 #[cfg(feature = "gpu")]
 pub mod gpu;
+#[cfg(not(feature = "gpu"))]
+#[path = "gpu/absent.rs"]
+mod gpu;
 mod grad_store;
 pub mod gradcheck;
 pub mod kernels;
@@ -46,6 +50,5 @@ pub use flops::FlopCount;
 pub use op::{Activation, BinaryOp, ReduceOp, UnaryOp};
 pub use tape::{Gradients, NoGradGuard, Tape, Var};
 pub use tensor::Tensor;
-#[cfg(feature = "gpu")]
-pub use tensor_ops::adam_update;
-pub use tensor_ops::first_non_finite;
+pub use backend::AdamStep;
+pub use tensor_ops::{adam_update, first_non_finite};

@@ -320,7 +320,7 @@ impl<T: Float> Tape<T> {
         let mut store = GradStore::new(&nodes[..=loss.id]);
         if root.requires_grad {
             let seed = Tensor::ones(root.value.shape()).to_device(root.value.device())?;
-            store.add(loss.id, seed);
+            store.add(loss.id, seed)?;
         }
         for id in (0..=loss.id).rev() {
             if matches!(nodes[id].op, Op::Leaf) {
@@ -352,14 +352,7 @@ impl<T: Float> Tape<T> {
 /// of the op just run its name and direction (`None`: no op's, shown as `-`); nothing
 /// otherwise (or without the `gpu` feature).
 fn label_gpu_launches(op: Option<(&'static str, bool)>) {
-    #[cfg(feature = "gpu")]
-    if crate::gpu::timing::active()
-        && let Ok(gpu) = crate::gpu::gpu()
-    {
-        gpu.label_launches(op);
-    }
-    #[cfg(not(feature = "gpu"))]
-    let _ = op;
+    crate::gpu::label_launches(op);
 }
 
 /// `flops / time` as "12.34 GFLOP/s", or "-" when either is zero.

@@ -15,25 +15,20 @@ use crate::shape::numel;
 /// An n-dimensional array of `T` in row-major (C) order.
 #[derive(Clone)]
 pub struct Tensor<T: Float> {
-    shape: Vec<usize>,
-    data: Storage<T>,
+    pub(crate) shape: Vec<usize>,
+    pub(crate) data: Storage<T>,
 }
 
-/// Where the elements live.
+/// Where the elements live: the one place a tensor's storage names its device (the
+/// backends, `backend/`, compute on it).
 #[derive(Clone)]
 pub(crate) enum Storage<T: Float> {
     /// Host memory (the CPU device).
     Host(Arc<Buffer<T>>),
-    /// A GPU buffer of f32 values, with a host copy made on first read.
-    #[cfg(feature = "gpu")]
-    Device(Arc<DeviceData<T>>),
-}
-
-/// A tensor's values on the GPU and, once [`Tensor::data`] has asked for them, on the host.
-#[cfg(feature = "gpu")]
-pub(crate) struct DeviceData<T: Float> {
-    pub(crate) buf: crate::gpu::DeviceBuffer,
-    host: std::sync::OnceLock<Vec<T>>,
+    /// A GPU buffer of f32 values (`gpu::DeviceData`; a type without values in a build
+    /// without the feature `gpu`).
+    #[allow(dead_code, reason = "constructed only by the GPU device, in builds with the feature `gpu`")]
+    Device(Arc<crate::gpu::DeviceData<T>>),
 }
 
 impl<T: Float> PartialEq for Tensor<T> {
@@ -44,7 +39,7 @@ impl<T: Float> PartialEq for Tensor<T> {
 
 /// Element storage that returns large buffers to the pool when dropped.
 #[derive(PartialEq)]
-pub(crate) struct Buffer<T: Float>(Vec<T>);
+pub(crate) struct Buffer<T: Float>(pub(crate) Vec<T>);
 
 impl<T: Float> Clone for Buffer<T> {
     fn clone(&self) -> Self {
@@ -136,7 +131,6 @@ impl<T: Float> Tensor<T> {
     pub fn device(&self) -> Device {
         match &self.data {
             Storage::Host(_) => Device::Cpu,
-            #[cfg(feature = "gpu")]
             Storage::Device(_) => Device::Gpu,
         }
     }
@@ -146,21 +140,18 @@ impl<T: Float> Tensor<T> {
     pub fn data(&self) -> &[T] {
         match &self.data {
             Storage::Host(b) => &b.0,
-            #[cfg(feature = "gpu")]
-            Storage::Device(d) => d.host.get_or_init(|| T::from_f32_vec(d.buf.download())),
+            Storage::Device(d) => d.host_values(),
         }
     }
 
     /// Mutable access to the elements (copies first if the storage is shared). A tensor on
     /// the GPU is brought to the host first.
     pub fn data_mut(&mut self) -> &mut [T] {
-        #[cfg(feature = "gpu")]
         if let Storage::Device(_) = self.data {
             self.data = Storage::Host(Arc::new(Buffer(self.data().to_vec())));
         }
         match &mut self.data {
             Storage::Host(b) => Arc::make_mut(b).0.as_mut_slice(),
-            #[cfg(feature = "gpu")]
             Storage::Device(_) => unreachable!("moved to the host above"),
         }
     }
@@ -202,13 +193,7 @@ impl<T: Float> Tensor<T> {
 
     /// Whether every element is finite (on the GPU, checked there: one value comes back).
     pub fn all_finite(&self) -> bool {
-        match &self.data {
-            Storage::Host(b) => b.0.iter().all(|v| v.is_finite()),
-            #[cfg(feature = "gpu")]
-            Storage::Device(_) => {
-                crate::tensor_ops::first_non_finite(std::slice::from_ref(self)).map(|i| i.is_none()).unwrap_or(false)
-            }
-        }
+        crate::tensor_ops::first_non_finite(std::slice::from_ref(self)).map(|i| i.is_none()).unwrap_or(false)
     }
 
     /// Whether both tensors have the same shape and every element differs by at most
@@ -230,7 +215,6 @@ impl<T: Float> Tensor<T> {
                 // Still shared: a copy, into a recycled buffer.
                 Err(shared) => crate::pool::map(&shared.0, |v| v),
             },
-            #[cfg(feature = "gpu")]
             Storage::Device(_) => self.to_vec(),
         }
     }
@@ -240,64 +224,9 @@ impl<T: Float> Tensor<T> {
     /// for tensors larger than a device buffer; moving to the CPU waits for the values.
     pub fn to_device(&self, device: Device) -> Result<Tensor<T>> {
         match (device, &self.data) {
-            (Device::Cpu, Storage::Host(_)) => Ok(self.clone()),
-            #[cfg(feature = "gpu")]
-            (Device::Gpu, Storage::Device(_)) => Ok(self.clone()),
-            #[cfg(feature = "gpu")]
+            (Device::Cpu, Storage::Host(_)) | (Device::Gpu, Storage::Device(_)) => Ok(self.clone()),
             (Device::Cpu, Storage::Device(_)) => Ok(Tensor::from_parts(self.to_vec(), self.shape.clone())),
-            #[cfg(feature = "gpu")]
-            (Device::Gpu, Storage::Host(b)) => {
-                let values = T::as_f32_slice(&b.0).ok_or_else(|| crate::error::TensorError::Device {
-                    op: "to_device",
-                    detail: format!("the GPU holds f32 tensors; this one is {}", T::NAME),
-                })?;
-                crate::gpu::gpu()?.check_size("to_device", values.len())?;
-                Ok(Tensor::from_device(crate::gpu::DeviceBuffer::upload(values), self.shape.clone()))
-            }
-            #[cfg(not(feature = "gpu"))]
-            (Device::Gpu, _) => Err(crate::error::TensorError::Device {
-                op: "to_device",
-                detail: "this build has no GPU device: rebuild with the cargo feature `gpu`".into(),
-            }),
-        }
-    }
-
-    /// Wraps a device buffer of `numel(shape)` values (a kernel's output).
-    #[cfg(feature = "gpu")]
-    pub(crate) fn from_device(buf: crate::gpu::DeviceBuffer, shape: Vec<usize>) -> Self {
-        debug_assert_eq!(buf.len(), numel(&shape));
-        Self { shape, data: Storage::Device(Arc::new(DeviceData { buf, host: std::sync::OnceLock::new() })) }
-    }
-
-    /// The device buffer of a tensor on the GPU if no other tensor shares it, else the tensor
-    /// back unchanged.
-    #[cfg(feature = "gpu")]
-    pub(crate) fn try_into_device_buffer(self) -> std::result::Result<crate::gpu::DeviceBuffer, Self> {
-        match self.data {
-            Storage::Device(d) => match Arc::try_unwrap(d) {
-                Ok(d) => Ok(d.buf),
-                Err(shared) => Err(Self { shape: self.shape, data: Storage::Device(shared) }),
-            },
-            Storage::Host(_) => unreachable!("try_into_device_buffer of a host tensor"),
-        }
-    }
-
-    /// The device buffer of a tensor on the GPU, taken without a copy when no other tensor
-    /// shares it (else copied on the device).
-    #[cfg(feature = "gpu")]
-    pub(crate) fn into_device_buffer(self) -> crate::gpu::DeviceBuffer {
-        self.try_into_device_buffer().unwrap_or_else(|shared| {
-            let buf = shared.device_buffer().expect("on the device");
-            crate::gpu::ops::layout::strided_copy(buf, &shared.shape, &crate::shape::strides(&shared.shape), 0, 1.0)
-        })
-    }
-
-    /// The device buffer of a tensor on the GPU.
-    #[cfg(feature = "gpu")]
-    pub(crate) fn device_buffer(&self) -> Option<&crate::gpu::DeviceBuffer> {
-        match &self.data {
-            Storage::Device(d) => Some(&d.buf),
-            Storage::Host(_) => None,
+            (Device::Gpu, Storage::Host(b)) => crate::gpu::upload(&b.0, &self.shape),
         }
     }
 }

@@ -15,14 +15,37 @@
 //! one-dimensional kernels use `@workgroup_size(256)` and the linear thread index
 //! `gid.x + gid.y * num_workgroups.x * 256` (see `wgsl/common.wgsl`).
 
+pub(crate) mod backend;
 pub mod context;
 pub(crate) mod list_cache;
 pub(crate) mod ops;
+mod storage;
 pub mod timing;
 
+pub use crate::backend::AdamStep;
 pub use context::{AdapterInfo, Gpu, GpuStats, gpu};
-pub use ops::optim::AdamStep;
+pub(crate) use storage::{DeviceData, upload};
 pub use timing::{KernelTimeline, OpLabel, TimelineRow};
+
+/// Whether this build has the GPU device.
+pub(crate) const BUILT: bool = true;
+
+/// Waits for every queued kernel, if the device was started (nothing to wait for otherwise).
+pub(crate) fn synchronize() {
+    if let Ok(gpu) = gpu() {
+        gpu.synchronize();
+    }
+}
+
+/// While the GPU times its launches ([`Gpu::start_timing`]), gives the launches of the op
+/// just run its name and direction (`None`: no op's, shown as `-`); nothing otherwise.
+pub(crate) fn label_launches(op: Option<(&'static str, bool)>) {
+    if timing::active()
+        && let Ok(gpu) = gpu()
+    {
+        gpu.label_launches(op);
+    }
+}
 
 /// The storage of one tensor on the GPU: `len` f32 values in a buffer that goes back to the
 /// device's pool when dropped.

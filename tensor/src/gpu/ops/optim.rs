@@ -3,31 +3,11 @@
 
 use super::{bits, kernel, u};
 use crate::gpu::context::Kernel;
+use crate::backend::AdamStep;
 use crate::gpu::{DeviceBuffer, device};
 
 const ADAM: Kernel = kernel!("adam", "adam.wgsl");
 const NON_FINITE_ANY: Kernel = kernel!("non_finite_any", "non_finite_any.wgsl");
-
-/// Adam's constants for one step: the learning rate, the decays and the bias corrections
-/// `c1 = 1/(1-b1^t)`, `c2 = 1/(1-b2^t)`.
-#[derive(Clone, Copy, Debug)]
-pub struct AdamStep {
-    /// Learning rate of this step.
-    pub lr: f64,
-    /// First-moment decay.
-    pub beta1: f64,
-    /// Second-moment decay.
-    pub beta2: f64,
-    /// `1 / (1 - beta1^t)`.
-    pub c1: f64,
-    /// `1 / (1 - beta2^t)`.
-    pub c2: f64,
-    /// Added to the root of the second moment.
-    pub eps: f64,
-    /// When set, each gradient element is first clipped to `[-clip, clip]` (as
-    /// `nn::clip_elementwise` and the `clamp` op do: `min(max(g, -clip), clip)` in f32).
-    pub clip: Option<f64>,
-}
 
 /// One Adam step: the new parameter and moments.
 pub(crate) fn adam(
