@@ -188,6 +188,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let iterations = env_usize("ITERATIONS", 2);
     let reps = env_usize("MINIBATCH_REPS", 5);
     let warmup = env_usize("WARMUP", 1);
+    // The GPU's kernel choices (`TENSOR_GPU_MATMUL_TILE`, `TENSOR_GPU_REDUCE_LANES`), typed.
+    tensor::configure_gpu(tensor::GpuConfig::from_bench_env()?)?;
     // `BENCH_ENVS` / `BENCH_MODELS` (comma-separated) replace the default pairs.
     let list = |var: &str, default: &[&str]| -> Vec<String> {
         std::env::var(var)

@@ -106,7 +106,9 @@ fn median(mut v: Vec<f64>) -> f64 {
 fn gpu_main() {
     use tensor::Device;
     let gpu = tensor::gpu::gpu().expect("a GPU adapter");
-    let tile = std::env::var("TENSOR_GPU_MATMUL_TILE").unwrap_or_else(|_| "64".into());
+    let config = tensor::GpuConfig::from_bench_env().unwrap_or_else(|e| panic!("matmul_rate: {e}"));
+    tensor::configure_gpu(config).expect("checked above");
+    let tile = config.matmul_tile.rows();
     eprintln!("matmul_rate: f32 on the GPU: {}, median of {SAMPLES} samples, {tile}-row tiles", gpu.adapter());
     let (mut large, mut layers) = (Vec::new(), Vec::new());
     for (m, k, n) in SHAPES.into_iter().chain(GPU_SHAPES) {

@@ -28,6 +28,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         eprintln!("reductions: DEVICE={device} needs a build with --features gpu");
         std::process::exit(2);
     }
+    tensor::configure_gpu(tensor::GpuConfig::from_bench_env()?)?;
     // name, shape, axis (None: every element, as a mean)
     let cases: [(&str, Vec<usize>, Option<usize>); 5] = [
         ("bias_grad_64", vec![n, 64], Some(0)),

@@ -43,7 +43,7 @@ mod tensor;
 mod tensor_ops;
 mod var_ops;
 
-pub use device::Device;
+pub use device::{Device, GpuConfig, MatMulTile, configure_gpu, gpu_config};
 pub use element::Float;
 pub use error::{Result, TensorError};
 pub use flops::FlopCount;

@@ -5,7 +5,7 @@
 //!
 //! One tiled kernel (`wgsl/matmul.wgsl`): 64 x 64 output tiles per workgroup of 16 x 16
 //! threads, 4 x 4 outputs per thread, the inner dim in steps of 16 through workgroup memory;
-//! or, with `TENSOR_GPU_MATMUL_TILE=128` ([`MatMulTile`]), 128 x 64 tiles of 8 x 4 outputs
+//! or, with the tile [`MatMulTile::Rows128`] configured ([`crate::device::GpuConfig`]), 128 x 64 tiles of 8 x 4 outputs
 //! per thread for the products with enough of them ([`Route::tiled`]; the same bits: each
 //! output's sum is the same sequence of fused multiply-adds).
 //! Batched products of small matrices (each entry's output at most a quarter of a tile, k at
@@ -23,6 +23,7 @@
 use super::{kernel, u};
 use crate::gpu::context::Kernel;
 use crate::gpu::{DeviceBuffer, device};
+use crate::device::MatMulTile;
 use crate::kernels::matmul::MatMulPlan;
 use crate::op::Activation;
 
@@ -59,57 +60,18 @@ fn split_k(groups: usize, k: usize) -> (usize, usize) {
     (k.div_ceil(per), per)
 }
 
-/// The output tile of the tiled kernel (`matmul.wgsl`): its rows per workgroup.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(crate) enum MatMulTile {
-    /// 64 x 64, 4 x 4 outputs per thread (the default: the kernel measured on the H100 and
-    /// H200 in `docs/PERFORMANCE.md`).
-    Rows64,
-    /// 128 x 64, 8 x 4 outputs per thread: 32 multiply-adds per 12 values read from
-    /// workgroup memory instead of 16 per 8, for the tall products of the layers.
-    Rows128,
-}
-
-impl MatMulTile {
-    /// Output rows of one workgroup's tile.
-    fn rows(self) -> usize {
-        match self {
-            MatMulTile::Rows64 => 64,
-            MatMulTile::Rows128 => 128,
-        }
-    }
-
-    /// The kernel computing tiles of this size.
-    fn kernel(self) -> &'static Kernel {
-        match self {
-            MatMulTile::Rows64 => &MATMUL,
-            MatMulTile::Rows128 => &MATMUL_TALL,
-        }
+/// The kernel computing tiles of `tile`'s size.
+fn tile_kernel(tile: MatMulTile) -> &'static Kernel {
+    match tile {
+        MatMulTile::Rows64 => &MATMUL,
+        MatMulTile::Rows128 => &MATMUL_TALL,
     }
 }
 
-/// The tile asked for ([`Route::tiled`] decides per product): `TENSOR_GPU_MATMUL_TILE` when
-/// set (`64` or `128`, for a paired timing on one machine), else 64 x 64. A bad value is
-/// reported on stderr and the default kept.
+/// The tile asked for ([`Route::tiled`] decides per product): the process's
+/// [`crate::device::GpuConfig::matmul_tile`].
 fn tile() -> MatMulTile {
-    static TILE: std::sync::OnceLock<MatMulTile> = std::sync::OnceLock::new();
-    *TILE.get_or_init(|| {
-        let set = std::env::var("TENSOR_GPU_MATMUL_TILE").ok();
-        parse_tile(set.as_deref()).unwrap_or_else(|msg| {
-            eprintln!("tensor: {msg}; GPU products use 64 x 64 tiles");
-            MatMulTile::Rows64
-        })
-    })
-}
-
-/// The tile for a `TENSOR_GPU_MATMUL_TILE` setting (`None`: unset); an error naming the
-/// variable and value when it is neither `64` nor `128`.
-fn parse_tile(setting: Option<&str>) -> Result<MatMulTile, String> {
-    match setting.map(str::trim) {
-        None | Some("64") => Ok(MatMulTile::Rows64),
-        Some("128") => Ok(MatMulTile::Rows128),
-        Some(_) => Err(format!("TENSOR_GPU_MATMUL_TILE={:?} is neither 64 nor 128", setting.unwrap_or_default())),
-    }
+    crate::device::gpu_config().matmul_tile
 }
 
 /// The largest output of one batch entry (`m * n`) the small-matrix kernel takes: a quarter
@@ -355,7 +317,7 @@ fn matmul_into_with(
     let (slices, k_per_slice) = split_k(groups, k);
     if slices == 1 {
         let params = [&shared[..], &[u(tiles_n), u(per_batch), u(slices), u(k_per_slice)]].concat();
-        device().launch(tile.kernel(), &params, &with_output(inputs, out), u(per_batch * batches));
+        device().launch(tile_kernel(tile), &params, &with_output(inputs, out), u(per_batch * batches));
         return;
     }
     // Split k: the slices' partial sums (packed from element 0 of their own buffer), then
@@ -364,7 +326,7 @@ fn matmul_into_with(
     params[OUT_BASE] = 0;
     params[OUT_LD] = u(n);
     let parts = DeviceBuffer::uninit(slices * total);
-    device().launch(tile.kernel(), &params, &with_output(inputs, &parts), u(per_batch * batches * slices));
+    device().launch(tile_kernel(tile), &params, &with_output(inputs, &parts), u(per_batch * batches * slices));
     let params = [
         u(total),
         u(n),
@@ -843,18 +805,6 @@ mod tests {
         assert!(!tall(1024, 153_600, 64, 1) && !tall(6144, 64, 64, 1));
         // Nothing changes without the setting.
         assert!(matches!(Route::tiled(MatMulTile::Rows64, 153_600, 1024, 64, 1), Route::Tiled(MatMulTile::Rows64)));
-    }
-
-    /// A bad `TENSOR_GPU_MATMUL_TILE` is an error naming the variable and the value.
-    #[test]
-    fn tile_settings_parse() {
-        assert_eq!(parse_tile(None), Ok(MatMulTile::Rows64));
-        assert_eq!(parse_tile(Some("64")), Ok(MatMulTile::Rows64));
-        assert_eq!(parse_tile(Some(" 128 ")), Ok(MatMulTile::Rows128));
-        for bad in ["32", "256", "tall", ""] {
-            let err = parse_tile(Some(bad)).unwrap_err();
-            assert!(err.contains("TENSOR_GPU_MATMUL_TILE") && err.contains(&format!("{bad:?}")), "{err}");
-        }
     }
 
     /// The model's tall, skinny layer products and their backward products.

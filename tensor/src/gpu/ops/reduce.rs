@@ -48,28 +48,11 @@ fn lanes(chunk: usize, inner: usize, cap: usize) -> usize {
     (GROUP / side_by_side).min(by_entries).min(cap)
 }
 
-/// The most threads per output: `TENSOR_GPU_REDUCE_LANES` when set (a power of two from 1 to
-/// 256; 1 is one thread per output, the kernel of before 2026-12-01, for a paired timing on
-/// one machine), else 256. A bad value is reported on stderr and the default kept.
+/// The most threads per output: the process's [`crate::device::GpuConfig::reduce_lanes`]
+/// (a power of two from 1 to 256; 1 is one thread per output, the kernel of before
+/// 2026-12-01), 256 by default.
 fn lanes_cap() -> usize {
-    static CAP: std::sync::OnceLock<usize> = std::sync::OnceLock::new();
-    *CAP.get_or_init(|| {
-        let set = std::env::var("TENSOR_GPU_REDUCE_LANES").ok();
-        parse_lanes_cap(set.as_deref()).unwrap_or_else(|msg| {
-            eprintln!("tensor: {msg}; GPU reductions use up to {GROUP} threads per output");
-            GROUP
-        })
-    })
-}
-
-/// The cap for a `TENSOR_GPU_REDUCE_LANES` setting (`None`: unset); an error naming the
-/// variable and value when it is not a power of two from 1 to 256.
-fn parse_lanes_cap(setting: Option<&str>) -> Result<usize, String> {
-    let Some(v) = setting else { return Ok(GROUP) };
-    match v.trim().parse::<usize>() {
-        Ok(n) if n.is_power_of_two() && n <= GROUP => Ok(n),
-        _ => Err(format!("TENSOR_GPU_REDUCE_LANES={v:?} is not a power of two from 1 to {GROUP}")),
-    }
+    crate::device::gpu_config().reduce_lanes as usize
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -136,17 +119,6 @@ mod tests {
         for (chunk, inner) in [(1, 1), (7, 2), (1024, 17), (300, 300)] {
             let l = lanes(chunk, inner, GROUP);
             assert!(l.is_power_of_two() && l <= GROUP && GROUP.is_multiple_of(l), "{chunk} {inner}: {l}");
-        }
-    }
-
-    #[test]
-    fn the_lanes_setting_is_a_power_of_two_up_to_a_workgroup() {
-        assert_eq!(parse_lanes_cap(None), Ok(GROUP));
-        assert_eq!(parse_lanes_cap(Some("1")), Ok(1));
-        assert_eq!(parse_lanes_cap(Some(" 64 ")), Ok(64));
-        for bad in ["0", "3", "512", "many", ""] {
-            let err = parse_lanes_cap(Some(bad)).unwrap_err();
-            assert!(err.contains("TENSOR_GPU_REDUCE_LANES") && err.contains(&format!("{bad:?}")), "{err}");
         }
     }
 }
