@@ -2,27 +2,26 @@
 //! global-norm clipping, constant and linear learning-rate schedules.
 //!
 //! Each works on the device its tensors live on. On the host the arithmetic is the
-//! reference (f64 moments, the same code whatever the build). On the GPU (feature `gpu`)
-//! clipping runs there ([`Tensor::map_unary`], [`Tensor::sum_of_squares`]) and Adam updates
-//! the parameters in place there with f32 moments ([`Adam`]), so an update moves no tensor
-//! to the host.
+//! reference (in place; f64 moments, the same code whatever the build). On another device
+//! clipping runs there ([`Tensor::map_unary`], [`Tensor::sum_of_squares`]) and Adam's step
+//! is the device's ([`tensor::adam_update`], f32 moments as tensors beside the parameters),
+//! so an update moves no tensor to the host.
 
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
-use tensor::{Device, Float, Tensor, UnaryOp};
+use tensor::{AdamStep, Device, Float, Tensor, UnaryOp};
 
 use crate::error::{NnError, Result};
-use crate::params::{ParamStore, to_host_all};
+use crate::params::ParamStore;
 
 /// Clips every gradient element to `[-limit, limit]` (optax's `clip(limit)`; the reference
 /// release uses 0.1). Gradients on the GPU are clipped there.
 pub fn clip_elementwise<T: Float>(grads: &mut [Tensor<T>], limit: f64) {
     let (lo, hi) = (T::from_f64(-limit), T::from_f64(limit));
     for g in grads {
-        if g.device() == Device::Cpu {
-            g.data_mut().iter_mut().for_each(|v| *v = v.max(lo).min(hi));
-        } else {
-            *g = g.map_unary(UnaryOp::Clamp(-limit, limit));
+        match g.host_data_mut() {
+            Some(values) => values.iter_mut().for_each(|v| *v = v.max(lo).min(hi)),
+            None => *g = g.map_unary(UnaryOp::Clamp(-limit, limit)),
         }
     }
 }
@@ -32,24 +31,14 @@ pub fn clip_elementwise<T: Float>(grads: &mut [Tensor<T>], limit: f64) {
 /// each one's sum of squares is taken there in f32 and only that value comes back, and the
 /// scaling runs there). A failure of the device makes the norm NaN (and nothing is scaled).
 pub fn clip_global_norm<T: Float>(grads: &mut [Tensor<T>], max_norm: f64) -> f64 {
-    let sq: f64 = grads
-        .iter()
-        .map(|g| {
-            if g.device() == Device::Cpu {
-                g.data().iter().map(|v| v.to_f64() * v.to_f64()).sum::<f64>()
-            } else {
-                g.sum_of_squares().unwrap_or(f64::NAN)
-            }
-        })
-        .sum();
+    let sq: f64 = grads.iter().map(|g| g.sum_of_squares().unwrap_or(f64::NAN)).sum();
     let norm = sq.sqrt();
     if norm > max_norm {
         let s = T::from_f64(max_norm / norm);
         for g in grads {
-            if g.device() == Device::Cpu {
-                g.data_mut().iter_mut().for_each(|v| *v *= s);
-            } else {
-                *g = g.map_unary(UnaryOp::Scale(s.to_f64()));
+            match g.host_data_mut() {
+                Some(values) => values.iter_mut().for_each(|v| *v *= s),
+                None => *g = g.map_unary(UnaryOp::Scale(s.to_f64())),
             }
         }
     }
@@ -112,15 +101,16 @@ impl Default for AdamConfig {
 /// `m <- b1 m + (1-b1) g`, `v <- b2 v + (1-b2) g^2`,
 /// `p <- p - lr (m / (1 - b1^t)) / (sqrt(v / (1 - b2^t)) + eps)`.
 ///
-/// **Devices.** On the host the moments are f64 vectors (what a checkpoint holds). When the
-/// parameters or gradients of a [`Adam::step`] are on the GPU, the step runs there
-/// (`tensor::adam_update`) with the moments as f32 tensors on the GPU (moved there from
-/// the host ones at the first such step, or by [`Adam::to_device`]): **GPU Adam keeps its
-/// moments in f32**, whatever the parameter precision, so its steps differ from the host's
-/// by f32 rounding. While the moments are on the GPU the host vectors are stale:
-/// [`Adam::sync_to_host`] copies them back (one transfer) before the state is saved, and
-/// the host vectors are what serialises, so a checkpoint has the same format whichever
-/// device wrote it. A host step after GPU steps brings the moments back first.
+/// **Devices.** On the host the moments are f64 vectors (what a checkpoint holds, and what
+/// an exact resume needs). When the parameters or gradients of a [`Adam::step`] are on
+/// another device, the step runs there ([`tensor::adam_update`]) with the moments as f32
+/// tensors beside the parameters (placed there from the host ones at the first such step,
+/// or by [`Adam::to_device`]): **device Adam keeps its moments in f32**, whatever the
+/// parameter precision, so its steps differ from the host's by f32 rounding. While the
+/// moments are placed there the host vectors are stale: [`Adam::sync_to_host`] copies them
+/// back (one transfer) before the state is saved, and the host vectors are what serialises,
+/// so a checkpoint has the same format whichever device wrote it. A host step after device
+/// steps brings the moments back first.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct Adam {
     /// Hyper-parameters.
@@ -132,11 +122,12 @@ pub struct Adam {
     m: Vec<Vec<f64>>,
     /// Second moments.
     v: Vec<Vec<f64>>,
-    /// The first moments on the GPU (f32, one `[n]` tensor per parameter) while GPU steps
-    /// use them; empty otherwise. Never saved: [`Adam::sync_to_host`] copies them into `m`.
+    /// The first moments on the parameters' device (f32, one `[n]` tensor per parameter)
+    /// while steps there use them; empty otherwise. Never saved: [`Adam::sync_to_host`]
+    /// copies them into `m`.
     #[serde(skip)]
     device_m: Vec<Tensor<f32>>,
-    /// The second moments on the GPU, like `device_m`.
+    /// The second moments on the parameters' device, like `device_m`.
     #[serde(skip)]
     device_v: Vec<Tensor<f32>>,
 }
@@ -148,35 +139,32 @@ impl Adam {
         Self { config, t: 0, m: zeros.clone(), v: zeros, device_m: Vec::new(), device_v: Vec::new() }
     }
 
-    /// Where the moments live: the GPU while GPU steps use them, else the host.
+    /// Where the moments live: the parameters' device while steps there use them, else the
+    /// host.
     pub fn device(&self) -> Device {
-        if self.device_m.is_empty() { Device::Cpu } else { Device::Gpu }
+        tensor::device_of_all(&self.device_m)
     }
 
-    /// Moves the moments to `device`. To the GPU: the host moments are uploaded as f32 (on
-    /// resuming a run there; [`Adam::step`] does it by itself at the first GPU step). To the
-    /// CPU: the device moments are copied back ([`Adam::sync_to_host`]) and dropped.
+    /// Moves the moments to `device`. To another device than the host: the host moments are
+    /// placed there as f32 (on resuming a run there; [`Adam::step`] does it by itself at the
+    /// first step there). To the host: the placed moments are copied back
+    /// ([`Adam::sync_to_host`]) and dropped.
     pub fn to_device(&mut self, device: Device) -> Result<()> {
-        match device {
-            Device::Cpu => {
-                self.sync_to_host()?;
-                self.device_m.clear();
-                self.device_v.clear();
-            }
-            Device::Gpu if self.device_m.is_empty() => {
-                let upload = |bufs: &[Vec<f64>]| -> Result<Vec<Tensor<f32>>> {
-                    bufs.iter()
-                        .map(|b| {
-                            let host = Tensor::new(b.iter().map(|&x| x as f32).collect(), &[b.len()])?;
-                            Ok(host.to_device(Device::Gpu)?)
-                        })
-                        .collect()
-                };
-                let (m, v) = (upload(&self.m)?, upload(&self.v)?);
-                self.device_m = m;
-                self.device_v = v;
-            }
-            Device::Gpu => {}
+        if device == self.device() && (device == Device::Cpu) == self.device_m.is_empty() {
+            return Ok(());
+        }
+        self.sync_to_host()?;
+        self.device_m.clear();
+        self.device_v.clear();
+        if device != Device::Cpu {
+            let place = |bufs: &[Vec<f64>]| -> Result<Vec<Tensor<f32>>> {
+                bufs.iter()
+                    .map(|b| Ok(Tensor::new(b.iter().map(|&x| x as f32).collect(), &[b.len()])?.to_device(device)?))
+                    .collect()
+            };
+            let (m, v) = (place(&self.m)?, place(&self.v)?);
+            self.device_m = m;
+            self.device_v = v;
         }
         Ok(())
     }
@@ -189,7 +177,7 @@ impl Adam {
             return Ok(());
         }
         let all: Vec<Tensor<f32>> = self.device_m.iter().chain(&self.device_v).cloned().collect();
-        let host = to_host_all(&all)?;
+        let host = tensor::to_device_all(&all, Device::Cpu)?;
         let (m, v) = host.split_at(self.device_m.len());
         for (dst, src) in self.m.iter_mut().zip(m).chain(self.v.iter_mut().zip(v)) {
             *dst = src.data().iter().map(|&x| x as f64).collect();
@@ -305,13 +293,14 @@ impl Adam {
         let (b1, b2, eps) = (self.config.beta1, self.config.beta2, self.config.eps);
         let c1 = 1.0 / (1.0 - b1.powi(t));
         let c2 = 1.0 / (1.0 - b2.powi(t));
-        if store.values().iter().chain(grads).any(|x| x.device() != Device::Cpu) {
-            return self.step_on_device(store, grads, StepConstants { lr, beta1: b1, beta2: b2, c1, c2, eps, clip });
+        let operands: Vec<Tensor<T>> = store.values().iter().chain(grads).cloned().collect();
+        let device = tensor::device_of_all(&operands);
+        if device != Device::Cpu {
+            let step = AdamStep { lr, beta1: b1, beta2: b2, c1, c2, eps, clip };
+            return self.step_on_device(store, grads, device, step);
         }
-        if !self.device_m.is_empty() {
-            // The moments were last updated on the GPU.
-            self.to_device(Device::Cpu)?;
-        }
+        // The moments may have been last updated on another device.
+        self.to_device(Device::Cpu)?;
         let bounds = clip.map(|limit| (T::from_f64(-limit), T::from_f64(limit)));
         let values = store.values_mut();
         values.par_iter_mut().zip(grads.par_iter()).zip(self.m.par_iter_mut().zip(self.v.par_iter_mut())).for_each(
@@ -333,52 +322,26 @@ impl Adam {
         Ok(())
     }
 
-    /// The GPU arm of [`Adam::step`] (counts and shapes already checked, `t` advanced).
-    #[cfg(feature = "gpu")]
+    /// [`Adam::step`] on `device`, other than the host (counts and shapes already checked,
+    /// `t` advanced): the device's step with the placed f32 moments.
     fn step_on_device<T: Float>(
         &mut self,
         store: &mut ParamStore<T>,
         grads: &[Tensor<T>],
-        s: StepConstants,
+        device: Device,
+        step: AdamStep,
     ) -> Result<()> {
-        let step = tensor::gpu::AdamStep {
-            lr: s.lr,
-            beta1: s.beta1,
-            beta2: s.beta2,
-            c1: s.c1,
-            c2: s.c2,
-            eps: s.eps,
-            clip: s.clip,
-        };
-        self.to_device(Device::Gpu)?;
+        self.to_device(device)?;
         let values = store.values_mut();
         for (i, (p, g)) in values.iter_mut().zip(grads).enumerate() {
-            let (p1, m1, v1) = tensor::adam_update(p, g, &self.device_m[i], &self.device_v[i], step)?;
+            let p_there = p.to_device(device)?;
+            let (p1, m1, v1) = tensor::adam_update(&p_there, g, &self.device_m[i], &self.device_v[i], step)?;
             *p = p1;
             self.device_m[i] = m1;
             self.device_v[i] = v1;
         }
         Ok(())
     }
-
-    /// Without the `gpu` feature no tensor is on the GPU, so this is never reached.
-    #[cfg(not(feature = "gpu"))]
-    fn step_on_device<T: Float>(&mut self, _: &mut ParamStore<T>, _: &[Tensor<T>], _: StepConstants) -> Result<()> {
-        Err(NnError::Config("Adam: a tensor on the GPU in a build without the `gpu` feature".into()))
-    }
-}
-
-/// The constants of one Adam step: the learning rate, the decays, the bias corrections
-/// `c1 = 1/(1-b1^t)`, `c2 = 1/(1-b2^t)`, `eps`, and the gradients' clip limit if any.
-#[cfg_attr(not(feature = "gpu"), allow(dead_code))]
-struct StepConstants {
-    lr: f64,
-    beta1: f64,
-    beta2: f64,
-    c1: f64,
-    c2: f64,
-    eps: f64,
-    clip: Option<f64>,
 }
 
 #[cfg(test)]

@@ -124,19 +124,16 @@ impl<T: Float> ParamStore<T> {
     /// The device the parameters live on: the GPU if any of them is there (after
     /// [`ParamStore::to_device`] all are), else the CPU (also for an empty store).
     pub fn device(&self) -> Device {
-        if self.values.iter().any(|v| v.device() != Device::Cpu) { Device::Gpu } else { Device::Cpu }
+        tensor::device_of_all(&self.values)
     }
 
     /// Moves every parameter to `device` (names, order and shapes unchanged; nothing to do
-    /// for parameters already there). To the GPU: each parameter is uploaded once (f32
-    /// stores only; fails without the `gpu` feature or a GPU adapter). To the CPU: every value
-    /// comes back in one transfer. Nothing is changed if the move fails.
+    /// for parameters already there): [`tensor::to_device_all`]. To the GPU: each parameter
+    /// is uploaded once (f32 stores only; fails without the `gpu` feature or a GPU adapter).
+    /// To the CPU: every value comes back in one transfer. Nothing is changed if the move
+    /// fails.
     pub fn to_device(&mut self, device: Device) -> Result<()> {
-        let moved = match device {
-            Device::Cpu => to_host_all(&self.values)?,
-            Device::Gpu => self.values.iter().map(|v| v.to_device(device)).collect::<tensor::Result<Vec<_>>>()?,
-        };
-        self.values = moved;
+        self.values = tensor::to_device_all(&self.values, device)?;
         Ok(())
     }
 
@@ -203,30 +200,6 @@ impl<T: Float> Scope<'_, T> {
     pub fn rng(&mut self) -> &mut ChaCha8Rng {
         self.rng
     }
-}
-
-/// The tensors `ts` on the host. Those on the GPU come back in one transfer (concatenated
-/// there, downloaded once, cut apart); host tensors are returned as they are.
-pub(crate) fn to_host_all<T: Float>(ts: &[Tensor<T>]) -> Result<Vec<Tensor<T>>> {
-    let on_device: Vec<usize> = (0..ts.len()).filter(|&i| ts[i].device() != Device::Cpu).collect();
-    if on_device.len() <= 1 {
-        return ts.iter().map(|t| Ok(t.to_device(Device::Cpu)?)).collect();
-    }
-    // A tape only to concatenate: the inputs are on the GPU, so the copy runs there.
-    let tape = Tape::<T>::new();
-    let _no_grad = tape.no_grad();
-    let flat =
-        on_device.iter().map(|&i| Ok(tape.constant(ts[i].reshape(&[ts[i].numel()])?))).collect::<Result<Vec<_>>>()?;
-    let all = tape.cat(&flat, 0)?.value();
-    let values = all.data();
-    let mut out: Vec<Tensor<T>> = ts.to_vec();
-    let mut at = 0;
-    for &i in &on_device {
-        let n = ts[i].numel();
-        out[i] = Tensor::new(values[at..at + n].to_vec(), ts[i].shape())?;
-        at += n;
-    }
-    Ok(out)
 }
 
 /// A seeded random stream for initialisation.

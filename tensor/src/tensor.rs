@@ -156,6 +156,21 @@ impl<T: Float> Tensor<T> {
         }
     }
 
+    /// Mutable access to the elements of a tensor on the host (copied first if the storage is
+    /// shared); `None` for a tensor on another device, whose values stay there.
+    pub fn host_data_mut(&mut self) -> Option<&mut [T]> {
+        match &mut self.data {
+            Storage::Host(b) => Some(Arc::make_mut(b).0.as_mut_slice()),
+            Storage::Device(_) => None,
+        }
+    }
+
+    /// The same tensor on the host: itself when it is there, else its values downloaded (an
+    /// explicit transfer; [`Tensor::to_device`] with [`Device::Cpu`]).
+    pub fn to_host(&self) -> Result<Tensor<T>> {
+        self.to_device(Device::Cpu)
+    }
+
     /// The elements as a new vector.
     pub fn to_vec(&self) -> Vec<T> {
         self.data().to_vec()
