@@ -58,6 +58,51 @@ impl FromStr for Device {
     }
 }
 
+/// What crossed between the host and a device, and the kernels launched there, since the
+/// process started ([`transfers`]): the explicit transfers of a training step, counted.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Transfers {
+    /// Host-to-device copies.
+    pub uploads: u64,
+    /// Bytes uploaded.
+    pub upload_bytes: u64,
+    /// Device-to-host copies.
+    pub downloads: u64,
+    /// Bytes downloaded.
+    pub download_bytes: u64,
+    /// Kernel launches on the device.
+    pub launches: u64,
+}
+
+impl Transfers {
+    /// The counts since `earlier` (a reading taken before).
+    pub fn since(&self, earlier: &Transfers) -> Transfers {
+        Transfers {
+            uploads: self.uploads - earlier.uploads,
+            upload_bytes: self.upload_bytes - earlier.upload_bytes,
+            downloads: self.downloads - earlier.downloads,
+            download_bytes: self.download_bytes - earlier.download_bytes,
+            launches: self.launches - earlier.launches,
+        }
+    }
+}
+
+impl fmt::Display for Transfers {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "{} uploads ({} bytes), {} downloads ({} bytes), {} launches",
+            self.uploads, self.upload_bytes, self.downloads, self.download_bytes, self.launches
+        )
+    }
+}
+
+/// The process's transfers so far (all zeros while no device other than the host was used,
+/// and in a build without the feature `gpu`).
+pub fn transfers() -> Transfers {
+    crate::gpu::transfers()
+}
+
 /// The rows of the GPU's tiled product's output tile ([`GpuConfig::matmul_tile`]). Both give
 /// the same bits (each output is the same sequence of fused multiply-adds); they differ in
 /// speed.
@@ -129,12 +174,14 @@ impl GpuConfig {
     pub fn from_bench_env() -> Result<GpuConfig, String> {
         let mut config = GpuConfig::default();
         if let Ok(v) = std::env::var("TENSOR_GPU_MATMUL_TILE") {
-            let rows = v.trim().parse::<usize>().map_err(|_| format!("TENSOR_GPU_MATMUL_TILE={v:?} is neither 64 nor 128"))?;
-            config.matmul_tile =
-                MatMulTile::from_rows(rows).map_err(|_| format!("TENSOR_GPU_MATMUL_TILE={v:?} is neither 64 nor 128"))?;
+            let rows =
+                v.trim().parse::<usize>().map_err(|_| format!("TENSOR_GPU_MATMUL_TILE={v:?} is neither 64 nor 128"))?;
+            config.matmul_tile = MatMulTile::from_rows(rows)
+                .map_err(|_| format!("TENSOR_GPU_MATMUL_TILE={v:?} is neither 64 nor 128"))?;
         }
         if let Ok(v) = std::env::var("TENSOR_GPU_REDUCE_LANES") {
-            let bad = || format!("TENSOR_GPU_REDUCE_LANES={v:?} is not a power of two from 1 to {}", Self::MAX_REDUCE_LANES);
+            let bad =
+                || format!("TENSOR_GPU_REDUCE_LANES={v:?} is not a power of two from 1 to {}", Self::MAX_REDUCE_LANES);
             config.reduce_lanes = v.trim().parse::<u32>().map_err(|_| bad())?;
             config.validate().map_err(|_| bad())?;
         }

@@ -42,7 +42,8 @@ pub(crate) fn unary<T: Float>(x: &Tensor<T>, op: UnaryOp) -> Tensor<T> {
 
 /// `op(a, b)` with broadcasting.
 pub(crate) fn binary<T: Float>(a: &Tensor<T>, b: &Tensor<T>, op: BinaryOp) -> Result<Tensor<T>> {
-    let shape = if a.shape() == b.shape() { a.shape().to_vec() } else { broadcast_shapes(op.name(), a.shape(), b.shape())? };
+    let shape =
+        if a.shape() == b.shape() { a.shape().to_vec() } else { broadcast_shapes(op.name(), a.shape(), b.shape())? };
     let dev = device_of(&[a, b]);
     let (a, b) = (place(a, dev)?, place(b, dev)?);
     on_backend!(dev, B => B::binary(&a, &b, &shape, op))

@@ -43,12 +43,12 @@ mod tensor;
 mod tensor_ops;
 mod var_ops;
 
-pub use device::{Device, GpuConfig, MatMulTile, configure_gpu, gpu_config};
+pub use backend::AdamStep;
+pub use device::{Device, GpuConfig, MatMulTile, Transfers, configure_gpu, gpu_config, transfers};
 pub use element::Float;
 pub use error::{Result, TensorError};
 pub use flops::FlopCount;
 pub use op::{Activation, BinaryOp, ReduceOp, UnaryOp};
 pub use tape::{Gradients, NoGradGuard, Tape, Var};
 pub use tensor::Tensor;
-pub use backend::AdamStep;
 pub use tensor_ops::{adam_update, device_of_all, first_non_finite, to_device_all};

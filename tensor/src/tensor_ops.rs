@@ -21,6 +21,11 @@ impl<T: Float> Tensor<T> {
         crate::dispatch::matmul(self, other, ta, tb)
     }
 
+    /// Entries `start..start + len` of `axis`, copied, on the tensor's device (no tape).
+    pub fn narrow(&self, axis: usize, start: usize, len: usize) -> Result<Tensor<T>> {
+        crate::dispatch::narrow(self, axis, start, len)
+    }
+
     /// The sum of the squared elements, in f64 on the host; on the GPU the squares are summed
     /// there (in f32) and one value comes back.
     pub fn sum_of_squares(&self) -> Result<f64> {

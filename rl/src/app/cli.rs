@@ -485,7 +485,7 @@ fn cmd_eval(a: EvalArgs) -> Result<(), String> {
     if let Some(adapter) = crate::mappo::device::check_device(device).map_err(|e| e.to_string())? {
         eprintln!("meben: evaluating on GPU: {adapter}");
     }
-    let (config, teams) = load_teams(a.run.as_ref(), a.policy.as_deref())?;
+    let (config, mut teams) = load_teams(a.run.as_ref(), a.policy.as_deref())?;
     if a.episodes == 0 {
         return Err("--episodes must be at least 1".into());
     }
@@ -510,7 +510,7 @@ fn cmd_eval(a: EvalArgs) -> Result<(), String> {
         translation: a.translate,
     }
     .options(&config);
-    let e = evaluate_on_device(&config.env, &teams, &options, device)?;
+    let e = evaluate_on_device(&config.env, &mut teams, &options, device)?;
     print_eval(config.is_sumo(), &e);
     let text = serde_json::to_string_pretty(&e).map_err(|e| e.to_string())?;
     let in_run = a.run.as_ref().map(|r| r.join(eval_file_name(a.rotate, a.translate, a.fixed)));
@@ -521,26 +521,18 @@ fn cmd_eval(a: EvalArgs) -> Result<(), String> {
     Ok(())
 }
 
-/// `teams`' evaluation with the policies' forward passes on `device` (checked already): on
-/// the GPU each team's parameters are placed there first.
+/// `teams`' evaluation with the policies' forward passes on `device` (checked already): each
+/// team's parameters are placed there first.
 fn evaluate_on_device(
     env: &str,
-    teams: &[crate::Team],
+    teams: &mut [crate::Team],
     options: &crate::mappo::evaluate::EvalOptions,
     device: tensor::Device,
 ) -> Result<crate::mappo::evaluate::EvalSummary, String> {
-    use crate::mappo::evaluate::{evaluate, evaluate_on};
-    if device == tensor::Device::Cpu {
-        return evaluate(env, teams, options).map_err(|e| e.to_string());
+    for t in teams.iter_mut() {
+        t.store.to_device(device).map_err(|e| e.to_string())?;
     }
-    let mut stores = Vec::with_capacity(teams.len());
-    for t in teams {
-        let mut store = t.store.clone();
-        store.to_device(device).map_err(|e| e.to_string())?;
-        stores.push(store);
-    }
-    let stores: Vec<&nn::ParamStore<f32>> = stores.iter().collect();
-    evaluate_on(env, teams, &stores, options).map_err(|e| e.to_string())
+    crate::mappo::evaluate::evaluate(env, teams, options).map_err(|e| e.to_string())
 }
 
 /// The file an evaluation is written to: `eval.json`, `eval_fixed.json`,

@@ -295,11 +295,14 @@ fn train_in_pool(config: &TrainConfig, run: &RunDir, options: &TrainOptions) -> 
         if gpu_clock {
             start_gpu_timeline()?;
         }
+        let moved_before = tensor::transfers();
         let stats = trainer.iterate()?;
         let dt = t0.elapsed().as_secs_f64();
         let sps = config.steps_per_iteration() as f64 / dt;
         if timings_wanted() {
             eprintln!("meben: iteration {} took {dt:.3} s: {}", trainer.iteration, stats.timings.describe());
+            let moved = tensor::transfers().since(&moved_before);
+            eprintln!("meben: iteration {} moved {moved}", trainer.iteration);
         }
         if gpu_clock {
             eprintln!("meben: iteration {} on the GPU's clock: {}", trainer.iteration, stop_gpu_timeline()?);
@@ -350,7 +353,8 @@ fn train_in_pool(config: &TrainConfig, run: &RunDir, options: &TrainOptions) -> 
 }
 
 /// Whether `MEBEN_TIMINGS` asks for each iteration's stage timings on standard error
-/// ([`crate::mappo::trainer::Timings`]; docs/PERFORMANCE.md).
+/// ([`crate::mappo::trainer::Timings`]; docs/PERFORMANCE.md), and the uploads, downloads
+/// (with their bytes) and launches of each iteration ([`tensor::transfers`]).
 fn timings_wanted() -> bool {
     std::env::var_os("MEBEN_TIMINGS").is_some_and(|v| !v.is_empty() && v != "0")
 }

@@ -105,8 +105,7 @@ impl Actor {
         norm.apply_rows(obs, &mut self.normalised);
         // Forward without gradients, on the device the parameters are on; acting reads the
         // policy only (the update recomputes the values from the stored observations).
-        let device = store.values().first().map_or(Device::Cpu, |v| v.device());
-        let tape = Tape::<f32>::on(device);
+        let tape = Tape::<f32>::on(store.device());
         let _no_grad = tape.no_grad();
         let p = store.bind(&tape);
         let out = model.forward(&p, &self.normalised.rows(), None, false)?;
@@ -173,10 +172,10 @@ fn host_heads(tape: &Tape<f32>, agents: &[AgentPolicy<'_, f32>]) -> Result<Vec<H
         return Ok(agents.iter().map(|a| (a.agent, a.loc.value(), a.scale.value())).collect());
     }
     let parts: Vec<_> = agents.iter().flat_map(|a| [a.loc, a.scale]).collect();
-    let joined = tape.cat(&parts, 1)?.value().to_device(Device::Cpu)?;
+    let joined = tape.cat(&parts, 1)?.value().to_host()?;
     let mut start = 0;
     let mut column = |width: usize| {
-        let t = tensor::kernels::layout::narrow(&joined, 1, start, width);
+        let t = joined.narrow(1, start, width);
         start += width;
         t
     };

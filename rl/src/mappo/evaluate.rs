@@ -170,19 +170,6 @@ pub fn evaluate(env: &str, teams: &[Team], options: &EvalOptions) -> Result<Eval
     Ok(summary.expect("a flag that is never set never stops an evaluation"))
 }
 
-/// [`evaluate`] with each team's policy reading the parameters `stores[k]` instead of its
-/// host copy [`Team::store`]: the act step's forward pass runs on their device (the
-/// trainer's copies on the GPU, [`crate::mappo::device::ActDevice`]).
-pub fn evaluate_on(
-    env: &str,
-    teams: &[Team],
-    stores: &[&ParamStore<f32>],
-    options: &EvalOptions,
-) -> Result<EvalSummary> {
-    let summary = play(env, teams, stores, options, &StopFlag::new())?;
-    Ok(summary.expect("a flag that is never set never stops an evaluation"))
-}
-
 /// [`evaluate`], reading `stop` before every control step: `Ok(None)` once it is set (the
 /// episodes are abandoned; nothing else changes, since an evaluation leaves the teams as it
 /// found them). For callers that must be able to interrupt a long evaluation (Python's
@@ -193,7 +180,7 @@ pub fn evaluate_unless_stopped(
     options: &EvalOptions,
     stop: &StopFlag,
 ) -> Result<Option<EvalSummary>> {
-    let stores: Vec<&ParamStore<f32>> = teams.iter().map(|t| &t.store).collect();
+    let stores: Vec<&ParamStore<f32>> = teams.iter().map(|t| t.acting_store()).collect();
     play(env, teams, &stores, options, stop)
 }
 

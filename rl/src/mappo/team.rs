@@ -7,6 +7,7 @@ use envs::layout::{ObsRows, ObsSpec};
 use models::{Model, ModelConfig, Policy, PolicyFactory};
 use nn::{Adam, AdamConfig, LrSchedule, ParamStore, Scope};
 use rand_chacha::ChaCha8Rng;
+use tensor::Device;
 
 use crate::error::{Result, RlError};
 use crate::mappo::actor::{ActMode, Actor, JointAction};
@@ -21,10 +22,14 @@ pub struct Team {
     pub index: usize,
     /// The policy and critic.
     pub model: Box<dyn Policy>,
-    /// Its parameters (names under `team<k>.`), on the host: what the act step reads and a
-    /// checkpoint saves. With `device = "gpu"` the trainer's updates work on a copy on the
-    /// GPU and refresh this one after each update phase ([`crate::mappo::trainer`]).
+    /// Its parameters (names under `team<k>.`), on the training's device: what the updates
+    /// read and write, and (unless [`Team::act_mirror`] is set) what the act step reads.
+    /// Built and loaded on the host; the trainer places them ([`Team::place`]).
     pub store: ParamStore<f32>,
+    /// Where the act step runs on another device than the updates (`act_device = "cpu"` on
+    /// a GPU run): the parameters' one mirror there, refreshed after every update phase
+    /// ([`Team::refresh_mirror`]). `None` otherwise.
+    pub act_mirror: Option<ParamStore<f32>>,
     /// Its optimiser.
     pub adam: Adam,
     /// Its observation normaliser.
@@ -81,13 +86,47 @@ impl Team {
         let norm = ObsNormalizer::new(config.obs_norm.resolve(), spec);
         let noise = model.agents().iter().map(|&a| stream(config.seed, "noise", team as u64, a as u64)).collect();
         let shuffle = stream(config.seed, "shuffle", team as u64, 0);
-        Ok(Team { index: team, model, store, adam, norm, actor: Actor::new(ActMode::Sample, noise), shuffle })
+        let actor = Actor::new(ActMode::Sample, noise);
+        Ok(Team { index: team, model, store, act_mirror: None, adam, norm, actor, shuffle })
+    }
+
+    /// The parameters the act step reads: the mirror where it runs apart from the updates,
+    /// else the parameters themselves.
+    pub fn acting_store(&self) -> &ParamStore<f32> {
+        self.act_mirror.as_ref().unwrap_or(&self.store)
+    }
+
+    /// Places the parameters and Adam's moments on `device` (the updates'), and the act
+    /// step's mirror on `act_device` where that differs: the one place a team's tensors
+    /// change device.
+    pub fn place(&mut self, device: Device, act_device: Device) -> Result<()> {
+        self.store.to_device(device)?;
+        self.adam.to_device(device)?;
+        self.act_mirror = None;
+        if act_device != device {
+            let mut mirror = self.store.clone();
+            mirror.to_device(act_device)?;
+            self.act_mirror = Some(mirror);
+        }
+        Ok(())
+    }
+
+    /// Copies the parameters into the act step's mirror, if there is one (one transfer).
+    pub fn refresh_mirror(&mut self) -> Result<()> {
+        if let Some(mirror) = &mut self.act_mirror {
+            let device = mirror.device();
+            let mut fresh = self.store.clone();
+            fresh.to_device(device)?;
+            *mirror = fresh;
+        }
+        Ok(())
     }
 
     /// The team's actions for raw observation rows `obs`, with its own model, parameters,
     /// normaliser and noise ([`Actor::act`]).
     pub fn act(&mut self, obs: ObsRows<'_, f32>, joint: &mut JointAction) -> Result<()> {
-        self.actor.act(self.model.as_mut(), &self.store, &self.norm, obs, joint)
+        let store = self.act_mirror.as_ref().unwrap_or(&self.store);
+        self.actor.act(self.model.as_mut(), store, &self.norm, obs, joint)
     }
 }
 

@@ -42,7 +42,6 @@ use std::time::Instant;
 use envs::layout::ObsSpec;
 use envs::tasks::{Outcome, StepOutput, TaskKind, TaskSpec, VecEnv};
 use models::PolicyFactory;
-use nn::ParamStore;
 use tensor::{Device, Tape};
 
 use crate::error::{Result, RlError};
@@ -51,7 +50,7 @@ use crate::mappo::checkpoint::{Checkpoint, TeamState, VERSION};
 use crate::mappo::config::{NormStart, TrainConfig};
 use crate::mappo::config_match;
 use crate::mappo::device::check_device;
-use crate::mappo::evaluate::{EvalOptions, EvalSummary, evaluate, evaluate_on};
+use crate::mappo::evaluate::{EvalOptions, EvalSummary, evaluate};
 use crate::mappo::minibatch::Minibatch;
 use crate::mappo::ppo::{self, LossStats, PpoParams};
 use crate::mappo::rollout::Rollout;
@@ -206,10 +205,6 @@ pub struct Trainer {
     rollout: Rollout,
     joint: JointAction,
     mb: Minibatch,
-    /// With `device = "gpu"`: every team's parameters on the GPU, the copy the updates read
-    /// and write (each [`Team::store`] is the host copy, refreshed after every update phase).
-    /// Empty on the CPU.
-    device_stores: Vec<ParamStore<f32>>,
 }
 
 impl Trainer {
@@ -291,7 +286,7 @@ impl Trainer {
             &widths,
         );
         let na = env.n_actions();
-        let device_stores = place_on_device(config.device, &mut teams)?;
+        place_teams(config, &mut teams)?;
         Ok(Trainer {
             config: config.clone(),
             spec: obs_spec,
@@ -303,7 +298,6 @@ impl Trainer {
             rollout,
             joint: JointAction::new(config.num_envs, na, nt),
             mb: Minibatch::default(),
-            device_stores,
             env,
         })
     }
@@ -387,7 +381,7 @@ impl Trainer {
             team.shuffle = s.shuffle.restore()?;
         }
         // The restored parameters and moments to the update's device.
-        t.device_stores = place_on_device(config.device, &mut t.teams)?;
+        place_teams(config, &mut t.teams)?;
         t.env.restore(&c.env).map_err(|e| bad(e.to_string()))?;
         t.iteration = c.iteration;
         t.env_steps = c.env_steps;
@@ -401,10 +395,15 @@ impl Trainer {
     /// come back to the host for it (one transfer per team).
     pub fn checkpoint(&self, wall_s: f64, last_evals: &[EvalSummary]) -> Result<Checkpoint> {
         let mut adams = Vec::with_capacity(self.teams.len());
+        let mut params = Vec::with_capacity(self.teams.len());
         for t in &self.teams {
             let mut adam = t.adam.clone();
             adam.sync_to_host()?;
             adams.push(adam);
+            // The parameters on the host (one transfer where they are elsewhere).
+            let mut host = t.store.clone();
+            host.to_device(Device::Cpu)?;
+            params.push(nn::StateDict::from_store(&host));
         }
         Ok(Checkpoint {
             version: VERSION,
@@ -416,9 +415,9 @@ impl Trainer {
             teams: self
                 .teams
                 .iter()
-                .zip(adams)
-                .map(|(t, adam)| TeamState {
-                    params: nn::StateDict::from_store(&t.store),
+                .zip(adams.into_iter().zip(params))
+                .map(|(t, (adam, params))| TeamState {
+                    params,
                     adam,
                     normalizer: t.norm.clone(),
                     noise: t.actor.noise.iter().map(RngState::of).collect(),
@@ -480,19 +479,11 @@ impl Trainer {
         let scale = self.config.reward_scaling as f32;
         let mut stats = EpisodeStats::new(self.spec.n_teams);
         self.rollout.begin(self.env.obs());
-        let act_on_device = self.acts_on_device();
         let mut mark = Instant::now();
         while !self.rollout.is_full() {
-            for (ti, team) in self.teams.iter_mut().enumerate() {
-                // The parameters the act step reads: the updates' copy on the GPU when it acts
-                // there, else the team's host copy.
-                match self.device_stores.get(ti).filter(|_| act_on_device) {
-                    Some(on_device) => {
-                        let obs = self.env.obs().rows();
-                        team.actor.act(team.model.as_mut(), on_device, &team.norm, obs, &mut self.joint)?
-                    }
-                    None => team.act(self.env.obs().rows(), &mut self.joint)?,
-                }
+            for team in self.teams.iter_mut() {
+                // The parameters where the act step runs (`Team::acting_store`).
+                team.act(self.env.obs().rows(), &mut self.joint)?;
             }
             lap(&mut mark, &mut timings.act_s);
             let out = self.env.step(&self.joint.actions)?;
@@ -510,13 +501,9 @@ impl Trainer {
         let c = &self.config;
         let hp = PpoParams::from_config(c);
         let mut all = Vec::with_capacity(self.teams.len());
-        for (ti, team) in self.teams.iter_mut().enumerate() {
-            // The parameters the update reads and writes: the team's own on the CPU, its
-            // copy on the GPU there.
-            let store = match self.device_stores.get_mut(ti) {
-                Some(s) => s,
-                None => &mut team.store,
-            };
+        for team in self.teams.iter_mut() {
+            // The parameters the update reads and writes, on the configuration's device.
+            let store = &mut team.store;
             let mut sum = LossStats::default();
             let mut count = 0.0;
             for epoch in 0..c.epochs {
@@ -560,12 +547,10 @@ impl Trainer {
             }
             all.push(sum.scaled(1.0 / count));
         }
-        // The act step reads host parameters: each team's come back once (one transfer).
+        // Where the act step runs apart from the updates, its mirror (one transfer a team).
         let mut mark = Instant::now();
-        for (team, on_device) in self.teams.iter_mut().zip(&self.device_stores) {
-            let mut host = on_device.clone();
-            host.to_device(Device::Cpu)?;
-            team.store = host;
+        for team in self.teams.iter_mut() {
+            team.refresh_mirror()?;
         }
         lap(&mut mark, &mut timings.parameters_back_s);
         Ok(all)
@@ -574,17 +559,7 @@ impl Trainer {
     /// Evaluates the current policies (module [`crate::mappo::evaluate`](mod@crate::mappo::evaluate)),
     /// acting where collection acts (`act_device`).
     pub fn evaluate(&self, options: &EvalOptions) -> Result<EvalSummary> {
-        if self.acts_on_device() {
-            let stores: Vec<&ParamStore<f32>> = self.device_stores.iter().collect();
-            return evaluate_on(&self.config.env, &self.teams, &stores, options);
-        }
         evaluate(&self.config.env, &self.teams, options)
-    }
-
-    /// Whether the act step reads the updates' parameters on the GPU (`act_device` resolves
-    /// to the GPU, which it does only when the updates run there: `device_stores` holds them).
-    fn acts_on_device(&self) -> bool {
-        self.config.act_device.resolve(self.config.device) == Device::Gpu
     }
 
     /// The evaluation options of the run's `k`-th scheduled evaluation, one per rotation of
@@ -597,21 +572,11 @@ impl Trainer {
     }
 }
 
-/// On the GPU, every team's parameters copied there and its Adam moments moved there (the
-/// updates' copies; module docs); on the CPU nothing (an empty list).
-fn place_on_device(device: Device, teams: &mut [Team]) -> Result<Vec<ParamStore<f32>>> {
-    if device == Device::Cpu {
-        return Ok(Vec::new());
-    }
-    teams
-        .iter_mut()
-        .map(|t| {
-            let mut store = t.store.clone();
-            store.to_device(device)?;
-            t.adam.to_device(device)?;
-            Ok(store)
-        })
-        .collect()
+/// Every team's parameters and moments on the configuration's device, with the act step's
+/// mirror where `act_device` puts it elsewhere ([`Team::place`]).
+fn place_teams(config: &TrainConfig, teams: &mut [Team]) -> Result<()> {
+    let act_device = config.act_device.resolve(config.device);
+    teams.iter_mut().try_for_each(|t| t.place(config.device, act_device))
 }
 
 /// Where a minibatch update is, for error messages.

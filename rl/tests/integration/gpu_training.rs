@@ -70,9 +70,10 @@ fn gpu_iterations_follow_the_cpu_from_the_same_state() {
             for ((name, a), (_, b)) in g.losses[0].named().iter().zip(c.losses[0].named()) {
                 assert!(close(name, *a, b), "{model}, iteration {i}: {name} {a} on the GPU, {b} on the CPU");
             }
-            let (pg, pc) = (gpu.teams[0].store.values(), cpu.teams[0].store.values());
+            assert_eq!(gpu.teams[0].store.device(), Device::Gpu, "the updates' parameters stay on the GPU");
+            let (pg, pc) = (gpu.teams[0].acting_store().values(), cpu.teams[0].store.values());
             for (a, b) in pg.iter().zip(pc) {
-                assert_eq!(a.device(), Device::Cpu, "the act step's copy is on the host");
+                assert_eq!(a.device(), Device::Cpu, "the act step's mirror is on the host");
                 assert!(a.all_close(b, 0.0, 2.0 * lr * UPDATES as f64), "{model}, iteration {i}");
             }
         }

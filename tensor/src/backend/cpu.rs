@@ -100,7 +100,8 @@ impl Backend for Cpu {
                 let ws: Vec<Tensor<T>> =
                     parts.iter().map(|&(_, w, _)| layout::narrow(w, 1, start, len)).collect::<Result<_>>()?;
                 let b = b.map(|b| layout::narrow(b, 0, start, len)).transpose()?;
-                let terms: Vec<WeightRows<'_, T>> = parts.iter().zip(&ws).map(|(&(x, _, row), w)| (x, w, row)).collect();
+                let terms: Vec<WeightRows<'_, T>> =
+                    parts.iter().zip(&ws).map(|(&(x, _, row), w)| (x, w, row)).collect();
                 nnops::linear_sum_rows(&terms, b.as_ref(), act)
             }
             _ => nnops::linear_sum_rows(parts, b, act),
@@ -327,6 +328,10 @@ impl Backend for Cpu {
             p1.push(T::from_f64(f64::from(f(pi.to_f64()) - lr * (mn * c1) / ((vn * c2).sqrt() + eps))));
         }
         let shape = p.shape().to_vec();
-        Ok((Tensor::from_parts(p1, shape.clone()), Tensor::from_parts(m1, shape.clone()), Tensor::from_parts(v1, shape)))
+        Ok((
+            Tensor::from_parts(p1, shape.clone()),
+            Tensor::from_parts(m1, shape.clone()),
+            Tensor::from_parts(v1, shape),
+        ))
     }
 }

@@ -69,8 +69,12 @@ pub(crate) trait Backend {
     ) -> Result<GradPair<T>>;
 
     /// `mask ? a : b` over the broadcast `shape`.
-    fn where_select<T: Float>(mask: &Arc<Vec<bool>>, shape: &[usize], a: &Tensor<T>, b: &Tensor<T>)
-    -> Result<Tensor<T>>;
+    fn where_select<T: Float>(
+        mask: &Arc<Vec<bool>>,
+        shape: &[usize],
+        a: &Tensor<T>,
+        b: &Tensor<T>,
+    ) -> Result<Tensor<T>>;
 
     // --- Reductions -----------------------------------------------------------------------
 

@@ -87,7 +87,8 @@ impl Backend for Gpu {
             let (ga, gb) = elementwise::row_scale_backward(buf(g), buf(a), buf(b), op == BinaryOp::Div, wants);
             return Ok((ga.map(|v| out(v, a.shape().to_vec())), gb.map(|v| out(v, b.shape().to_vec()))));
         }
-        let (ga, gb) = elementwise::binary_backward(buf(g), buf(a), a.shape(), buf(b), b.shape(), buf(y), shape, op, wants);
+        let (ga, gb) =
+            elementwise::binary_backward(buf(g), buf(a), a.shape(), buf(b), b.shape(), buf(y), shape, op, wants);
         let back = |v: Option<DeviceBuffer>, target: &[usize]| {
             v.map(|v| Self::sum_to_shape(&out::<T>(v, shape.to_vec()), target)).transpose()
         };

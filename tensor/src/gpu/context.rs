@@ -105,8 +105,15 @@ struct Pending {
 /// Metal or DX12 (high-performance preference). An error says what was looked for and how to
 /// get an adapter; it is remembered, so a missing GPU is reported the same way every time.
 pub fn gpu() -> Result<&'static Gpu> {
-    static GPU: OnceLock<std::result::Result<Gpu, String>> = OnceLock::new();
     GPU.get_or_init(Gpu::create).as_ref().map_err(|detail| TensorError::Device { op: "gpu", detail: detail.clone() })
+}
+
+/// The process's GPU, or its creation's error, once [`gpu`] was first called.
+static GPU: OnceLock<std::result::Result<Gpu, String>> = OnceLock::new();
+
+/// The process's GPU if it was started (without starting it).
+pub(crate) fn started() -> Option<&'static Gpu> {
+    GPU.get().and_then(|g| g.as_ref().ok())
 }
 
 /// Bytes of a buffer holding `n` 32-bit words (never 0: WebGPU cannot bind an empty buffer).

@@ -37,6 +37,19 @@ pub(crate) fn synchronize() {
     }
 }
 
+/// The device's transfer and launch counts so far (zeros before the device was started).
+pub(crate) fn transfers() -> crate::device::Transfers {
+    let Some(gpu) = context::started() else { return crate::device::Transfers::default() };
+    let s = gpu.stats();
+    crate::device::Transfers {
+        uploads: s.uploads,
+        upload_bytes: s.upload_bytes,
+        downloads: s.downloads,
+        download_bytes: s.download_bytes,
+        launches: s.launches,
+    }
+}
+
 /// While the GPU times its launches ([`Gpu::start_timing`]), gives the launches of the op
 /// just run its name and direction (`None`: no op's, shown as `-`); nothing otherwise.
 pub(crate) fn label_launches(op: Option<(&'static str, bool)>) {

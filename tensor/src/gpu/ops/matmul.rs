@@ -21,9 +21,9 @@
 //! `matmul_reduce.wgsl` adds the slices in order and applies the epilogue.
 
 use super::{kernel, u};
+use crate::device::MatMulTile;
 use crate::gpu::context::Kernel;
 use crate::gpu::{DeviceBuffer, device};
-use crate::device::MatMulTile;
 use crate::kernels::matmul::MatMulPlan;
 use crate::op::Activation;
 

@@ -2,8 +2,8 @@
 //! values.
 
 use super::{bits, kernel, u};
-use crate::gpu::context::Kernel;
 use crate::backend::AdamStep;
+use crate::gpu::context::Kernel;
 use crate::gpu::{DeviceBuffer, device};
 
 const ADAM: Kernel = kernel!("adam", "adam.wgsl");
