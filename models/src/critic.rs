@@ -200,7 +200,7 @@ impl SubeqCritic {
     /// `10 d`, the two flags and the edge types of each edge (5 values where the features
     /// are 66), and the 62 Gaussians of [`release_rbf`] are computed on the device, in f32:
     /// the features of every edge of a paper-size minibatch were its largest upload (about
-    /// 40 MB; docs/PERFORMANCE.md, "On a GPU"). The CPU keeps the host path, bit for bit.
+    /// 40 MB; docs/PERFORMANCE_LOG.md, "On a GPU"). The CPU keeps the host path, bit for bit.
     fn edge_scalars_on<'t, T: Float>(
         &self,
         tape: &'t Tape<T>,
