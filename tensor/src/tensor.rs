@@ -61,8 +61,8 @@ impl<T: Float> std::fmt::Debug for Tensor<T> {
         if self.device() != Device::Cpu {
             write!(f, " on {}", self.device())?;
         }
-        if self.numel() <= 16 {
-            write!(f, " {:?}", self.data())?;
+        if let (Storage::Host(b), true) = (&self.data, self.numel() <= 16) {
+            write!(f, " {:?}", b.0)?;
         }
         Ok(())
     }
@@ -135,25 +135,37 @@ impl<T: Float> Tensor<T> {
         }
     }
 
-    /// The elements in row-major order. For a tensor on the GPU this copies them to the host
-    /// on the first call (waiting for the kernels that compute them) and keeps the copy.
+    /// The elements in row-major order, of a tensor on the host. Nothing moves behind the
+    /// caller's back: a tensor on another device panics here, naming [`Tensor::to_host`],
+    /// the explicit transfer ([`Tensor::host_data`] asks without panicking).
     pub fn data(&self) -> &[T] {
         match &self.data {
             Storage::Host(b) => &b.0,
-            Storage::Device(d) => d.host_values(),
+            Storage::Device(_) => panic!("{}", self.not_on_host("data")),
         }
     }
 
-    /// Mutable access to the elements (copies first if the storage is shared). A tensor on
-    /// the GPU is brought to the host first.
+    /// The elements of a tensor on the host; `None` for a tensor on another device.
+    pub fn host_data(&self) -> Option<&[T]> {
+        match &self.data {
+            Storage::Host(b) => Some(&b.0),
+            Storage::Device(_) => None,
+        }
+    }
+
+    /// Mutable access to the elements of a tensor on the host (copies first if the storage
+    /// is shared); a tensor on another device panics, as [`Tensor::data`] does.
     pub fn data_mut(&mut self) -> &mut [T] {
-        if let Storage::Device(_) = self.data {
-            self.data = Storage::Host(Arc::new(Buffer(self.data().to_vec())));
-        }
-        match &mut self.data {
-            Storage::Host(b) => Arc::make_mut(b).0.as_mut_slice(),
-            Storage::Device(_) => unreachable!("moved to the host above"),
-        }
+        let why = self.not_on_host("data_mut");
+        self.host_data_mut().unwrap_or_else(|| panic!("{why}"))
+    }
+
+    /// The message of a host-only access to a tensor on another device.
+    fn not_on_host(&self, what: &str) -> String {
+        format!(
+            "Tensor::{what} of a tensor on the {}: move it with `to_host()` (an explicit transfer) first",
+            self.device()
+        )
     }
 
     /// Mutable access to the elements of a tensor on the host (copied first if the storage is
@@ -171,13 +183,16 @@ impl<T: Float> Tensor<T> {
         self.to_device(Device::Cpu)
     }
 
-    /// The elements as a new vector.
+    /// The elements as a new vector (of a tensor on the host: [`Tensor::data`]).
     pub fn to_vec(&self) -> Vec<T> {
         self.data().to_vec()
     }
 
     /// The value of a one-element tensor.
     pub fn item(&self) -> Result<T> {
+        if self.device() != Device::Cpu {
+            return Err(invalid("item", self.not_on_host("item")));
+        }
         if self.numel() == 1 {
             Ok(self.data()[0])
         } else {
@@ -230,7 +245,7 @@ impl<T: Float> Tensor<T> {
                 // Still shared: a copy, into a recycled buffer.
                 Err(shared) => crate::pool::map(&shared.0, |v| v),
             },
-            Storage::Device(_) => self.to_vec(),
+            Storage::Device(d) => d.download(),
         }
     }
 
@@ -240,7 +255,7 @@ impl<T: Float> Tensor<T> {
     pub fn to_device(&self, device: Device) -> Result<Tensor<T>> {
         match (device, &self.data) {
             (Device::Cpu, Storage::Host(_)) | (Device::Gpu, Storage::Device(_)) => Ok(self.clone()),
-            (Device::Cpu, Storage::Device(_)) => Ok(Tensor::from_parts(self.to_vec(), self.shape.clone())),
+            (Device::Cpu, Storage::Device(d)) => Ok(Tensor::from_parts(d.download(), self.shape.clone())),
             (Device::Gpu, Storage::Host(b)) => crate::gpu::upload(&b.0, &self.shape),
         }
     }

@@ -158,7 +158,8 @@ pub fn loss<'t>(
     // 1. Forward: the transitions on the tape, the bootstrap rows without it.
     let fwd = forward(model, p, mb)?;
     // 2. GAE from the values of every row (constants of the loss).
-    let values: Vec<f32> = fwd.value.value().data().iter().chain(&fwd.bootstrap).copied().collect();
+    // (On a device the values come back in one explicit transfer.)
+    let values: Vec<f32> = fwd.value.value().to_host()?.data().iter().chain(&fwd.bootstrap).copied().collect();
     let (advantages, targets) = gae(mb, &values, hp.discount, hp.gae_lambda);
     // 3. log pi(u | s) of the taken actions and the bonus's entropy.
     let (logp, entropy) = log_prob_and_entropy(&fwd.policy, mb, model.spec(), hp.entropy, entropy_noise)?;
@@ -212,7 +213,7 @@ fn forward<'t>(model: &mut dyn Policy, p: &Bound<'t, f32>, mb: &Minibatch) -> Re
     let out = model.forward(p, &mb.obs_rows(0..n), assigned, true)?;
     let bootstrap = {
         let _no_grad = p.tape().no_grad();
-        model.forward(p, &mb.obs_rows(n..rows), None, true)?.team_value()?.value().to_vec()
+        model.forward(p, &mb.obs_rows(n..rows), None, true)?.team_value()?.value().to_host()?.to_vec()
     };
     Ok(Forward { value: out.team_value()?, policy: out.agents, bootstrap })
 }
@@ -286,9 +287,13 @@ fn statistics(
     [total, policy_loss, value_loss, ratio]: [Var<'_, f32>; 4],
     hp: &PpoParams,
 ) -> Result<LossStats> {
-    let f64s = |x: Var<'_, f32>| x.value().data().iter().map(|&v| v as f64).collect::<Vec<f64>>();
-    let (ratio, logp, logp_old) = (f64s(ratio), f64s(t.logp), f64s(t.logp_old));
-    let (adv, targets, value) = (f64s(t.advantages), f64s(t.value_target), f64s(t.value));
+    // Every term on the host in one transfer (none where they are there already).
+    let terms = [ratio, t.logp, t.logp_old, t.advantages, t.value_target, t.value, total, policy_loss, value_loss];
+    let all: Vec<Tensor<f32>> = terms.iter().chain([&t.entropy]).map(|x| x.value()).collect();
+    let host = tensor::to_device_all(&all, tensor::Device::Cpu)?;
+    let f64s = |x: &Tensor<f32>| x.data().iter().map(|&v| v as f64).collect::<Vec<f64>>();
+    let (ratio, logp, logp_old) = (f64s(&host[0]), f64s(&host[1]), f64s(&host[2]));
+    let (adv, targets, value) = (f64s(&host[3]), f64s(&host[4]), f64s(&host[5]));
     let n = ratio.len() as f64;
     let var = |xs: &[f64]| {
         let mean = xs.iter().sum::<f64>() / xs.len() as f64;
@@ -307,12 +312,12 @@ fn statistics(
         / n;
     let var_t = var(&targets);
     let resid: Vec<f64> = targets.iter().zip(&value).map(|(t, v)| t - v).collect();
-    let item = |x: Var<'_, f32>| -> Result<f64> { Ok(x.value().item()? as f64) };
+    let item = |x: &Tensor<f32>| -> Result<f64> { Ok(x.item()? as f64) };
     Ok(LossStats {
-        loss: item(total)?,
-        policy_loss: item(policy_loss)?,
-        value_loss: item(value_loss)?,
-        entropy: item(t.entropy)?,
+        loss: item(&host[6])?,
+        policy_loss: item(&host[7])?,
+        value_loss: item(&host[8])?,
+        entropy: item(&host[9])?,
         approx_kl,
         clip_fraction: ratio.iter().filter(|&&x| (x - 1.0).abs() > hp.clip_epsilon).count() as f64 / n,
         explained_variance: if var_t > 0.0 { 1.0 - var(&resid) / var_t } else { 0.0 },

@@ -17,7 +17,7 @@ pub(crate) struct DeviceData<T: Float>(Never, PhantomData<T>);
 
 impl<T: Float> DeviceData<T> {
     /// Never called: no value of this type exists.
-    pub(crate) fn host_values(&self) -> &[T] {
+    pub(crate) fn download(&self) -> Vec<T> {
         match self.0 {}
     }
 }

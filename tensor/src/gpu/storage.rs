@@ -1,7 +1,8 @@
 //! A tensor's storage on the GPU ([`DeviceData`]) and the tensor methods that reach it: the
 //! device side of `tensor.rs`'s `Storage`.
 
-use std::sync::{Arc, OnceLock};
+use std::marker::PhantomData;
+use std::sync::Arc;
 
 use super::DeviceBuffer;
 use crate::element::Float;
@@ -9,19 +10,19 @@ use crate::error::{Result, TensorError};
 use crate::shape::numel;
 use crate::tensor::{Storage, Tensor};
 
-/// A tensor's values on the GPU and, once [`Tensor::data`] has asked for them, on the host.
+/// A tensor's values on the GPU.
 pub(crate) struct DeviceData<T: Float> {
     /// The values on the device.
     pub(crate) buf: DeviceBuffer,
-    /// The host copy, made on the first read.
-    host: OnceLock<Vec<T>>,
+    /// The element type the tensor presents (f32 on the device).
+    element: PhantomData<T>,
 }
 
 impl<T: Float> DeviceData<T> {
-    /// The values on the host: downloaded on the first call (waiting for the kernels that
-    /// compute them), then kept.
-    pub(crate) fn host_values(&self) -> &[T] {
-        self.host.get_or_init(|| T::from_f32_vec(self.buf.download()))
+    /// The values copied to the host (waiting for the kernels that compute them): a
+    /// transfer, counted in the device's statistics.
+    pub(crate) fn download(&self) -> Vec<T> {
+        T::from_f32_vec(self.buf.download())
     }
 }
 
@@ -40,7 +41,7 @@ impl<T: Float> Tensor<T> {
     /// Wraps a device buffer of `numel(shape)` values (a kernel's output).
     pub(crate) fn from_device(buf: DeviceBuffer, shape: Vec<usize>) -> Self {
         debug_assert_eq!(buf.len(), numel(&shape));
-        Self { shape, data: Storage::Device(Arc::new(DeviceData { buf, host: OnceLock::new() })) }
+        Self { shape, data: Storage::Device(Arc::new(DeviceData { buf, element: PhantomData })) }
     }
 
     /// The device buffer of a tensor on the GPU if no other tensor shares it, else the tensor

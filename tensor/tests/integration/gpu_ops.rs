@@ -544,7 +544,7 @@ fn optimiser_kernels_match_the_host_formulas() {
     let xg = x.to_device(Device::Gpu).unwrap();
     let clamped = xg.map_unary(tensor::UnaryOp::Clamp(-0.1, 0.1));
     assert_eq!(clamped.device(), Device::Gpu);
-    assert_eq!(clamped.to_vec(), x.map_unary(tensor::UnaryOp::Clamp(-0.1, 0.1)).to_vec());
+    assert_eq!(clamped.to_host().unwrap().to_vec(), x.map_unary(tensor::UnaryOp::Clamp(-0.1, 0.1)).to_vec());
     let (sq_cpu, sq_gpu) = (x.sum_of_squares().unwrap(), xg.sum_of_squares().unwrap());
     assert!((sq_cpu - sq_gpu).abs() <= 1e-5 * sq_cpu, "{sq_cpu} vs {sq_gpu}");
     // Non-finite values are found on the device, by index.
@@ -596,6 +596,15 @@ fn optimiser_kernels_match_the_host_formulas() {
         }
     }
     close("adam parameters", &pd.to_device(Device::Cpu).unwrap(), &p, Tol(1e-6, 1e-6));
+    // The CPU backend's f32-moment step (the same kernel formula) against the same formula.
+    let (mut pc, mut mc, mut vc) = (x.clone(), Tensor::<f32>::zeros(&[300]), Tensor::<f32>::zeros(&[300]));
+    for t in 1..=2 {
+        let (c1, c2) = (1.0 / (1.0 - b1.powi(t as i32)), 1.0 / (1.0 - b2.powi(t as i32)));
+        let step = tensor::AdamStep { lr, beta1: b1, beta2: b2, c1, c2, eps, clip: None };
+        (pc, mc, vc) = tensor::adam_update(&pc, &randn(30 + t, &[300]), &mc, &vc, step).unwrap();
+        assert_eq!(pc.device(), Device::Cpu);
+    }
+    close("adam parameters on the CPU backend", &pc, &p, Tol(1e-6, 1e-6));
     // With the clip inside the kernel: the same bits as clamping first (the `clamp` op),
     // then the plain step; and a clip that bites (values up to 1, limit 0.1) changes them.
     let g = randn(40, &[300]).to_device(Device::Gpu).unwrap();
@@ -611,7 +620,30 @@ fn optimiser_kernels_match_the_host_formulas() {
     for (what, a, b) in
         [("parameter", &plain.0, &fused.0), ("first moment", &plain.1, &fused.1), ("second moment", &plain.2, &fused.2)]
     {
-        assert_eq!(a.to_vec(), b.to_vec(), "adam with the clip inside: {what}");
+        assert_eq!(a.to_host().unwrap().to_vec(), b.to_host().unwrap().to_vec(), "adam with the clip inside: {what}");
     }
-    assert_ne!(unclipped.1.to_vec(), fused.1.to_vec(), "the clip changes the first moment");
+    assert_ne!(
+        unclipped.1.to_host().unwrap().to_vec(),
+        fused.1.to_host().unwrap().to_vec(),
+        "the clip changes the first moment"
+    );
+}
+
+/// Nothing moves behind the caller's back: host-only reads of a tensor on the GPU refuse
+/// and name the explicit transfer, which counts one download with its bytes.
+#[test]
+fn host_reads_of_a_gpu_tensor_name_the_explicit_transfer() {
+    let _serial = serial();
+    let x = randn(25, &[64]).to_device(Device::Gpu).unwrap();
+    assert!(x.host_data().is_none());
+    let err = x.item().unwrap_err().to_string();
+    assert!(err.contains("to_host"), "{err}");
+    let panicked = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| x.data().len())).unwrap_err();
+    let msg = panicked.downcast_ref::<String>().cloned().unwrap_or_default();
+    assert!(msg.contains("to_host()") && msg.contains("gpu"), "{msg}");
+    let before = tensor::transfers();
+    let host = x.to_host().unwrap();
+    let moved = tensor::transfers().since(&before);
+    assert_eq!((moved.downloads, moved.download_bytes, moved.uploads), (1, 64 * 4, 0), "{moved}");
+    assert_eq!(host.data().len(), 64);
 }
