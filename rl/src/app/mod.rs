@@ -18,6 +18,7 @@ pub mod info;
 pub mod lock;
 pub mod metrics;
 pub mod morphology;
+pub mod names;
 pub mod paper;
 pub mod plot;
 pub mod policy_file;

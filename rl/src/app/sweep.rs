@@ -27,7 +27,7 @@
 //! (env outermost, seed innermost), each list in file order; the variant without overrides
 //! (if `include_base`) comes before the named variants. The run named
 //! `<env>/<model>[+<variant>]/seed<seed>` (env and model made file-name safe by
-//! [`sanitize_component`]: `team_reach/1_ant` -> `team_reach_1_ant`,
+//! [`sanitize_component`](crate::app::names::sanitize_component): `team_reach/1_ant` -> `team_reach_1_ant`,
 //! `shnn:assignment=hungarian` -> `shnn_assignment-hungarian`) lives in that directory
 //! under the output directory.
 //!
@@ -55,12 +55,16 @@ use std::str::FromStr;
 
 use serde::Deserialize;
 
+use crate::app::names::sanitize_component;
 use crate::app::presets::Preset;
-use crate::app::run::RunSummary;
+use crate::app::record::RunSummary;
 use crate::app::run_dir::{RunDir, RunStatus};
 use crate::error::{Result, RlError};
-use crate::mappo::config::TrainConfig;
+use crate::mappo::config::{TrainConfig, read_text_file};
 use crate::mappo::config_match;
+
+/// The largest sweep file read: 64 MiB (some million seeds).
+pub const MAX_SWEEP_BYTES: u64 = 64 << 20;
 
 /// A sweep file as written (module docs), read by serde: an unknown key, at the top or in a
 /// `[[variants]]` table, is refused, naming it and the keys there are. [`Sweep::parse`] then
@@ -283,7 +287,7 @@ impl FromStr for Shard {
 impl Sweep {
     /// Reads and parses a sweep file.
     pub fn load(path: &Path) -> Result<Sweep> {
-        let text = crate::app::presets::read_text_file(path, crate::app::presets::MAX_SWEEP_BYTES, "a sweep file")?;
+        let text = read_text_file(path, MAX_SWEEP_BYTES, "a sweep file")?;
         Sweep::parse(&text, &path.display().to_string())
     }
 
@@ -471,21 +475,6 @@ pub fn run_sweep(
         ));
     }
     Ok(outcome)
-}
-
-/// A path component made of `[A-Za-z0-9_.+-]` only: `/`, `:` and `;` become `_`, `=`
-/// becomes `-`, anything else `_` (so `team_reach/1_ant` -> `team_reach_1_ant`,
-/// `shnn:assignment=hungarian;seed=3` -> `shnn_assignment-hungarian_seed-3`).
-pub fn sanitize_component(s: &str) -> String {
-    let out: String = s
-        .chars()
-        .map(|c| match c {
-            '=' => '-',
-            c if c.is_ascii_alphanumeric() || matches!(c, '_' | '.' | '+' | '-') => c,
-            _ => '_',
-        })
-        .collect();
-    if out.chars().all(|c| c == '.') { format!("_{out}") } else { out }
 }
 
 /// The fields a sweep lets differ between a partial run's saved configuration and the
@@ -680,17 +669,6 @@ config = { entropy_coef = 0.0 }
         let runs = Sweep::parse(&no_base, "x").unwrap().runs().unwrap();
         assert_eq!(runs.len(), 2 * 3 * 3);
         assert!(runs.iter().all(|r| r.name.contains("+no_entropy")));
-    }
-
-    #[test]
-    fn sanitized_names() {
-        assert_eq!(sanitize_component("team_reach/1_ant"), "team_reach_1_ant");
-        assert_eq!(
-            sanitize_component("shnn:assignment=hungarian;translation=root_mean"),
-            "shnn_assignment-hungarian_translation-root_mean"
-        );
-        assert_eq!(sanitize_component(".."), "_..");
-        assert_eq!(sanitize_component("a b/c"), "a_b_c");
     }
 
     #[test]
