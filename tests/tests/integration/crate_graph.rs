@@ -211,9 +211,12 @@ fn root_reexports() -> BTreeMap<String, Vec<String>> {
     out
 }
 
+/// A file of `rl/src`, its module path and the module paths it names.
+type References = Vec<(PathBuf, Vec<String>, Vec<Vec<String>>)>;
+
 /// Every module path (from `rl`'s root) that each file of `rl/src` names in its code, with
 /// the crate root's re-exports (`crate::RunDir`) traced to where they come from.
-fn rl_module_references() -> Vec<(PathBuf, Vec<String>, Vec<Vec<String>>)> {
+fn rl_module_references() -> References {
     let reexports = root_reexports();
     rust_files(&rl_src())
         .into_iter()
@@ -236,7 +239,7 @@ fn rl_module_references() -> Vec<(PathBuf, Vec<String>, Vec<Vec<String>>)> {
 
 /// The paths of `references` that name a module of `app` for which `bad` holds, one line each.
 fn offending(
-    references: &[(PathBuf, Vec<String>, Vec<Vec<String>>)],
+    references: &References,
     in_scope: impl Fn(&[String]) -> bool,
     bad: impl Fn(&[String]) -> bool,
 ) -> Vec<String> {

@@ -1,5 +1,6 @@
 //! A run directory read back ([`RunRecord`]): its configuration (`config.toml`), its
-//! metrics as typed rows (`metrics.csv`, [`rows`]) and its summary (`done.json`), for
+//! metrics as typed rows (`metrics.csv`, [`rows`]) and its summary (`done.json`,
+//! [`RunSummary`], written by [`crate::app::run::train`]), for
 //! everything that reads runs rather than trains them: `meben report`, `meben status`,
 //! `meben export`, a run's learning curve ([`crate::app::curve`]) and Python's
 //! `meben.read_metrics`. [`find_run_dirs`] finds the runs of a directory tree.
