@@ -19,8 +19,9 @@ pub mod mappo;
 pub mod stop;
 
 pub use app::presets::Preset;
+pub use app::record::RunSummary;
 pub use app::report::{Report, report, report_at};
-pub use app::run::{RunSummary, TrainOptions, train};
+pub use app::run::{TrainOptions, train};
 pub use app::run_dir::{RunDir, RunStatus};
 pub use app::sweep::{RunSelection, Shard, Sweep, SweepOutcome, SweepRun, run_sweep};
 pub use app::{lock::RunLock, plot::LinePlot};

@@ -397,8 +397,8 @@ fn cmd_train(a: TrainArgs) -> Result<(), String> {
     let out = a.out.clone().unwrap_or_else(|| {
         PathBuf::from("runs").join(format!(
             "{}-{}-seed{}",
-            crate::app::sweep::sanitize_component(&config.env),
-            crate::app::sweep::sanitize_component(&config.model),
+            crate::app::names::sanitize_component(&config.env),
+            crate::app::names::sanitize_component(&config.model),
             config.seed
         ))
     });
@@ -430,7 +430,7 @@ fn announce_device(device: tensor::Device) -> Result<(), String> {
     Ok(())
 }
 
-fn print_summary(config: &TrainConfig, s: &crate::app::run::RunSummary) {
+fn print_summary(config: &TrainConfig, s: &crate::app::record::RunSummary) {
     println!("iterations {} env_steps {} wall_s {:.1}", s.iterations, s.env_steps, s.wall_s);
     if let Some(e) = &s.final_eval {
         print_eval(config.is_sumo(), e);

@@ -166,7 +166,7 @@ fn write_record(run: &RunDir, files: &[String]) -> Result<()> {
     for (k, name) in files.iter().enumerate() {
         let bytes = read_file(name, None)?;
         let base = Path::new(name).file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
-        let copy = format!("{COPIES_DIR}/{k}_{}", crate::app::sweep::sanitize_component(&base));
+        let copy = format!("{COPIES_DIR}/{k}_{}", crate::app::names::sanitize_component(&base));
         nn::write_atomic(&run.root().join(&copy), &bytes)?;
         let source = std::fs::canonicalize(name).unwrap_or_else(|_| PathBuf::from(name));
         record.file.push(MorphologyFile {

@@ -16,7 +16,9 @@ use std::path::Path;
 use serde::{Deserialize, Serialize};
 
 use crate::error::{Result, RlError};
-use crate::mappo::config::{EntropyKind, NormStart, ObsNormKind, TrainConfig, TrainStarts, default_eval_rotations};
+use crate::mappo::config::{
+    EntropyKind, NormStart, ObsNormKind, TrainConfig, TrainStarts, default_eval_rotations, read_config_text,
+};
 
 /// The named starting points of a configuration (module docs).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
@@ -162,33 +164,6 @@ impl TrainConfig {
     }
 }
 
-/// The largest configuration file read: 1 MiB (the built-in files are a few hundred bytes).
-pub const MAX_CONFIG_BYTES: u64 = 1 << 20;
-
-/// The largest sweep file read: 64 MiB (some million seeds).
-pub const MAX_SWEEP_BYTES: u64 = 64 << 20;
-
-/// The text of a configuration file of at most [`MAX_CONFIG_BYTES`] ([`read_text_file`]).
-pub fn read_config_text(path: &Path) -> Result<String> {
-    read_text_file(path, MAX_CONFIG_BYTES, "a configuration file")
-}
-
-/// The text of the file `path` of at most `max_bytes`, else an error naming the file and
-/// the limit, and saying what the file was expected to be (`what`): a file without end
-/// (`--config /dev/zero`, which used to be read until memory ran out) is refused after
-/// reading one byte more than the limit.
-pub fn read_text_file(path: &Path, max_bytes: u64, what: &str) -> Result<String> {
-    use std::io::Read;
-    let file = std::fs::File::open(path).map_err(|e| RlError::file(path, format!("cannot read: {e}")))?;
-    let mut bytes = Vec::new();
-    file.take(max_bytes + 1).read_to_end(&mut bytes).map_err(|e| RlError::file(path, format!("cannot read: {e}")))?;
-    if bytes.len() as u64 > max_bytes {
-        let mib = max_bytes as f64 / f64::from(1u32 << 20);
-        return Err(RlError::file(path, format!("larger than {max_bytes} bytes ({mib} MiB): too large for {what}")));
-    }
-    String::from_utf8(bytes).map_err(|e| RlError::file(path, format!("cannot read: not UTF-8 text ({e})")))
-}
-
 /// The error for a given field whose value does not have the field's type (`steps = -1`,
 /// `num_evals = "abc"`): the serde error alone names neither field nor value, so each given
 /// field is tried alone on the (valid) preset `base` and the first that fails is named.
@@ -242,6 +217,7 @@ fn parse_override(value: &str) -> toml::Value {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::mappo::config::MAX_CONFIG_BYTES;
 
     #[test]
     fn presets_are_valid_and_paper_matches_the_reference() {

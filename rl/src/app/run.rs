@@ -7,11 +7,10 @@
 use std::io::Write;
 use std::time::Instant;
 
-use serde::{Deserialize, Serialize};
-
 use crate::app::build_info::record_build;
 use crate::app::lock::{RunLock, remove_stale_temporaries};
 use crate::app::metrics::{MetricsLayout, MetricsRow, eval_column, loss_column};
+use crate::app::record::RunSummary;
 use crate::app::run_dir::RunDir;
 use crate::error::{Result, RlError};
 use crate::mappo::checkpoint::Checkpoint;
@@ -31,22 +30,6 @@ pub struct TrainOptions {
     /// Once set, stop after the current iteration with a checkpoint and return
     /// [`RlError::Interrupted`] ([`crate::stop`]).
     pub stop: StopFlag,
-}
-
-/// What a finished (or stopped) run reports, also written as `done.json`.
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
-pub struct RunSummary {
-    /// Iterations done.
-    pub iterations: u64,
-    /// Environment steps collected.
-    pub env_steps: u64,
-    /// Wall-clock seconds of training (summed over resumed sessions).
-    pub wall_s: f64,
-    /// The last evaluation (unrotated: the first of `eval_rotations`).
-    pub final_eval: Option<EvalSummary>,
-    /// The last evaluation at each further rotation of `eval_rotations`, in order.
-    #[serde(default)]
-    pub final_eval_rotated: Vec<EvalSummary>,
 }
 
 /// How many of `num_evals` evaluations, evenly spaced over `n` iterations with the last at

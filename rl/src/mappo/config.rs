@@ -4,7 +4,8 @@
 //! and the layers a configuration is resolved from are the application's
 //! ([`crate::app::presets`]); the resolved configuration is written to the run directory as
 //! `config.toml` ([`TrainConfig::save`]), and a run is resumed and evaluated from it
-//! ([`TrainConfig::load`]).
+//! ([`TrainConfig::load`]). Configuration files are read here, of bounded size
+//! ([`read_config_text`]).
 
 use std::path::Path;
 
@@ -214,7 +215,7 @@ impl TrainConfig {
     /// Reads a resolved configuration written by [`TrainConfig::save`] (a run's
     /// `config.toml`); every field must be present.
     pub fn load(path: &Path) -> Result<TrainConfig> {
-        let text = crate::app::presets::read_config_text(path)?;
+        let text = read_config_text(path)?;
         let config: TrainConfig =
             toml::from_str(&text).map_err(|e| RlError::file(path, format!("invalid run configuration: {e}")))?;
         config.validate(&path.display().to_string())?;
@@ -443,4 +444,28 @@ fn norm_start_before_the_field() -> NormStart {
 /// `[0.0]`: evaluation without rotation.
 pub(crate) fn default_eval_rotations() -> Vec<f64> {
     vec![0.0]
+}
+
+/// The largest configuration file read: 1 MiB (the built-in files are a few hundred bytes).
+pub const MAX_CONFIG_BYTES: u64 = 1 << 20;
+
+/// The text of a configuration file of at most [`MAX_CONFIG_BYTES`] ([`read_text_file`]).
+pub fn read_config_text(path: &Path) -> Result<String> {
+    read_text_file(path, MAX_CONFIG_BYTES, "a configuration file")
+}
+
+/// The text of the file `path` of at most `max_bytes`, else an error naming the file and
+/// the limit, and saying what the file was expected to be (`what`): a file without end
+/// (`--config /dev/zero`, which used to be read until memory ran out) is refused after
+/// reading one byte more than the limit.
+pub fn read_text_file(path: &Path, max_bytes: u64, what: &str) -> Result<String> {
+    use std::io::Read;
+    let file = std::fs::File::open(path).map_err(|e| RlError::file(path, format!("cannot read: {e}")))?;
+    let mut bytes = Vec::new();
+    file.take(max_bytes + 1).read_to_end(&mut bytes).map_err(|e| RlError::file(path, format!("cannot read: {e}")))?;
+    if bytes.len() as u64 > max_bytes {
+        let mib = max_bytes as f64 / f64::from(1u32 << 20);
+        return Err(RlError::file(path, format!("larger than {max_bytes} bytes ({mib} MiB): too large for {what}")));
+    }
+    String::from_utf8(bytes).map_err(|e| RlError::file(path, format!("cannot read: not UTF-8 text ({e})")))
 }

@@ -120,26 +120,4 @@ mod tests {
         }
         assert!(check_fits_in_memory(None).is_err());
     }
-
-    /// Issue 44 item 2: `--set eval_episodes=1048576` trained and aborted at the first
-    /// evaluation. The training's footprint counts the evaluation's environments, so it is
-    /// refused before anything is built, naming `eval_episodes`.
-    #[test]
-    fn a_training_whose_evaluation_cannot_fit_is_refused_naming_eval_episodes() {
-        let Some(memory) = envs::memory::machine_memory() else { return };
-        let quick = TrainConfig::resolve(Some(crate::app::presets::Preset::Quick), None, &[]).unwrap();
-        check_run_fits(&quick).unwrap();
-        let big = TrainConfig { env: "team_sumo/3_ants".into(), eval_episodes: envs::tasks::MAX_ENVS, ..quick.clone() };
-        let f = RunFootprint::of(&big).unwrap();
-        if f.total().unwrap() <= memory.bytes {
-            return;
-        }
-        let e = check_run_fits(&big).unwrap_err().to_string();
-        assert!(
-            e.starts_with("config: field `eval_episodes` = \"1048576\": this training of team_sumo/3_ants needs about")
-        );
-        assert!(e.contains("1048576 evaluation episodes") && e.contains("/proc/meminfo"), "{e}");
-        // Without evaluations there is none to hold.
-        check_run_fits(&TrainConfig { num_evals: 0, ..big }).unwrap();
-    }
 }

@@ -17,6 +17,9 @@
 //!   [`tensor_file`] (safetensors), and [`memory`] (whether an iteration's buffers fit);
 //! - [`device`]: where the updates run (`device = "cpu" | "gpu"`) and whether this build and
 //!   machine have it.
+//!
+//! It uses nothing of the application ([`crate::app`]), tests included: it reads its
+//! configuration files itself ([`config::read_config_text`]).
 
 pub mod actor;
 pub mod checkpoint;

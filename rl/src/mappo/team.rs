@@ -139,21 +139,3 @@ pub fn lr_schedule(config: &TrainConfig) -> LrSchedule {
         LrSchedule::Constant(config.learning_rate)
     }
 }
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::app::presets::Preset;
-
-    #[test]
-    fn learning_rate_decays_to_zero_over_the_run_or_stays() {
-        let mut c = TrainConfig::preset(Preset::Quick, "team_reach/1_ant");
-        let updates = c.iterations() * (c.epochs * c.num_minibatches) as u64;
-        let s = lr_schedule(&c);
-        assert_eq!(s.at(0), c.learning_rate);
-        assert!((s.at(updates / 2) - c.learning_rate / 2.0).abs() < 1e-9);
-        assert_eq!(s.at(updates), 0.0);
-        c.lr_decay = false;
-        assert_eq!(lr_schedule(&c).at(updates), c.learning_rate);
-    }
-}

@@ -15,6 +15,7 @@ mod gpu_training;
 mod interrupt;
 mod invariance;
 mod learning;
+mod mappo_on_presets;
 mod policy_file;
 mod ppo_loss;
 mod pretrained;

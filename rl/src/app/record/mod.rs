@@ -1,5 +1,6 @@
 //! A run directory read back ([`RunRecord`]): its configuration (`config.toml`), its
-//! metrics as typed rows (`metrics.csv`, [`rows`]) and its summary (`done.json`), for
+//! metrics as typed rows (`metrics.csv`, [`rows`]) and its summary (`done.json`,
+//! [`RunSummary`], written by [`crate::app::run::train`]), for
 //! everything that reads runs rather than trains them: `meben report`, `meben status`,
 //! `meben export`, a run's learning curve ([`crate::app::curve`]) and Python's
 //! `meben.read_metrics`. [`find_run_dirs`] finds the runs of a directory tree.
@@ -8,12 +9,14 @@ pub mod rows;
 
 use std::path::{Path, PathBuf};
 
+use serde::{Deserialize, Serialize};
+
 pub use rows::{Episodes, IterationRow, MetricsTable, Rate};
 
-use crate::app::run::RunSummary;
 use crate::app::run_dir::RunDir;
 use crate::error::{Result, RlError};
 use crate::mappo::config::TrainConfig;
+use crate::mappo::evaluate::EvalSummary;
 
 /// What a run directory holds (module docs).
 #[derive(Clone, Debug, PartialEq)]
@@ -61,6 +64,22 @@ impl RunRecord {
         self.config.steps = self.config.steps.min(steps);
         self
     }
+}
+
+/// What a finished (or stopped) run reports, also written as `done.json`.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct RunSummary {
+    /// Iterations done.
+    pub iterations: u64,
+    /// Environment steps collected.
+    pub env_steps: u64,
+    /// Wall-clock seconds of training (summed over resumed sessions).
+    pub wall_s: f64,
+    /// The last evaluation (unrotated: the first of `eval_rotations`).
+    pub final_eval: Option<EvalSummary>,
+    /// The last evaluation at each further rotation of `eval_rotations`, in order.
+    #[serde(default)]
+    pub final_eval_rotated: Vec<EvalSummary>,
 }
 
 /// A run's summary, `done.json`, if it exists and reads as one: a damaged or foreign

@@ -7,8 +7,8 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use super::stats::{bootstrap_ci, iqm, mean, mean_and_se};
+use crate::app::names::sanitize_component;
 use crate::app::record::{IterationRow, Rate, RunRecord};
-use crate::app::sweep::sanitize_component;
 use crate::mappo::config::{TrainConfig, TrainStarts};
 
 /// One point of a group's learning curve.

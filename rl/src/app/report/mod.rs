@@ -59,8 +59,8 @@ pub use aggregate::{CurvePoint, GroupReport, StartKind, group_runs};
 pub(crate) use render::count;
 use render::{curve_plot, render_csv, render_markdown};
 
+use crate::app::names::sanitize_component;
 use crate::app::record::{RunRecord, find_run_dirs};
-use crate::app::sweep::sanitize_component;
 use crate::error::{Result, RlError};
 
 /// What [`report`] found and wrote.

@@ -7,8 +7,8 @@ use std::path::{Path, PathBuf};
 
 use super::aggregate::{CurvePoint, GroupReport};
 use super::stats::BOOTSTRAP_RESAMPLES;
+use crate::app::names::sanitize_component;
 use crate::app::plot::LinePlot;
-use crate::app::sweep::sanitize_component;
 
 /// The environments of `groups`, in the groups' order.
 pub fn envs_in_order(groups: &[GroupReport]) -> Vec<&str> {
