@@ -470,6 +470,10 @@ fn generated_lines() -> std::collections::HashSet<String> {
     lines
 }
 
+/// A section of the document: its `## ` heading and its `### ` heading (or the `## ` one
+/// again before any).
+type SectionKey = (String, String);
+
 /// The reproduction's prose (its two `## ` parts, "The reproduction" and "Second wave of
 /// the reproduction") retypes per-seed figures, and a few statistics, from the evidence:
 /// every two-decimal figure of it, outside the generated tables, is a value of the section's
@@ -479,7 +483,7 @@ fn the_reproduction_prose_quotes_the_committed_evidence() {
     let doc = std::fs::read_to_string(root().join("docs/RESULTS.md")).unwrap();
     let generated = generated_lines();
     // (part, section) -> its lines with their numbers, in order.
-    let mut sections: Vec<((String, String), Vec<(usize, &str)>)> = Vec::new();
+    let mut sections: Vec<(SectionKey, Vec<(usize, &str)>)> = Vec::new();
     let (mut inside, mut part, mut section) = (false, String::new(), String::new());
     for (i, line) in doc.lines().enumerate() {
         if line.starts_with("## ") {
