@@ -341,14 +341,17 @@ fn a_report_at_a_budget_values_every_run_by_its_last_evaluation_up_to_it() {
     let paper = root.join("paper.toml");
     std::fs::write(
         &paper,
-        "[[figure]]\ntable = \"t\"\nenv = \"team_reach/1_ant\"\nmodel = \"shnn\"\nmean = 60.0\nspread = 3.0\n",
+        "seeds = 10\n[[figure]]\ntable = \"t\"\nenv = \"team_reach/1_ant\"\nmodel = \"shnn\"\nmean = 60.0\nsd = 3.0\n",
     )
     .unwrap();
     let (ok, _, err) =
         common::meben(&["report", root.to_str().unwrap(), "--at-steps", "1000000", "--paper", paper.to_str().unwrap()]);
     assert!(ok, "{err}");
     let table = std::fs::read_to_string(root.join("at_1000000/paper.md")).unwrap();
-    assert!(table.contains("| `shnn` | random | success | 30.00 ± 0.00 | 1 | 1M |"), "{table}");
+    assert!(
+        table.contains("| `shnn` | random | success | 30.00 (one run) | – | 1 | 1M | 60.00 ± 3.00 | 10 |"),
+        "{table}"
+    );
 }
 
 #[test]

@@ -13,7 +13,17 @@
 //! - a table of evaluations (first column `env steps`): each row the evaluation at those env
 //!   steps of the section's one run (win, loss and draw rates, mean returns, mean length).
 //!
-//! A section's experiments are the `results/<experiment>/report.md` files it links. A figure
+//! - the prose (and every table line not generated): every figure written with two
+//!   decimals (not env steps, `20.15M`) is a value of the section's evidence
+//!   ([`the_reproduction_prose_quotes_the_committed_evidence`]): a run's evaluated success,
+//!   win, loss or draw rate at any of its evaluations and rotations, a statistic of a
+//!   report (`report.csv`, also at a matched budget: mean, s.e., s.d., IQM, intervals), a
+//!   figure of `results/paper.toml`, or a value of a `metrics.csv` column the paragraph
+//!   names in backticks (`entropy_t0`). A retyped per-seed figure that no longer matches
+//!   any of them fails; one edited into another value of the same evidence does not.
+//!
+//! A section's experiments are the `results/<experiment>/report.md` files it links (a
+//! section that links none: those its `## ` part links). A figure
 //! matches when it equals the evidence rounded to the decimals it is written with (either
 //! way at an exact tie, since `{:.2}` and Python's rounding differ there).
 
@@ -348,4 +358,187 @@ fn every_generated_paper_table_is_quoted_verbatim() {
         }
     }
     assert!(quoted >= 7, "only {quoted} generated tables under results/");
+}
+
+/// The figures written with two decimals in `line` (`93.95`), leaving out env steps
+/// (`20.15M`, `81.92k`) and figures with more decimals (`1.759M`, `5.538`).
+fn two_decimal_figures(line: &str) -> Vec<&str> {
+    let bytes = line.as_bytes();
+    let mut out = Vec::new();
+    let mut i = 0;
+    while i < bytes.len() {
+        if !bytes[i].is_ascii_digit() || (i > 0 && (bytes[i - 1].is_ascii_digit() || bytes[i - 1] == b'.')) {
+            i += 1;
+            continue;
+        }
+        let start = i;
+        while i < bytes.len() && bytes[i].is_ascii_digit() {
+            i += 1;
+        }
+        let point = i;
+        if point < bytes.len() && bytes[point] == b'.' {
+            i += 1;
+            while i < bytes.len() && bytes[i].is_ascii_digit() {
+                i += 1;
+            }
+            let unit = bytes.get(i).copied();
+            if i - point == 3 && !matches!(unit, Some(b'M' | b'k' | b'G')) {
+                out.push(&line[start..i]);
+            }
+        }
+    }
+    out
+}
+
+/// Every value a two-decimal figure of a section may quote (the module docs): its
+/// experiments' rates and report statistics, the paper's figures, and the values of the
+/// `metrics.csv` columns in `named`.
+fn evidence(experiments: &[String], named: &[String]) -> Vec<f64> {
+    let results = root().join("results");
+    let mut values = Vec::new();
+    for exp in experiments {
+        let dir = results.join(exp);
+        let mut reports = vec![dir.join("report.csv")];
+        for sub in std::fs::read_dir(&dir).unwrap() {
+            let sub = sub.unwrap().path();
+            if sub.file_name().and_then(|n| n.to_str()).and_then(rl::app::report::at_steps_of).is_some() {
+                reports.push(sub.join("report.csv"));
+            }
+        }
+        for report in reports {
+            for r in read_report(&report) {
+                let stats = [
+                    "mean_pct",
+                    "se_pct",
+                    "draw_mean_pct",
+                    "lose_mean_pct",
+                    "iqm_pct",
+                    "iqm_ci_low_pct",
+                    "iqm_ci_high_pct",
+                    "mean_ci_low_pct",
+                    "mean_ci_high_pct",
+                ];
+                values.extend(stats.iter().filter_map(|k| r[*k].parse::<f64>().ok()));
+                let seeds: f64 = r["seeds"].parse().unwrap();
+                values.push(r["se_pct"].parse::<f64>().unwrap() * seeds.sqrt());
+            }
+        }
+        for run in runs_of(std::slice::from_ref(exp)) {
+            for row in read_metrics(&run) {
+                for (column, v) in row.cells() {
+                    if ["eval_success_rate", "eval_win_rate", "eval_draw_rate"].iter().any(|p| column.starts_with(p)) {
+                        values.push(100.0 * v);
+                    }
+                    if named.contains(&column) {
+                        values.push(v);
+                    }
+                }
+            }
+        }
+    }
+    let paper = std::fs::read_to_string(results.join("paper.toml")).unwrap();
+    for line in paper.lines() {
+        if let Some(v) = line.strip_prefix("mean = ").or_else(|| line.strip_prefix("sd = ")) {
+            values.push(v.parse().unwrap());
+        }
+    }
+    values
+}
+
+/// The names in backticks in `text` (`entropy_t0`).
+fn backticked(text: &str) -> Vec<String> {
+    text.split('`').skip(1).step_by(2).map(str::to_string).collect()
+}
+
+/// The lines of every generated paper table under `results/` (quoted verbatim, checked by
+/// [`every_generated_paper_table_is_quoted_verbatim`]).
+fn generated_lines() -> std::collections::HashSet<String> {
+    let mut lines = std::collections::HashSet::new();
+    for entry in std::fs::read_dir(root().join("results")).unwrap() {
+        let exp = entry.unwrap().path();
+        if !exp.is_dir() {
+            continue;
+        }
+        let mut tables = vec![exp.join("paper.md")];
+        for sub in std::fs::read_dir(&exp).unwrap() {
+            tables.push(sub.unwrap().path().join("paper.md"));
+        }
+        for t in tables.iter().filter(|t| t.is_file()) {
+            lines.extend(std::fs::read_to_string(t).unwrap().lines().map(str::to_string));
+        }
+    }
+    lines
+}
+
+/// A section of the document: its `## ` heading and its `### ` heading (or the `## ` one
+/// again before any).
+type SectionKey = (String, String);
+
+/// The reproduction's prose (its two `## ` parts, "The reproduction" and "Second wave of
+/// the reproduction") retypes per-seed figures, and a few statistics, from the evidence:
+/// every two-decimal figure of it, outside the generated tables, is a value of the section's
+/// evidence (module docs).
+#[test]
+fn the_reproduction_prose_quotes_the_committed_evidence() {
+    let doc = std::fs::read_to_string(root().join("docs/RESULTS.md")).unwrap();
+    let generated = generated_lines();
+    // (part, section) -> its lines with their numbers, in order.
+    let mut sections: Vec<(SectionKey, Vec<(usize, &str)>)> = Vec::new();
+    let (mut inside, mut part, mut section) = (false, String::new(), String::new());
+    for (i, line) in doc.lines().enumerate() {
+        if line.starts_with("## ") {
+            inside = line.starts_with("## The reproduction") || line.starts_with("## Second wave of the reproduction");
+            (part, section) = (line.to_string(), line.to_string());
+        }
+        if !inside {
+            continue;
+        }
+        if line.starts_with("### ") {
+            section = line.to_string();
+        }
+        match sections.last_mut() {
+            Some((key, lines)) if *key == (part.clone(), section.clone()) => lines.push((i + 1, line)),
+            _ => sections.push(((part.clone(), section.clone()), vec![(i + 1, line)])),
+        }
+    }
+    assert!(sections.len() >= 5, "RESULTS.md: the reproduction's sections are not found");
+    let text_of = |lines: &[(usize, &str)]| lines.iter().map(|(_, l)| *l).collect::<Vec<_>>().join("\n");
+    let (mut checked, mut wrong) = (0, Vec::new());
+    for ((part, section), lines) in &sections {
+        let mut experiments = linked_experiments(&text_of(lines));
+        if experiments.is_empty() {
+            let whole: Vec<(usize, &str)> =
+                sections.iter().filter(|((p, _), _)| p == part).flat_map(|(_, l)| l.iter().copied()).collect();
+            experiments = linked_experiments(&text_of(&whole));
+        }
+        // Paragraphs: runs of non-blank lines.
+        for paragraph in lines.split(|(_, l)| l.trim().is_empty()).filter(|p| !p.is_empty()) {
+            let values = evidence(&experiments, &backticked(&text_of(paragraph)));
+            for (n, line) in paragraph {
+                if line.starts_with("    ") || generated.contains(*line) {
+                    continue;
+                }
+                for shown in two_decimal_figures(line) {
+                    checked += 1;
+                    if !values.iter().any(|&v| quotes(shown, v)) {
+                        wrong.push(format!(
+                            "RESULTS.md line {n} ({section}): {shown} is no value of the evidence of {experiments:?}"
+                        ));
+                    }
+                }
+            }
+        }
+    }
+    println!("{checked} figures of the prose checked");
+    assert!(checked > 200, "only {checked} figures of the prose checked");
+    assert!(wrong.is_empty(), "RESULTS.md's prose disagrees with results/:\n{}", wrong.join("\n"));
+}
+
+#[test]
+fn two_decimal_figures_leave_out_env_steps_and_longer_figures() {
+    assert_eq!(
+        two_decimal_figures("93.95, 7.91% at 20.15M and 81.92k; 1.759M, 5.538 h, 12.5, (99.71)"),
+        ["93.95", "7.91", "99.71"]
+    );
+    assert_eq!(backticked("the `entropy_t0` and `approx_kl_t0` columns"), ["entropy_t0", "approx_kl_t0"]);
 }

@@ -6,7 +6,7 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-use super::stats::{bootstrap_ci, iqm, mean, mean_and_se};
+use super::stats::{bootstrap_ci, iqm, mean, mean_and_sd, mean_and_se};
 use crate::app::names::sanitize_component;
 use crate::app::record::{IterationRow, Rate, RunRecord};
 use crate::mappo::config::{TrainConfig, TrainStarts};
@@ -60,6 +60,9 @@ pub struct GroupReport {
     pub mean: f64,
     /// Standard error of the final value, in percent.
     pub se: f64,
+    /// Sample standard deviation of the final values over the seeds (0 for one seed), in
+    /// percent: the spread the paper's tables give.
+    pub sd: f64,
     /// Interquartile mean of the final values, in percent ([`super::stats::iqm`]).
     pub iqm: f64,
     /// 95% percentile-bootstrap confidence interval of the mean final value, in percent
@@ -72,6 +75,9 @@ pub struct GroupReport {
     /// Team Sumo: mean and standard error of the final loss rate of team 0 (team 1's win
     /// rate), in percent.
     pub lose: Option<(f64, f64)>,
+    /// Team Sumo: 95% percentile-bootstrap confidence interval of the mean loss rate of
+    /// team 0, in percent.
+    pub lose_ci: Option<(f64, f64)>,
     /// Fewest and most env steps reached over the runs.
     pub env_steps: (u64, u64),
     /// The runs' budget (the largest `steps` of their configurations): a group whose
@@ -322,6 +328,7 @@ fn summarise(variant: String, mut runs: Vec<RunResult>) -> GroupReport {
     let draw = (!draws.is_empty()).then(|| mean_and_se(&draws));
     let loses: Vec<f64> = runs.iter().filter_map(|r| r.final_lose.map(|d| 100.0 * d)).collect();
     let lose = (!loses.is_empty()).then(|| mean_and_se(&loses));
+    let lose_ci = (!loses.is_empty()).then(|| bootstrap_ci(&loses, mean));
     let from_train = runs.iter().any(|r| r.from_train);
     let shown = if from_train { runs.iter().find(|r| r.from_train) } else { runs.first() };
     let metric = shown.map(|r| r.metric.clone()).unwrap_or_default();
@@ -346,6 +353,7 @@ fn summarise(variant: String, mut runs: Vec<RunResult>) -> GroupReport {
         from_train,
         runs: runs.iter().map(|r| r.rel.clone()).collect(),
         seed_list: runs.iter().map(|r| r.config.seed).collect(),
+        sd: mean_and_sd(&finals).1,
         iqm: iqm(&finals),
         mean_ci: bootstrap_ci(&finals, mean),
         iqm_ci: bootstrap_ci(&finals, iqm),
@@ -355,6 +363,7 @@ fn summarise(variant: String, mut runs: Vec<RunResult>) -> GroupReport {
         se,
         draw,
         lose,
+        lose_ci,
         env_steps,
         target_steps,
         machine_hours,

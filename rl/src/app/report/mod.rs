@@ -24,7 +24,8 @@
 //!   labelled `<label>, rotated 180°`: its own table row, CSV line and curve, next to the
 //!   unrotated group in the environment's plot.
 //! - Per group: the number of seeds, the mean and the standard error (sample standard
-//!   deviation / sqrt(n); 0 for one seed) of the final values, their interquartile mean
+//!   deviation / sqrt(n); 0 for one seed) of the final values (and their sample standard
+//!   deviation, which the paper's tables give: [`crate::app::paper`]), their interquartile mean
 //!   and the 95% percentile-bootstrap confidence intervals of the mean and of the IQM
 //!   ([`stats`]: what rliable recommends for few runs), and the env steps reached
 //!   (the last row's `env_steps`, min–max over the seeds), and the machine time (the sum

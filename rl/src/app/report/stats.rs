@@ -1,4 +1,5 @@
-//! The statistics of a group's final values: mean ± standard error, and, since a handful of
+//! The statistics of a group's final values: mean ± standard error (and the standard
+//! deviation, which the paper's tables give), and, since a handful of
 //! seeds is all a group has, the interquartile mean and percentile-bootstrap confidence
 //! intervals that rliable (Agarwal et al., "Deep RL at the Edge of the Statistical
 //! Precipice", NeurIPS 2021) recommends for few runs.
@@ -24,6 +25,19 @@ pub const BOOTSTRAP_SEED: u64 = 0;
 /// Mean and standard error (sample standard deviation / sqrt(n); 0 for one value) of
 /// `values`; `(NaN, NaN)` for none.
 pub fn mean_and_se(values: &[f64]) -> (f64, f64) {
+    let (mean, var) = mean_and_variance(values);
+    (mean, (var / values.len() as f64).sqrt())
+}
+
+/// Mean and sample standard deviation (divisor n - 1; 0 for one value) of `values`;
+/// `(NaN, NaN)` for none.
+pub fn mean_and_sd(values: &[f64]) -> (f64, f64) {
+    let (mean, var) = mean_and_variance(values);
+    (mean, var.sqrt())
+}
+
+/// Mean and sample variance (divisor n - 1; 0 for one value); `(NaN, NaN)` for none.
+fn mean_and_variance(values: &[f64]) -> (f64, f64) {
     let n = values.len();
     if n == 0 {
         return (f64::NAN, f64::NAN);
@@ -32,8 +46,7 @@ pub fn mean_and_se(values: &[f64]) -> (f64, f64) {
     if n == 1 {
         return (mean, 0.0);
     }
-    let var = values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1) as f64;
-    (mean, (var / n as f64).sqrt())
+    (mean, values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1) as f64)
 }
 
 /// The mean of `values` (NaN for none).
@@ -91,6 +104,10 @@ mod tests {
         assert!((s - 10.0 / 3f64.sqrt()).abs() < 1e-12);
         assert_eq!(mean_and_se(&[7.0]), (7.0, 0.0));
         assert!(mean_and_se(&[]).0.is_nan());
+        let (m, sd) = mean_and_sd(&[10.0, 20.0, 30.0]);
+        assert!((m - 20.0).abs() < 1e-12 && (sd - 10.0).abs() < 1e-12);
+        assert_eq!(mean_and_sd(&[7.0]), (7.0, 0.0));
+        assert!(mean_and_sd(&[]).1.is_nan());
     }
 
     /// Values by hand (and scipy.stats.trim_mean(x, 0.25), rliable's IQM).
