@@ -111,6 +111,8 @@ train() {
     local dir="$RUNS/$1-${2//\//_}-$3-$(basename "$bin")-act_$act"
     local act_set=()
     [ -n "${ACT_DEVICE:-}" ] && act_set=(--set "act_device=$ACT_DEVICE")
+    # TRAIN_SET: one more `--set key=value` (the GPU's kernel choices, e.g. gpu_matmul_tile=128).
+    [ -n "${TRAIN_SET:-}" ] && act_set+=(--set "$TRAIN_SET")
     rm -rf "$dir"
     # SIGKILL: meben takes SIGTERM as "stop after this iteration", which can take minutes.
     MEBEN_TIMINGS=1 timeout -s KILL "$(limit "$5")" "$bin" train --preset paper --device "$1" --env "$2" --model "$3" \
@@ -230,7 +232,7 @@ tile() {
     echo "-- shnn training on $env with each tile (the second iteration's rate)"
     for t in 128 64; do
         want || return
-        TENSOR_GPU_MATMUL_TILE=$t train gpu $env shnn 2 120 | sed "s/\$/ (tile $t)/"
+        TRAIN_SET=gpu_matmul_tile=$t train gpu $env shnn 2 120 | sed "s/\$/ (tile $t)/"
     done
 }
 

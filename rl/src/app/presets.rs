@@ -80,6 +80,8 @@ impl TrainConfig {
             threads: 0,
             device: tensor::Device::Cpu,
             act_device: crate::mappo::device::ActDevice::Same,
+            gpu_matmul_tile: tensor::GpuConfig::default().matmul_tile.rows(),
+            gpu_reduce_lanes: tensor::GpuConfig::default().reduce_lanes,
         };
         match preset {
             Preset::Paper => paper,

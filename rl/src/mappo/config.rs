@@ -209,6 +209,37 @@ pub struct TrainConfig {
     /// `config.toml` only when not `same`.
     #[serde(default, skip_serializing_if = "ActDevice::is_same")]
     pub act_device: ActDevice,
+    /// The GPU's tiled product's output rows, 64 (default) or 128 ([`tensor::GpuConfig`]):
+    /// the same bits either way, a speed choice. Like `device`, not part of the run's
+    /// identity; written to `config.toml` only when not 64.
+    #[serde(default = "default_gpu_matmul_tile", skip_serializing_if = "is_default_gpu_matmul_tile")]
+    pub gpu_matmul_tile: usize,
+    /// The most GPU threads that share one reduction output, a power of two from 1 to 256
+    /// (default 256; [`tensor::GpuConfig`]). It fixes the order of the GPU's sums, so a GPU
+    /// run's bits depend on it; written to `config.toml` when not 256. Not part of the
+    /// run's identity (GPU runs differ from CPU runs by rounding anyway).
+    #[serde(default = "default_gpu_reduce_lanes", skip_serializing_if = "is_default_gpu_reduce_lanes")]
+    pub gpu_reduce_lanes: u32,
+}
+
+/// [`TrainConfig::gpu_matmul_tile`]'s default.
+fn default_gpu_matmul_tile() -> usize {
+    tensor::GpuConfig::default().matmul_tile.rows()
+}
+
+/// Whether the tile is the default (left out of `config.toml`).
+fn is_default_gpu_matmul_tile(rows: &usize) -> bool {
+    *rows == default_gpu_matmul_tile()
+}
+
+/// [`TrainConfig::gpu_reduce_lanes`]'s default.
+fn default_gpu_reduce_lanes() -> u32 {
+    tensor::GpuConfig::default().reduce_lanes
+}
+
+/// Whether the lanes are the default (left out of `config.toml`).
+fn is_default_gpu_reduce_lanes(lanes: &u32) -> bool {
+    *lanes == default_gpu_reduce_lanes()
 }
 
 impl TrainConfig {
@@ -232,7 +263,17 @@ impl TrainConfig {
         table.entry("train_starts").or_insert(starts);
         table.entry("device").or_insert_with(|| toml::Value::String(self.device.name().into()));
         table.entry("act_device").or_insert_with(|| toml::Value::String(self.act_device.name().into()));
+        table.entry("gpu_matmul_tile").or_insert_with(|| toml::Value::Integer(self.gpu_matmul_tile as i64));
+        table.entry("gpu_reduce_lanes").or_insert_with(|| toml::Value::Integer(i64::from(self.gpu_reduce_lanes)));
         table
+    }
+
+    /// The GPU's kernel choices this configuration asks for (checked by `validate`; an
+    /// unchecked value falls back to the default).
+    pub fn gpu_config(&self) -> tensor::GpuConfig {
+        let default = tensor::GpuConfig::default();
+        let matmul_tile = tensor::MatMulTile::from_rows(self.gpu_matmul_tile).unwrap_or(default.matmul_tile);
+        tensor::GpuConfig { matmul_tile, reduce_lanes: self.gpu_reduce_lanes }
     }
 
     /// The configuration as TOML.
@@ -311,6 +352,17 @@ impl TrainConfig {
         if !self.opponent.is_empty() && !self.is_sumo() {
             return err("opponent", &self.opponent, "only Team Sumo has a second team");
         }
+        let tile = tensor::MatMulTile::from_rows(self.gpu_matmul_tile).map_err(|_| {
+            RlError::config(source, "gpu_matmul_tile", self.gpu_matmul_tile.to_string(), "must be 64 or 128")
+        })?;
+        tensor::GpuConfig { matmul_tile: tile, reduce_lanes: self.gpu_reduce_lanes }.validate().map_err(|_| {
+            RlError::config(
+                source,
+                "gpu_reduce_lanes",
+                self.gpu_reduce_lanes.to_string(),
+                "must be a power of two from 1 to 256",
+            )
+        })?;
         if self.fixed_start && self.train_starts != TrainStarts::Fresh {
             return err(
                 "train_starts",

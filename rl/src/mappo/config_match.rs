@@ -29,12 +29,22 @@ use crate::mappo::config::TrainConfig;
 /// The fields no run's results depend on, which are never part of its identity: the
 /// checkpoint interval, the threads and the devices of the updates and of the act step (a
 /// run resumes on either; the GPU's results differ from the CPU's by f32 rounding).
-pub const NEVER_IDENTITY_FIELDS: [&str; 4] = ["checkpoint_every", "threads", "device", "act_device"];
+pub const NEVER_IDENTITY_FIELDS: [&str; 6] =
+    ["checkpoint_every", "threads", "device", "act_device", "gpu_matmul_tile", "gpu_reduce_lanes"];
 
 /// The configuration fields that may differ between a run's sessions without making it
 /// another run: [`NEVER_IDENTITY_FIELDS`], the budget `steps` (raised to train longer) and
 /// `num_evals`.
-pub const SESSION_FIELDS: [&str; 6] = ["steps", "num_evals", "checkpoint_every", "threads", "device", "act_device"];
+pub const SESSION_FIELDS: [&str; 8] = [
+    "steps",
+    "num_evals",
+    "checkpoint_every",
+    "threads",
+    "device",
+    "act_device",
+    "gpu_matmul_tile",
+    "gpu_reduce_lanes",
+];
 
 /// One field on which two configurations disagree.
 #[derive(Clone, Debug, PartialEq)]

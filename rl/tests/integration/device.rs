@@ -1,7 +1,7 @@
-//! The `device` and `act_device` fields of a training configuration, in any build: their
-//! validation, their place in `config.toml` (absent at their defaults, so existing files
-//! read and compare as before), and that they are not part of a run's identity (a
-//! checkpoint written on one device resumes on the other).
+//! The `device`, `act_device` and GPU kernel-choice fields of a training configuration, in
+//! any build: their validation, their place in `config.toml` (absent at their defaults, so
+//! existing files read and compare as before), and that they are not part of a run's
+//! identity (a checkpoint written on one device resumes on the other).
 
 use crate::common;
 
@@ -120,4 +120,42 @@ fn a_build_without_the_gpu_says_to_rebuild() {
     let config = TrainConfig { device: Device::Gpu, ..common::tiny("team_reach/1_ant", "mlp_hn", 1, &[]) };
     let e = Trainer::new(&config).err().unwrap().to_string();
     assert!(e.contains("device") && e.contains("rebuild with --features gpu"), "{e}");
+}
+
+/// The GPU's kernel choices (`gpu_matmul_tile`, `gpu_reduce_lanes`): absent from
+/// `config.toml` at their defaults, written and read back otherwise, from a file or `--set`;
+/// a bad value is an error naming the field and the value; a trainer hands them to the
+/// device (`tensor::gpu_config`); and they are not part of a run's identity.
+#[test]
+fn the_gpu_kernel_choices_are_typed_settings_of_the_configuration() {
+    let quick = TrainConfig::preset(Preset::Quick, "team_reach/1_ant");
+    assert_eq!((quick.gpu_matmul_tile, quick.gpu_reduce_lanes), (64, 256));
+    let toml = quick.to_toml();
+    assert!(!toml.contains("gpu_matmul_tile") && !toml.contains("gpu_reduce_lanes"), "existing files unchanged");
+    assert_eq!(quick.to_full_table()["gpu_reduce_lanes"].as_integer(), Some(256));
+    let set = |k: &str, v: &str| TrainConfig::resolve(Some(Preset::Quick), None, &[(k.to_string(), v.to_string())]);
+    let tall = set("gpu_matmul_tile", "128").unwrap();
+    assert!(tall.to_toml().contains("gpu_matmul_tile = 128"));
+    let tmp = common::TempDir::new("gpu-config");
+    let path = tmp.0.join("config.toml");
+    tall.save(&path).unwrap();
+    assert_eq!(TrainConfig::load(&path).unwrap(), tall);
+    for (k, v) in [("gpu_matmul_tile", "96"), ("gpu_reduce_lanes", "3"), ("gpu_reduce_lanes", "512")] {
+        let e = set(k, v).unwrap_err().to_string();
+        assert!(e.contains(k) && e.contains(v), "{e} (missing {k} or {v})");
+    }
+    let typed = set("gpu_reduce_lanes", "1").unwrap().gpu_config();
+    assert_eq!(typed, tensor::GpuConfig { matmul_tile: tensor::MatMulTile::Rows64, reduce_lanes: 1 });
+    // Handed to the device by the trainer, and resumable under other values. (Only the tile
+    // is changed here: it gives the same bits, so the process's GPU tests running beside this
+    // one cannot be disturbed by it.)
+    let config = common::tiny("team_reach/1_ant", "mlp_hn", 2, &[("num_evals", "0"), ("gpu_matmul_tile", "128")]);
+    let mut t = Trainer::new(&config).unwrap();
+    assert_eq!(tensor::gpu_config().matmul_tile, tensor::MatMulTile::Rows128);
+    t.iterate().unwrap();
+    let state = t.checkpoint(0.0, &[]).unwrap();
+    let other = TrainConfig { gpu_matmul_tile: 64, ..config };
+    let mut resumed = Trainer::from_checkpoint(&state, &other, Path::new("checkpoint.json")).unwrap();
+    assert_eq!(tensor::gpu_config(), tensor::GpuConfig::default());
+    assert_eq!(resumed.iterate().unwrap().losses, t.iterate().unwrap().losses);
 }

@@ -250,7 +250,8 @@ pub fn run_sweep(
 /// sweep's when it resumes the run: those no result depends on, and the budget `steps`
 /// (raised to train longer); not `num_evals`, since the sweep file fixes each run's
 /// evaluation schedule ([`crate::mappo::config_match`]).
-const RESUME_MAY_DIFFER: [&str; 5] = ["steps", "checkpoint_every", "threads", "device", "act_device"];
+const RESUME_MAY_DIFFER: [&str; 7] =
+    ["steps", "checkpoint_every", "threads", "device", "act_device", "gpu_matmul_tile", "gpu_reduce_lanes"];
 
 /// Checks that a partial run's saved configuration is the sweep's ([`RESUME_MAY_DIFFER`]).
 fn check_resumable(dir: &RunDir, wanted: &TrainConfig) -> Result<()> {
