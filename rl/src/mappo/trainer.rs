@@ -21,19 +21,18 @@
 //!
 //! **Devices** ([`crate::mappo::device`]). With `device = "gpu"` the update runs on the GPU:
 //! every team's parameters and Adam moments live there from the trainer's construction (or
-//! resumption) on, each minibatch goes to a GPU tape (`Tape::on`: uploaded once), and the
-//! gradients' non-finite check (one value back), the clipping and the Adam step (f32 moments,
-//! [`nn::Adam`]) run there. The act step of collection runs there too (`act_device =
-//! "same"`, the default): the policy's forward pass reads the updates' parameters on the
-//! GPU, and each step's means and scales come back in one transfer for sampling on the host
-//! ([`crate::mappo::actor`]); with `act_device = "cpu"` it reads the host copy and runs on
-//! the CPU, as the simulator always does. Values come to the host for GAE (the values), the
-//! loss statistics, and, once per iteration after the update phase, the parameters: the host
-//! copy ([`Team::store`]) that evaluation, checkpoints and a CPU act step read. A checkpoint
-//! holds the host copies and the moments brought back ([`nn::Adam::sync_to_host`]), so it
-//! is the same file whichever device wrote it. With
-//! `device = "cpu"` (the default) nothing of this happens: the same code as before the GPU
-//! existed, bit for bit.
+//! resumption) on ([`Team::place`]), each minibatch goes to a GPU tape (`Tape::on`: uploaded
+//! once), and the gradients' non-finite check (one value back), the clipping and the Adam
+//! step (f32 moments, [`nn::Adam`]) run there. The act step of collection runs there too
+//! (`act_device = "same"`, the default): the policy's forward pass reads the updates'
+//! parameters on the GPU, and each step's means and scales come back in one transfer for
+//! sampling on the host ([`crate::mappo::actor`]); with `act_device = "cpu"` it reads the
+//! team's host mirror ([`Team::act_mirror`], refreshed after each update phase) and runs on
+//! the CPU, as the simulator always does. Values come to the host by explicit transfers
+//! only: GAE's values, the loss statistics (one transfer a minibatch), and a checkpoint's
+//! parameters and moments ([`nn::Adam::sync_to_host`]), so a checkpoint is the same file
+//! whichever device wrote it. With `device = "cpu"` (the default) nothing of this happens:
+//! the same code as before the GPU existed, bit for bit.
 //!
 //! The application drives a [`Trainer`] in a run directory ([`crate::app::run`]).
 
@@ -144,7 +143,7 @@ pub struct Timings {
     pub backward_s: f64,
     /// Clipping and the Adam step.
     pub optimizer_s: f64,
-    /// The parameters' copy back to the host for the act step (GPU only).
+    /// The act step's mirror of the parameters refreshed (`act_device` apart from `device`).
     pub parameters_back_s: f64,
 }
 
