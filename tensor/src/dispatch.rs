@@ -73,10 +73,10 @@ pub(crate) fn linear_sum<T: Float>(
     let mut all: Vec<&Tensor<T>> = parts.iter().flat_map(|&(x, w, _)| [x, w]).collect();
     all.extend(b);
     let dev = device_of(&all);
-    let placed: Vec<(Cow<'_, Tensor<T>>, Cow<'_, Tensor<T>>)> =
-        parts.iter().map(|&(x, w, _)| Ok((place(x, dev)?, place(w, dev)?))).collect::<Result<_>>()?;
+    let placed: Vec<[Cow<'_, Tensor<T>>; 2]> =
+        parts.iter().map(|&(x, w, _)| Ok([place(x, dev)?, place(w, dev)?])).collect::<Result<_>>()?;
     let terms: Vec<WeightRows<'_, T>> =
-        placed.iter().zip(parts).map(|((x, w), &(_, _, row))| (x.as_ref(), w.as_ref(), row)).collect();
+        placed.iter().zip(parts).map(|([x, w], &(_, _, row))| (x.as_ref(), w.as_ref(), row)).collect();
     let b = b.map(|b| place(b, dev)).transpose()?;
     on_backend!(dev, B => B::linear_sum(&terms, b.as_deref(), act, cols))
 }
