@@ -110,7 +110,12 @@ pub fn lrf<'t, T: Float>(
             if frames.len() != nb {
                 return Err(ModelError::Input(format!("{} frames for {nb} scenes", frames.len())));
             }
-            tape.constant(to_horizontal_frame(&z.value(), rows, frames)?)
+            // The host rows rotated in f64, then placed once (the tape's device).
+            let host_z = match neighbours {
+                Some(nr) => Tensor::cat(&[&body.z, &nr.z], 1)?,
+                None => body.z.clone(),
+            };
+            tape.constant(to_horizontal_frame(&host_z, rows, frames)?)
         }
     };
     debug_assert_eq!(h.shape(), [nb, rows, N_SCALARS]);

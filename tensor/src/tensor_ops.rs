@@ -21,6 +21,11 @@ impl<T: Float> Tensor<T> {
         crate::dispatch::matmul(self, other, ta, tb)
     }
 
+    /// The concatenation of `xs` along `axis`, on their device (no tape).
+    pub fn cat(xs: &[&Tensor<T>], axis: usize) -> Result<Tensor<T>> {
+        crate::dispatch::cat(xs, axis)
+    }
+
     /// Entries `start..start + len` of `axis`, copied, on the tensor's device (no tape).
     pub fn narrow(&self, axis: usize, start: usize, len: usize) -> Result<Tensor<T>> {
         crate::dispatch::narrow(self, axis, start, len)

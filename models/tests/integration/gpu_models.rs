@@ -49,10 +49,10 @@ fn pass(model: &mut Model, store: &ParamStore<f32>, env: &VecEnv, device: Device
     let mut flat = Vec::new();
     for a in &out.agents {
         assert_eq!(a.loc.value().device(), device, "an output left the device");
-        flat.extend(a.loc.value().data().iter().map(|&x| x as f64));
-        flat.extend(a.scale.value().data().iter().map(|&x| x as f64));
+        flat.extend(a.loc.value().to_host().unwrap().data().iter().map(|&x| x as f64));
+        flat.extend(a.scale.value().to_host().unwrap().data().iter().map(|&x| x as f64));
     }
-    flat.extend(out.team_value().unwrap().value().data().iter().map(|&x| x as f64));
+    flat.extend(out.team_value().unwrap().value().to_host().unwrap().data().iter().map(|&x| x as f64));
     let l = loss(&out);
     let grads = p.grads(&tape.backward(l).unwrap());
     (flat, grads.iter().map(|g| g.to_device(Device::Cpu).unwrap()).collect())

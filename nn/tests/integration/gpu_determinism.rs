@@ -71,9 +71,9 @@ fn train(steps: usize, profiled: bool) -> (Vec<Vec<f32>>, Vec<f32>) {
         let mut grads = p.grads(&tape.backward(loss).unwrap());
         clip_elementwise(&mut grads, 0.1);
         adam.step(&mut store, &grads).unwrap();
-        losses.push(loss.value().item().unwrap());
+        losses.push(loss.value().to_host().unwrap().item().unwrap());
     }
-    (store.values().iter().map(|v| v.to_vec()).collect(), losses)
+    (store.values().iter().map(|v| v.to_host().unwrap().to_vec()).collect(), losses)
 }
 
 #[test]

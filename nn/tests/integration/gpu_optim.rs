@@ -29,8 +29,9 @@ fn grads(store: &ParamStore<f32>, mlp: &Mlp, k: usize) -> Vec<Tensor<f32>> {
     p.grads(&tape.backward(loss).unwrap())
 }
 
+/// The values of `ts` on the host (an explicit transfer for those on the GPU).
 fn host(ts: &[Tensor<f32>]) -> Vec<Vec<f32>> {
-    ts.iter().map(|t| t.to_vec()).collect()
+    ts.iter().map(|t| t.to_host().unwrap().to_vec()).collect()
 }
 
 #[test]
@@ -61,7 +62,7 @@ fn clipping_on_the_gpu_matches_the_host() {
     assert!(n_cpu > 0.01 && (n_gpu - n_cpu).abs() <= 1e-5 * n_cpu, "{n_gpu} vs {n_cpu}");
     for (g, c) in gpu.iter().zip(&cpu) {
         assert_eq!(g.device(), Device::Gpu);
-        assert!(g.all_close(c, 1e-5, 1e-9));
+        assert!(g.to_host().unwrap().all_close(c, 1e-5, 1e-9));
     }
 }
 
@@ -108,6 +109,7 @@ fn adam_on_the_gpu_follows_the_host_and_its_state_saves_and_resumes() {
     }
     let tol = 1e-5 * lr * steps as f64;
     for (g, c) in gpu.values().iter().zip(cpu.values()) {
+        let g = g.to_host().unwrap();
         assert!(g.all_close(c, 0.0, tol), "{:?} vs {:?}", g.to_vec(), c.to_vec());
     }
 
