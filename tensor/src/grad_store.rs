@@ -60,10 +60,13 @@ impl<T: Float> GradStore<T> {
     pub(crate) fn add(&mut self, id: NodeId, t: Tensor<T>) -> Result<()> {
         let slot = &mut self.grads[id];
         let dev = device_for(slot, &[&t]);
+        // Moved only where they are elsewhere (taken, not cloned, where they are there: a
+        // buffer no other tensor holds stays writable in place).
+        let moved = |x: Tensor<T>| if x.device() == dev { Ok(x) } else { x.to_device(dev) };
         if let Some(held) = slot.take() {
-            *slot = Some(at(&held, dev)?.into_owned());
+            *slot = Some(moved(held)?);
         }
-        let t = at(&t, dev)?.into_owned();
+        let t = moved(t)?;
         on_backend!(dev, B => B::accumulate(slot, t));
         Ok(())
     }

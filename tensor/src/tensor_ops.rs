@@ -74,25 +74,22 @@ pub fn device_of_all<T: Float>(ts: &[Tensor<T>]) -> crate::device::Device {
     device_of(&ts.iter().collect::<Vec<_>>())
 }
 
-/// The tensors `ts` on `device`, each where it was moved from: to the host, every tensor on
-/// another device comes back in one transfer (concatenated there, downloaded once, cut
-/// apart); elsewhere, each one is moved on its own. Tensors already there are returned as
-/// they are. The one place a batch of tensors changes device.
+/// The tensors `ts` on `device`: to the host, every tensor on another device comes back in
+/// one transfer (one staging buffer, one wait, no kernel); elsewhere, each one is moved on
+/// its own. Tensors already there are returned as they are. The one place a batch of
+/// tensors changes device.
 pub fn to_device_all<T: Float>(ts: &[Tensor<T>], device: crate::device::Device) -> Result<Vec<Tensor<T>>> {
     use crate::device::Device;
     let away: Vec<usize> = (0..ts.len()).filter(|&i| ts[i].device() != device).collect();
-    if device != Device::Cpu || away.len() <= 1 {
+    if device != Device::Cpu || away.is_empty() {
         return ts.iter().map(|t| t.to_device(device)).collect();
     }
-    let flat = away.iter().map(|&i| ts[i].reshape(&[ts[i].numel()])).collect::<Result<Vec<_>>>()?;
-    let all = crate::dispatch::cat(&flat.iter().collect::<Vec<_>>(), 0)?.to_device(Device::Cpu)?;
-    let values = all.data();
+    let moving: Vec<Tensor<T>> = away.iter().map(|&i| ts[i].clone()).collect();
+    let from = device_of_all(&moving);
+    let arrived = on_backend!(from, B => B::to_host_all(&moving))?;
     let mut out: Vec<Tensor<T>> = ts.to_vec();
-    let mut at = 0;
-    for &i in &away {
-        let n = ts[i].numel();
-        out[i] = Tensor::new(values[at..at + n].to_vec(), ts[i].shape())?;
-        at += n;
+    for (&i, t) in away.iter().zip(arrived) {
+        out[i] = t;
     }
     Ok(out)
 }

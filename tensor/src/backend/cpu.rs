@@ -295,6 +295,10 @@ impl Backend for Cpu {
         true
     }
 
+    fn to_host_all<T: Float>(ts: &[Tensor<T>]) -> Result<Vec<Tensor<T>>> {
+        Ok(ts.to_vec())
+    }
+
     fn first_non_finite<T: Float>(ts: &[Tensor<T>]) -> Result<Option<usize>> {
         Ok(ts.iter().position(|t| !t.data().iter().all(|v| v.is_finite())))
     }

@@ -237,6 +237,12 @@ pub(crate) trait Backend {
         same: bool,
     ) -> bool;
 
+    // --- Transfers -------------------------------------------------------------------------
+
+    /// Every tensor's values on the host, in one transfer (a host backend's are already
+    /// there).
+    fn to_host_all<T: Float>(ts: &[Tensor<T>]) -> Result<Vec<Tensor<T>>>;
+
     // --- Checks and the optimiser ---------------------------------------------------------
 
     /// The index of the first tensor holding a NaN or an infinity, if any.

@@ -47,6 +47,8 @@ fn last<T: Float>(x: &Tensor<T>) -> usize {
 fn slot_buffer<T: Float>(slot: &mut Slot<T>, len: usize, zeroed: bool) -> Result<(&DeviceBuffer, bool)> {
     let existed = slot.is_some();
     let placed = match slot.take() {
+        // Taken, not cloned: a buffer no other tensor holds is written in place.
+        Some(t) if t.device() == Device::Gpu => t.into_device_buffer(),
         Some(t) => t.to_device(Device::Gpu)?.into_device_buffer(),
         None if zeroed => DeviceBuffer::zeros(len),
         None => DeviceBuffer::uninit(len),
@@ -395,6 +397,17 @@ impl Backend for Gpu {
     ) -> bool {
         // The tiled and small-matrix product kernels already cover these shapes.
         false
+    }
+
+    fn to_host_all<T: Float>(ts: &[Tensor<T>]) -> Result<Vec<Tensor<T>>> {
+        // One staging buffer, one wait: no kernel launch.
+        let parts: Vec<(&wgpu::Buffer, usize)> = ts.iter().map(|t| (buf(t).buffer(), t.numel())).collect();
+        let words = super::device().download_many(&parts);
+        Ok(ts
+            .iter()
+            .zip(words)
+            .map(|(t, w)| Tensor::from_parts(T::from_f32_vec(bytemuck::cast_vec(w)), t.shape().to_vec()))
+            .collect())
     }
 
     fn first_non_finite<T: Float>(ts: &[Tensor<T>]) -> Result<Option<usize>> {

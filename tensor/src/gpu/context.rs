@@ -410,10 +410,17 @@ impl Gpu {
     /// The first `n` 32-bit words of `b`, copied to the host (waits for every kernel queued
     /// before).
     pub(crate) fn download_words(&self, b: &wgpu::Buffer, n: usize) -> Vec<u32> {
-        if n == 0 {
-            return Vec::new();
+        self.download_many(&[(b, n)]).pop().expect("one buffer asked for")
+    }
+
+    /// The first `n` words of each buffer, in one transfer: every copy into one staging
+    /// buffer, one wait, one map (counted as one download of all their bytes).
+    pub(crate) fn download_many(&self, parts: &[(&wgpu::Buffer, usize)]) -> Vec<Vec<u32>> {
+        let total: usize = parts.iter().map(|&(_, n)| n).sum();
+        if total == 0 {
+            return parts.iter().map(|_| Vec::new()).collect();
         }
-        let bytes = (n * 4) as u64;
+        let bytes = (total * 4) as u64;
         let staging = self.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("download"),
             size: bytes,
@@ -422,7 +429,14 @@ impl Gpu {
         });
         {
             let mut pending = self.pending.lock().expect("gpu batch lock");
-            self.encoder(&mut pending.encoder).copy_buffer_to_buffer(b, 0, &staging, 0, bytes);
+            let mut at = 0u64;
+            for &(b, n) in parts {
+                let len = (n * 4) as u64;
+                if len > 0 {
+                    self.encoder(&mut pending.encoder).copy_buffer_to_buffer(b, 0, &staging, at, len);
+                }
+                at += len;
+            }
             self.flush_locked(&mut pending);
         }
         let slice = staging.slice(..);
@@ -434,7 +448,15 @@ impl Gpu {
         rx.recv().expect("map callback ran").expect("the GPU device could not map a buffer for reading");
         let out = {
             let view = slice.get_mapped_range().expect("mapped above");
-            bytemuck::cast_slice::<u8, u32>(&view).to_vec()
+            let words = bytemuck::cast_slice::<u8, u32>(&view);
+            let mut at = 0;
+            parts
+                .iter()
+                .map(|&(_, n)| {
+                    at += n;
+                    words[at - n..at].to_vec()
+                })
+                .collect()
         };
         staging.unmap();
         self.count(|s| {

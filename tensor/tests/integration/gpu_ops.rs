@@ -646,4 +646,16 @@ fn host_reads_of_a_gpu_tensor_name_the_explicit_transfer() {
     let moved = tensor::transfers().since(&before);
     assert_eq!((moved.downloads, moved.download_bytes, moved.uploads), (1, 64 * 4, 0), "{moved}");
     assert_eq!(host.data().len(), 64);
+    // A list comes back in one transfer and no launch, each tensor's values in place.
+    let ys: Vec<Tensor<f32>> = (0..3).map(|k| randn(26 + k, &[5 + k as usize, 3])).collect();
+    let mut mixed: Vec<Tensor<f32>> = ys.iter().map(|y| y.to_device(Device::Gpu).unwrap()).collect();
+    mixed.push(ys[0].clone());
+    let before = tensor::transfers();
+    let back = tensor::to_device_all(&mixed, Device::Cpu).unwrap();
+    let moved = tensor::transfers().since(&before);
+    assert_eq!((moved.downloads, moved.launches), (1, 0), "{moved}");
+    assert_eq!(moved.download_bytes, (15 + 18 + 21) * 4);
+    for (b, y) in back.iter().zip(ys.iter().chain([&ys[0]])) {
+        assert_eq!((b.device(), b.shape(), b.data()), (Device::Cpu, y.shape(), y.data()));
+    }
 }
