@@ -239,19 +239,6 @@ pub enum ShnnModel {
 }
 
 impl ShnnModel {
-    /// The release's model of `kind` (the SHNN family's), or `None` for another family.
-    pub fn new(kind: ModelKind) -> Option<Self> {
-        let gravity = GravityMode::default();
-        match kind {
-            ModelKind::Shnn => Some(Self::Shnn { gravity, hidden: HiddenWidths::default() }),
-            ModelKind::ShnnOg3 => Some(Self::ShnnOg3 { gravity, hidden: HiddenWidths::default() }),
-            ModelKind::ShnnSo3 => Some(Self::ShnnSo3 { hidden: HiddenWidths::default() }),
-            ModelKind::ShTransformer => Some(Self::ShTransformer { gravity }),
-            ModelKind::ShGnn => Some(Self::ShGnn { gravity, hidden: HiddenWidths::body_gnn() }),
-            _ => None,
-        }
-    }
-
     /// Which model it is.
     pub fn kind(&self) -> ModelKind {
         match self {
@@ -473,26 +460,28 @@ const ENTITY_KEYS: [&str; 5] = ["assignment", "translation", "abstraction", "nei
 impl ModelDescription {
     /// The model `kind` as its reference release builds it (every option at its default).
     pub fn new(kind: ModelKind) -> Self {
-        match kind.family() {
-            Family::Shnn => Self::Shnn(ShnnOptions {
-                model: ShnnModel::new(kind).expect("a model of the SHNN family"),
-                stage: EntityStage::default(),
-                critic: ShnnCritic::default(),
-            }),
-            Family::Hnn => Self::Hnn(HnnOptions {
-                model: match kind {
-                    ModelKind::HnnHn => HnnModel::HnnHn,
-                    ModelKind::HnnDn => HnnModel::HnnDn,
-                    _ => HnnModel::Hnn,
-                },
-                stage: EntityStage::default(),
-                hidden: HiddenWidths::default(),
-            }),
-            Family::Mlp => Self::Mlp(MlpOptions {
-                model: if kind == ModelKind::MlpHn { MlpModel::MlpHn } else { MlpModel::Mlp },
-                network: MlpNetwork::Release { assignment: TaskAssignment::default(), hidden: HiddenWidths::default() },
-            }),
-            Family::FlatTransformer => Self::TransformerHn,
+        let shnn =
+            |model| Self::Shnn(ShnnOptions { model, stage: EntityStage::default(), critic: ShnnCritic::default() });
+        let hnn =
+            |model| Self::Hnn(HnnOptions { model, stage: EntityStage::default(), hidden: HiddenWidths::default() });
+        let mlp = |model| {
+            let network =
+                MlpNetwork::Release { assignment: TaskAssignment::default(), hidden: HiddenWidths::default() };
+            Self::Mlp(MlpOptions { model, network })
+        };
+        let (gravity, hidden) = (GravityMode::default(), HiddenWidths::default);
+        match kind {
+            ModelKind::Shnn => shnn(ShnnModel::Shnn { gravity, hidden: hidden() }),
+            ModelKind::ShnnOg3 => shnn(ShnnModel::ShnnOg3 { gravity, hidden: hidden() }),
+            ModelKind::ShnnSo3 => shnn(ShnnModel::ShnnSo3 { hidden: hidden() }),
+            ModelKind::ShTransformer => shnn(ShnnModel::ShTransformer { gravity }),
+            ModelKind::ShGnn => shnn(ShnnModel::ShGnn { gravity, hidden: HiddenWidths::body_gnn() }),
+            ModelKind::Hnn => hnn(HnnModel::Hnn),
+            ModelKind::HnnHn => hnn(HnnModel::HnnHn),
+            ModelKind::HnnDn => hnn(HnnModel::HnnDn),
+            ModelKind::Mlp => mlp(MlpModel::Mlp),
+            ModelKind::MlpHn => mlp(MlpModel::MlpHn),
+            ModelKind::TransformerHn => Self::TransformerHn,
         }
     }
 
