@@ -408,8 +408,8 @@ pub struct MlpOptions {
 ///     },
 ///     critic: ShnnCritic::Shared,
 /// });
-/// let parsed = ModelDescription::parse("shnn:assignment=hungarian;seed=3;actor_steps=2;gravity=every_layer;critic=shared");
-/// assert_eq!(parsed.unwrap(), d);
+/// let s = "shnn:assignment=hungarian;seed=3;actor_steps=2;gravity=every_layer;critic=shared";
+/// assert_eq!(ModelDescription::parse(s).unwrap(), d);
 /// assert_eq!(d.name(), "shnn");
 /// ```
 ///

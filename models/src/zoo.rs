@@ -2,14 +2,14 @@
 //! and (value); appendices "Baselines" and "Ablations") as one [`Policy`] implementation,
 //! [`Model`], built for a [`ModelKind`] by its family's module.
 //!
-//! A [`Model`] is built from a [`ModelDescription`] (typed, or parsed from a model string), for one
-//! scene layout ([`ObsSpec`]) and one team: it creates its parameters in a [`Scope`] (so the
-//! trainer keeps every team's parameters in one [`ParamStore`] under different prefixes,
-//! counted with [`Model::num_params`] and [`Model::param_counts`]) and maps a batch of
-//! observations to, for each agent of the team, the Tanh-Normal parameters `loc`, `scale`
-//! `[B, dof_a]` of its actuated DoF (`std = softplus(scale) + 0.001`,
-//! [`crate::distribution::std_from_scale`]), the team's value `[B]`, and the task assignment
-//! it used ([`PolicyOutput`]).
+//! A [`Model`] is built from a [`ModelDescription`] (written out, or parsed from a model
+//! string) for one scene layout ([`ObsSpec`]) and one team: it creates its parameters in a
+//! [`Scope`] (so the trainer keeps every team's parameters in one [`ParamStore`] under
+//! different prefixes, counted with [`Model::num_params`] and [`Model::param_counts`]) and
+//! maps a batch of observations to, for each agent of the team, the Tanh-Normal parameters
+//! `loc`, `scale` `[B, dof_a]` of its actuated DoF (`std = softplus(scale) + 0.001`,
+//! [`crate::distribution::std_from_scale`]), the team's value `[B]`, and the task
+//! assignment it used ([`PolicyOutput`]).
 //!
 //! Parameter names under the scope: `entity.*` (the actor's entity-level message passing,
 //! shared by the team's agents), `actor.*` (the body-level heads: `actor.<a>.*` one MLP per
