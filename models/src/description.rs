@@ -20,7 +20,7 @@
 //! [`ValueNet`]) is asked of the description.
 
 use crate::assignment::AssignmentMethod;
-use crate::config::{GivenOptions, GravityMode, MlpVariant, MpSizes, NeighbourOffset};
+use crate::config::{GivenOptions, GravityMode, MlpVariant, MpSizes, NeighbourOffset, OPTION_KEYS};
 use crate::entity_graph::GraphBuilder;
 use crate::error::{ModelError, Result};
 use crate::input::{EntityAbstraction, InputProcessor, Translation};
@@ -440,20 +440,6 @@ pub enum ModelDescription {
     TransformerHn,
 }
 
-/// The options of the string form, seed aside, in the order an error lists them.
-const LISTED_KEYS: [&str; 10] = [
-    "assignment",
-    "translation",
-    "abstraction",
-    "neighbour",
-    "critic",
-    "gravity",
-    "actor_steps",
-    "variant",
-    "head",
-    "critic_hidden",
-];
-
 /// The options of an entity stage's string form.
 const ENTITY_KEYS: [&str; 5] = ["assignment", "translation", "abstraction", "neighbour", "actor_steps"];
 
@@ -597,7 +583,7 @@ impl ModelDescription {
             }
             Self::TransformerHn => {}
         }
-        LISTED_KEYS.into_iter().filter(|k| keys.contains(k)).collect()
+        OPTION_KEYS.into_iter().filter(|k| keys.contains(k)).collect()
     }
 
     /// Checks what the types leave open: hidden widths positive and, but for `shgnn`'s
@@ -740,7 +726,6 @@ fn take_hidden(g: &mut GivenOptions, default: HiddenWidths) -> HiddenWidths {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::config::OPTION_KEYS;
 
     #[test]
     fn defaults_resolve_to_the_release_and_options_fold_in() {
