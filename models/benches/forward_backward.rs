@@ -18,7 +18,7 @@ static ALLOC: mimalloc::MiMalloc = mimalloc::MiMalloc;
 
 use envs::layout::ObsRows;
 use envs::tasks::{StartMode, VecEnv};
-use models::{Model, ModelConfig};
+use models::{Model, ModelDescription};
 use nn::ParamStore;
 use tensor::Tape;
 
@@ -51,7 +51,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             }
             let mut store = ParamStore::<f32>::new();
             let mut init = nn::init_rng(0);
-            let mut model = Model::new(&mut store.scope("team0", &mut init), &ModelConfig::new(name), &spec, 0)?;
+            let mut model =
+                Model::new(&mut store.scope("team0", &mut init), &ModelDescription::parse(name)?, &spec, 0)?;
             let mut times = Vec::with_capacity(STEPS);
             for k in 0..WARMUP + STEPS {
                 let t = Instant::now();

@@ -1,7 +1,8 @@
-//! Which model to build and its options ([`ModelConfig`]): a model of the paper
-//! ([`ModelKind`]) and the named options that keep every ablation runnable
-//! (`name:key=value;key=value`), as given; [`ModelConfig::describe`] checks them against the
-//! model and resolves them, with the defaults, into the
+//! A model's string form, `name:key=value;key=value` (a model of the paper, [`ModelKind`],
+//! and the named options that keep every ablation runnable; the keys are [`OPTION_KEYS`]),
+//! the types of the option values, and the limits on them.
+//! [`ModelDescription::parse`](crate::description::ModelDescription::parse) reads the string
+//! and moves each option, with the defaults, into the typed
 //! [`ModelDescription`](crate::description::ModelDescription) the builders use.
 //!
 //! Every option's default is the paper's model as its reference release builds it (the
@@ -9,11 +10,20 @@
 //! release decides); the other values are the ablations and this project's earlier variants.
 
 use crate::assignment::AssignmentMethod;
+use crate::description::ShnnCritic;
 use crate::error::{ModelError, Result};
 use crate::input::{EntityAbstraction, Translation};
-use crate::kind::{Critic, ModelKind};
+use crate::kind::ModelKind;
 
-/// The option keys [`ModelConfig::parse`] accepts.
+/// The option keys of a model string, `name` or `name:key=value;key=value`
+/// ([`ModelDescription::parse`](crate::description::ModelDescription::parse)): `assignment`
+/// (`greedy`, `hungarian`, `stochastic`, `none`), `translation` (`none`, `root_mean`,
+/// `body_mean`, `assigned`, `assigned_entity`), `abstraction` (`root`, `mean`), `neighbour`
+/// (`unit`, `raw`, `none`), `critic` (`separate`, `shared`), `gravity` (`input`,
+/// `every_layer`), `actor_steps` (a positive integer, at most [`MAX_ACTOR_STEPS`]), `variant`
+/// (`release`, `flat`), `seed` (integer), `head` and `critic_hidden` (hidden widths joined by
+/// `x`, e.g. `256x256`; at most [`MAX_LAYERS`], each at most [`MAX_WIDTH`]). E.g.
+/// `shnn:assignment=hungarian;critic=shared`.
 pub const OPTION_KEYS: [&str; 11] = [
     "assignment",
     "translation",
@@ -40,7 +50,8 @@ pub struct MpSizes {
     /// Hidden layers of those MLPs (2).
     pub layers: usize,
     /// Propagation steps of the critic's message passing and of the body GNN (2; the
-    /// actor's entity stage takes [`ModelConfig::actor_steps`]).
+    /// actor's entity stage takes
+    /// [`EntityStage::actor_steps`](crate::description::EntityStage::actor_steps)).
     pub steps: usize,
 }
 
@@ -127,48 +138,51 @@ impl MlpVariant {
     }
 }
 
-/// Which model to build and its options; `None` fields take the model's defaults.
+/// A model string's options as given (`None`: not given), before
+/// [`ModelDescription::parse`](crate::description::ModelDescription::parse) moves each into
+/// the field the model has for it.
 #[derive(Clone, Debug, PartialEq, Eq)]
-pub struct ModelConfig {
-    /// The name of one of [`ModelKind::ALL`].
-    pub name: String,
-    /// Task assignment (SHNN, HNN and MLP models; default greedy, Algorithm 1).
-    pub assignment: Option<AssignmentMethod>,
-    /// Translation mode (SHNN and HNN models; default [`Translation::Assigned`], or
-    /// [`Translation::RootMean`] with `assignment=none`, the paper's "w/o assignment").
-    pub translation: Option<Translation>,
-    /// Entity abstraction (SHNN and HNN models; default [`EntityAbstraction::Root`]).
-    pub abstraction: Option<EntityAbstraction>,
-    /// The neighbour rows of eq. (lrf) (SHNN and HNN models; default [`NeighbourOffset::Unit`]).
-    pub neighbour: Option<NeighbourOffset>,
-    /// What the value network reads (SHNN family: `critic=separate`,
-    /// [`Critic::Subequivariant`], the default, or `critic=shared`, [`Critic::EntityStage`]).
-    pub critic: Option<Critic>,
-    /// Gravity in the message passing (SHNN family but `shnn_so3`; default
-    /// [`GravityMode::Input`]).
-    pub gravity: Option<GravityMode>,
-    /// Rounds of the actor's entity-level message passing (SHNN family; default 1, the
-    /// release's actor).
-    pub actor_steps: Option<usize>,
-    /// The MLP baselines' network (default [`MlpVariant::Release`]).
-    pub variant: Option<MlpVariant>,
-    /// Entity message-passing sizes (SHNN family; default [`MpSizes::default`]).
-    pub mp: Option<MpSizes>,
-    /// Hidden widths of each agent's MLP head (default 256, 256; 256 x 3 for
-    /// `variant=flat`; the per-node decoder of `shgnn`, default none: a linear layer; not
-    /// an option of the Transformer models).
-    pub head_hidden: Option<Vec<usize>>,
-    /// Hidden widths of the critic MLP (default 256, 256; 256 x 3 for `variant=flat`; not an
-    /// option of the Transformer critics).
-    pub critic_hidden: Option<Vec<usize>>,
-    /// Seed of the stochastic assignment.
-    pub seed: u64,
+pub(crate) struct GivenOptions {
+    /// The model's name as given (one of [`ModelKind::ALL`]).
+    pub(crate) name: String,
+    /// Option `assignment`.
+    pub(crate) assignment: Option<AssignmentMethod>,
+    /// Option `translation`.
+    pub(crate) translation: Option<Translation>,
+    /// Option `abstraction`.
+    pub(crate) abstraction: Option<EntityAbstraction>,
+    /// Option `neighbour`.
+    pub(crate) neighbour: Option<NeighbourOffset>,
+    /// Option `critic`.
+    pub(crate) critic: Option<ShnnCritic>,
+    /// Option `gravity`.
+    pub(crate) gravity: Option<GravityMode>,
+    /// Option `actor_steps`.
+    pub(crate) actor_steps: Option<usize>,
+    /// Option `variant`.
+    pub(crate) variant: Option<MlpVariant>,
+    /// Option `head`.
+    pub(crate) head_hidden: Option<Vec<usize>>,
+    /// Option `critic_hidden`.
+    pub(crate) critic_hidden: Option<Vec<usize>>,
+    /// Option `seed` (default 0), which every model takes.
+    pub(crate) seed: u64,
 }
 
-impl ModelConfig {
-    /// The model `name` with its defaults (checked when the model is built).
-    pub fn new(name: &str) -> Self {
-        Self {
+impl GivenOptions {
+    /// Parses `name` or `name:key=value;key=value`, keys [`OPTION_KEYS`]: `assignment`
+    /// (`greedy`, `hungarian`, `stochastic`, `none`), `translation` (`none`, `root_mean`,
+    /// `body_mean`, `assigned`, `assigned_entity`), `abstraction` (`root`, `mean`),
+    /// `neighbour` (`unit`, `raw`, `none`), `critic` (`separate`, `shared`), `gravity`
+    /// (`input`, `every_layer`), `actor_steps` (a positive integer), `variant` (`release`,
+    /// `flat`), `seed` (integer), `head` and `critic_hidden` (hidden widths joined by `x`,
+    /// e.g. `256x256`). E.g. `shnn:assignment=hungarian;critic=shared`. Whether an option
+    /// applies to the model is decided by
+    /// [`ModelDescription::parse`](crate::description::ModelDescription::parse).
+    pub(crate) fn parse(s: &str) -> Result<Self> {
+        let (name, opts) = s.split_once(':').unwrap_or((s, ""));
+        ModelKind::parse(name)?;
+        let mut c = Self {
             name: name.to_string(),
             assignment: None,
             translation: None,
@@ -178,25 +192,10 @@ impl ModelConfig {
             gravity: None,
             actor_steps: None,
             variant: None,
-            mp: None,
             head_hidden: None,
             critic_hidden: None,
             seed: 0,
-        }
-    }
-
-    /// Parses `name` or `name:key=value;key=value`, keys [`OPTION_KEYS`]: `assignment`
-    /// (`greedy`, `hungarian`, `stochastic`, `none`), `translation` (`none`, `root_mean`,
-    /// `body_mean`, `assigned`, `assigned_entity`), `abstraction` (`root`, `mean`),
-    /// `neighbour` (`unit`, `raw`, `none`), `critic` (`separate`, `shared`), `gravity`
-    /// (`input`, `every_layer`), `actor_steps` (a positive integer), `variant` (`release`,
-    /// `flat`), `seed` (integer), `head` and `critic_hidden` (hidden widths joined by `x`,
-    /// e.g. `256x256`). E.g. `shnn:assignment=hungarian;critic=shared`. Whether an option
-    /// applies to the model is checked by [`ModelConfig::describe`] (and so when it is built).
-    pub fn parse(s: &str) -> Result<Self> {
-        let (name, opts) = s.split_once(':').unwrap_or((s, ""));
-        ModelKind::parse(name)?;
-        let mut c = Self::new(name);
+        };
         let mut seen: Vec<&str> = Vec::new();
         for item in opts.split(';').filter(|_| !opts.is_empty()) {
             if item.trim().is_empty() {
@@ -216,7 +215,7 @@ impl ModelConfig {
                 "translation" => c.translation = Some(Translation::parse(v)?),
                 "abstraction" => c.abstraction = Some(EntityAbstraction::parse(v)?),
                 "neighbour" => c.neighbour = Some(NeighbourOffset::parse(v)?),
-                "critic" => c.critic = Some(Critic::parse(v)?),
+                "critic" => c.critic = Some(ShnnCritic::parse(v)?),
                 "gravity" => c.gravity = Some(GravityMode::parse(v)?),
                 "actor_steps" => {
                     let n = v.parse::<usize>().ok().filter(|&n| (1..=MAX_ACTOR_STEPS).contains(&n));
@@ -243,10 +242,9 @@ impl ModelConfig {
         Ok(c)
     }
 
-    /// The options that are set, as `(key, set)` pairs in [`OPTION_KEYS`] order but `seed`,
-    /// which every model takes (for the "takes no option" check of
-    /// [`ModelConfig::describe`]).
-    pub(crate) fn set_options(&self) -> [(&'static str, bool); 10] {
+    /// The first option still given (in [`OPTION_KEYS`] order, `seed` aside): after the
+    /// model has taken its own, one it does not take.
+    pub(crate) fn first_set(&self) -> Option<&'static str> {
         [
             ("assignment", self.assignment.is_some()),
             ("translation", self.translation.is_some()),
@@ -259,11 +257,8 @@ impl ModelConfig {
             ("head", self.head_hidden.is_some()),
             ("critic_hidden", self.critic_hidden.is_some()),
         ]
-    }
-
-    /// The model to build; an unknown name is an error listing the known ones.
-    pub fn kind(&self) -> Result<ModelKind> {
-        ModelKind::parse(&self.name)
+        .into_iter()
+        .find_map(|(k, set)| set.then_some(k))
     }
 }
 
@@ -314,10 +309,10 @@ mod tests {
             (&format!("mlp:head={}", ["8"; 17].join("x")), "at most 16"),
             ("shnn:actor_steps=100000", "actor_steps"),
         ] {
-            let e = ModelConfig::parse(spec).unwrap_err().to_string();
+            let e = GivenOptions::parse(spec).unwrap_err().to_string();
             assert!(e.contains(needle), "{spec}: {e}");
         }
-        assert!(ModelConfig::parse("shnn:").is_ok());
-        assert_eq!(ModelConfig::parse("mlp:head=8192x16").unwrap().head_hidden, Some(vec![8192, 16]));
+        assert!(GivenOptions::parse("shnn:").is_ok());
+        assert_eq!(GivenOptions::parse("mlp:head=8192x16").unwrap().head_hidden, Some(vec![8192, 16]));
     }
 }

@@ -21,7 +21,7 @@ use tensor::{Activation, Float, Var};
 use crate::assignment::UNASSIGNED;
 use crate::config::layer_sizes;
 use crate::critic::critic_order;
-use crate::description::{EntityStage, ModelDescription};
+use crate::description::{EntityStage, HnnOptions};
 use crate::entity_graph::GraphBuilder;
 use crate::error::{ModelError, Result};
 use crate::frame::{AgentFrame, lrf, lrf_shape, to_horizontal_frame};
@@ -130,22 +130,20 @@ impl Hnn {
         &self.graph
     }
 
-    /// Builds the model `d` describes (of the HNN family) for `agents` of `team`: the entity
+    /// Builds the model `o` describes (of the HNN family) for `agents` of `team`: the entity
     /// stage under `entity`, one head per agent under `actor.<a>` and the critic under
     /// `critic` of scope `s`.
     pub(crate) fn new<T: Float>(
         s: &mut Scope<'_, T>,
-        d: &ModelDescription,
+        o: &HnnOptions,
         spec: &ObsSpec,
         team: usize,
         agents: &[usize],
     ) -> Result<Self> {
-        let stage = *d.entity_stage()?;
-        if !matches!(d.frame, Frame::World | Frame::Heading | Frame::Goal) {
-            return Err(ModelError::Option(format!("model `{}`: HNN has no {:?} frame", d.name(), d.frame)));
-        }
+        let stage = o.stage;
+        let frame = o.model.kind().frame();
         let proc = stage.input_processor(spec)?;
-        let graph = d.graph_builder(spec, team)?;
+        let graph = stage.assignment.graph_builder(spec, team)?;
         let m = stage.sizes;
         let sizes = ScalarMpSizes { scalars: m.scalars, hidden: m.hidden, layers: m.layers, steps: stage.actor_steps };
         let mp = ScalarMp::new(&mut s.sub("entity"), NODE_VECTOR_LEN + ENTITY_SCALARS, sizes)?;
@@ -155,15 +153,15 @@ impl Hnn {
             .iter()
             .map(|&a| {
                 let (rows, row) = lrf_shape(spec.agent_dof[a], slots, 3);
-                let sz = layer_sizes(rows * row + sizes.scalars, &d.head_hidden, 2 * spec.agent_dof[a]);
+                let sz = layer_sizes(rows * row + sizes.scalars, &o.hidden.head, 2 * spec.agent_dof[a]);
                 Mlp::new(&mut actor.sub(a), &sz, Activation::Relu)
             })
             .collect::<nn::Result<Vec<_>>>()?;
         let ne = spec.entity_root_node.len();
-        let sz = layer_sizes(ne * sizes.scalars, d.value_mlp()?, 1);
+        let sz = layer_sizes(ne * sizes.scalars, &o.hidden.critic, 1);
         let critic = Mlp::new(&mut s.sub("critic"), &sz, Activation::Relu)?;
         let critic_entities = critic_order(spec, agents);
-        Ok(Self { proc, graph, frame: d.frame, stage, mp, heads, critic, critic_entities })
+        Ok(Self { proc, graph, frame, stage, mp, heads, critic, critic_entities })
     }
 
     /// Policy and (if `with_value`) value (module docs).

@@ -2,8 +2,8 @@
 //! structure: its family (which module builds it), whether it has an entity stage, its
 //! body-level head, its frame, its default critic and which symmetries its outputs keep.
 //! Code that needs one of these asks the kind instead of testing the model's name; a model
-//! with its options resolved is a [`crate::description::ModelDescription`], whose fields are
-//! these types.
+//! with its options resolved is a [`crate::description::ModelDescription`], which answers
+//! with these types.
 
 use crate::error::{ModelError, Result};
 
@@ -74,8 +74,9 @@ pub enum Frame {
 }
 
 /// What the value network reads (eq. (value), `V = σ_V(..)`): a model's default
-/// ([`ModelKind::critic`]), or the SHNN family's option `critic=separate|shared`, or the flat
-/// MLP's (`variant=flat`). `σ_V` itself is [`crate::description::ValueNet`].
+/// ([`ModelKind::critic`]), or the SHNN family's option `critic=separate|shared`
+/// ([`crate::description::ShnnCritic`]), or the flat MLP's (`variant=flat`). `σ_V` itself is
+/// [`crate::description::ValueNet`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Critic {
     /// Its own subequivariant message passing over every entity, then `σ_V` (the release's
@@ -89,18 +90,6 @@ pub enum Critic {
     Roots,
     /// An MLP on every node of the scene (the flat MLP, `variant=flat`).
     Nodes,
-}
-
-impl Critic {
-    /// Parses the option `critic`: `separate` ([`Critic::Subequivariant`]) or `shared`
-    /// ([`Critic::EntityStage`]).
-    pub fn parse(s: &str) -> Result<Self> {
-        match s {
-            "separate" => Ok(Self::Subequivariant),
-            "shared" => Ok(Self::EntityStage),
-            _ => Err(ModelError::Option(format!("unknown critic `{s}` (expected separate or shared)"))),
-        }
-    }
 }
 
 impl ModelKind {

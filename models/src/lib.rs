@@ -3,8 +3,9 @@
 //! - they read the environment's observation layout (`envs::layout`: `ObsSpec`,
 //!   `Observation`, `ObsRows`);
 //! - which model and its options ([`kind`]: the eleven models of the paper and the types
-//!   that describe them; [`config`]: a model string's options; [`description`]: both
-//!   resolved once into the [`ModelDescription`] the builders match on);
+//!   that describe them; [`config`]: a model string's syntax and option values;
+//!   [`description`]: the [`ModelDescription`] the builders match on, a variant per family
+//!   with the options that family takes, typed or parsed from a model string);
 //! - the interface the trainer uses: a team's actor and critic [`Policy`], built by a
 //!   [`PolicyFactory`] ([`interface`]; bring your own model by implementing them);
 //! - the model zoo [`Model`] ([`zoo`]), the eleven models as one [`Policy`], built by its
@@ -39,9 +40,12 @@ pub mod zoo;
 
 pub use assignment::{Assigner, AssignmentMethod, UNASSIGNED, distance_matrix};
 pub use body_gnn::{BodyGnn, BodyGnnConfig};
-pub use config::{GravityMode, MlpVariant, ModelConfig, MpSizes, NeighbourOffset, OPTION_KEYS};
+pub use config::{GravityMode, MlpVariant, MpSizes, NeighbourOffset, OPTION_KEYS};
 pub use critic::{SubeqCritic, ValueHead};
-pub use description::{EntityStage, ModelDescription, ValueNet};
+pub use description::{
+    EntityStage, HiddenWidths, HnnModel, HnnOptions, MlpModel, MlpNetwork, MlpOptions, ModelDescription, ShnnCritic,
+    ShnnModel, ShnnOptions, TaskAssignment, ValueNet,
+};
 pub use entity_graph::{EntityGraph, GraphBuilder, GraphTask, NO_AGENT};
 pub use entity_mp::{EntityFeatures, EntityMp, EntityMpConfig};
 pub use error::{ModelError, Result};

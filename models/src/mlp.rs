@@ -33,12 +33,10 @@ use tensor::{Activation, Float, Tensor, Var};
 use crate::assignment::{AssignmentMethod, UNASSIGNED};
 use crate::config::layer_sizes;
 use crate::critic::critic_order;
-use crate::description::{ModelDescription, ValueNet};
 use crate::entity_graph::GraphBuilder;
 use crate::error::{ModelError, Result};
 use crate::input::{InputProcessor, Translation};
 use crate::interface::{AgentPolicy, PolicyOutput};
-use crate::kind::{Critic, Frame, Head};
 use crate::transformer_head::TransformerHead;
 use crate::zoo::split_head;
 use envs::layout::{N_SCALARS, NODE_VECTOR_LEN, NODE_VECTORS, ObsSpec};
@@ -164,23 +162,6 @@ pub struct ReleaseMlp {
 }
 
 impl ReleaseMlp {
-    /// Builds the model `d` describes (`mlp` or `mlp_hn`, the release variant) for `agents`
-    /// of `team` under scope `s`.
-    pub(crate) fn build<T: Float>(
-        s: &mut Scope<'_, T>,
-        d: &ModelDescription,
-        spec: &ObsSpec,
-        team: usize,
-        agents: &[usize],
-    ) -> Result<Self> {
-        if (d.head, d.critic) != (Head::Mlp, Critic::Roots) {
-            return Err(ModelError::Option(format!("model `{}` is not the release's MLP", d.name())));
-        }
-        let graph = d.graph_builder(spec, team)?;
-        let heading = d.frame == Frame::Heading;
-        Self::new(s, spec, agents, graph, heading, &d.head_hidden, d.value_mlp()?)
-    }
-
     /// The model for `agents` (scope `s` holds `actor` and `critic`).
     pub(crate) fn new<T: Float>(
         s: &mut Scope<'_, T>,
@@ -319,27 +300,6 @@ enum FlatCritic {
 }
 
 impl FlatMlp {
-    /// Builds the model `d` describes for `agents` under scope `s`: `transformer_hn` (a
-    /// Transformer head and a Transformer over the roots), or `mlp`, `mlp_hn` with
-    /// `variant=flat` (MLP heads and an MLP on every node).
-    pub(crate) fn build<T: Float>(
-        s: &mut Scope<'_, T>,
-        d: &ModelDescription,
-        spec: &ObsSpec,
-        agents: &[usize],
-    ) -> Result<Self> {
-        let heading = d.frame == Frame::Heading;
-        match (d.head, d.critic, &d.value) {
-            (Head::Transformer, Critic::Roots, ValueNet::Transformer) => {
-                Self::new(s, spec, agents, heading, true, &[], &[])
-            }
-            (Head::Mlp, Critic::Nodes, ValueNet::Mlp(critic_hidden)) => {
-                Self::new(s, spec, agents, heading, false, &d.head_hidden, critic_hidden)
-            }
-            _ => Err(ModelError::Option(format!("model `{}` is not a flat model", d.name()))),
-        }
-    }
-
     /// The model for `agents`: MLP heads (`head_hidden`) or a shared Transformer head.
     pub(crate) fn new<T: Float>(
         s: &mut Scope<'_, T>,

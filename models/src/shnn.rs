@@ -27,14 +27,14 @@ use tensor::{Activation, Float};
 use crate::body_gnn::{BodyGnn, BodyGnnConfig};
 use crate::config::{GravityMode, NeighbourOffset, layer_sizes};
 use crate::critic::{SubeqCritic, ValueHead, critic_order};
-use crate::description::{EntityStage, ModelDescription};
+use crate::description::{EntityStage, ShnnCritic, ShnnModel, ShnnOptions};
 use crate::entity_graph::GraphBuilder;
 use crate::entity_mp::{EntityMp, EntityMpConfig};
 use crate::error::{ModelError, Result};
 use crate::frame::{AgentFrame, lrf, lrf_shape};
 use crate::input::InputProcessor;
 use crate::interface::{AgentPolicy, PolicyOutput};
-use crate::kind::{self, Frame, Head};
+use crate::kind::Frame;
 use crate::transformer_head::TransformerHead;
 use crate::zoo::split_head;
 use envs::layout::{N_SCALARS, ObsSpec};
@@ -51,10 +51,10 @@ pub(crate) enum Heads {
 /// The value network of the family.
 #[derive(Clone, Debug)]
 pub(crate) enum Critic {
-    /// The release's own subequivariant critic ([`kind::Critic::Subequivariant`]).
+    /// The release's own subequivariant critic ([`crate::kind::Critic::Subequivariant`]).
     Separate(Box<SubeqCritic>),
     /// `σ_V` on the actor's `h'` of the entities in the given order
-    /// ([`kind::Critic::EntityStage`]).
+    /// ([`crate::kind::Critic::EntityStage`]).
     Shared(ValueHead, Vec<usize>),
 }
 
@@ -72,20 +72,21 @@ pub(crate) struct Shnn {
 }
 
 impl Shnn {
-    /// Builds the model `d` describes (of the SHNN family) for `agents` of `team` under scope
+    /// Builds the model `o` describes (of the SHNN family) for `agents` of `team` under scope
     /// `s`: the actor's entity stage (`entity`), the body-level heads (`actor`), the critic
     /// (`critic`), in that order.
     pub(crate) fn new<T: Float>(
         s: &mut Scope<'_, T>,
-        d: &ModelDescription,
+        o: &ShnnOptions,
         spec: &ObsSpec,
         team: usize,
         agents: &[usize],
     ) -> Result<Self> {
-        let stage: &EntityStage = d.entity_stage()?;
+        let stage: &EntityStage = &o.stage;
+        let gravity = o.model.gravity();
         let m = stage.sizes;
         let proc = stage.input_processor(spec)?;
-        let graph = d.graph_builder(spec, team)?;
+        let graph = stage.assignment.graph_builder(spec, team)?;
         let g = spec.gravity_dir.map(f64::from);
         let mp = EntityMp::new(
             &mut s.sub("entity"),
@@ -96,21 +97,19 @@ impl Shnn {
                 layers: m.layers,
                 steps: stage.actor_steps,
                 distance: stage.edge_distance(),
-                gravity: stage.gravity.map(|_| g),
-                gravity_in_layers: stage.gravity == Some(GravityMode::EveryLayer),
+                gravity: gravity.map(|_| g),
+                gravity_in_layers: gravity == Some(GravityMode::EveryLayer),
                 ..EntityMpConfig::paper(spec)
             },
         )?;
-        let axes = match d.frame {
-            Frame::Orthogonal => 3,
-            Frame::Channels => m.vectors,
-            f => return Err(ModelError::Option(format!("model `{}`: the SHNN family has no {f:?} frame", d.name()))),
-        };
+        // `O_i`: the local reference frame, or the `m` channels of `Z'` (SHNN:Og3).
+        let frame = o.model.kind().frame();
+        let axes = if frame == Frame::Channels { m.vectors } else { 3 };
         // The rows of eq. (lrf): the agent's own nodes and its neighbours'.
         let slots = if stage.neighbour_rows() { graph.slots() } else { 0 };
         let mut actor = s.sub("actor");
-        let heads = match d.head {
-            Head::Gnn => {
+        let heads = match &o.model {
+            ShnnModel::ShGnn { hidden, .. } => {
                 let cfg = BodyGnnConfig {
                     vectors: m.vectors,
                     scalars: m.scalars,
@@ -118,45 +117,42 @@ impl Shnn {
                     layers: m.layers,
                     steps: m.steps,
                     entity_scalars: m.scalars,
-                    decoder_hidden: d.head_hidden.clone(),
+                    decoder_hidden: hidden.head.clone(),
                     gravity: g,
-                    gravity_in_layers: stage.gravity == Some(GravityMode::EveryLayer),
+                    gravity_in_layers: gravity == Some(GravityMode::EveryLayer),
                 };
                 Heads::Gnn(Box::new(BodyGnn::new(&mut actor, cfg, spec, agents)?))
             }
-            Head::Transformer => {
+            ShnnModel::ShTransformer { .. } => {
                 let (_, row) = lrf_shape(0, 0, axes);
                 let head = TransformerHead::new(&mut actor, row + m.scalars, 2, TransformerConfig::default())?;
                 Heads::Transformer(Box::new(head))
             }
-            Head::Mlp => Heads::Mlp(
-                agents
-                    .iter()
-                    .map(|&a| {
-                        let (rows, row) = lrf_shape(spec.agent_dof[a], slots, axes);
-                        let sz = layer_sizes(rows * row + m.scalars, &d.head_hidden, 2 * spec.agent_dof[a]);
-                        Mlp::new(&mut actor.sub(a), &sz, Activation::Relu)
-                    })
-                    .collect::<nn::Result<Vec<_>>>()?,
-            ),
+            ShnnModel::Shnn { hidden, .. } | ShnnModel::ShnnOg3 { hidden, .. } | ShnnModel::ShnnSo3 { hidden } => {
+                Heads::Mlp(
+                    agents
+                        .iter()
+                        .map(|&a| {
+                            let (rows, row) = lrf_shape(spec.agent_dof[a], slots, axes);
+                            let sz = layer_sizes(rows * row + m.scalars, &hidden.head, 2 * spec.agent_dof[a]);
+                            Mlp::new(&mut actor.sub(a), &sz, Activation::Relu)
+                        })
+                        .collect::<nn::Result<Vec<_>>>()?,
+                )
+            }
         };
         let mut c = s.sub("critic");
-        let critic = match d.critic {
-            kind::Critic::Subequivariant => {
-                Critic::Separate(Box::new(SubeqCritic::new(&mut c, spec, team, agents, m, stage.gravity, &d.value)?))
+        let value = o.model.value();
+        let critic = match o.critic {
+            ShnnCritic::Separate => {
+                Critic::Separate(Box::new(SubeqCritic::new(&mut c, spec, team, agents, m, gravity, &value)?))
             }
-            kind::Critic::EntityStage => {
+            ShnnCritic::Shared => {
                 let ne = spec.entity_root_node.len();
-                Critic::Shared(ValueHead::new(&mut c, ne, m.scalars, &d.value)?, critic_order(spec, agents))
-            }
-            other => {
-                return Err(ModelError::Option(format!(
-                    "model `{}`: the SHNN family has no {other:?} critic",
-                    d.name()
-                )));
+                Critic::Shared(ValueHead::new(&mut c, ne, m.scalars, &value)?, critic_order(spec, agents))
             }
         };
-        Ok(Shnn { proc, graph, mp, frame: d.frame, neighbour: stage.neighbour, heads, critic })
+        Ok(Shnn { proc, graph, mp, frame, neighbour: stage.neighbour, heads, critic })
     }
 
     /// Policy and (if `with_value`) value; `fixed` replaces the batch's task assignment

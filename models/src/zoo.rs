@@ -2,14 +2,14 @@
 //! and (value); appendices "Baselines" and "Ablations") as one [`Policy`] implementation,
 //! [`Model`], built for a [`ModelKind`] by its family's module.
 //!
-//! A [`Model`] is built from a [`ModelConfig`], resolved into a [`ModelDescription`], for one
-//! scene layout ([`ObsSpec`]) and one team: it creates its parameters in a [`Scope`] (so the
-//! trainer keeps every team's parameters in one [`ParamStore`] under different prefixes,
-//! counted with [`Model::num_params`] and [`Model::param_counts`]) and maps a batch of
-//! observations to, for each agent of the team, the Tanh-Normal parameters `loc`, `scale`
-//! `[B, dof_a]` of its actuated DoF (`std = softplus(scale) + 0.001`,
-//! [`crate::distribution::std_from_scale`]), the team's value `[B]`, and the task assignment
-//! it used ([`PolicyOutput`]).
+//! A [`Model`] is built from a [`ModelDescription`] (written out, or parsed from a model
+//! string) for one scene layout ([`ObsSpec`]) and one team: it creates its parameters in a
+//! [`Scope`] (so the trainer keeps every team's parameters in one [`ParamStore`] under
+//! different prefixes, counted with [`Model::num_params`] and [`Model::param_counts`]) and
+//! maps a batch of observations to, for each agent of the team, the Tanh-Normal parameters
+//! `loc`, `scale` `[B, dof_a]` of its actuated DoF (`std = softplus(scale) + 0.001`,
+//! [`crate::distribution::std_from_scale`]), the team's value `[B]`, and the task
+//! assignment it used ([`PolicyOutput`]).
 //!
 //! Parameter names under the scope: `entity.*` (the actor's entity-level message passing,
 //! shared by the team's agents), `actor.*` (the body-level heads: `actor.<a>.*` one MLP per
@@ -42,14 +42,13 @@ use nn::{Bound, Mlp, ParamStore, Scope};
 use tensor::{Float, Var};
 
 use crate::assignment::AssignmentMethod;
-use crate::config::{MlpVariant, ModelConfig};
-use crate::description::ModelDescription;
+use crate::description::{MlpModel, MlpNetwork, ModelDescription};
 use crate::entity_graph::GraphBuilder;
 use crate::entity_mp::EntityMp;
 use crate::error::{ModelError, Result};
 use crate::hnn::Hnn;
 use crate::interface::{AgentPolicy, Policy, PolicyOutput};
-use crate::kind::{Family, ModelKind};
+use crate::kind::ModelKind;
 use crate::mlp::{FlatMlp, ReleaseMlp, no_assignment};
 use crate::shnn::Shnn;
 use envs::layout::{ObsBatch, ObsElement, ObsRows, ObsSpec};
@@ -84,17 +83,11 @@ pub struct Model {
 }
 
 impl Model {
-    /// Builds `config`'s model for `team` of scenes laid out by `spec`, with parameters under
-    /// scope `s` (module docs): [`Model::build`] of its description
-    /// ([`ModelConfig::describe`]). Unknown names and options that do not apply are errors
-    /// listing the accepted ones.
-    pub fn new<T: Float>(s: &mut Scope<'_, T>, config: &ModelConfig, spec: &ObsSpec, team: usize) -> Result<Self> {
-        Self::build(s, &config.describe()?, spec, team)
-    }
-
     /// Builds the model `d` describes for `team` of scenes laid out by `spec`, with parameters
-    /// under scope `s`, by its family's module.
-    pub fn build<T: Float>(s: &mut Scope<'_, T>, d: &ModelDescription, spec: &ObsSpec, team: usize) -> Result<Self> {
+    /// under scope `s` (module docs), by its family's module. Hidden widths that are empty or
+    /// zero ([`ModelDescription::check`]) and a team the scene does not have are errors.
+    pub fn new<T: Float>(s: &mut Scope<'_, T>, d: &ModelDescription, spec: &ObsSpec, team: usize) -> Result<Self> {
+        d.check()?;
         if team >= spec.n_teams {
             return Err(ModelError::Option(format!("team {team} in a scene of {} teams", spec.n_teams)));
         }
@@ -103,13 +96,26 @@ impl Model {
             return Err(ModelError::Input(format!("team {team} has no agent")));
         }
         let prefix = s.full_name("");
-        let arch = match (d.family, d.variant) {
-            (Family::Shnn, _) => Arch::Shnn(Box::new(Shnn::new(s, d, spec, team, &agents)?)),
-            (Family::Hnn, _) => Arch::Hnn(Box::new(Hnn::new(s, d, spec, team, &agents)?)),
-            (Family::Mlp, Some(MlpVariant::Flat)) | (Family::FlatTransformer, _) => {
-                Arch::Flat(Box::new(FlatMlp::build(s, d, spec, &agents)?))
+        let arch = match d {
+            ModelDescription::Shnn(o) => Arch::Shnn(Box::new(Shnn::new(s, o, spec, team, &agents)?)),
+            ModelDescription::Hnn(o) => Arch::Hnn(Box::new(Hnn::new(s, o, spec, team, &agents)?)),
+            ModelDescription::Mlp(o) => {
+                let heading = o.model == MlpModel::MlpHn;
+                match &o.network {
+                    MlpNetwork::Release { assignment, hidden } => {
+                        let graph = assignment.graph_builder(spec, team)?;
+                        let m = ReleaseMlp::new(s, spec, &agents, graph, heading, &hidden.head, &hidden.critic)?;
+                        Arch::Mlp(Box::new(m))
+                    }
+                    MlpNetwork::Flat { hidden } => {
+                        let m = FlatMlp::new(s, spec, &agents, heading, false, &hidden.head, &hidden.critic)?;
+                        Arch::Flat(Box::new(m))
+                    }
+                }
             }
-            (Family::Mlp, _) => Arch::Mlp(Box::new(ReleaseMlp::build(s, d, spec, team, &agents)?)),
+            ModelDescription::TransformerHn => {
+                Arch::Flat(Box::new(FlatMlp::new(s, spec, &agents, true, true, &[], &[])?))
+            }
         };
         Ok(Self { description: d.clone(), team, agents, spec: spec.clone(), prefix, arch })
     }
@@ -126,7 +132,7 @@ impl Model {
 
     /// Which model of the paper it is.
     pub fn kind(&self) -> ModelKind {
-        self.description.kind
+        self.description.kind()
     }
 
     /// The team the model acts for.

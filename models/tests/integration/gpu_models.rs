@@ -17,7 +17,7 @@
 #![cfg(feature = "gpu")]
 
 use envs::tasks::{StartMode, VecEnv};
-use models::{Model, ModelConfig, ModelKind, PolicyOutput};
+use models::{Model, ModelDescription, ModelKind, PolicyOutput};
 use nn::ParamStore;
 use tensor::{Device, Tape, Tensor, Var};
 
@@ -78,7 +78,8 @@ fn every_model_forward_and_backward_on_the_gpu_matches_the_cpu() {
         let name = kind.name();
         let mut store = ParamStore::<f32>::new();
         let mut init = nn::init_rng(3);
-        let mut model = Model::new(&mut store.scope("team0", &mut init), &ModelConfig::new(name), &spec, 0).unwrap();
+        let mut model =
+            Model::new(&mut store.scope("team0", &mut init), &ModelDescription::new(kind), &spec, 0).unwrap();
         let (out_cpu, g_cpu) = pass(&mut model, &store, &env, Device::Cpu);
         let (out_gpu, g_gpu) = pass(&mut model, &store, &env, Device::Gpu);
         let (d, i) = worst(&out_gpu, &out_cpu);

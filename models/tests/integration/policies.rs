@@ -14,8 +14,8 @@ use envs::tasks::{BUILTIN_NAMES, StartMode, VecEnv};
 use models::input::InputProcessor;
 use models::kind::Head;
 use models::{
-    AssignmentMethod, EntityAbstraction, GraphBuilder, Model, ModelConfig, ModelKind, MpSizes, PolicyOutput,
-    Translation,
+    AssignmentMethod, EntityAbstraction, GraphBuilder, HiddenWidths, MlpNetwork, Model, ModelDescription, ModelKind,
+    MpSizes, PolicyOutput, ShnnCritic, ShnnModel, Translation,
 };
 use nn::{Bound, ParamStore};
 use rand::RngExt;
@@ -55,7 +55,12 @@ fn reflect(vectors: &[f64], heading: &[f64]) -> (Vec<f64>, Vec<f64>) {
     (out, heading.iter().map(|h| -h).collect())
 }
 
-fn build(config: &ModelConfig, spec: &ObsSpec, team: usize, seed: u64) -> (ParamStore<f64>, Model) {
+/// The model named by the string `s` (`name` or `name:key=value;..`).
+fn named(s: &str) -> ModelDescription {
+    ModelDescription::parse(s).unwrap()
+}
+
+fn build(config: &ModelDescription, spec: &ObsSpec, team: usize, seed: u64) -> (ParamStore<f64>, Model) {
     let mut store = ParamStore::<f64>::new();
     let mut init = nn::init_rng(seed);
     let model = Model::new(&mut store.scope("team", &mut init), config, spec, team).unwrap();
@@ -97,7 +102,7 @@ fn shnn_policies_and_values_are_invariant_under_rotations_about_gravity_and_tran
     ];
     for (model_name, env, team) in cases {
         let (spec, vectors, scalars, heading) = observations(env, B, 11);
-        let (store, mut model) = build(&ModelConfig::new(model_name), &spec, team, 3);
+        let (store, mut model) = build(&named(model_name), &spec, team, 3);
         let base = run(&mut model, &store, &spec, &vectors, &scalars, &heading);
         let mut r = rng(5);
         for _ in 0..3 {
@@ -126,7 +131,7 @@ fn shnn_og3_is_also_invariant_under_reflections_and_shnn_is_not() {
     let (spec, vectors, scalars, heading) = observations("team_reach/2_ants", B, 12);
     let (rv, rh) = reflect(&vectors, &heading);
     for (name, invariant) in [("shnn_og3", true), ("shnn", false)] {
-        let (store, mut model) = build(&ModelConfig::new(name), &spec, 0, 4);
+        let (store, mut model) = build(&named(name), &spec, 0, 4);
         let base = run(&mut model, &store, &spec, &vectors, &scalars, &heading);
         let mirrored = run(&mut model, &store, &spec, &rv, &scalars, &rh);
         let d = max_diff(&mirrored, &base);
@@ -143,7 +148,7 @@ fn mlp_hn_is_invariant_under_yaw_and_mlp_is_not() {
         let (spec, vectors, scalars, heading) = observations(env, B, 13);
         let (v, h) = transform(&vectors, &heading, 2.1, [3.0, -1.5]);
         for (name, invariant) in [("mlp_hn", true), ("transformer_hn", true), ("mlp", false)] {
-            let (store, mut model) = build(&ModelConfig::new(name), &spec, team, 6);
+            let (store, mut model) = build(&named(name), &spec, team, 6);
             let base = run(&mut model, &store, &spec, &vectors, &scalars, &heading);
             let moved = run(&mut model, &store, &spec, &v, &scalars, &h);
             let d = max_diff(&moved, &base);
@@ -166,12 +171,12 @@ fn hnn_hn_and_hnn_dn_are_invariant_under_yaw_and_hnn_only_under_translation() {
         let (spec, vectors, scalars, heading) = observations(env, B, 14);
         // Same parameters, different frames: the goal direction is not the heading.
         let outputs = |name: &str| {
-            let (store, mut model) = build(&ModelConfig::new(name), &spec, team, 7);
+            let (store, mut model) = build(&named(name), &spec, team, 7);
             run(&mut model, &store, &spec, &vectors, &scalars, &heading)
         };
         assert!(max_diff(&outputs("hnn_hn"), &outputs("hnn_dn")) > 1e-6, "{env}");
         for (name, yaw_invariant) in [("hnn_hn", true), ("hnn_dn", true), ("hnn", false)] {
-            let (store, mut model) = build(&ModelConfig::new(name), &spec, team, 7);
+            let (store, mut model) = build(&named(name), &spec, team, 7);
             let base = run(&mut model, &store, &spec, &vectors, &scalars, &heading);
             // A horizontal translation alone leaves every HNN unchanged.
             let (v, h) = transform(&vectors, &heading, 0.0, [2.5, -4.0]);
@@ -196,7 +201,7 @@ fn every_kind_is_invariant_exactly_when_it_says_so() {
     let (spec, vectors, scalars, heading) = observations("team_reach/2_ants", B, 15);
     let (v, h) = transform(&vectors, &heading, 1.3, [2.0, -3.5]);
     for kind in ModelKind::ALL {
-        let (store, mut model) = build(&ModelConfig::new(kind.name()), &spec, 0, 8);
+        let (store, mut model) = build(&named(kind.name()), &spec, 0, 8);
         let base = run(&mut model, &store, &spec, &vectors, &scalars, &heading);
         let d = max_diff(&run(&mut model, &store, &spec, &v, &scalars, &h), &base);
         if kind.is_equivariant() {
@@ -220,8 +225,7 @@ fn forward_on_every_builtin_environment_for_every_model() {
                 let mut store = ParamStore::<f32>::new();
                 let mut init = nn::init_rng(0);
                 let prefix = format!("team{team}");
-                let mut model =
-                    Model::new(&mut store.scope(&prefix, &mut init), &ModelConfig::new(name), &spec, team).unwrap();
+                let mut model = Model::new(&mut store.scope(&prefix, &mut init), &named(name), &spec, team).unwrap();
                 assert!(store.names().iter().all(|n| n.starts_with(&format!("{prefix}."))));
                 assert_eq!(model.num_params(&store), store.num_elements());
                 let tape = Tape::new();
@@ -267,13 +271,15 @@ fn forward_on_every_builtin_environment_for_every_model() {
     }
 }
 
-fn tiny(name: &str) -> ModelConfig {
-    ModelConfig {
-        mp: Some(MpSizes { vectors: 3, scalars: 4, hidden: 5, layers: 1, steps: 2 }),
-        head_hidden: Some(vec![6]),
-        critic_hidden: Some(vec![5]),
-        ..ModelConfig::new(name)
+fn tiny(name: &str) -> ModelDescription {
+    let mut d = named(&format!("{name}:head=6;critic_hidden=5"));
+    let sizes = MpSizes { vectors: 3, scalars: 4, hidden: 5, layers: 1, steps: 2 };
+    match &mut d {
+        ModelDescription::Shnn(o) => o.stage.sizes = sizes,
+        ModelDescription::Hnn(o) => o.stage.sizes = sizes,
+        _ => panic!("{name} has no entity stage"),
     }
+    d
 }
 
 /// Policy and value of `model` with the parameters `v` (store order) as tape inputs.
@@ -323,45 +329,53 @@ fn unknown_names_and_options_are_errors_listing_the_known_ones() {
     let (spec, ..) = observations("team_reach/1_ant", 1, 0);
     let mut store = ParamStore::<f32>::new();
     let mut init = nn::init_rng(0);
-    let mut err = |c: &ModelConfig, team: usize| {
+    let mut err = |c: &ModelDescription, team: usize| {
         Model::new(&mut store.scope("m", &mut init), c, &spec, team).unwrap_err().to_string()
     };
-    let e = err(&ModelConfig::new("resnet"), 0);
+    // An option a model does not take cannot be written in Rust; in a string the types
+    // reject it as they parse it, naming the model and the options it takes.
+    let msg = |s: &str| ModelDescription::parse(s).unwrap_err().to_string();
+    let e = msg("resnet");
     for kind in ModelKind::ALL {
         assert!(e.contains(kind.name()), "{e}");
     }
-    let e =
-        err(&ModelConfig { assignment: Some(AssignmentMethod::Hungarian), ..ModelConfig::new("transformer_hn") }, 0);
+    let e = msg("transformer_hn:assignment=hungarian");
     assert!(e.contains("assignment") && e.contains("transformer_hn"), "{e}");
-    let flat = ModelConfig { variant: Some(models::MlpVariant::Flat), ..ModelConfig::new("mlp") };
-    let e = err(&ModelConfig { assignment: Some(AssignmentMethod::Hungarian), ..flat }, 0);
+    let e = msg("mlp:variant=flat;assignment=hungarian");
     assert!(e.contains("assignment") && e.contains("variant"), "{e}");
-    let e = err(&ModelConfig { critic: Some(models::kind::Critic::EntityStage), ..ModelConfig::new("hnn") }, 0);
+    let e = msg("hnn:critic=shared");
     assert!(e.contains("critic"), "{e}");
-    let e = err(&ModelConfig { gravity: Some(models::GravityMode::EveryLayer), ..ModelConfig::new("shnn_so3") }, 0);
+    let e = msg("shnn_so3:gravity=every_layer");
     assert!(e.contains("gravity"), "{e}");
-    assert!(err(&ModelConfig::new("shnn"), 1).contains("team 1"));
-    assert!(err(&ModelConfig { head_hidden: Some(vec![]), ..ModelConfig::new("mlp_hn") }, 0).contains("hidden"));
-    let e = err(&ModelConfig { head_hidden: Some(vec![8]), ..ModelConfig::new("shtransformer") }, 0);
+    assert!(err(&named("shnn"), 1).contains("team 1"));
+    // Hidden widths are typed as a list: an empty one is refused when the model is built.
+    let mut empty = named("mlp_hn");
+    if let ModelDescription::Mlp(o) = &mut empty {
+        o.network = MlpNetwork::Release {
+            assignment: Default::default(),
+            hidden: HiddenWidths { head: vec![], critic: vec![8] },
+        };
+    }
+    assert!(err(&empty, 0).contains("hidden"));
+    let e = msg("shtransformer:head=8");
     assert!(e.contains("head") && e.contains("shtransformer"), "{e}");
-    let e = err(&ModelConfig { translation: Some(Translation::None), ..ModelConfig::new("transformer_hn") }, 0);
+    let e = msg("transformer_hn:translation=none");
     assert!(e.contains("translation") && e.contains("none"), "{e}");
     // Parsing.
-    let c = ModelConfig::parse(
+    let c = named(
         "shnn:assignment=hungarian;translation=root_mean;abstraction=mean;seed=4;head=32x16;neighbour=raw;\
          critic=shared;gravity=every_layer;actor_steps=2;critic_hidden=8",
-    )
-    .unwrap();
-    assert_eq!(c.assignment, Some(AssignmentMethod::Hungarian));
-    assert_eq!(c.translation, Some(Translation::RootMean));
-    assert_eq!(c.abstraction, Some(EntityAbstraction::Mean));
-    assert_eq!((c.seed, c.head_hidden.clone()), (4, Some(vec![32, 16])));
-    assert_eq!(c.neighbour, Some(models::NeighbourOffset::Raw));
-    assert_eq!(c.critic, Some(models::kind::Critic::EntityStage));
-    assert_eq!(c.gravity, Some(models::GravityMode::EveryLayer));
-    assert_eq!((c.actor_steps, c.critic_hidden.clone()), (Some(2), Some(vec![8])));
+    );
+    let ModelDescription::Shnn(o) = &c else { panic!("{c:?}") };
+    assert_eq!((o.stage.assignment.method, o.stage.assignment.seed), (AssignmentMethod::Hungarian, 4));
+    assert_eq!(o.stage.translation, Translation::RootMean);
+    assert_eq!(o.stage.abstraction, EntityAbstraction::Mean);
+    let hidden = HiddenWidths { head: vec![32, 16], critic: vec![8] };
+    assert_eq!(o.model, ShnnModel::Shnn { gravity: models::GravityMode::EveryLayer, hidden });
+    assert_eq!(o.stage.neighbour, models::NeighbourOffset::Raw);
+    assert_eq!(o.critic, ShnnCritic::Shared);
+    assert_eq!(o.stage.actor_steps, 2);
     assert!(Model::new(&mut store.scope("ok", &mut init), &c, &spec, 0).is_ok());
-    let msg = |s: &str| ModelConfig::parse(s).unwrap_err().to_string();
     let e = msg("shnn:depth=3");
     assert!(models::OPTION_KEYS.iter().all(|k| e.contains(k)), "{e}");
     assert!(msg("shnn:critic=big").contains("separate"));
@@ -411,7 +425,7 @@ fn shnn_so3_message_passing_is_equivariant_under_any_rotation_with_fixed_scalars
     let graph = GraphBuilder::new(&spec, AssignmentMethod::Greedy, 0, 0).unwrap().build(&inputs).unwrap();
     let mut r = rng(8);
     for (name, equivariant) in [("shnn_so3", true), ("shnn", false)] {
-        let (store, model) = build(&ModelConfig::new(name), &spec, 0, 2);
+        let (store, model) = build(&named(name), &spec, 0, 2);
         let mp = model.entity_stage().expect("an SHNN model has an entity stage");
         let m = mp.config.vectors;
         let stage = |z: Vec<f64>| {
@@ -434,7 +448,7 @@ fn shnn_so3_message_passing_is_equivariant_under_any_rotation_with_fixed_scalars
         }
     }
     assert!(
-        Model::new(&mut ParamStore::<f64>::new().scope("m", &mut nn::init_rng(0)), &ModelConfig::new("mlp"), &spec, 0)
+        Model::new(&mut ParamStore::<f64>::new().scope("m", &mut nn::init_rng(0)), &named("mlp"), &spec, 0)
             .unwrap()
             .entity_stage()
             .is_none()
@@ -551,7 +565,7 @@ fn parameter_counts_of_the_docs_table() {
         ("hnn_dn", hnn_entity, hnn_heads, mlp_params(&[6 * s, 256, 256, 1])),
     ];
     for (name, entity, actor, critic) in expected {
-        let (store, model) = build(&ModelConfig::parse(name).unwrap(), &spec, 0, 0);
+        let (store, model) = build(&named(name), &spec, 0, 0);
         let part = |p: &str| store.num_elements_under(&format!("team.{p}"));
         let got = (part("entity."), part("actor."), part("critic."));
         assert_eq!(got, (entity, actor, critic), "{name}: update the table in docs/MODELS.md");
@@ -590,8 +604,8 @@ fn sumo_team_1_sees_the_scene_from_its_own_side() {
     let ss = swap_nodes(&scalars, N_SCALARS, 3);
     let sh: Vec<f64> = heading.chunks(4).flat_map(|h| [h[2], h[3], h[0], h[1]]).collect();
     for name in ["shnn", "mlp_hn", "shgnn"] {
-        let (s0, mut m0) = build(&ModelConfig::new(name), &spec, 0, 6);
-        let (s1, mut m1) = build(&ModelConfig::new(name), &spec, 1, 6);
+        let (s0, mut m0) = build(&named(name), &spec, 0, 6);
+        let (s1, mut m1) = build(&named(name), &spec, 1, 6);
         assert_eq!(
             s0.values().iter().map(|t| t.to_vec()).collect::<Vec<_>>(),
             s1.values().iter().map(|t| t.to_vec()).collect::<Vec<_>>()
@@ -615,7 +629,7 @@ fn sumo_team_1_sees_the_scene_from_its_own_side() {
 #[test]
 fn release_mlp_matches_its_formula_computed_by_hand() {
     let (spec, vectors, scalars, heading) = observations("team_reach/2_ants", B, 41);
-    let (mut store, mut model) = build(&ModelConfig::new("mlp_hn"), &spec, 0, 12);
+    let (mut store, mut model) = build(&named("mlp_hn"), &spec, 0, 12);
     let mut r = rng(3);
     // Generic biases (zero biases would hide a misplaced one).
     let ids: Vec<nn::ParamId> =

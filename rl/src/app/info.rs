@@ -2,7 +2,7 @@
 //! Models": its figures are the policies'), without training anything.
 
 use envs::tasks::Scene;
-use models::{Model, ModelConfig, ParamCounts};
+use models::{Model, ModelDescription, ParamCounts};
 use nn::ParamStore;
 
 use crate::error::{Result, RlError};
@@ -12,7 +12,7 @@ use crate::error::{Result, RlError};
 pub fn param_counts(env: &str, model: &str, team: usize) -> Result<ParamCounts> {
     let spec = Scene::from_name(env).map_err(|e| RlError::config("command line", "env", env, e.to_string()))?.obs_spec;
     let config =
-        ModelConfig::parse(model).map_err(|e| RlError::config("command line", "model", model, e.to_string()))?;
+        ModelDescription::parse(model).map_err(|e| RlError::config("command line", "model", model, e.to_string()))?;
     let mut store = ParamStore::<f32>::new();
     let mut init = nn::init_rng(0);
     let built = Model::new(&mut store.scope(&format!("team{team}"), &mut init), &config, &spec, team)

@@ -111,7 +111,7 @@ pub struct TrainConfig {
     /// Environment name (`envs::tasks::BUILTIN_NAMES` or a custom composition).
     pub env: String,
     /// Model of team 0, with options: `shnn` or `shnn:assignment=hungarian;seed=3`
-    /// (`models::ModelConfig::parse`).
+    /// (`models::ModelDescription::parse`).
     pub model: String,
     /// Model of team 1 in Team Sumo (default: the same as `model`); must be empty for Reach.
     pub opponent: String,
@@ -334,9 +334,7 @@ impl TrainConfig {
                 continue;
             }
             // Parsed and resolved: an option the model does not take fails here, not at build.
-            models::ModelConfig::parse(spec)
-                .and_then(|c| c.describe())
-                .map_err(|e| RlError::config(source, field, spec, e.to_string()))?;
+            models::ModelDescription::parse(spec).map_err(|e| RlError::config(source, field, spec, e.to_string()))?;
         }
         self.validate_except_models(source)
     }

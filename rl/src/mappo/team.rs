@@ -4,7 +4,7 @@
 //! section 8, every agent and team has its own) and its minibatch-shuffling stream.
 
 use envs::layout::{ObsRows, ObsSpec};
-use models::{Model, ModelConfig, Policy, PolicyFactory};
+use models::{Model, ModelDescription, Policy, PolicyFactory};
 use nn::{Adam, AdamConfig, LrSchedule, ParamStore, Scope};
 use rand_chacha::ChaCha8Rng;
 use tensor::Device;
@@ -49,9 +49,9 @@ impl Team {
         let field = if team == 1 && !config.opponent.is_empty() { "opponent" } else { "model" };
         let spec_str = config.team_model(team);
         let bad = |e: models::ModelError| RlError::config("config", field, spec_str, e.to_string());
-        let mut mc = ModelConfig::parse(spec_str).map_err(bad)?;
+        let mut mc = ModelDescription::parse(spec_str).map_err(bad)?;
         if !spec_str.contains("seed=") {
-            mc.seed = derive_seed(config.seed, "assign", team as u64, u64::MAX);
+            mc.set_seed(derive_seed(config.seed, "assign", team as u64, u64::MAX));
         }
         Self::assemble(config, spec, team, |s| Ok(Box::new(Model::new(s, &mc, spec, team).map_err(bad)?)))
     }

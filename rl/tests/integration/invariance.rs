@@ -5,7 +5,7 @@
 //! The test can fail: the per-node normaliser it replaced breaks this for every model, and
 //! `mlp` (not invariant) changes.
 //!
-//! Only the public model interface is used (`ModelConfig::parse`, `Model::new`,
+//! Only the public model interface is used (`ModelDescription::parse`, `Model::new`,
 //! `Model::forward_batch` on `ObsRows`, `PolicyOutput`), with the raw observation arrays
 //! of a `VecEnv` in its layout (`[B, N, 3, 3]` vectors: position, velocity, angular
 //! velocity per node; `[B, N, N_SCALARS]` scalars; `[B, A]` headings).
@@ -13,7 +13,7 @@
 use envs::layout::ObsRows;
 use envs::layout::ObsSpec;
 use envs::tasks::{StartMode, VecEnv};
-use models::{Model, ModelConfig, ModelKind};
+use models::{Model, ModelDescription, ModelKind};
 use nn::ParamStore;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -130,7 +130,7 @@ fn moved(s: &Scene, angle: f64, point: [f64; 2], t: [f64; 2]) -> (Vec<f64>, Vec<
 fn build(name: &str, spec: &ObsSpec, team: usize) -> (ParamStore<f64>, Model) {
     let mut store = ParamStore::<f64>::new();
     let mut init = nn::init_rng(17);
-    let config = ModelConfig::parse(name).unwrap();
+    let config = ModelDescription::parse(name).unwrap();
     let model = Model::new(&mut store.scope(&format!("team{team}"), &mut init), &config, spec, team).unwrap();
     (store, model)
 }

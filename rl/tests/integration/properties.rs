@@ -15,7 +15,7 @@ use rl::mappo::checkpoint::Checkpoint;
 use rl::mappo::normalizer::RunningStats;
 use rl::{EntropyKind, NormStart, ObsNormKind, Preset, RunDir, TrainConfig, TrainOptions};
 
-/// Model specifications valid for every environment (options of `models::ModelConfig`).
+/// Model specifications valid for every environment (options of `models::ModelDescription::parse`).
 const MODELS: [&str; 8] = [
     "shnn",
     "mlp_hn",

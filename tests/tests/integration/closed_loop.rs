@@ -3,7 +3,7 @@
 //! Tanh-Normal actions and their log-probabilities), with every value finite.
 
 use envs::tasks::{StartMode, VecEnv};
-use models::{Model, ModelConfig};
+use models::{Model, ModelDescription};
 use nn::ParamStore;
 use rl::mappo::actor::{ActMode, Actor, JointAction};
 use rl::mappo::normalizer::{NormKind, ObsNormalizer};
@@ -20,8 +20,13 @@ fn run(env_name: &str, model: &str, batch: usize, steps: usize) -> (Vec<f64>, us
     let mut players = Vec::new();
     for t in 0..teams {
         let mut store = ParamStore::<f32>::new();
-        let m =
-            Model::new(&mut store.scope(&format!("team{t}"), &mut init), &ModelConfig::new(model), &spec, t).unwrap();
+        let m = Model::new(
+            &mut store.scope(&format!("team{t}"), &mut init),
+            &ModelDescription::parse(model).unwrap(),
+            &spec,
+            t,
+        )
+        .unwrap();
         assert!(m.num_params(&store) > 0);
         let noise = m.agents().iter().map(|&a| stream(3, "noise", t as u64, a as u64)).collect();
         players.push((m, store, Actor::new(ActMode::Sample, noise)));
@@ -83,7 +88,9 @@ fn the_value_loss_reaches_every_parameter_of_an_shnn_critic() {
     let spec = env.scene().obs_spec.clone();
     let mut store = ParamStore::<f32>::new();
     let mut init = nn::init_rng(9);
-    let mut m = Model::new(&mut store.scope("team0", &mut init), &ModelConfig::new("shnn"), &spec, 0).unwrap();
+    let mut m =
+        Model::new(&mut store.scope("team0", &mut init), &ModelDescription::new(models::ModelKind::Shnn), &spec, 0)
+            .unwrap();
     let tape = Tape::new();
     let p = store.bind(&tape);
     let out = m.forward_batch(&p, &env.obs().rows()).unwrap();
