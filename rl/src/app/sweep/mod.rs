@@ -5,7 +5,7 @@
 //!
 //! ```toml
 //! envs = ["team_reach/1_ant", "team_reach/2_ants"]
-//! models = ["shnn", "mlp_hn", "shnn:assignment=hungarian"]   # models::ModelConfig::parse syntax
+//! models = ["shnn", "mlp_hn", "shnn:assignment=hungarian"]   # models::ModelDescription::parse syntax
 //! seeds = [0, 1, 2]
 //! preset = "paper"          # optional: `paper` (default) or `quick`
 //! include_base = true       # optional: also run without any variant (default true)
