@@ -6,7 +6,7 @@
 //! places its operands ([`place`]: an op with an operand on the GPU runs there, and a host
 //! operand is uploaded first, counted in the GPU's upload statistics), then hands them to the
 //! backend ([`on_backend!`]). The gradient rules with no kernel of their own (add, sub,
-//! where, activations) are written here as arithmetic over the other ops.
+//! where, broadcast sums) are written here as arithmetic over the other ops.
 
 use std::borrow::Cow;
 use std::sync::Arc;
@@ -166,16 +166,14 @@ pub(crate) fn unary_backward<T: Float>(g: &Tensor<T>, x: &Tensor<T>, y: &Tensor<
     Ok(on_backend!(dev, B => B::unary_backward(&g, &x, &y, op)))
 }
 
-/// `g * act'` of a layer's activation, through its output `y`: `relu'(x) = [y > 0]` and
-/// `tanh'(x) = 1 - y^2` are functions of the output alone, so the unary derivative reads `y`
-/// for both of its inputs.
+/// `g * act'` of a layer's activation, through its output `y`.
 pub(crate) fn activation_backward<T: Float>(y: &Tensor<T>, g: &Tensor<T>, act: Activation) -> Result<Tensor<T>> {
-    let op = match act {
-        Activation::Identity => return Ok(g.clone()),
-        Activation::Relu => UnaryOp::Relu,
-        Activation::Tanh => UnaryOp::Tanh,
-    };
-    unary_backward(g, y, y, op)
+    if act == Activation::Identity {
+        return Ok(g.clone());
+    }
+    let dev = device_of(&[y, g]);
+    let (y, g) = (place(y, dev)?, place(g, dev)?);
+    Ok(on_backend!(dev, B => B::activation_backward(&y, &g, act)))
 }
 
 /// The gradients of a broadcasting binary op: `(dA, dB)` summed back to the operands'

@@ -25,10 +25,11 @@ pub struct Tensor<T: Float> {
 pub(crate) enum Storage<T: Float> {
     /// Host memory (the CPU device).
     Host(Arc<Buffer<T>>),
-    /// A GPU buffer of f32 values (`gpu::DeviceData`; a type without values in a build
-    /// without the feature `gpu`).
+    /// A GPU buffer of f32 values (`gpu::DeviceStorage`: a shared `DeviceData`; in a build
+    /// without the feature `gpu` a type without values, so this variant takes no space and
+    /// every match on it compiles away).
     #[allow(dead_code, reason = "constructed only by the GPU device, in builds with the feature `gpu`")]
-    Device(Arc<crate::gpu::DeviceData<T>>),
+    Device(crate::gpu::DeviceStorage<T>),
 }
 
 impl<T: Float> PartialEq for Tensor<T> {
@@ -257,6 +258,18 @@ impl<T: Float> Tensor<T> {
             (Device::Cpu, Storage::Host(_)) | (Device::Gpu, Storage::Device(_)) => Ok(self.clone()),
             (Device::Cpu, Storage::Device(d)) => Ok(Tensor::from_parts(d.download(), self.shape.clone())),
             (Device::Gpu, Storage::Host(b)) => crate::gpu::upload(&b.0, &self.shape),
+        }
+    }
+}
+
+#[cfg(test)]
+mod layout_tests {
+    /// Without the feature `gpu` the device variant takes no space: a tensor's storage is one
+    /// pointer, as it was before the GPU existed (its matches then have one arm).
+    #[test]
+    fn a_cpu_only_build_keeps_the_storage_one_pointer() {
+        if !crate::gpu::BUILT {
+            assert_eq!(std::mem::size_of::<super::Storage<f32>>(), std::mem::size_of::<usize>());
         }
     }
 }

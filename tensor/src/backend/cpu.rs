@@ -37,6 +37,10 @@ impl Backend for Cpu {
         Tensor::from_parts(elementwise::unary_backward(g.data(), x.data(), y.data(), op), g.shape().to_vec())
     }
 
+    fn activation_backward<T: Float>(y: &Tensor<T>, g: &Tensor<T>, act: Activation) -> Tensor<T> {
+        Tensor::from_parts(nnops::activation_backward(y.data(), g.data(), act), g.shape().to_vec())
+    }
+
     fn binary<T: Float>(a: &Tensor<T>, b: &Tensor<T>, _shape: &[usize], op: BinaryOp) -> Result<Tensor<T>> {
         elementwise::binary(a, b, op)
     }

@@ -12,10 +12,17 @@ use crate::tensor::Tensor;
 /// A type without values.
 pub(crate) enum Never {}
 
-/// The GPU storage of a tensor: none exists in this build.
-pub(crate) struct DeviceData<T: Float>(Never, PhantomData<T>);
+/// The GPU storage of a tensor: none exists in this build (a zero-sized type without
+/// values, so `Storage` keeps the host variant's size and its matches have one arm).
+pub(crate) struct DeviceStorage<T: Float>(Never, PhantomData<T>);
 
-impl<T: Float> DeviceData<T> {
+impl<T: Float> Clone for DeviceStorage<T> {
+    fn clone(&self) -> Self {
+        match self.0 {}
+    }
+}
+
+impl<T: Float> DeviceStorage<T> {
     /// Never called: no value of this type exists.
     pub(crate) fn download(&self) -> Vec<T> {
         match self.0 {}

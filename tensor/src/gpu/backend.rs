@@ -66,6 +66,16 @@ impl Backend for Gpu {
         out(elementwise::unary_backward(buf(g), buf(x), buf(y), op), g.shape().to_vec())
     }
 
+    fn activation_backward<T: Float>(y: &Tensor<T>, g: &Tensor<T>, act: Activation) -> Tensor<T> {
+        // The unary derivative kernel, reading the output `y` for both of its inputs.
+        let op = match act {
+            Activation::Identity => return g.clone(),
+            Activation::Relu => UnaryOp::Relu,
+            Activation::Tanh => UnaryOp::Tanh,
+        };
+        Self::unary_backward(g, y, y, op)
+    }
+
     fn binary<T: Float>(a: &Tensor<T>, b: &Tensor<T>, shape: &[usize], op: BinaryOp) -> Result<Tensor<T>> {
         check(op.name(), numel(shape))?;
         Ok(out(elementwise::binary(buf(a), a.shape(), buf(b), b.shape(), shape, op), shape.to_vec()))

@@ -24,7 +24,7 @@ pub mod timing;
 
 pub use crate::backend::AdamStep;
 pub use context::{AdapterInfo, Gpu, GpuStats, gpu};
-pub(crate) use storage::{DeviceData, upload};
+pub(crate) use storage::{DeviceStorage, upload};
 pub use timing::{KernelTimeline, OpLabel, TimelineRow};
 
 /// Whether this build has the GPU device.

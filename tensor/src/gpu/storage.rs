@@ -10,6 +10,9 @@ use crate::error::{Result, TensorError};
 use crate::shape::numel;
 use crate::tensor::{Storage, Tensor};
 
+/// The storage of a tensor on the GPU: its values, shared between tensors.
+pub(crate) type DeviceStorage<T> = Arc<DeviceData<T>>;
+
 /// A tensor's values on the GPU.
 pub(crate) struct DeviceData<T: Float> {
     /// The values on the device.
