@@ -177,7 +177,7 @@ impl Adam {
             return Ok(());
         }
         let all: Vec<Tensor<f32>> = self.device_m.iter().chain(&self.device_v).cloned().collect();
-        let host = tensor::to_device_all(&all, Device::Cpu)?;
+        let host = tensor::to_host_all(&all)?;
         let (m, v) = host.split_at(self.device_m.len());
         for (dst, src) in self.m.iter_mut().zip(m).chain(self.v.iter_mut().zip(v)) {
             *dst = src.data().iter().map(|&x| x as f64).collect();

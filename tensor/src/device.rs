@@ -31,6 +31,16 @@ impl Device {
         }
     }
 
+    /// A description of the device's adapter (`None` for the host, which needs none); an
+    /// error saying what was looked for and how to get one when the device is missing (no
+    /// adapter, or a build without it).
+    pub fn adapter(self) -> crate::error::Result<Option<String>> {
+        match self {
+            Device::Cpu => Ok(None),
+            Device::Gpu => crate::gpu::adapter_description().map(Some),
+        }
+    }
+
     /// Waits until every kernel queued on this device has finished (nothing to wait for on
     /// the CPU, whose kernels finish before they return). Profiles time GPU ops with it.
     pub fn synchronize(self) {

@@ -51,4 +51,4 @@ pub use flops::FlopCount;
 pub use op::{Activation, BinaryOp, ReduceOp, UnaryOp};
 pub use tape::{Gradients, NoGradGuard, Tape, Var};
 pub use tensor::Tensor;
-pub use tensor_ops::{adam_update, device_of_all, first_non_finite, to_device_all};
+pub use tensor_ops::{adam_update, device_of_all, first_non_finite, to_device_all, to_host_all};

@@ -93,3 +93,9 @@ pub fn to_device_all<T: Float>(ts: &[Tensor<T>], device: crate::device::Device) 
     }
     Ok(out)
 }
+
+/// The tensors `ts` on the host, every one on another device in one transfer
+/// ([`to_device_all`] to the CPU).
+pub fn to_host_all<T: Float>(ts: &[Tensor<T>]) -> Result<Vec<Tensor<T>>> {
+    to_device_all(ts, crate::device::Device::Cpu)
+}

@@ -28,25 +28,15 @@ use crate::error::Result;
 /// description for the GPU (`None` for the CPU). The errors say what to do: rebuild with the
 /// feature, or (from `tensor`) what adapter was looked for and how to get one.
 pub fn check_device(device: Device) -> Result<Option<String>> {
-    match device {
-        Device::Cpu => Ok(None),
-        Device::Gpu => gpu_adapter(),
+    if !device.is_built() {
+        return Err(crate::error::RlError::config(
+            "config",
+            "device",
+            device.name(),
+            "this build has no GPU device: rebuild with --features gpu (cargo build --release -p rl --features gpu)",
+        ));
     }
-}
-
-#[cfg(feature = "gpu")]
-fn gpu_adapter() -> Result<Option<String>> {
-    Ok(Some(tensor::gpu::gpu()?.adapter().to_string()))
-}
-
-#[cfg(not(feature = "gpu"))]
-fn gpu_adapter() -> Result<Option<String>> {
-    Err(crate::error::RlError::config(
-        "config",
-        "device",
-        "gpu",
-        "this build has no GPU device: rebuild with --features gpu (cargo build --release -p rl --features gpu)",
-    ))
+    Ok(device.adapter()?)
 }
 
 /// Where a training's act step runs (`act_device`): the policy's forward pass of every
@@ -113,9 +103,11 @@ mod tests {
         assert_eq!(check_device(Device::Cpu).unwrap(), None);
     }
 
-    #[cfg(not(feature = "gpu"))]
     #[test]
     fn a_build_without_the_feature_says_how_to_get_the_gpu() {
+        if Device::Gpu.is_built() {
+            return;
+        }
         let e = check_device(Device::Gpu).unwrap_err().to_string();
         assert!(e.contains("device") && e.contains("rebuild with --features gpu"), "{e}");
     }

@@ -46,6 +46,14 @@ pub(crate) mod backend {
 /// Whether this build has the GPU device.
 pub(crate) const BUILT: bool = false;
 
+/// No adapter: an error saying how to get the device.
+pub(crate) fn adapter_description() -> Result<String> {
+    Err(TensorError::Device {
+        op: "gpu",
+        detail: "this build has no GPU device: rebuild with the cargo feature `gpu`".into(),
+    })
+}
+
 /// Nothing to wait for.
 pub(crate) fn synchronize() {}
 

@@ -30,6 +30,11 @@ pub use timing::{KernelTimeline, OpLabel, TimelineRow};
 /// Whether this build has the GPU device.
 pub(crate) const BUILT: bool = true;
 
+/// The process's GPU adapter, described (starting the device if needed).
+pub(crate) fn adapter_description() -> crate::error::Result<String> {
+    Ok(gpu()?.adapter().to_string())
+}
+
 /// Waits for every queued kernel, if the device was started (nothing to wait for otherwise).
 pub(crate) fn synchronize() {
     if let Ok(gpu) = gpu() {
