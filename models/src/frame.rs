@@ -90,11 +90,15 @@ pub fn lrf<'t, T: Float>(
     neighbours: Option<&NeighbourRows<T>>,
     frame: &AgentFrame<'t, T>,
 ) -> Result<LocalObservation<'t, T>> {
-    let (mut z, mut h) = (tape.constant(body.z.clone()), tape.constant(body.h.clone()));
-    if let Some(nr) = neighbours {
-        z = tape.cat(&[z, tape.constant(nr.z.clone())], 1)?;
-        h = tape.cat(&[h, tape.constant(nr.h.clone())], 1)?;
-    }
+    // The agent's rows, then its neighbours', joined before they are placed on the tape.
+    let join = |own: &Tensor<T>, theirs: Option<&Tensor<T>>| -> Result<Tensor<T>> {
+        Ok(match theirs {
+            Some(theirs) => Tensor::cat(&[own, theirs], 1)?,
+            None => own.clone(),
+        })
+    };
+    let z = join(&body.z, neighbours.map(|nr| &nr.z))?;
+    let h = tape.constant(join(&body.h, neighbours.map(|nr| &nr.h))?);
     let (nb, rows) = (z.shape()[0], z.shape()[1]);
     let z = match frame {
         AgentFrame::Learned(o) => {
@@ -103,19 +107,16 @@ pub fn lrf<'t, T: Float>(
             }
             // O_i of each scene for every row of that scene.
             let per_row: Vec<usize> = (0..nb).flat_map(|b| std::iter::repeat_n(b, rows)).collect();
-            let local = to_frame(o.index_select(0, &per_row)?, z.reshape(&[nb * rows, 3, NODE_VECTORS])?)?;
+            let z = tape.constant(z.reshape(&[nb * rows, 3, NODE_VECTORS])?);
+            let local = to_frame(o.index_select(0, &per_row)?, z)?;
             local.reshape(&[nb, rows, o.shape()[2], NODE_VECTORS])?
         }
         AgentFrame::Horizontal(frames) => {
             if frames.len() != nb {
                 return Err(ModelError::Input(format!("{} frames for {nb} scenes", frames.len())));
             }
-            // The host rows rotated in f64, then placed once (the tape's device).
-            let host_z = match neighbours {
-                Some(nr) => Tensor::cat(&[&body.z, &nr.z], 1)?,
-                None => body.z.clone(),
-            };
-            tape.constant(to_horizontal_frame(&host_z, rows, frames)?)
+            // The rows rotated in f64, then placed once (the tape's device).
+            tape.constant(to_horizontal_frame(&z, rows, frames)?)
         }
     };
     debug_assert_eq!(h.shape(), [nb, rows, N_SCALARS]);

@@ -150,7 +150,7 @@ impl Adam {
     /// first step there). To the host: the placed moments are copied back
     /// ([`Adam::sync_to_host`]) and dropped.
     pub fn to_device(&mut self, device: Device) -> Result<()> {
-        if device == self.device() && (device == Device::Cpu) == self.device_m.is_empty() {
+        if device == self.device() {
             return Ok(());
         }
         self.sync_to_host()?;
@@ -293,8 +293,7 @@ impl Adam {
         let (b1, b2, eps) = (self.config.beta1, self.config.beta2, self.config.eps);
         let c1 = 1.0 / (1.0 - b1.powi(t));
         let c2 = 1.0 / (1.0 - b2.powi(t));
-        let operands: Vec<Tensor<T>> = store.values().iter().chain(grads).cloned().collect();
-        let device = tensor::device_of_all(&operands);
+        let device = tensor::device_of_all(store.values().iter().chain(grads));
         if device != Device::Cpu {
             let step = AdamStep { lr, beta1: b1, beta2: b2, c1, c2, eps, clip };
             return self.step_on_device(store, grads, device, step);

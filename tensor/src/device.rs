@@ -184,10 +184,8 @@ impl GpuConfig {
     pub fn from_bench_env() -> Result<GpuConfig, String> {
         let mut config = GpuConfig::default();
         if let Ok(v) = std::env::var("TENSOR_GPU_MATMUL_TILE") {
-            let rows =
-                v.trim().parse::<usize>().map_err(|_| format!("TENSOR_GPU_MATMUL_TILE={v:?} is neither 64 nor 128"))?;
-            config.matmul_tile = MatMulTile::from_rows(rows)
-                .map_err(|_| format!("TENSOR_GPU_MATMUL_TILE={v:?} is neither 64 nor 128"))?;
+            let tile = v.trim().parse::<usize>().ok().and_then(|rows| MatMulTile::from_rows(rows).ok());
+            config.matmul_tile = tile.ok_or_else(|| format!("TENSOR_GPU_MATMUL_TILE={v:?} is neither 64 nor 128"))?;
         }
         if let Ok(v) = std::env::var("TENSOR_GPU_REDUCE_LANES") {
             let bad =

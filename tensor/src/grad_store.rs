@@ -8,11 +8,9 @@
 //! backend's ([`Backend`]); this file only decides where each runs: on the GPU when the
 //! node's buffer or an operand is there (the others placed there first), else on the CPU.
 
-use std::borrow::Cow;
-
 use crate::backend::{Backend, Slot, on_backend};
 use crate::device::Device;
-use crate::dispatch::place;
+use crate::dispatch::{device_of, place};
 use crate::element::Float;
 use crate::error::Result;
 use crate::kernels::matmul;
@@ -31,15 +29,12 @@ pub(crate) struct GradStore<T: Float> {
 }
 
 /// Where an accumulation into `slot` with these operands runs: the GPU if the slot or an
-/// operand is there.
+/// operand is there (`dispatch::device_of`'s rule).
 fn device_for<T: Float>(slot: &Slot<T>, operands: &[&Tensor<T>]) -> Device {
-    let on_gpu = |t: &Tensor<T>| t.device() == Device::Gpu;
-    if slot.as_ref().is_some_and(on_gpu) || operands.iter().any(|t| on_gpu(t)) { Device::Gpu } else { Device::Cpu }
-}
-
-/// `t` on `device` (a borrow when it is there).
-fn at<T: Float>(t: &Tensor<T>, device: Device) -> Result<Cow<'_, Tensor<T>>> {
-    place(t, device)
+    match slot {
+        Some(held) if held.device() == Device::Gpu => Device::Gpu,
+        _ => device_of(operands),
+    }
 }
 
 impl<T: Float> GradStore<T> {
@@ -60,13 +55,10 @@ impl<T: Float> GradStore<T> {
     pub(crate) fn add(&mut self, id: NodeId, t: Tensor<T>) -> Result<()> {
         let slot = &mut self.grads[id];
         let dev = device_for(slot, &[&t]);
-        // Moved only where they are elsewhere (taken, not cloned, where they are there: a
-        // buffer no other tensor holds stays writable in place).
-        let moved = |x: Tensor<T>| if x.device() == dev { Ok(x) } else { x.to_device(dev) };
         if let Some(held) = slot.take() {
-            *slot = Some(moved(held)?);
+            *slot = Some(held.into_device(dev)?);
         }
-        let t = moved(t)?;
+        let t = t.into_device(dev)?;
         on_backend!(dev, B => B::accumulate(slot, t));
         Ok(())
     }
@@ -120,7 +112,7 @@ impl<T: Float> GradStore<T> {
     ) -> Result<()> {
         let slot = &mut self.grads[target];
         let dev = device_for(slot, &[l, r]);
-        let (l, r) = (at(l, dev)?, at(r, dev)?);
+        let (l, r) = (place(l, dev)?, place(r, dev)?);
         on_backend!(dev, B => B::product_into(slot, len, (&l, tl), (&r, block, tr), plan))
     }
 
@@ -137,7 +129,7 @@ impl<T: Float> GradStore<T> {
     ) -> Result<()> {
         let slot = &mut self.grads[target];
         let dev = device_for(slot, &[l, r]);
-        let (l, r) = (at(l, dev)?, at(r, dev)?);
+        let (l, r) = (place(l, dev)?, place(r, dev)?);
         on_backend!(dev, B => B::product_into_block(slot, target_len, block, (&l, tl), (&r, tr), plan))
     }
 
@@ -181,7 +173,7 @@ impl<T: Float> GradStore<T> {
     ) -> Result<()> {
         let slot = &mut self.grads[x];
         let dev = device_for(slot, &[g]);
-        let g = at(g, dev)?;
+        let g = place(g, dev)?;
         on_backend!(dev, B => B::narrow_backward_into(slot, x_shape, &g, axis, start))
     }
 
@@ -198,7 +190,7 @@ impl<T: Float> GradStore<T> {
     ) -> Result<()> {
         let slot = &mut self.grads[x];
         let dev = device_for(slot, &[g]);
-        let g = at(g, dev)?;
+        let g = place(g, dev)?;
         on_backend!(dev, B => B::cat_part_into(slot, len_x, &g, axis, start, len))
     }
 
@@ -213,7 +205,7 @@ impl<T: Float> GradStore<T> {
     ) -> Result<()> {
         let slot = &mut self.grads[x];
         let dev = device_for(slot, &[g]);
-        let g = at(g, dev)?;
+        let g = place(g, dev)?;
         on_backend!(dev, B => B::index_add_into(slot, split, &g, idx))
     }
 
@@ -228,7 +220,7 @@ impl<T: Float> GradStore<T> {
     ) -> Result<()> {
         let slot = &mut self.grads[x];
         let dev = device_for(slot, &[g]);
-        let g = at(g, dev)?;
+        let g = place(g, dev)?;
         on_backend!(dev, B => B::gather_backward_into(slot, x_shape, axis, &g, idx))
     }
 

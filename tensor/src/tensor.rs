@@ -157,8 +157,10 @@ impl<T: Float> Tensor<T> {
     /// Mutable access to the elements of a tensor on the host (copies first if the storage
     /// is shared); a tensor on another device panics, as [`Tensor::data`] does.
     pub fn data_mut(&mut self) -> &mut [T] {
-        let why = self.not_on_host("data_mut");
-        self.host_data_mut().unwrap_or_else(|| panic!("{why}"))
+        if self.device() != Device::Cpu {
+            panic!("{}", self.not_on_host("data_mut"));
+        }
+        self.host_data_mut().expect("on the host")
     }
 
     /// The message of a host-only access to a tensor on another device.
@@ -224,7 +226,10 @@ impl<T: Float> Tensor<T> {
 
     /// Whether every element is finite (on the GPU, checked there: one value comes back).
     pub fn all_finite(&self) -> bool {
-        crate::tensor_ops::first_non_finite(std::slice::from_ref(self)).map(|i| i.is_none()).unwrap_or(false)
+        match self.host_data() {
+            Some(values) => values.iter().all(|v| v.is_finite()),
+            None => crate::tensor_ops::first_non_finite(std::slice::from_ref(self)).is_ok_and(|i| i.is_none()),
+        }
     }
 
     /// Whether both tensors have the same shape and every element differs by at most
@@ -248,6 +253,12 @@ impl<T: Float> Tensor<T> {
             },
             Storage::Device(d) => d.download(),
         }
+    }
+
+    /// [`Tensor::to_device`] of a tensor the caller gives up: itself when it is already there
+    /// (not a clone, so storage no other tensor holds stays writable in place).
+    pub fn into_device(self, device: Device) -> Result<Tensor<T>> {
+        if self.device() == device { Ok(self) } else { self.to_device(device) }
     }
 
     /// The same tensor on `device` (no copy when it is already there). Moving to the GPU

@@ -3,7 +3,7 @@
 //! Adam's step), so that parameters and gradients on the GPU stay there.
 
 use crate::backend::{AdamStep, Backend, on_backend};
-use crate::dispatch::{device_of, place};
+use crate::dispatch::place;
 use crate::element::Float;
 use crate::error::Result;
 use crate::op::UnaryOp;
@@ -42,7 +42,10 @@ impl<T: Float> Tensor<T> {
 /// tensor is checked there, one launch each, and only their flags come back (one transfer
 /// for all of them; a host tensor in the list is uploaded first).
 pub fn first_non_finite<T: Float>(ts: &[Tensor<T>]) -> Result<Option<usize>> {
-    let dev = device_of(&ts.iter().collect::<Vec<_>>());
+    let dev = device_of_all(ts);
+    if ts.iter().all(|t| t.device() == dev) {
+        return on_backend!(dev, B => B::first_non_finite(ts));
+    }
     let placed: Vec<Tensor<T>> = ts.iter().map(|t| Ok(place(t, dev)?.into_owned())).collect::<Result<_>>()?;
     on_backend!(dev, B => B::first_non_finite(&placed))
 }
@@ -70,8 +73,9 @@ pub fn adam_update<T: Float>(
 
 /// The device ops over `ts` run on: the GPU if any of them is there, else the CPU (also for
 /// none).
-pub fn device_of_all<T: Float>(ts: &[Tensor<T>]) -> crate::device::Device {
-    device_of(&ts.iter().collect::<Vec<_>>())
+pub fn device_of_all<'a, T: Float>(ts: impl IntoIterator<Item = &'a Tensor<T>>) -> crate::device::Device {
+    use crate::device::Device;
+    if ts.into_iter().any(|t| t.device() == Device::Gpu) { Device::Gpu } else { Device::Cpu }
 }
 
 /// The tensors `ts` on `device`: to the host, every tensor on another device comes back in

@@ -268,12 +268,22 @@ impl TrainConfig {
         table
     }
 
-    /// The GPU's kernel choices this configuration asks for (checked by `validate`; an
-    /// unchecked value falls back to the default).
-    pub fn gpu_config(&self) -> tensor::GpuConfig {
-        let default = tensor::GpuConfig::default();
-        let matmul_tile = tensor::MatMulTile::from_rows(self.gpu_matmul_tile).unwrap_or(default.matmul_tile);
-        tensor::GpuConfig { matmul_tile, reduce_lanes: self.gpu_reduce_lanes }
+    /// The GPU's kernel choices this configuration asks for; an error naming `source`, the
+    /// field and the value when one is out of range.
+    pub fn gpu_config(&self, source: &str) -> Result<tensor::GpuConfig> {
+        let matmul_tile = tensor::MatMulTile::from_rows(self.gpu_matmul_tile).map_err(|_| {
+            RlError::config(source, "gpu_matmul_tile", self.gpu_matmul_tile.to_string(), "must be 64 or 128")
+        })?;
+        let config = tensor::GpuConfig { matmul_tile, reduce_lanes: self.gpu_reduce_lanes };
+        config.validate().map_err(|_| {
+            RlError::config(
+                source,
+                "gpu_reduce_lanes",
+                self.gpu_reduce_lanes.to_string(),
+                "must be a power of two from 1 to 256",
+            )
+        })?;
+        Ok(config)
     }
 
     /// The configuration as TOML.
@@ -350,17 +360,7 @@ impl TrainConfig {
         if !self.opponent.is_empty() && !self.is_sumo() {
             return err("opponent", &self.opponent, "only Team Sumo has a second team");
         }
-        let tile = tensor::MatMulTile::from_rows(self.gpu_matmul_tile).map_err(|_| {
-            RlError::config(source, "gpu_matmul_tile", self.gpu_matmul_tile.to_string(), "must be 64 or 128")
-        })?;
-        tensor::GpuConfig { matmul_tile: tile, reduce_lanes: self.gpu_reduce_lanes }.validate().map_err(|_| {
-            RlError::config(
-                source,
-                "gpu_reduce_lanes",
-                self.gpu_reduce_lanes.to_string(),
-                "must be a power of two from 1 to 256",
-            )
-        })?;
+        self.gpu_config(source)?;
         if self.fixed_start && self.train_starts != TrainStarts::Fresh {
             return err(
                 "train_starts",

@@ -288,8 +288,9 @@ fn statistics(
     hp: &PpoParams,
 ) -> Result<LossStats> {
     // Every term on the host in one transfer (none where they are there already).
-    let terms = [ratio, t.logp, t.logp_old, t.advantages, t.value_target, t.value, total, policy_loss, value_loss];
-    let all: Vec<Tensor<f32>> = terms.iter().chain([&t.entropy]).map(|x| x.value()).collect();
+    let terms =
+        [ratio, t.logp, t.logp_old, t.advantages, t.value_target, t.value, total, policy_loss, value_loss, t.entropy];
+    let all: Vec<Tensor<f32>> = terms.iter().map(|x| x.value()).collect();
     let host = tensor::to_host_all(&all)?;
     let f64s = |x: &Tensor<f32>| x.data().iter().map(|&v| v as f64).collect::<Vec<f64>>();
     let (ratio, logp, logp_old) = (f64s(&host[0]), f64s(&host[1]), f64s(&host[2]));

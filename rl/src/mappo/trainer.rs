@@ -224,9 +224,8 @@ impl Trainer {
 
     fn build(config: &TrainConfig, factory: Option<&dyn PolicyFactory>) -> Result<Trainer> {
         check_device(config.device)?;
-        // The GPU's kernel choices of this configuration (checked by `validate`).
-        tensor::configure_gpu(config.gpu_config())
-            .map_err(|e| RlError::config("config", "gpu_reduce_lanes", config.gpu_reduce_lanes.to_string(), e))?;
+        // The GPU's kernel choices of this configuration.
+        tensor::configure_gpu(config.gpu_config("config")?).expect("checked by gpu_config");
         let spec = TaskSpec::from_name(&config.env)?;
         let env_seed = derive_seed(config.seed, "envs", 0, 0);
         let mut env = VecEnv::new(&spec, config.num_envs, env_seed, config.train_start_mode())?;

@@ -144,7 +144,7 @@ fn the_gpu_kernel_choices_are_typed_settings_of_the_configuration() {
         let e = set(k, v).unwrap_err().to_string();
         assert!(e.contains(k) && e.contains(v), "{e} (missing {k} or {v})");
     }
-    let typed = set("gpu_reduce_lanes", "1").unwrap().gpu_config();
+    let typed = set("gpu_reduce_lanes", "1").unwrap().gpu_config("test").unwrap();
     assert_eq!(typed, tensor::GpuConfig { matmul_tile: tensor::MatMulTile::Rows64, reduce_lanes: 1 });
     // Handed to the device by the trainer, and resumable under other values. (Only the tile
     // is changed here: it gives the same bits, so the process's GPU tests running beside this

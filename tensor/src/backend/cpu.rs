@@ -41,8 +41,10 @@ impl Backend for Cpu {
         Tensor::from_parts(nnops::activation_backward(y.data(), g.data(), act), g.shape().to_vec())
     }
 
-    fn binary<T: Float>(a: &Tensor<T>, b: &Tensor<T>, _shape: &[usize], op: BinaryOp) -> Result<Tensor<T>> {
-        elementwise::binary(a, b, op)
+    fn binary<T: Float>(a: &Tensor<T>, b: &Tensor<T>, shape: &[usize], op: BinaryOp) -> Result<Tensor<T>> {
+        let out =
+            elementwise::binary_into_shape(a.data(), a.shape(), b.data(), b.shape(), shape, |x, y| op.apply(x, y));
+        Ok(Tensor::from_parts(out, shape.to_vec()))
     }
 
     fn binary_backward<T: Float>(

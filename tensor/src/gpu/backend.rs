@@ -47,9 +47,7 @@ fn last<T: Float>(x: &Tensor<T>) -> usize {
 fn slot_buffer<T: Float>(slot: &mut Slot<T>, len: usize, zeroed: bool) -> Result<(&DeviceBuffer, bool)> {
     let existed = slot.is_some();
     let placed = match slot.take() {
-        // Taken, not cloned: a buffer no other tensor holds is written in place.
-        Some(t) if t.device() == Device::Gpu => t.into_device_buffer(),
-        Some(t) => t.to_device(Device::Gpu)?.into_device_buffer(),
+        Some(t) => t.into_device(Device::Gpu)?.into_device_buffer(),
         None if zeroed => DeviceBuffer::zeros(len),
         None => DeviceBuffer::uninit(len),
     };
@@ -441,7 +439,7 @@ impl Backend for Gpu {
         step: AdamStep,
     ) -> Result<(Tensor<T>, Tensor<f32>, Tensor<f32>)> {
         let shape = p.shape().to_vec();
-        let (p1, m1, v1) = optim::adam(buf(p), buf(g), m.device_buffer().expect("on the GPU"), buf(v), step);
+        let (p1, m1, v1) = optim::adam(buf(p), buf(g), buf(m), buf(v), step);
         Ok((out(p1, shape.clone()), out(m1, shape.clone()), out(v1, shape)))
     }
 }

@@ -21,7 +21,7 @@ pub const MAX_SWEEP_BYTES: u64 = 64 << 20;
 pub struct SweepFile {
     /// Environment names.
     pub envs: Vec<String>,
-    /// Model specifications (`models::ModelConfig::parse` syntax).
+    /// Model specifications (`models::ModelDescription::parse` syntax).
     pub models: Vec<String>,
     /// Seeds.
     pub seeds: Vec<u64>,
