@@ -21,7 +21,7 @@
 //! message passing is subequivariant, so the value is invariant.
 
 use nn::{Aggregation, Bound, EdgeDistance, EdgeList, Mlp, Scope, TransformerConfig};
-use tensor::{Activation, Device, Float, Tape, Tensor, Var};
+use tensor::{Activation, Float, Tape, Tensor, Var};
 
 use crate::config::{GravityMode, MpSizes, layer_sizes};
 use crate::description::ValueNet;
@@ -196,20 +196,20 @@ impl SubeqCritic {
         self.head.forward(p, f.h.index_select(0, &rows)?.reshape(&[nb, ne, s])?)
     }
 
-    /// [`SubeqCritic::edge_scalars`] as a constant of `tape`. On a GPU tape the host computes only
-    /// `10 d`, the two flags and the edge types of each edge (5 values where the features
-    /// are 66), and the 62 Gaussians of [`release_rbf`] are computed on the device, in f32:
-    /// the features of every edge of a paper-size minibatch were its largest upload (about
-    /// 40 MB; docs/PERFORMANCE_LOG.md, "On a GPU"). The CPU keeps the host path, bit for bit.
+    /// Radial-basis features and edge types of every edge, `[E, RBF_FEATURES + EDGE_TYPES]`,
+    /// as a constant of `tape`: each row is [`release_rbf`] of the edge's length followed by
+    /// its edge type. The host computes `10 d`, the two flags and the edge type of each edge
+    /// (5 values where the row has 66); the 62 Gaussians are the tape's
+    /// [`Tape::gaussian_basis`], computed where the tape is: in f64 on the CPU, bit for bit
+    /// [`release_rbf`]'s, and in f32 on a GPU, which then uploads 5 values an edge instead of
+    /// 66 (the features of every edge of a paper-size minibatch were its largest upload,
+    /// about 40 MB; docs/PERFORMANCE_LOG.md, "On a GPU").
     fn edge_scalars_on<'t, T: Float>(
         &self,
         tape: &'t Tape<T>,
         inputs: &EntityInputs<T>,
         edges: &EdgeList,
     ) -> Result<Var<'t, T>> {
-        if tape.device() == Device::Cpu {
-            return Ok(tape.constant(self.edge_scalars(inputs, edges)?));
-        }
         self.check_entities(inputs.entities)?;
         let (n_edges, ne) = (edges.len(), inputs.entities);
         let (gaussians, (start, stop), spacing, coeff) = rbf_parameters();
@@ -217,14 +217,13 @@ impl SubeqCritic {
             (Vec::with_capacity(n_edges), Vec::with_capacity(2 * n_edges), Vec::with_capacity(2 * n_edges));
         for (&i, &j) in edges.src.iter().zip(&edges.dst) {
             let xd = 10.0 * distance(inputs.positions[i], inputs.positions[j]);
-            x.push(T::from_f64(xd));
+            x.push(xd);
             flags.extend([xd < start, xd >= stop].map(flag::<T>));
             types.extend(self.edge_type::<T>(i, j, ne));
         }
-        let centres: Vec<T> = (0..gaussians).map(|k| T::from_f64(start + spacing * k as f64)).collect();
+        let centres: Vec<f64> = (0..gaussians).map(|k| start + spacing * k as f64).collect();
         let flags = tape.constant(Tensor::new(flags, &[n_edges, 2])?);
-        let x = tape.constant(Tensor::new(x, &[n_edges, 1])?);
-        let gauss = x.sub(tape.constant(Tensor::new(centres, &[1, gaussians])?))?.square().scale(coeff).exp();
+        let gauss = tape.gaussian_basis(&x, &centres, coeff)?;
         Ok(tape.cat(
             &[flags.narrow(1, 0, 1)?, gauss, flags.narrow(1, 1, 1)?, tape.constant(Tensor::new(types, &[n_edges, 2])?)],
             1,
@@ -245,17 +244,26 @@ impl SubeqCritic {
         }
         Ok(())
     }
+}
 
-    /// Radial-basis features and edge types of every edge `[E, RBF_FEATURES + EDGE_TYPES]`.
-    fn edge_scalars<T: Float>(&self, inputs: &EntityInputs<T>, edges: &EdgeList) -> Result<Tensor<T>> {
-        let ne = inputs.entities;
-        self.check_entities(ne)?;
-        let width = RBF_FEATURES + EDGE_TYPES;
-        let mut out = tensor::pool::with_capacity(edges.len() * width);
-        for (&i, &j) in edges.src.iter().zip(&edges.dst) {
-            out.extend(release_rbf(distance(inputs.positions[i], inputs.positions[j])).map(T::from_f64));
-            out.extend(self.edge_type::<T>(i, j, ne));
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The critic's edge features as the tape builds them (`10 d` and the flags on the host,
+    /// the Gaussians from [`Tape::gaussian_basis`]) are [`release_rbf`]'s, bit for bit on the
+    /// CPU, at lengths inside, at the ends of and outside the centres' span.
+    #[test]
+    fn the_tapes_gaussians_are_the_release_features_bit_for_bit() {
+        let (gaussians, (start, _), spacing, coeff) = rbf_parameters();
+        let centres: Vec<f64> = (0..gaussians).map(|k| start + spacing * k as f64).collect();
+        let lengths = [0.0, 1e-3, 0.37, 1.0, 1.9999, 2.0, 3.5];
+        let x: Vec<f64> = lengths.iter().map(|d| 10.0 * d).collect();
+        let tape = Tape::<f32>::new();
+        let basis = tape.gaussian_basis(&x, &centres, coeff).unwrap().value();
+        for (row, &d) in basis.data().chunks(gaussians).zip(&lengths) {
+            let want: Vec<f32> = release_rbf(d)[1..=gaussians].iter().map(|&v| v as f32).collect();
+            assert_eq!(row, &want[..], "length {d}");
         }
-        Ok(Tensor::new(out, &[edges.len(), width])?)
     }
 }

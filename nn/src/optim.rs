@@ -156,7 +156,7 @@ impl Adam {
         self.sync_to_host()?;
         self.device_m.clear();
         self.device_v.clear();
-        if device != Device::Cpu {
+        if !device.is_host() {
             let place = |bufs: &[Vec<f64>]| -> Result<Vec<Tensor<f32>>> {
                 bufs.iter()
                     .map(|b| Ok(Tensor::new(b.iter().map(|&x| x as f32).collect(), &[b.len()])?.to_device(device)?))
@@ -294,12 +294,12 @@ impl Adam {
         let c1 = 1.0 / (1.0 - b1.powi(t));
         let c2 = 1.0 / (1.0 - b2.powi(t));
         let device = tensor::device_of_all(store.values().iter().chain(grads));
-        if device != Device::Cpu {
+        if !device.is_host() {
             let step = AdamStep { lr, beta1: b1, beta2: b2, c1, c2, eps, clip };
             return self.step_on_device(store, grads, device, step);
         }
         // The moments may have been last updated on another device.
-        self.to_device(Device::Cpu)?;
+        self.to_device(device)?;
         let bounds = clip.map(|limit| (T::from_f64(-limit), T::from_f64(limit)));
         let values = store.values_mut();
         values.par_iter_mut().zip(grads.par_iter()).zip(self.m.par_iter_mut().zip(self.v.par_iter_mut())).for_each(

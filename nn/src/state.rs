@@ -34,17 +34,20 @@ impl StateDict {
     /// Current format version.
     pub const VERSION: u32 = 1;
 
-    /// Snapshot of a store.
-    pub fn from_store<T: Float>(store: &ParamStore<T>) -> Self {
+    /// Snapshot of a store, on the host: values on another device come back in one
+    /// transfer (`tensor::to_host_all`); an error if that transfer fails.
+    pub fn from_store<T: Float>(store: &ParamStore<T>) -> Result<Self> {
+        let host = tensor::to_host_all(store.values())?;
         let tensors = store
             .iter()
-            .map(|(name, v)| SavedTensor {
+            .zip(&host)
+            .map(|((name, _), v)| SavedTensor {
                 name: name.to_string(),
                 shape: v.shape().to_vec(),
                 data: v.data().iter().map(|x| x.to_f64()).collect(),
             })
             .collect();
-        Self { version: Self::VERSION, tensors }
+        Ok(Self { version: Self::VERSION, tensors })
     }
 
     /// Copies the saved values into `store`. Every parameter of the store must be present

@@ -23,6 +23,11 @@ impl Device {
         }
     }
 
+    /// Whether this is the host (the CPU), whose tensors are plain memory.
+    pub fn is_host(self) -> bool {
+        self == Device::Cpu
+    }
+
     /// Whether this build has the device (the CPU always; the GPU with the feature `gpu`).
     pub fn is_built(self) -> bool {
         match self {

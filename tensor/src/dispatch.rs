@@ -3,12 +3,11 @@
 //!
 //! The forward methods in `var_ops.rs` and the gradient rules in `backprop.rs` call these
 //! functions and never a device directly. Each checks what it can check without the values,
-//! places its operands ([`place`]: an op with an operand on the GPU runs there, and a host
-//! operand is uploaded first, counted in the GPU's upload statistics), then hands them to the
-//! backend ([`on_backend!`]). The gradient rules with no kernel of their own (add, sub,
+//! checks that its operands share a device ([`require_on`]: no op moves a tensor; operands
+//! on two devices are an error naming both), then hands them to that device's backend
+//! ([`on_backend!`]). The gradient rules with no kernel of their own (add, sub,
 //! where, broadcast sums) are written here as arithmetic over the other ops.
 
-use std::borrow::Cow;
 use std::sync::Arc;
 
 use crate::backend::{Backend, GradPair, on_backend};
@@ -27,9 +26,23 @@ pub(crate) fn device_of<T: Float>(xs: &[&Tensor<T>]) -> Device {
     if xs.iter().any(|x| x.device() == Device::Gpu) { Device::Gpu } else { Device::Cpu }
 }
 
-/// `x` on `device`: borrowed when it is there, else moved (an upload or a download).
-pub(crate) fn place<T: Float>(x: &Tensor<T>, device: Device) -> Result<Cow<'_, Tensor<T>>> {
-    if x.device() == device { Ok(Cow::Borrowed(x)) } else { Ok(Cow::Owned(x.to_device(device)?)) }
+/// `x` itself where it is on `device`, the device its op runs on; an error naming both
+/// devices where it is not. No op moves an operand: a tensor changes device only where the
+/// caller says so (`Tensor::to_device`, `Tensor::to_host`, `to_device_all`, or a leaf
+/// recorded on a `Tape::on(device)`).
+pub(crate) fn require_on<T: Float>(x: &Tensor<T>, device: Device) -> Result<&Tensor<T>> {
+    if x.device() == device {
+        return Ok(x);
+    }
+    Err(crate::error::invalid(
+        "operands",
+        format!(
+            "one is on the {} and another on the {}; tensors move between devices only when asked \
+             (`Tensor::to_device`, `to_host`, or leaves recorded on a `Tape::on(device)`)",
+            x.device().name(),
+            device.name()
+        ),
+    ))
 }
 
 // ---------------------------------------------------------------------------------------
@@ -45,8 +58,8 @@ pub(crate) fn binary<T: Float>(a: &Tensor<T>, b: &Tensor<T>, op: BinaryOp) -> Re
     let shape =
         if a.shape() == b.shape() { a.shape().to_vec() } else { broadcast_shapes(op.name(), a.shape(), b.shape())? };
     let dev = device_of(&[a, b]);
-    let (a, b) = (place(a, dev)?, place(b, dev)?);
-    on_backend!(dev, B => B::binary(&a, &b, &shape, op))
+    let (a, b) = (require_on(a, dev)?, require_on(b, dev)?);
+    on_backend!(dev, B => B::binary(a, b, &shape, op))
 }
 
 /// Reduction over `axis` (or everything).
@@ -58,8 +71,8 @@ pub(crate) fn reduce<T: Float>(x: &Tensor<T>, op: ReduceOp, axis: Option<usize>,
 pub(crate) fn matmul<T: Float>(a: &Tensor<T>, b: &Tensor<T>, ta: bool, tb: bool) -> Result<Tensor<T>> {
     let plan = MatMulPlan::new(a.shape(), b.shape(), ta, tb)?;
     let dev = device_of(&[a, b]);
-    let (a, b) = (place(a, dev)?, place(b, dev)?);
-    on_backend!(dev, B => B::matmul(&a, &b, ta, tb, &plan))
+    let (a, b) = (require_on(a, dev)?, require_on(b, dev)?);
+    on_backend!(dev, B => B::matmul(a, b, ta, tb, &plan))
 }
 
 /// `act(sum_i x_i @ w_i[row_i..row_i + k_i, cols] + b[cols])` for the terms `(x_i, w_i,
@@ -73,17 +86,23 @@ pub(crate) fn linear_sum<T: Float>(
     let mut all: Vec<&Tensor<T>> = parts.iter().flat_map(|&(x, w, _)| [x, w]).collect();
     all.extend(b);
     let dev = device_of(&all);
-    let placed: Vec<[Cow<'_, Tensor<T>>; 2]> =
-        parts.iter().map(|&(x, w, _)| Ok([place(x, dev)?, place(w, dev)?])).collect::<Result<_>>()?;
-    let terms: Vec<WeightRows<'_, T>> =
-        placed.iter().zip(parts).map(|([x, w], &(_, _, row))| (x.as_ref(), w.as_ref(), row)).collect();
-    let b = b.map(|b| place(b, dev)).transpose()?;
-    on_backend!(dev, B => B::linear_sum(&terms, b.as_deref(), act, cols))
+    all.iter().try_for_each(|x| require_on(x, dev).map(|_| ()))?;
+    on_backend!(dev, B => B::linear_sum(parts, b, act, cols))
 }
 
 /// Softmax over the last axis.
 pub(crate) fn softmax<T: Float>(x: &Tensor<T>) -> Tensor<T> {
     on_backend!(x.device(), B => B::softmax(x))
+}
+
+/// Zeros of `shape` written on `device` (no upload).
+pub(crate) fn zeros<T: Float>(device: Device, shape: &[usize]) -> Tensor<T> {
+    on_backend!(device, B => B::zeros(shape))
+}
+
+/// The Gaussian radial basis `[E, K]` of host values on `device` (`Backend::gaussian_basis`).
+pub(crate) fn gaussian_basis<T: Float>(device: Device, x: &[f64], centres: &[f64], coeff: f64) -> Result<Tensor<T>> {
+    on_backend!(device, B => B::gaussian_basis(x, centres, coeff))
 }
 
 /// `sqrt(sum x^2 + eps)` over the last axis, kept as size 1.
@@ -115,9 +134,8 @@ pub(crate) fn narrow<T: Float>(x: &Tensor<T>, axis: usize, start: usize, len: us
 pub(crate) fn cat<T: Float>(xs: &[&Tensor<T>], axis: usize) -> Result<Tensor<T>> {
     let shape = layout::cat_shape(xs, axis)?;
     let dev = device_of(xs);
-    let placed = xs.iter().map(|x| place(x, dev)).collect::<Result<Vec<_>>>()?;
-    let parts: Vec<&Tensor<T>> = placed.iter().map(|x| x.as_ref()).collect();
-    on_backend!(dev, B => B::cat(&parts, axis, &shape))
+    xs.iter().try_for_each(|x| require_on(x, dev).map(|_| ()))?;
+    on_backend!(dev, B => B::cat(xs, axis, &shape))
 }
 
 /// Entries of `axis` picked by `idx`.
@@ -130,8 +148,8 @@ pub(crate) fn index_add<T: Float>(x: &Tensor<T>, axis: usize, idx: &[usize], src
     index::check_index_add(x.shape(), src.shape(), axis, idx)?;
     let split = split_at_axis(x.shape(), axis);
     let dev = device_of(&[x, src]);
-    let (x, src) = (place(x, dev)?, place(src, dev)?);
-    on_backend!(dev, B => B::index_add(&x, split, idx, &src))
+    let (x, src) = (require_on(x, dev)?, require_on(src, dev)?);
+    on_backend!(dev, B => B::index_add(x, split, idx, src))
 }
 
 /// `out[o, j, i] = x[o, idx[o, j, i], i]` along `axis`.
@@ -152,8 +170,8 @@ pub(crate) fn where_select<T: Float>(
     b: &Tensor<T>,
 ) -> Result<Tensor<T>> {
     let dev = device_of(&[a, b]);
-    let (a, b) = (place(a, dev)?, place(b, dev)?);
-    on_backend!(dev, B => B::where_select(mask, shape, &a, &b))
+    let (a, b) = (require_on(a, dev)?, require_on(b, dev)?);
+    on_backend!(dev, B => B::where_select(mask, shape, a, b))
 }
 
 // ---------------------------------------------------------------------------------------
@@ -162,8 +180,8 @@ pub(crate) fn where_select<T: Float>(
 /// `g * op'(x)`.
 pub(crate) fn unary_backward<T: Float>(g: &Tensor<T>, x: &Tensor<T>, y: &Tensor<T>, op: UnaryOp) -> Result<Tensor<T>> {
     let dev = device_of(&[g, x, y]);
-    let (g, x, y) = (place(g, dev)?, place(x, dev)?, place(y, dev)?);
-    Ok(on_backend!(dev, B => B::unary_backward(&g, &x, &y, op)))
+    let (g, x, y) = (require_on(g, dev)?, require_on(x, dev)?, require_on(y, dev)?);
+    Ok(on_backend!(dev, B => B::unary_backward(g, x, y, op)))
 }
 
 /// `g * act'` of a layer's activation, through its output `y`.
@@ -172,8 +190,8 @@ pub(crate) fn activation_backward<T: Float>(y: &Tensor<T>, g: &Tensor<T>, act: A
         return Ok(g.clone());
     }
     let dev = device_of(&[y, g]);
-    let (y, g) = (place(y, dev)?, place(g, dev)?);
-    Ok(on_backend!(dev, B => B::activation_backward(&y, &g, act)))
+    let (y, g) = (require_on(y, dev)?, require_on(g, dev)?);
+    Ok(on_backend!(dev, B => B::activation_backward(y, g, act)))
 }
 
 /// The gradients of a broadcasting binary op: `(dA, dB)` summed back to the operands'
@@ -199,8 +217,8 @@ pub(crate) fn binary_backward<T: Float>(
         return Ok((ga, gb));
     }
     let dev = device_of(&[g, a, b, y]);
-    let (g, a, b, y) = (place(g, dev)?, place(a, dev)?, place(b, dev)?, place(y, dev)?);
-    on_backend!(dev, B => B::binary_backward(&g, &a, &b, &y, op, wants))
+    let (g, a, b, y) = (require_on(g, dev)?, require_on(a, dev)?, require_on(b, dev)?, require_on(y, dev)?);
+    on_backend!(dev, B => B::binary_backward(g, a, b, y, op, wants))
 }
 
 /// `g` (shaped like a broadcast result) summed back to `target`, a broadcast operand's shape.
@@ -224,22 +242,22 @@ pub(crate) fn reduce_backward<T: Float>(
         None => (1, x.numel(), 1),
     };
     let dev = device_of(&[x, y, g]);
-    let (x, y, g) = (place(x, dev)?, place(y, dev)?, place(g, dev)?);
-    on_backend!(dev, B => B::reduce_backward(&x, &y, &g, op, split))
+    let (x, y, g) = (require_on(x, dev)?, require_on(y, dev)?, require_on(g, dev)?);
+    on_backend!(dev, B => B::reduce_backward(x, y, g, op, split))
 }
 
 /// Gradient of softmax: `y * (g - sum(g * y))` row by row.
 pub(crate) fn softmax_backward<T: Float>(y: &Tensor<T>, g: &Tensor<T>) -> Result<Tensor<T>> {
     let dev = device_of(&[y, g]);
-    let (y, g) = (place(y, dev)?, place(g, dev)?);
-    Ok(on_backend!(dev, B => B::softmax_backward(&y, &g)))
+    let (y, g) = (require_on(y, dev)?, require_on(g, dev)?);
+    Ok(on_backend!(dev, B => B::softmax_backward(y, g)))
 }
 
 /// Gradient of the last-axis norm: `g x / y` row by row.
 pub(crate) fn norm_last_backward<T: Float>(x: &Tensor<T>, y: &Tensor<T>, g: &Tensor<T>) -> Result<Tensor<T>> {
     let dev = device_of(&[x, y, g]);
-    let (x, y, g) = (place(x, dev)?, place(y, dev)?, place(g, dev)?);
-    Ok(on_backend!(dev, B => B::norm_last_backward(&x, &y, &g)))
+    let (x, y, g) = (require_on(x, dev)?, require_on(y, dev)?, require_on(g, dev)?);
+    Ok(on_backend!(dev, B => B::norm_last_backward(x, y, g)))
 }
 
 /// Gradient of standardisation over the last axis.
@@ -250,8 +268,8 @@ pub(crate) fn standardize_backward<T: Float>(
     eps: f64,
 ) -> Result<Tensor<T>> {
     let dev = device_of(&[x, y, g]);
-    let (x, y, g) = (place(x, dev)?, place(y, dev)?, place(g, dev)?);
-    Ok(on_backend!(dev, B => B::standardize_backward(&x, &y, &g, eps)))
+    let (x, y, g) = (require_on(x, dev)?, require_on(y, dev)?, require_on(g, dev)?);
+    Ok(on_backend!(dev, B => B::standardize_backward(x, y, g, eps)))
 }
 
 /// Gradient of a segment sum (or mean): row `r` gets `g[seg[r]]` (divided by the count).
@@ -272,7 +290,7 @@ pub(crate) fn where_backward<T: Float>(
     pick: bool,
     target: &[usize],
 ) -> Result<Tensor<T>> {
-    let zero = Tensor::scalar(T::ZERO);
+    let zero = zeros(g.device(), &[]);
     let (a, b) = if pick { (g, &zero) } else { (&zero, g) };
     sum_to_shape(&where_select(mask, g.shape(), a, b)?, target)
 }

@@ -10,7 +10,7 @@
 
 use crate::backend::{Backend, Slot, on_backend};
 use crate::device::Device;
-use crate::dispatch::{device_of, place};
+use crate::dispatch::{device_of, require_on};
 use crate::element::Float;
 use crate::error::Result;
 use crate::kernels::matmul;
@@ -55,10 +55,10 @@ impl<T: Float> GradStore<T> {
     pub(crate) fn add(&mut self, id: NodeId, t: Tensor<T>) -> Result<()> {
         let slot = &mut self.grads[id];
         let dev = device_for(slot, &[&t]);
-        if let Some(held) = slot.take() {
-            *slot = Some(held.into_device(dev)?);
+        if let Some(held) = slot.as_ref() {
+            require_on(held, dev)?;
         }
-        let t = t.into_device(dev)?;
+        require_on(&t, dev)?;
         on_backend!(dev, B => B::accumulate(slot, t));
         Ok(())
     }
@@ -112,8 +112,8 @@ impl<T: Float> GradStore<T> {
     ) -> Result<()> {
         let slot = &mut self.grads[target];
         let dev = device_for(slot, &[l, r]);
-        let (l, r) = (place(l, dev)?, place(r, dev)?);
-        on_backend!(dev, B => B::product_into(slot, len, (&l, tl), (&r, block, tr), plan))
+        let (l, r) = (require_on(l, dev)?, require_on(r, dev)?);
+        on_backend!(dev, B => B::product_into(slot, len, (l, tl), (r, block, tr), plan))
     }
 
     /// Adds `op(l) @ op(r)` (following `plan`) into the [`Block`] of the gradient of `target`
@@ -129,8 +129,8 @@ impl<T: Float> GradStore<T> {
     ) -> Result<()> {
         let slot = &mut self.grads[target];
         let dev = device_for(slot, &[l, r]);
-        let (l, r) = (place(l, dev)?, place(r, dev)?);
-        on_backend!(dev, B => B::product_into_block(slot, target_len, block, (&l, tl), (&r, tr), plan))
+        let (l, r) = (require_on(l, dev)?, require_on(r, dev)?);
+        on_backend!(dev, B => B::product_into_block(slot, target_len, block, (l, tl), (r, tr), plan))
     }
 
     /// The gradients of a batch of tiny products in one pass where the device has such a
@@ -173,8 +173,8 @@ impl<T: Float> GradStore<T> {
     ) -> Result<()> {
         let slot = &mut self.grads[x];
         let dev = device_for(slot, &[g]);
-        let g = place(g, dev)?;
-        on_backend!(dev, B => B::narrow_backward_into(slot, x_shape, &g, axis, start))
+        let g = require_on(g, dev)?;
+        on_backend!(dev, B => B::narrow_backward_into(slot, x_shape, g, axis, start))
     }
 
     /// Adds entries `start..start+len` of `axis` of `g` (a concatenation's gradient) to the
@@ -190,8 +190,8 @@ impl<T: Float> GradStore<T> {
     ) -> Result<()> {
         let slot = &mut self.grads[x];
         let dev = device_for(slot, &[g]);
-        let g = place(g, dev)?;
-        on_backend!(dev, B => B::cat_part_into(slot, len_x, &g, axis, start, len))
+        let g = require_on(g, dev)?;
+        on_backend!(dev, B => B::cat_part_into(slot, len_x, g, axis, start, len))
     }
 
     /// Adds `g` at the entries `idx` of an axis (`(outer, n, inner)` of `x`'s shape) to the
@@ -205,8 +205,8 @@ impl<T: Float> GradStore<T> {
     ) -> Result<()> {
         let slot = &mut self.grads[x];
         let dev = device_for(slot, &[g]);
-        let g = place(g, dev)?;
-        on_backend!(dev, B => B::index_add_into(slot, split, &g, idx))
+        let g = require_on(g, dev)?;
+        on_backend!(dev, B => B::index_add_into(slot, split, g, idx))
     }
 
     /// Adds `g` to the gradient of `x` at the gathered positions: the adjoint of a gather.
@@ -220,8 +220,8 @@ impl<T: Float> GradStore<T> {
     ) -> Result<()> {
         let slot = &mut self.grads[x];
         let dev = device_for(slot, &[g]);
-        let g = place(g, dev)?;
-        on_backend!(dev, B => B::gather_backward_into(slot, x_shape, axis, &g, idx))
+        let g = require_on(g, dev)?;
+        on_backend!(dev, B => B::gather_backward_into(slot, x_shape, axis, g, idx))
     }
 
     /// Removes and returns node `id`'s gradient, shaped like its value.

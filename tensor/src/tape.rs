@@ -251,6 +251,16 @@ impl<T: Float> Tape<T> {
         self.push(self.place(value), Op::Leaf, false)
     }
 
+    /// The Gaussian radial basis `exp(coeff (x_e - c_k)^2)` of the host values `x` and
+    /// `centres`, `[E, K]`, as a constant of this tape, computed on the tape's device: the CPU
+    /// in f64 (then rounded once to `T`), the GPU in f32 from the `E` values uploaded, so a
+    /// basis of `E K` entries costs an upload of `E` (the critic's edge features,
+    /// `models::critic`). An error where the device cannot hold `T` (f64 on the GPU).
+    pub fn gaussian_basis(&self, x: &[f64], centres: &[f64], coeff: f64) -> Result<Var<'_, T>> {
+        let basis = crate::dispatch::gaussian_basis(self.device, x, centres, coeff)?;
+        Ok(self.constant(basis))
+    }
+
     /// Turns gradient recording off until the returned guard is dropped: values computed in
     /// the scope are constants.
     pub fn no_grad(&self) -> NoGradGuard<'_, T> {
@@ -374,9 +384,10 @@ impl<T: Float> Gradients<T> {
         self.grads.get(v.id).and_then(|g| g.as_ref())
     }
 
-    /// The gradient of a leaf, or zeros shaped like it when the loss does not depend on it.
+    /// The gradient of a leaf, or zeros shaped like it, on its device, when the loss does not
+    /// depend on it.
     pub fn get_or_zeros(&self, v: Var<'_, T>) -> Tensor<T> {
-        self.get(v).cloned().unwrap_or_else(|| Tensor::zeros(v.shape().as_slice()))
+        self.get(v).cloned().unwrap_or_else(|| crate::dispatch::zeros(v.value().device(), v.shape().as_slice()))
     }
 }
 

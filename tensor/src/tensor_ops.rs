@@ -3,7 +3,7 @@
 //! Adam's step), so that parameters and gradients on the GPU stay there.
 
 use crate::backend::{AdamStep, Backend, on_backend};
-use crate::dispatch::place;
+use crate::dispatch::require_on;
 use crate::element::Float;
 use crate::error::Result;
 use crate::op::UnaryOp;
@@ -40,14 +40,21 @@ impl<T: Float> Tensor<T> {
 
 /// The index of the first tensor holding a NaN or an infinity, if any. On the GPU every
 /// tensor is checked there, one launch each, and only their flags come back (one transfer
-/// for all of them; a host tensor in the list is uploaded first).
+/// for all of them); a list on both devices is checked where each tensor is.
 pub fn first_non_finite<T: Float>(ts: &[Tensor<T>]) -> Result<Option<usize>> {
     let dev = device_of_all(ts);
     if ts.iter().all(|t| t.device() == dev) {
         return on_backend!(dev, B => B::first_non_finite(ts));
     }
-    let placed: Vec<Tensor<T>> = ts.iter().map(|t| Ok(place(t, dev)?.into_owned())).collect::<Result<_>>()?;
-    on_backend!(dev, B => B::first_non_finite(&placed))
+    let (host, away): (Vec<usize>, Vec<usize>) = (0..ts.len()).partition(|&i| ts[i].device().is_host());
+    let mut first = None;
+    for group in [host, away] {
+        let members: Vec<Tensor<T>> = group.iter().map(|&i| ts[i].clone()).collect();
+        if let Some(k) = on_backend!(device_of_all(&members), B => B::first_non_finite(&members))? {
+            first = Some(first.map_or(group[k], |f: usize| f.min(group[k])));
+        }
+    }
+    Ok(first)
 }
 
 /// One Adam step with f32 moments on the parameter's device ([`AdamStep`] has the formula's
@@ -67,8 +74,8 @@ pub fn adam_update<T: Float>(
         }
     }
     let dev = p.device();
-    let (g, m, v) = (place(g, dev)?, place(m, dev)?, place(v, dev)?);
-    on_backend!(dev, B => B::adam_step(p, &g, &m, &v, step))
+    let (g, m, v) = (require_on(g, dev)?, require_on(m, dev)?, require_on(v, dev)?);
+    on_backend!(dev, B => B::adam_step(p, g, m, v, step))
 }
 
 /// The device ops over `ts` run on: the GPU if any of them is there, else the CPU (also for

@@ -293,7 +293,7 @@ impl<'t, T: Float> Var<'t, T> {
         check_axis("scatter_add", axis, &self.shape())?;
         let mut shape = self.shape();
         shape[axis] = size;
-        let zeros = self.tape.constant(Tensor::zeros(&shape).to_device(self.value().device())?);
+        let zeros = self.tape.constant(crate::dispatch::zeros(self.value().device(), &shape));
         zeros.index_add(axis, idx, self)
     }
 

@@ -64,7 +64,7 @@ fn save_then_load_gives_identical_outputs() {
     std::fs::create_dir_all(&dir).unwrap();
     let path = dir.join("params.json");
     let (a, mlp) = model(1);
-    StateDict::from_store(&a).save(&path).unwrap();
+    StateDict::from_store(&a).unwrap().save(&path).unwrap();
     let (mut b, mlp_b) = model(2);
     let x: Tensor<f32> = uniform(&mut rng(3), &[5, 4]).cast();
     assert_ne!(output(&a, &mlp, &x), output(&b, &mlp_b, &x));
@@ -77,7 +77,7 @@ fn save_then_load_gives_identical_outputs() {
 #[test]
 fn loading_a_wrong_state_fails_clearly() {
     let (a, _) = model(1);
-    let sd = StateDict::from_store(&a);
+    let sd = StateDict::from_store(&a).unwrap();
     // Wrong shape.
     let mut bad = sd.clone();
     bad.tensors[0].shape = vec![8, 4];

@@ -12,7 +12,7 @@ use models::distribution::{normal_log_prob, std_from_scale};
 use models::{AgentPolicy, Policy};
 use nn::ParamStore;
 use rand_chacha::ChaCha8Rng;
-use tensor::{Device, Tape, Tensor};
+use tensor::{Tape, Tensor};
 
 use crate::error::{Result, RlError};
 use crate::mappo::normalizer::ObsNormalizer;
@@ -109,7 +109,7 @@ impl Actor {
         let _no_grad = tape.no_grad();
         let p = store.bind(&tape);
         let out = model.forward(&p, &self.normalised.rows(), None, false)?;
-        let heads = host_heads(&tape, &out.agents)?;
+        let heads = host_heads(&out.agents)?;
         // Sampling and log-probabilities on the host, whatever the forward's device.
         let host = Tape::<f32>::new();
         let _host_no_grad = host.no_grad();
@@ -164,26 +164,11 @@ impl Actor {
 /// One agent's policy head on the host: its scene index, `loc` and raw `scale` (`[B, dof_a]`).
 type HostHead = (usize, Tensor<f32>, Tensor<f32>);
 
-/// Every agent's `(agent, loc, scale)` on the host. From the GPU they come back in one
-/// transfer: the agents' `[B, dof_a]` means and raw scales side by side in one tensor, cut
-/// apart on the host (one wait for the forward pass instead of one per tensor).
-fn host_heads(tape: &Tape<f32>, agents: &[AgentPolicy<'_, f32>]) -> Result<Vec<HostHead>> {
-    if tape.device() == Device::Cpu {
-        return Ok(agents.iter().map(|a| (a.agent, a.loc.value(), a.scale.value())).collect());
-    }
-    let parts: Vec<_> = agents.iter().flat_map(|a| [a.loc, a.scale]).collect();
-    let joined = tape.cat(&parts, 1)?.value().to_host()?;
-    let mut start = 0;
-    let mut column = |width: usize| {
-        let t = joined.narrow(1, start, width);
-        start += width;
-        t
-    };
-    agents
-        .iter()
-        .map(|a| {
-            let dof = a.loc.shape()[1];
-            Ok((a.agent, column(dof)?, column(dof)?))
-        })
-        .collect()
+/// Every agent's `(agent, loc, scale)` on the host: from another device all of them in one
+/// transfer (`tensor::to_host_all`: one staging buffer, one wait, no kernel); on the host
+/// they are already there.
+fn host_heads(agents: &[AgentPolicy<'_, f32>]) -> Result<Vec<HostHead>> {
+    let values: Vec<Tensor<f32>> = agents.iter().flat_map(|a| [a.loc.value(), a.scale.value()]).collect();
+    let host = tensor::to_host_all(&values)?;
+    Ok(agents.iter().zip(host.chunks_exact(2)).map(|(a, ls)| (a.agent, ls[0].clone(), ls[1].clone())).collect())
 }

@@ -58,29 +58,29 @@ pub enum ActDevice {
 impl ActDevice {
     /// Whether this is the default ([`ActDevice::Same`], left out of `config.toml`).
     pub fn is_same(&self) -> bool {
-        *self == ActDevice::Same
+        *self == Self::Same
     }
 
     /// The name a configuration writes (`same`, `cpu`).
     pub fn name(self) -> &'static str {
         match self {
-            ActDevice::Same => "same",
-            ActDevice::Cpu => "cpu",
+            Self::Same => "same",
+            Self::Cpu => "cpu",
         }
     }
 
     /// The device the act step runs on when the updates run on `update`.
     pub fn resolve(self, update: Device) -> Device {
         match self {
-            ActDevice::Same => update,
-            ActDevice::Cpu => Device::Cpu,
+            Self::Same => update,
+            Self::Cpu => Device::Cpu,
         }
     }
 }
 
 /// Whether `device` is the CPU (the default, left out of `config.toml`).
 pub fn is_cpu(device: &Device) -> bool {
-    *device == Device::Cpu
+    device.is_host()
 }
 
 /// Writes a device as its name (`cpu`, `gpu`).

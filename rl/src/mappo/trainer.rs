@@ -41,7 +41,7 @@ use std::time::Instant;
 use envs::layout::ObsSpec;
 use envs::tasks::{Outcome, StepOutput, TaskKind, TaskSpec, VecEnv};
 use models::PolicyFactory;
-use tensor::{Device, Tape};
+use tensor::Tape;
 
 use crate::error::{Result, RlError};
 use crate::mappo::actor::JointAction;
@@ -402,9 +402,7 @@ impl Trainer {
             adam.sync_to_host()?;
             adams.push(adam);
             // The parameters on the host (one transfer where they are elsewhere).
-            let mut host = t.store.clone();
-            host.to_device(Device::Cpu)?;
-            params.push(nn::StateDict::from_store(&host));
+            params.push(nn::StateDict::from_store(&t.store)?);
         }
         Ok(Checkpoint {
             version: VERSION,

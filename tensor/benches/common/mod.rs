@@ -6,6 +6,7 @@ use std::time::Instant;
 pub const SAMPLES: usize = 15;
 
 /// The median wall time of `f` in milliseconds over [`SAMPLES`] calls, after 3 warm-up calls.
+#[allow(dead_code)]
 pub fn median_ms(mut f: impl FnMut()) -> f64 {
     for _ in 0..3 {
         f();

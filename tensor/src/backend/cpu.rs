@@ -167,6 +167,21 @@ impl Backend for Cpu {
         Tensor::from_parts(nnops::softmax_backward(y.data(), g.data(), n), y.shape().to_vec())
     }
 
+    fn zeros<T: Float>(shape: &[usize]) -> Tensor<T> {
+        Tensor::zeros(shape)
+    }
+
+    fn gaussian_basis<T: Float>(x: &[f64], centres: &[f64], coeff: f64) -> Result<Tensor<T>> {
+        let mut out = pool::with_capacity(x.len() * centres.len());
+        for &xe in x {
+            out.extend(centres.iter().map(|&c| {
+                let y = xe - c;
+                T::from_f64((coeff * y * y).exp())
+            }));
+        }
+        Tensor::new(out, &[x.len(), centres.len()])
+    }
+
     fn norm_last<T: Float>(x: &Tensor<T>, eps: f64) -> Tensor<T> {
         nnops::norm_last(x, eps)
     }

@@ -271,6 +271,21 @@ impl Backend for Gpu {
         out(nnops::softmax_backward(buf(y), buf(g), last(y)), y.shape().to_vec())
     }
 
+    fn zeros<T: Float>(shape: &[usize]) -> Tensor<T> {
+        out(DeviceBuffer::zeros(numel(shape)), shape.to_vec())
+    }
+
+    fn gaussian_basis<T: Float>(x: &[f64], centres: &[f64], coeff: f64) -> Result<Tensor<T>> {
+        // E values and K centres travel; the E x K basis is four element-wise launches here.
+        let column = |v: &[f64], shape: &[usize]| -> Result<Tensor<T>> {
+            Tensor::new(v.iter().map(|&a| T::from_f64(a)).collect(), shape)?.to_device(Device::Gpu)
+        };
+        let (n, k) = (x.len(), centres.len());
+        let y = Self::binary(&column(x, &[n, 1])?, &column(centres, &[1, k])?, &[n, k], BinaryOp::Sub)?;
+        let exponent = Self::unary(&Self::unary(&y, UnaryOp::Square), UnaryOp::Scale(coeff));
+        Ok(Self::unary(&exponent, UnaryOp::Exp))
+    }
+
     fn norm_last<T: Float>(x: &Tensor<T>, eps: f64) -> Tensor<T> {
         let mut shape = x.shape().to_vec();
         if let Some(l) = shape.last_mut() {

@@ -190,7 +190,7 @@ pub fn where_select<T: Float>(mask: &[bool], shape: &[usize], a: &Tensor<T>, b: 
 /// The gradients `(dA, dB)` of a broadcasting binary op with output `y` and output gradient
 /// `g`, summed back to the operands' shapes; each only when wanted (`wants`).
 #[allow(clippy::type_complexity)]
-pub(crate) fn binary_backward<T: Float>(
+pub fn binary_backward<T: Float>(
     g: &[T],
     av: &Tensor<T>,
     bv: &Tensor<T>,

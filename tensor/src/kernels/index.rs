@@ -166,13 +166,7 @@ pub fn segment_counts(seg: &[usize], num_segments: usize) -> Vec<usize> {
 
 /// Gradient of [`segment_reduce`]: row `r` of `dx` is `g[seg[r]]`, divided by the segment's
 /// row count for a mean (`g` has `num_segments` rows of `inner` values).
-pub(crate) fn segment_backward<T: Float>(
-    g: &[T],
-    seg: &[usize],
-    num_segments: usize,
-    inner: usize,
-    mean: bool,
-) -> Vec<T> {
+pub fn segment_backward<T: Float>(g: &[T], seg: &[usize], num_segments: usize, inner: usize, mean: bool) -> Vec<T> {
     let counts = if mean { segment_counts(seg, num_segments) } else { vec![] };
     let mut dx = crate::pool::for_overwrite(seg.len() * inner);
     for (r, &s) in seg.iter().enumerate() {

@@ -149,3 +149,20 @@ fn errors_name_the_op_and_shapes() {
     assert!(tape.backward(x).unwrap_err().to_string().contains("single value"));
     assert!(Tensor::<f32>::new(vec![1.0; 5], &[2, 3]).is_err());
 }
+
+/// The Gaussian basis is the f64 formula `exp((coeff * y) * y)`, `y = x - c`, rounded once
+/// to the tape's precision, bit for bit, one row a value.
+#[test]
+fn a_gaussian_basis_is_the_f64_formula_rounded_once() {
+    let x = [0.0, 0.3, 7.25, 19.999, 25.0];
+    let centres = [0.0, 0.5, 10.0, 20.0];
+    let coeff = -1.7;
+    let tape = Tape::<f32>::new();
+    let b = tape.gaussian_basis(&x, &centres, coeff).unwrap();
+    assert_eq!(b.shape(), vec![5, 4]);
+    let want: Vec<f32> =
+        x.iter().flat_map(|&xe| centres.iter().map(move |&c| (coeff * (xe - c) * (xe - c)).exp() as f32)).collect();
+    assert_eq!(b.value().data(), &want[..]);
+    let empty = tape.gaussian_basis(&[], &centres, coeff).unwrap();
+    assert_eq!(empty.shape(), vec![0, 4]);
+}

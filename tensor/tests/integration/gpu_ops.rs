@@ -400,14 +400,24 @@ fn index_ops_on_the_gpu_match_the_cpu_forward_and_backward() {
     check("where", &[a, b], EXACT, &|t, v| t.where_select(&mask, v[0], v[1]));
 }
 
+/// An op never moves an operand behind the caller's back: a host constant meeting a GPU
+/// value is an error naming both devices (and uploads nothing), while the same constant
+/// recorded on a GPU tape, or moved with `to_device`, joins the op. f64 stays on the host.
 #[test]
-fn host_constants_join_gpu_ops_and_f64_stays_on_the_host() {
+fn mixed_devices_are_an_error_and_f64_stays_on_the_host() {
     let _serial = serial();
     let tape = Tape::<f32>::new();
     let x = tape.var(randn(20, &[3, 4]).to_device(Device::Gpu).unwrap());
     let c = tape.constant(randn(21, &[4]));
-    let y = x.mul(c).unwrap();
-    assert_eq!(y.value().device(), Device::Gpu);
+    let before = tensor::gpu::gpu().unwrap().stats().uploads;
+    let err = x.mul(c).unwrap_err().to_string();
+    assert!(err.contains("cpu") && err.contains("gpu") && err.contains("to_device"), "{err}");
+    assert_eq!(tensor::gpu::gpu().unwrap().stats().uploads, before, "nothing was uploaded");
+    let moved = tape.constant(randn(21, &[4]).to_device(Device::Gpu).unwrap());
+    assert_eq!(x.mul(moved).unwrap().value().device(), Device::Gpu);
+    let gpu_tape = Tape::<f32>::on(Device::Gpu);
+    let (x, c) = (gpu_tape.var(randn(20, &[3, 4])), gpu_tape.constant(randn(21, &[4])));
+    assert_eq!(x.mul(c).unwrap().value().device(), Device::Gpu);
     let err = Tensor::<f64>::zeros(&[2]).to_device(Device::Gpu).unwrap_err().to_string();
     assert!(err.contains("f32") && err.contains("f64"), "{err}");
     let info = tensor::gpu::gpu().unwrap().adapter().to_string();
@@ -658,4 +668,27 @@ fn host_reads_of_a_gpu_tensor_name_the_explicit_transfer() {
     for (b, y) in back.iter().zip(ys.iter().chain([&ys[0]])) {
         assert_eq!((b.device(), b.shape(), b.data()), (Device::Cpu, y.shape(), y.data()));
     }
+}
+
+/// The Gaussian radial basis of host values (the critic's edge features) computed on the
+/// GPU from the values uploaded matches the CPU's f64 evaluation, lands on the GPU, costs two
+/// uploads (the values and the centres) and gives the same bits twice.
+#[test]
+fn a_gaussian_basis_is_computed_on_the_gpu_from_its_values() {
+    let _serial = serial();
+    let x: Vec<f64> = (0..37).map(|i| 0.55 * i as f64).collect();
+    let centres: Vec<f64> = (0..62).map(|k| 20.0 * k as f64 / 61.0).collect();
+    let coeff = -0.5 / (20.0f64 / 61.0).powi(2);
+    let want = Tape::<f32>::new().gaussian_basis(&x, &centres, coeff).unwrap().value();
+    let tape = Tape::<f32>::on(Device::Gpu);
+    let before = tensor::gpu::gpu().unwrap().stats().uploads;
+    let got = tape.gaussian_basis(&x, &centres, coeff).unwrap().value();
+    assert_eq!(tensor::gpu::gpu().unwrap().stats().uploads - before, 2);
+    assert_eq!(got.device(), Device::Gpu);
+    let got = got.to_host().unwrap();
+    // f32 arithmetic against the f64 evaluation rounded once: exp's relative error grows
+    // with |exponent| (up to about 125 here), so the bound is relative.
+    close("gaussian_basis", &got, &want, Tol(2e-4, 1e-6));
+    let again = tape.gaussian_basis(&x, &centres, coeff).unwrap().value().to_host().unwrap();
+    assert_eq!(again.data(), got.data(), "two GPU evaluations differ");
 }
