@@ -95,9 +95,7 @@ impl PairFeatureSet {
         match s {
             "distance" => Ok(Self::Distance),
             "distance_height" => Ok(Self::DistanceHeight),
-            _ => Err(ModelError::Option(format!(
-                "unknown pair features `{s}` (expected distance or distance_height)"
-            ))),
+            _ => Err(ModelError::Option(format!("unknown pair features `{s}` (expected distance or distance_height)"))),
         }
     }
 }
@@ -242,10 +240,7 @@ impl AssignmentScorer {
             )));
         }
         if let Some(w) = config.hidden.iter().find(|&&w| w == 0) {
-            return Err(ModelError::Option(format!(
-                "assignment scorer hidden widths {:?} contain {w}",
-                config.hidden
-            )));
+            return Err(ModelError::Option(format!("assignment scorer hidden widths {:?} contain {w}", config.hidden)));
         }
         let mut sizes = vec![config.features.width()];
         sizes.extend(&config.hidden);
@@ -532,4 +527,398 @@ pub fn log_prob<'t, T: Float>(scores: Var<'t, T>, assignment: &[usize]) -> Resul
 /// [`log_prob_and_entropy`]).
 pub fn entropy_estimate<'t, T: Float>(scores: Var<'t, T>, assignment: &[usize]) -> Result<Var<'t, T>> {
     Ok(log_prob_and_entropy(scores, assignment)?.1)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nn::ParamStore;
+    use rand::SeedableRng;
+    use tensor::Tape;
+    use tensor::gradcheck::check_gradients;
+
+    fn rng(seed: u64) -> ChaCha8Rng {
+        ChaCha8Rng::seed_from_u64(seed)
+    }
+
+    fn random_scores(r: &mut ChaCha8Rng, len: usize, spread: f64) -> Vec<f64> {
+        (0..len).map(|_| r.random_range(-spread..spread)).collect()
+    }
+
+    /// Every assignment of positive probability: injective maps of objects `0..min(n, m)` to
+    /// agents, later objects unassigned.
+    fn all_assignments(n: usize, m: usize) -> Vec<Vec<usize>> {
+        fn extend(prefix: &mut Vec<usize>, n: usize, k: usize, m: usize, out: &mut Vec<Vec<usize>>) {
+            if prefix.len() == k {
+                let mut a = prefix.clone();
+                a.resize(m, UNASSIGNED);
+                out.push(a);
+                return;
+            }
+            for i in 0..n {
+                if !prefix.contains(&i) {
+                    prefix.push(i);
+                    extend(prefix, n, k, m, out);
+                    prefix.pop();
+                }
+            }
+        }
+        let mut out = Vec::new();
+        extend(&mut Vec::new(), n, n.min(m), m, &mut out);
+        out
+    }
+
+    /// `P(σ)` straight from the definition (products of softmax ratios, no logs).
+    fn probability(s: &[f64], n: usize, m: usize, sigma: &[usize]) -> f64 {
+        let mut p = 1.0;
+        for j in 0..n.min(m) {
+            let den: f64 = (0..n).filter(|i| !sigma[..j].contains(i)).map(|i| s[i * m + j].exp()).sum();
+            p *= s[sigma[j] * m + j].exp() / den;
+        }
+        p
+    }
+
+    /// The scores of one scene repeated for `copies` scenes, as a `[copies, n, m]` constant.
+    fn repeated<'t>(tape: &'t Tape<f64>, s: &[f64], copies: usize, n: usize, m: usize) -> Var<'t, f64> {
+        let data: Vec<f64> = (0..copies).flat_map(|_| s.iter().copied()).collect();
+        tape.constant(Tensor::new(data, &[copies, n, m]).unwrap())
+    }
+
+    fn exact_entropy(s: &[f64], n: usize, m: usize) -> f64 {
+        all_assignments(n, m).iter().map(|a| probability(s, n, m, a)).map(|p| -p * p.ln()).sum()
+    }
+
+    #[test]
+    fn probabilities_sum_to_one_and_the_log_prob_var_is_their_log() {
+        let mut r = rng(1);
+        for n in 1..=4 {
+            for m in 1..=4 {
+                let s = random_scores(&mut r, n * m, 2.0);
+                let all = all_assignments(n, m);
+                let count: usize = (n - n.min(m) + 1..=n).product();
+                assert_eq!(all.len(), count, "{n} x {m}");
+                let probs: Vec<f64> = all.iter().map(|a| probability(&s, n, m, a)).collect();
+                let total: f64 = probs.iter().sum();
+                assert!((total - 1.0).abs() < 1e-12, "{n} agents x {m} objects: probabilities sum to {total}");
+                // All assignments as one batch of the same scores.
+                let tape = Tape::<f64>::new();
+                let flat: Vec<usize> = all.iter().flatten().copied().collect();
+                let (lp, h) = log_prob_and_entropy(repeated(&tape, &s, all.len(), n, m), &flat).unwrap();
+                let (lp, h) = (lp.value(), h.value());
+                assert_eq!(lp.shape(), &[all.len()]);
+                for (b, (a, p)) in all.iter().zip(&probs).enumerate() {
+                    assert!((lp.data()[b] - p.ln()).abs() < 1e-12, "{n} x {m}, {a:?}: {} vs ln {p}", lp.data()[b]);
+                    assert!((log_prob_host(&s, n, m, a).unwrap() - p.ln()).abs() < 1e-12);
+                }
+                // The chain-rule estimate's expectation is the exact entropy (an exact sum here).
+                let expected: f64 = probs.iter().zip(h.data()).map(|(p, h)| p * h).sum();
+                let exact = exact_entropy(&s, n, m);
+                assert!((expected - exact).abs() < 1e-12, "{n} x {m}: E[estimate] {expected} vs entropy {exact}");
+            }
+        }
+    }
+
+    #[test]
+    fn the_sampler_draws_from_the_distribution_and_the_entropy_estimate_converges() {
+        // n = m = 3: 6 assignments; 20 000 draws from one scene's scores.
+        let (n, m, draws) = (3, 3, 20_000);
+        let s = random_scores(&mut rng(2), n * m, 1.5);
+        let all = all_assignments(n, m);
+        let mut pl = PlackettLuceAssigner::new(n, m);
+        let batch: Vec<f64> = (0..draws).flat_map(|_| s.iter().copied()).collect();
+        let mut out = vec![0; draws * m];
+        pl.sample(&batch, draws, n, m, &mut rng(3), &mut out).unwrap();
+        check_assignment(&out, draws, n, m).unwrap();
+        // Frequencies within 4.5 binomial standard deviations of the probabilities.
+        for a in &all {
+            let p = probability(&s, n, m, a);
+            let freq = out.chunks(m).filter(|o| o == a).count() as f64 / draws as f64;
+            let sd = (p * (1.0 - p) / draws as f64).sqrt();
+            assert!((freq - p).abs() < 4.5 * sd, "{a:?}: frequency {freq} vs probability {p} (sd {sd})");
+        }
+        // The mean of the estimate over the draws: within 4 standard errors of the exact
+        // entropy (the standard error is about 0.004 here).
+        let tape = Tape::<f64>::new();
+        let h = entropy_estimate(repeated(&tape, &s, draws, n, m), &out).unwrap().value();
+        let mean = h.data().iter().sum::<f64>() / draws as f64;
+        let var = h.data().iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (draws - 1) as f64;
+        let se = (var / draws as f64).sqrt();
+        let exact = exact_entropy(&s, n, m);
+        assert!(se < 0.01, "standard error {se}");
+        assert!((mean - exact).abs() < 4.0 * se, "mean estimate {mean} vs exact entropy {exact} (se {se})");
+    }
+
+    #[test]
+    fn the_log_prob_and_entropy_are_stable_for_large_scores_in_f32() {
+        // Spread 1e4: a naive exp overflows f32; the masked, shifted form stays finite,
+        // also for agents no longer free whose scores exceed the free ones' maximum.
+        let (n, m) = (4, 3);
+        #[rustfmt::skip]
+        let s: Vec<f32> = vec![
+            9000.0, 9000.0, -8000.0,
+            -5000.0, 100.0, 7000.0,
+            0.0, 9500.0, 20.0,
+            -9000.0, 3.0, 7000.0,
+        ];
+        let tape = Tape::<f32>::new();
+        let v = tape.var(Tensor::new(s.clone(), &[1, n, m]).unwrap());
+        let sigma = [1, 0, 2];
+        let (lp, h) = log_prob_and_entropy(v, &sigma).unwrap();
+        let grads = tape.backward(lp.add(h).unwrap().sum_all()).unwrap();
+        let g = grads.get(v).unwrap();
+        assert!(g.data().iter().all(|x| x.is_finite()), "gradient {:?}", g.data());
+        let host: Vec<f64> = s.iter().map(|&x| x as f64).collect();
+        let want = log_prob_host(&host, n, m, &sigma).unwrap();
+        assert!((lp.value().data()[0] as f64 - want).abs() < 1e-2, "{:?} vs {want}", lp.value().data());
+        assert!(h.value().data()[0].is_finite());
+    }
+
+    /// A small f64 scorer and its store.
+    fn scorer_f64(set: PairFeatureSet, prior: f64, seed: u64) -> (ParamStore<f64>, AssignmentScorer) {
+        let mut store = ParamStore::<f64>::new();
+        let mut r = nn::init_rng(seed);
+        let config = ScorerConfig { features: set, hidden: vec![6, 5], distance_prior: prior };
+        let scorer = AssignmentScorer::new(&mut store.scope("assign", &mut r), config).unwrap();
+        (store, scorer)
+    }
+
+    fn random_positions(r: &mut ChaCha8Rng, count: usize) -> Vec<[f64; 3]> {
+        (0..count).map(|_| [r.random_range(-3.0..3.0), r.random_range(-3.0..3.0), r.random_range(0.0..2.0)]).collect()
+    }
+
+    #[test]
+    fn the_log_prob_gradient_reaches_the_scorer_parameters() {
+        for (n, m) in [(3, 2), (2, 3), (3, 3)] {
+            let b = 3;
+            let mut r = rng(4);
+            let (agents, objects) = (random_positions(&mut r, b * n), random_positions(&mut r, b * m));
+            let x = PairFeatures::new(PairFeatureSet::DistanceHeight, b, &agents, &objects, [0.0, 0.0, -1.0]).unwrap();
+            let (store, scorer) = scorer_f64(PairFeatureSet::DistanceHeight, 0.5, 5);
+            let names: Vec<String> = store.names().to_vec();
+            assert_eq!(
+                names,
+                [
+                    "assign.mlp.0.weight",
+                    "assign.mlp.0.bias",
+                    "assign.mlp.1.weight",
+                    "assign.mlp.1.bias",
+                    "assign.mlp.2.weight",
+                    "assign.mlp.2.bias"
+                ]
+            );
+            let mut pl = PlackettLuceAssigner::new(n, m);
+            let tape = Tape::<f64>::new();
+            let s = scorer.scores(&store.bind(&tape), &x).unwrap().value();
+            assert_eq!(s.shape(), &[b, n, m]);
+            let mut sigma = vec![0; b * m];
+            pl.sample(s.data(), b, n, m, &mut rng(6), &mut sigma).unwrap();
+            let params: Vec<Tensor<f64>> = store.values().to_vec();
+            let report = check_gradients(
+                |tape, v| {
+                    let p = Bound::from_vars(v.to_vec());
+                    let s = scorer.scores(&p, &x).expect("scores");
+                    let (lp, h) = log_prob_and_entropy(s, &sigma).expect("log-prob");
+                    tape.cat(&[lp, h], 0)
+                },
+                &params,
+            )
+            .unwrap();
+            assert_eq!(report.checked, store.num_elements());
+            // Every parameter tensor receives a nonzero gradient of the log-probability.
+            let tape = Tape::<f64>::new();
+            let p = store.bind(&tape);
+            let lp = log_prob(scorer.scores(&p, &x).unwrap(), &sigma).unwrap();
+            let grads = p.grads(&tape.backward(lp.sum_all()).unwrap());
+            for (name, g) in names.iter().zip(&grads) {
+                assert!(g.data().iter().any(|&v| v != 0.0), "{n} x {m}: no gradient reaches {name}");
+            }
+        }
+    }
+
+    /// Rotates `p` by `angle` about the unit axis `k` (Rodrigues) and adds `t`.
+    fn move_point(p: [f64; 3], k: [f64; 3], angle: f64, t: [f64; 3]) -> [f64; 3] {
+        let (s, c) = angle.sin_cos();
+        let dot = k[0] * p[0] + k[1] * p[1] + k[2] * p[2];
+        let cross = [k[1] * p[2] - k[2] * p[1], k[2] * p[0] - k[0] * p[2], k[0] * p[1] - k[1] * p[0]];
+        std::array::from_fn(|a| p[a] * c + cross[a] * s + k[a] * dot * (1.0 - c) + t[a])
+    }
+
+    /// Scores (f32 network), a seeded draw and the most likely assignment of a batch.
+    fn scores_and_assignments(
+        store: &ParamStore<f32>,
+        scorer: &AssignmentScorer,
+        x: &PairFeatures,
+    ) -> (Vec<f32>, Vec<usize>, Vec<usize>) {
+        let (b, n, m) = (x.batch, x.agents, x.objects);
+        let tape = Tape::<f32>::new();
+        let s = scorer.scores(&store.bind(&tape), x).unwrap().value().to_vec();
+        let mut pl = PlackettLuceAssigner::new(n, m);
+        let (mut drawn, mut best) = (vec![0; b * m], vec![0; b * m]);
+        pl.sample(&s, b, n, m, &mut rng(11), &mut drawn).unwrap();
+        pl.most_likely(&s, b, n, m, &mut best).unwrap();
+        (s, drawn, best)
+    }
+
+    #[test]
+    fn scores_and_assignments_are_invariant_under_rotations_about_gravity_and_translations() {
+        let b = 32;
+        let tilted = {
+            let g = [0.3, -0.4, -0.8];
+            let norm = (g[0] * g[0] + g[1] * g[1] + g[2] * g[2]) as f64;
+            g.map(|x: f64| x / norm.sqrt())
+        };
+        for (set, gravity) in [
+            (PairFeatureSet::DistanceHeight, [0.0, 0.0, -1.0]),
+            (PairFeatureSet::DistanceHeight, tilted),
+            (PairFeatureSet::Distance, [0.0, 0.0, -1.0]),
+        ] {
+            for (n, m) in [(3, 3), (4, 2), (2, 4)] {
+                let mut r = rng(7);
+                let (agents, objects) = (random_positions(&mut r, b * n), random_positions(&mut r, b * m));
+                let mut store = ParamStore::<f32>::new();
+                let config = ScorerConfig { features: set, hidden: vec![16, 16], distance_prior: 0.3 };
+                let scorer = AssignmentScorer::new(&mut store.scope("assign", &mut nn::init_rng(8)), config).unwrap();
+                let x = PairFeatures::new(set, b, &agents, &objects, gravity).unwrap();
+                let (s, drawn, best) = scores_and_assignments(&store, &scorer, &x);
+                check_assignment(&drawn, b, n, m).unwrap();
+                check_assignment(&best, b, n, m).unwrap();
+                let (angle, t) = (r.random_range(-3.0..3.0), [1.7, -4.2, 0.9]);
+                let g = gravity;
+                let moved =
+                    |p: &[[f64; 3]]| -> Vec<[f64; 3]> { p.iter().map(|&q| move_point(q, g, angle, t)).collect() };
+                let y = PairFeatures::new(set, b, &moved(&agents), &moved(&objects), gravity).unwrap();
+                let (s2, drawn2, best2) = scores_and_assignments(&store, &scorer, &y);
+                let worst = s.iter().zip(&s2).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
+                assert!(worst < 1e-4, "{set:?}, {n} x {m}: scores move by {worst}");
+                assert_eq!(drawn, drawn2, "{set:?}, {n} x {m}: the draw of the same seed changed");
+                assert_eq!(best, best2, "{set:?}, {n} x {m}: the most likely assignment changed");
+                if set == PairFeatureSet::Distance {
+                    // Distances alone are invariant under any rotation, e.g. about a horizontal axis.
+                    let k = [1.0, 0.0, 0.0];
+                    let tilt =
+                        |p: &[[f64; 3]]| -> Vec<[f64; 3]> { p.iter().map(|&q| move_point(q, k, 1.1, t)).collect() };
+                    let z = PairFeatures::new(set, b, &tilt(&agents), &tilt(&objects), gravity).unwrap();
+                    let (s3, _, _) = scores_and_assignments(&store, &scorer, &z);
+                    assert!(s.iter().zip(&s3).all(|(a, b)| (a - b).abs() < 1e-4));
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn a_seed_fixes_the_draw_and_different_seeds_differ() {
+        let (b, n, m) = (64, 4, 4);
+        let s = random_scores(&mut rng(9), b * n * m, 1.0);
+        let mut pl = PlackettLuceAssigner::new(n, m);
+        let draw = |pl: &mut PlackettLuceAssigner, seed: u64| {
+            let mut out = vec![0; b * m];
+            pl.sample(&s, b, n, m, &mut rng(seed), &mut out).unwrap();
+            out
+        };
+        let first = draw(&mut pl, 7);
+        assert_eq!(first, draw(&mut pl, 7), "same seed, same draw");
+        assert_eq!(first, draw(&mut PlackettLuceAssigner::new(5, 6), 7), "the scratch does not matter");
+        let other = draw(&mut pl, 8);
+        assert_ne!(first, other, "different seeds draw the same assignment in all {b} scenes");
+        check_assignment(&other, b, n, m).unwrap();
+    }
+
+    #[test]
+    fn sharp_distance_scores_recover_greedy_and_hungarian() {
+        // s = -β d with β large: sampling is Algorithm 1, the most likely assignment the
+        // minimal-total-distance one.
+        let (b, n, m) = (40, 4, 3);
+        let mut r = rng(10);
+        let (agents, objects) = (random_positions(&mut r, b * n), random_positions(&mut r, b * m));
+        let x = PairFeatures::new(PairFeatureSet::Distance, b, &agents, &objects, [0.0, 0.0, -1.0]).unwrap();
+        let s: Vec<f64> = x.distances.iter().map(|d| -1e4 * d).collect();
+        let mut pl = PlackettLuceAssigner::new(n, m);
+        let (mut drawn, mut best) = (vec![0; b * m], vec![0; b * m]);
+        pl.sample(&s, b, n, m, &mut rng(0), &mut drawn).unwrap();
+        pl.most_likely(&s, b, n, m, &mut best).unwrap();
+        let mut assigner = Assigner::new(n, m);
+        for scene in 0..b {
+            let d = &x.distances[scene * n * m..(scene + 1) * n * m];
+            let mut want = vec![0; m];
+            assigner.assign(AssignmentMethod::Greedy, d, n, m, &mut want, &mut rng(0));
+            assert_eq!(&drawn[scene * m..(scene + 1) * m], want.as_slice(), "scene {scene}: greedy");
+            assigner.assign(AssignmentMethod::Hungarian, d, n, m, &mut want, &mut rng(0));
+            assert_eq!(&best[scene * m..(scene + 1) * m], want.as_slice(), "scene {scene}: Hungarian");
+        }
+    }
+
+    #[test]
+    fn the_most_likely_assignment_maximises_the_total_score() {
+        let mut r = rng(12);
+        for (n, m) in [(1, 1), (3, 2), (2, 3), (4, 4), (3, 4)] {
+            let s = random_scores(&mut r, n * m, 2.0);
+            let mut best = vec![0; m];
+            PlackettLuceAssigner::new(n, m).most_likely(&s, 1, n, m, &mut best).unwrap();
+            let total = |a: &[usize]| -> f64 { (0..n.min(m)).map(|j| s[a[j] * m + j]).sum() };
+            let top = all_assignments(n, m).iter().map(|a| total(a)).fold(f64::NEG_INFINITY, f64::max);
+            check_assignment(&best, 1, n, m).unwrap();
+            assert!((total(&best) - top).abs() < 1e-12, "{n} x {m}: {} vs {top}", total(&best));
+        }
+    }
+
+    #[test]
+    fn bad_inputs_are_errors_that_name_the_value() {
+        let err = |r: Result<()>| r.unwrap_err().to_string();
+        let s = vec![0.0f64; 2 * 3 * 2];
+        let mut pl = PlackettLuceAssigner::new(3, 2);
+        let mut out = vec![0; 4];
+        assert!(err(pl.sample(&s[..11], 2, 3, 2, &mut rng(0), &mut out)).contains("11 scores"));
+        assert!(err(pl.sample(&s, 2, 3, 2, &mut rng(0), &mut out[..3])).contains("3 outputs"));
+        assert!(err(pl.sample(&[0.0; 12], 1, 4, 3, &mut rng(0), &mut [0; 3])).contains("at most 3 x 2"));
+        let mut nan = s.clone();
+        nan[7] = f64::NAN;
+        assert!(err(pl.most_likely(&nan, 2, 3, 2, &mut out)).contains("scene 1, agent 0, object 1"));
+        assert!(err(check_assignment(&[0, 0], 1, 3, 2)).contains("object 1 to agent 0"));
+        assert!(err(check_assignment(&[0, 3], 1, 3, 2)).contains("object 1 to agent 3"));
+        assert!(err(check_assignment(&[1, UNASSIGNED], 1, 3, 2)).contains("object 1 to unassigned"));
+        assert!(err(check_assignment(&[1, 0, 2], 1, 2, 3)).contains("object 2 to agent 2"));
+        check_assignment(&[1, 0, UNASSIGNED], 1, 2, 3).unwrap();
+        let tape = Tape::<f64>::new();
+        let flat = tape.constant(Tensor::zeros(&[6]));
+        assert!(log_prob(flat, &[0]).unwrap_err().to_string().contains("[6]"));
+        let v = tape.constant(Tensor::zeros(&[1, 3, 2]));
+        assert!(log_prob(v, &[2, 2]).unwrap_err().to_string().contains("object 1 to agent 2"));
+        let one = [[0.0; 3]];
+        let down = [0.0, 0.0, -1.0];
+        let pf = |b, a: &[[f64; 3]], o: &[[f64; 3]], g| PairFeatures::new(PairFeatureSet::Distance, b, a, o, g);
+        assert!(pf(2, &one, &one, down).unwrap_err().to_string().contains("2 scenes"));
+        assert!(pf(1, &one, &one, [0.0, 0.0, -2.0]).unwrap_err().to_string().contains("not a unit vector"));
+        assert!(pf(1, &[[f64::INFINITY, 0.0, 0.0]], &one, down).unwrap_err().to_string().contains("inf"));
+        assert!(
+            PairFeatures::from_entities(PairFeatureSet::Distance, &[[0.0; 3]; 6], 3, &[0, 1], &[3], down)
+                .unwrap_err()
+                .to_string()
+                .contains("entity 3")
+        );
+        let mut store = ParamStore::<f64>::new();
+        let mut r = nn::init_rng(0);
+        let bad = ScorerConfig { distance_prior: -1.0, ..ScorerConfig::default() };
+        assert!(AssignmentScorer::new(&mut store.scope("a", &mut r), bad).unwrap_err().to_string().contains("-1"));
+        let bad = ScorerConfig { hidden: vec![4, 0], ..ScorerConfig::default() };
+        assert!(AssignmentScorer::new(&mut store.scope("b", &mut r), bad).unwrap_err().to_string().contains("[4, 0]"));
+        let (store, scorer) = scorer_f64(PairFeatureSet::DistanceHeight, 0.0, 1);
+        let x = pf(1, &one, &one, down).unwrap();
+        let tape = Tape::<f64>::new();
+        assert!(scorer.scores(&store.bind(&tape), &x).unwrap_err().to_string().contains("Distance"));
+        assert!(PairFeatureSet::parse("height").unwrap_err().to_string().contains("height"));
+    }
+
+    #[test]
+    fn from_entities_picks_the_agent_and_object_rows_of_each_scene() {
+        // Two scenes of 4 entities: agents 0 and 1, objects 3 and 2.
+        let pos: Vec<[f64; 3]> = (0..8).map(|e| [e as f64, 0.0, 0.5 * e as f64]).collect();
+        let down = [0.0, 0.0, -1.0];
+        let x = PairFeatures::from_entities(PairFeatureSet::DistanceHeight, &pos, 4, &[0, 1], &[3, 2], down).unwrap();
+        assert_eq!((x.batch, x.agents, x.objects), (2, 2, 2));
+        let d = |a: f64, o: f64| ((o - a).powi(2) * 1.25).sqrt();
+        // Scene 1, agent 1 (entity 5), object 0 (entity 7): distance, height 0.5 * 2.
+        let row = (4 + 2) * 2;
+        assert!((x.values[row] - d(5.0, 7.0)).abs() < 1e-12 && (x.values[row + 1] - 1.0).abs() < 1e-12);
+        assert!((x.distances[4 + 2] - d(5.0, 7.0)).abs() < 1e-12);
+    }
 }
