@@ -153,7 +153,7 @@ impl PairFeatures {
                 objects.len()
             )));
         }
-        if agents.len() % batch != 0 || objects.len() % batch != 0 {
+        if !agents.len().is_multiple_of(batch) || !objects.len().is_multiple_of(batch) {
             return Err(ModelError::Input(format!(
                 "{} agent and {} object positions do not split into {batch} scenes",
                 agents.len(),
@@ -195,7 +195,7 @@ impl PairFeatures {
         objects: &[usize],
         gravity: [f64; 3],
     ) -> Result<Self> {
-        if entities == 0 || positions.is_empty() || positions.len() % entities != 0 {
+        if entities == 0 || positions.is_empty() || !positions.len().is_multiple_of(entities) {
             return Err(ModelError::Input(format!(
                 "{} entity positions do not split into scenes of {entities} entities",
                 positions.len()
@@ -637,7 +637,7 @@ mod tests {
             assert!((freq - p).abs() < 4.5 * sd, "{a:?}: frequency {freq} vs probability {p} (sd {sd})");
         }
         // The mean of the estimate over the draws: within 4 standard errors of the exact
-        // entropy (the standard error is about 0.004 here).
+        // entropy (the standard error is about 6e-4 here; the mean is 1.6615 against 1.6605).
         let tape = Tape::<f64>::new();
         let h = entropy_estimate(repeated(&tape, &s, draws, n, m), &out).unwrap().value();
         let mean = h.data().iter().sum::<f64>() / draws as f64;
@@ -763,9 +763,9 @@ mod tests {
     fn scores_and_assignments_are_invariant_under_rotations_about_gravity_and_translations() {
         let b = 32;
         let tilted = {
-            let g = [0.3, -0.4, -0.8];
-            let norm = (g[0] * g[0] + g[1] * g[1] + g[2] * g[2]) as f64;
-            g.map(|x: f64| x / norm.sqrt())
+            let g: [f64; 3] = [0.3, -0.4, -0.8];
+            let norm = (g[0] * g[0] + g[1] * g[1] + g[2] * g[2]).sqrt();
+            g.map(|x| x / norm)
         };
         for (set, gravity) in [
             (PairFeatureSet::DistanceHeight, [0.0, 0.0, -1.0]),
