@@ -304,30 +304,29 @@ pub fn check_assignment(assignment: &[usize], batch: usize, n: usize, m: usize) 
     Ok(())
 }
 
-/// Checks the host scores (`[B, n, m]` row-major, agent rows as the distance matrix) and
-/// returns them in `f64`.
-fn host_scores<T: Float>(scores: &[T], batch: usize, n: usize, m: usize) -> Result<Vec<f64>> {
+/// Checks the host scores (`[B, n, m]` row-major, agent rows as the distance matrix): their
+/// count and that every one is finite.
+fn check_scores<T: Float>(scores: &[T], batch: usize, n: usize, m: usize) -> Result<()> {
     if batch == 0 || n == 0 || m == 0 || scores.len() != batch * n * m {
         return Err(ModelError::Input(format!(
             "{} scores for {batch} scenes of {n} agents x {m} objects (none may be empty)",
             scores.len()
         )));
     }
-    let s: Vec<f64> = scores.iter().map(|x| x.to_f64()).collect();
-    if let Some(k) = s.iter().position(|x| !x.is_finite()) {
+    if let Some(k) = scores.iter().position(|x| !x.to_f64().is_finite()) {
         return Err(ModelError::Input(format!(
             "non-finite score {} of scene {}, agent {}, object {}",
-            s[k],
+            scores[k].to_f64(),
             k / (n * m),
             k / m % n,
             k % m
         )));
     }
-    Ok(s)
+    Ok(())
 }
 
 /// Sampling and the most likely assignment on the host, with scratch reused across calls
-/// (a batch of scenes allocates nothing beyond the first call's sizes).
+/// (sampling and matching a batch of scenes allocate nothing).
 #[derive(Clone, Debug)]
 pub struct PlackettLuceAssigner {
     hungarian: Assigner,
@@ -372,11 +371,12 @@ impl PlackettLuceAssigner {
         out: &mut [usize],
     ) -> Result<()> {
         self.check_capacity(n, m)?;
-        let s = host_scores(scores, batch, n, m)?;
+        check_scores(scores, batch, n, m)?;
         if out.len() != batch * m {
             return Err(ModelError::Input(format!("{} outputs for {batch} scenes of {m} objects", out.len())));
         }
-        for (scene, o) in s.chunks(n * m).zip(out.chunks_mut(m)) {
+        for (scene, o) in scores.chunks(n * m).zip(out.chunks_mut(m)) {
+            let score = |i: usize, j: usize| scene[i * m + j].to_f64();
             let free = &mut self.free[..n];
             free.fill(true);
             for (j, oj) in o.iter_mut().enumerate() {
@@ -384,15 +384,15 @@ impl PlackettLuceAssigner {
                     *oj = UNASSIGNED;
                     continue;
                 }
-                let top = (0..n).filter(|&i| free[i]).map(|i| scene[i * m + j]).fold(f64::NEG_INFINITY, f64::max);
-                let total: f64 = (0..n).filter(|&i| free[i]).map(|i| (scene[i * m + j] - top).exp()).sum();
+                let top = (0..n).filter(|&i| free[i]).map(|i| score(i, j)).fold(f64::NEG_INFINITY, f64::max);
+                let total: f64 = (0..n).filter(|&i| free[i]).map(|i| (score(i, j) - top).exp()).sum();
                 let u = rng.random::<f64>() * total;
                 let mut acc = 0.0;
                 let mut pick = UNASSIGNED;
                 for i in (0..n).filter(|&i| free[i]) {
                     // The last free agent takes whatever rounding leaves above the sum.
                     pick = i;
-                    acc += (scene[i * m + j] - top).exp();
+                    acc += (score(i, j) - top).exp();
                     if u < acc {
                         break;
                     }
@@ -417,18 +417,18 @@ impl PlackettLuceAssigner {
         out: &mut [usize],
     ) -> Result<()> {
         self.check_capacity(n, m)?;
-        let s = host_scores(scores, batch, n, m)?;
+        check_scores(scores, batch, n, m)?;
         if out.len() != batch * m {
             return Err(ModelError::Input(format!("{} outputs for {batch} scenes of {m} objects", out.len())));
         }
         let k = n.min(m);
         // The Hungarian method only uses its rng for the stochastic method; a fixed one.
         let mut unused = <ChaCha8Rng as rand::SeedableRng>::seed_from_u64(0);
-        for (scene, o) in s.chunks(n * m).zip(out.chunks_mut(m)) {
+        for (scene, o) in scores.chunks(n * m).zip(out.chunks_mut(m)) {
             let cost = &mut self.cost[..n * k];
             for i in 0..n {
                 for j in 0..k {
-                    cost[i * k + j] = -scene[i * m + j];
+                    cost[i * k + j] = -scene[i * m + j].to_f64();
                 }
             }
             o.fill(UNASSIGNED);
@@ -438,21 +438,34 @@ impl PlackettLuceAssigner {
     }
 }
 
-/// The log-probability of one scene's assignment under the Plackett-Luce distribution of its
-/// host scores (`[n, m]`, agent rows), in `f64` (for checks and logging; the trainer uses the
-/// differentiable [`log_prob_and_entropy`]).
-pub fn log_prob_host(scores: &[f64], n: usize, m: usize, assignment: &[usize]) -> Result<f64> {
-    let s = host_scores(scores, 1, n, m)?;
-    check_assignment(assignment, 1, n, m)?;
+/// The log-probabilities `[B]` of the assignments (`[B * m]`, object -> agent) under the
+/// Plackett-Luce distribution of host scores `[B, n, m]` (agent rows), in `f64`: for logging
+/// and checks, or to record a drawn assignment's log-probability at collection time (the
+/// update uses the differentiable [`log_prob_and_entropy`] of the same scores).
+pub fn log_prob_host<T: Float>(
+    scores: &[T],
+    batch: usize,
+    n: usize,
+    m: usize,
+    assignment: &[usize],
+) -> Result<Vec<f64>> {
+    check_scores(scores, batch, n, m)?;
+    check_assignment(assignment, batch, n, m)?;
     let mut free = vec![true; n];
-    let mut lp = 0.0;
-    for (j, &a) in assignment.iter().enumerate().take(n.min(m)) {
-        let top = (0..n).filter(|&i| free[i]).map(|i| s[i * m + j]).fold(f64::NEG_INFINITY, f64::max);
-        let lse = top + (0..n).filter(|&i| free[i]).map(|i| (s[i * m + j] - top).exp()).sum::<f64>().ln();
-        lp += s[a * m + j] - lse;
-        free[a] = false;
+    let mut out = Vec::with_capacity(batch);
+    for (scene, sigma) in scores.chunks(n * m).zip(assignment.chunks(m)) {
+        let score = |i: usize, j: usize| scene[i * m + j].to_f64();
+        free.fill(true);
+        let mut lp = 0.0;
+        for (j, &a) in sigma.iter().enumerate().take(n.min(m)) {
+            let top = (0..n).filter(|&i| free[i]).map(|i| score(i, j)).fold(f64::NEG_INFINITY, f64::max);
+            let lse = top + (0..n).filter(|&i| free[i]).map(|i| (score(i, j) - top).exp()).sum::<f64>().ln();
+            lp += score(a, j) - lse;
+            free[a] = false;
+        }
+        out.push(lp);
     }
-    Ok(lp)
+    Ok(out)
 }
 
 /// The differentiable log-probability `[B]` of the given assignments (`[B * m]`, object ->
@@ -474,9 +487,11 @@ pub fn log_prob_and_entropy<'t, T: Float>(
     let &[b, n, m] = shape.as_slice() else {
         return Err(ModelError::Input(format!("assignment scores of shape {shape:?} (expected [B, n, m])")));
     };
+    // The masks and shifts are built on the host (a download when the tape is on a device).
     let value = scores.value().to_host()?;
-    let s = host_scores(value.data(), b, n, m)?;
+    check_scores(value.data(), b, n, m)?;
     check_assignment(assignment, b, n, m)?;
+    let s = value.data();
     let k = n.min(m);
     // Per scene b, step j < k, agent i (row (b, j), column i of [B, k, n]): free, chosen,
     // and the step's shift.
@@ -492,7 +507,7 @@ pub fn log_prob_and_entropy<'t, T: Float>(
             for i in 0..n {
                 if !sigma[..j].contains(&i) {
                     free[row + i] = true;
-                    top = top.max(scene[i * m + j]);
+                    top = top.max(scene[i * m + j].to_f64());
                 }
             }
             chosen[row + sigma[j]] = T::from_f64(1.0);
@@ -608,7 +623,7 @@ mod tests {
                 assert_eq!(lp.shape(), &[all.len()]);
                 for (b, (a, p)) in all.iter().zip(&probs).enumerate() {
                     assert!((lp.data()[b] - p.ln()).abs() < 1e-12, "{n} x {m}, {a:?}: {} vs ln {p}", lp.data()[b]);
-                    assert!((log_prob_host(&s, n, m, a).unwrap() - p.ln()).abs() < 1e-12);
+                    assert!((log_prob_host(&s, 1, n, m, a).unwrap()[0] - p.ln()).abs() < 1e-12);
                 }
                 // The chain-rule estimate's expectation is the exact entropy (an exact sum here).
                 let expected: f64 = probs.iter().zip(h.data()).map(|(p, h)| p * h).sum();
@@ -668,7 +683,7 @@ mod tests {
         let g = grads.get(v).unwrap();
         assert!(g.data().iter().all(|x| x.is_finite()), "gradient {:?}", g.data());
         let host: Vec<f64> = s.iter().map(|&x| x as f64).collect();
-        let want = log_prob_host(&host, n, m, &sigma).unwrap();
+        let want = log_prob_host(&host, 1, n, m, &sigma).unwrap()[0];
         assert!((lp.value().data()[0] as f64 - want).abs() < 1e-2, "{:?} vs {want}", lp.value().data());
         assert!(h.value().data()[0].is_finite());
     }
