@@ -57,6 +57,17 @@
 //! `ln Σ_{F_j} exp(s_ij)`, which depend on `σ`; the two agree when the scores separate the
 //! agents clearly (low temperature), and the matching is invariant and deterministic.
 //!
+//! # Use per step (for the trainer)
+//! 1. Collection: [`PairFeatures::from_entities`] from [`crate::EntityInputs::positions`] and
+//!    [`crate::GraphBuilder::assignment_entities`]; [`AssignmentScorer::scores`] on a no-grad
+//!    tape; [`PlackettLuceAssigner::sample`] with the trainer's seeded stream; the draw goes
+//!    to [`crate::GraphBuilder::build_with`] (as [`crate::NO_AGENT`] / `u32`) and is stored
+//!    with the transition, its [`log_prob_host`] added to the action's old log-probability.
+//! 2. Update: the same features and the scores on the gradient tape;
+//!    [`log_prob_and_entropy`] of the stored draw gives the `[B]` log-probability to add to
+//!    the action's in the PPO ratio and the entropy estimate to add to the bonus.
+//! 3. Evaluation: [`PlackettLuceAssigner::most_likely`] (or a seeded draw).
+//!
 //! # Cost per step
 //! The scorer runs once over all `B n m` pairs (an MLP on `B n m` rows of 1 or 2 features);
 //! sampling is O(m n) per scene on the host; the log-probability and entropy are O(B k n)
