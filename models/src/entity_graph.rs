@@ -179,6 +179,14 @@ impl GraphBuilder {
         self.task
     }
 
+    /// The entities of the assignment's rows (the team's agents, in order) and columns (the
+    /// objects: Reach's balls, Sumo's opponents): the layout of its distance matrix and of
+    /// [`EntityGraph::assignment`] (for each column, the row assigned), which a learned
+    /// assignment ([`crate::assignment_learned::PairFeatures::from_entities`]) scores alike.
+    pub fn assignment_entities(&self) -> (&[usize], &[usize]) {
+        (&self.own, &self.objects)
+    }
+
     /// The team whose view the graph is built from.
     pub fn team(&self) -> usize {
         self.team

@@ -13,13 +13,15 @@
 //!   [`shnn`] (`shnn`, `shnn_og3`, `shnn_so3`, `shtransformer`, `shgnn`), [`hnn`] (`hnn`,
 //!   `hnn_hn`, `hnn_dn`), [`mlp`] (`mlp`, `mlp_hn`, `transformer_hn`);
 //! - their stages: input processing ([`input`]), the task assignment (Algorithm 1 and the
-//!   Hungarian alternative, [`assignment`]) and its entity graph ([`entity_graph`]), the
+//!   Hungarian alternative, [`assignment`]; the co-learnable Plackett-Luce assignment over
+//!   learned pair scores, [`assignment_learned`]) and its entity graph ([`entity_graph`]), the
 //!   entity-level subequivariant message passing with the LRF vector ([`entity_mp`]), the
 //!   local reference frame and an agent's observation in it (eqs. (ortho)-(lrf),
 //!   [`frame`]), the body heads ([`transformer_head`], [`body_gnn`]), the value networks ([`critic`]) and the
 //!   Tanh-Normal action distribution ([`distribution`]).
 
 pub mod assignment;
+pub mod assignment_learned;
 pub mod body_gnn;
 pub mod config;
 pub mod critic;
@@ -39,6 +41,9 @@ pub mod transformer_head;
 pub mod zoo;
 
 pub use assignment::{Assigner, AssignmentMethod, UNASSIGNED, distance_matrix};
+pub use assignment_learned::{
+    AssignmentScorer, PairFeatureSet, PairFeatures, PlackettLuceAssigner, ScorerConfig, log_prob_and_entropy,
+};
 pub use body_gnn::{BodyGnn, BodyGnnConfig};
 pub use config::{GravityMode, MlpVariant, MpSizes, NeighbourOffset, OPTION_KEYS};
 pub use critic::{SubeqCritic, ValueHead};

@@ -7,4 +7,5 @@ mod common;
 mod components;
 mod entity_stage;
 mod gpu_models;
+mod learned_assignment;
 mod policies;
