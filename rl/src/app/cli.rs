@@ -11,6 +11,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::OnceLock;
 
+use crate::app::outputs;
 use crate::app::presets::Preset;
 use crate::app::run::TrainOptions;
 use crate::app::run_dir::RunDir;
@@ -313,7 +314,7 @@ pub fn main() -> ExitCode {
         Some(Command::Status(a)) => cmd_status(a),
         Some(Command::Render(a)) => cmd_render(a),
         Some(Command::ExportPolicy(a)) => cmd_export_policy(a),
-        Some(Command::Sim(a)) => envs::rollout_tool::run(&a).map_err(|e| e.to_string()),
+        Some(Command::Sim(a)) => cmd_sim(a),
         Some(Command::Info(a)) => cmd_info(a),
     };
     let interrupted = STOP.get().is_some_and(StopFlag::is_requested);
@@ -485,6 +486,19 @@ fn cmd_eval(a: EvalArgs) -> Result<(), String> {
     if let Some(adapter) = crate::mappo::device::check_device(device).map_err(|e| e.to_string())? {
         eprintln!("meben: evaluating on GPU: {adapter}");
     }
+    let in_run = a.run.as_ref().map(|r| r.join(eval_file_name(a.rotate, a.translate, a.fixed)));
+    // `--out` is checked before anything is computed: never a run directory's own file
+    // (but the run's own evaluation file, written anyway) nor the policy evaluated.
+    let out = match (&a.out, &in_run) {
+        (Some(out), Some(own)) if outputs::resolved(out) == outputs::resolved(own) => None,
+        (out, _) => out.clone(),
+    };
+    if let Some(out) = &out {
+        let policy = a.policy.as_deref().map(crate::app::policy_file::resolve_policy).transpose();
+        let policy = policy.map_err(|e| e.to_string())?;
+        let inputs: Vec<(&str, &std::path::Path)> = policy.iter().map(|p| ("--policy", p.as_path())).collect();
+        outputs::check_output("--out", out, &inputs).map_err(|e| e.to_string())?;
+    }
     let (config, mut teams) = load_teams(a.run.as_ref(), a.policy.as_deref())?;
     if a.episodes == 0 {
         return Err("--episodes must be at least 1".into());
@@ -513,8 +527,7 @@ fn cmd_eval(a: EvalArgs) -> Result<(), String> {
     let e = evaluate_on_device(&config.env, &mut teams, &options, device)?;
     print_eval(config.is_sumo(), &e);
     let text = serde_json::to_string_pretty(&e).map_err(|e| e.to_string())?;
-    let in_run = a.run.as_ref().map(|r| r.join(eval_file_name(a.rotate, a.translate, a.fixed)));
-    for path in in_run.iter().chain(&a.out) {
+    for path in in_run.iter().chain(&out) {
         nn::write_atomic(path, text.as_bytes()).map_err(|e| e.to_string())?;
         eprintln!("meben: wrote {}", path.display());
     }
@@ -652,7 +665,10 @@ fn cmd_export_policy(a: ExportPolicyArgs) -> Result<(), String> {
 }
 
 fn cmd_render(a: RenderArgs) -> Result<(), String> {
-    crate::app::run_dir::check_not_a_run_file("--out", &a.out).map_err(|e| e.to_string())?;
+    let policy = a.policy.as_deref().map(crate::app::policy_file::resolve_policy).transpose();
+    let policy = policy.map_err(|e| e.to_string())?;
+    let inputs: Vec<(&str, &std::path::Path)> = policy.iter().map(|p| ("--policy", p.as_path())).collect();
+    outputs::check_output("--out", &a.out, &inputs).map_err(|e| e.to_string())?;
     let (config, mut teams) = load_teams(a.run.as_ref(), a.policy.as_deref())?;
     let ext = a.out.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
     if !["html", "gif", "csv"].contains(&ext.as_str()) {
@@ -674,4 +690,11 @@ fn cmd_render(a: RenderArgs) -> Result<(), String> {
     nn::write_atomic(&a.out, &bytes).map_err(|e| e.to_string())?;
     eprintln!("meben: wrote {} ({} frames)", a.out.display(), traj.len());
     Ok(())
+}
+
+/// `meben sim`: the simulator's rollout tool, which refuses its own inputs as `--out`;
+/// a run directory's own files are refused here too.
+fn cmd_sim(a: envs::rollout_tool::RolloutArgs) -> Result<(), String> {
+    outputs::check_output("--out", &a.out, &[]).map_err(|e| e.to_string())?;
+    envs::rollout_tool::run(&a).map_err(|e| e.to_string())
 }

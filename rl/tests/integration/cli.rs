@@ -328,3 +328,49 @@ fn sizes_beyond_the_machines_memory_are_refused_before_anything_is_built() {
     eval[4] = "2";
     assert!(meben(&eval).0);
 }
+
+/// Issue 77 item 1: `meben eval --run r --out r/checkpoint.json` exited 0 and replaced the
+/// checkpoint with the evaluation's summary, and `eval --policy F --out F` the policy. Every
+/// command that writes a file named by `--out` (eval, render, sim, export-policy) refuses a
+/// run directory's own files and its own inputs, naming the path; nothing is written.
+#[test]
+fn no_command_writes_over_a_runs_files_or_its_own_input() {
+    let tmp = common::TempDir::new("cli-outputs");
+    let run = tmp.0.join("run");
+    let run_s = run.to_str().unwrap();
+    let mut args = vec!["train", "--model", "mlp_hn", "--out", run_s];
+    args.extend_from_slice(TINY);
+    let (ok, _, stderr) = meben(&args);
+    assert!(ok, "train failed: {stderr}");
+    let checkpoint = std::fs::read(run.join("checkpoint.json")).unwrap();
+    let out = run.join("checkpoint.json");
+    let out_s = out.to_str().unwrap();
+    fails_with(&["eval", "--run", run_s, "--episodes", "1", "--out", out_s], &[out_s, "--out", "own checkpoint.json"]);
+    assert_eq!(std::fs::read(&out).unwrap(), checkpoint, "eval --out replaced the checkpoint");
+    let metrics = run.join("metrics.csv");
+    let before = std::fs::read(&metrics).unwrap();
+    fails_with(
+        &["sim", "--mjcf", "body.xml", "--controls", "c.csv", "--out", metrics.to_str().unwrap()],
+        &["metrics.csv", "--out", "own"],
+    );
+    assert_eq!(std::fs::read(&metrics).unwrap(), before);
+    // The run's own evaluation file, which eval writes anyway, is fine.
+    let own = run.join("eval.json");
+    let (ok, _, stderr) = meben(&["eval", "--run", run_s, "--episodes", "1", "--out", own.to_str().unwrap()]);
+    assert!(ok, "{stderr}");
+
+    let policy = tmp.0.join("policy.safetensors");
+    let policy_s = policy.to_str().unwrap();
+    let (ok, _, stderr) = meben(&["export-policy", "--run", run_s, "--out", policy_s]);
+    assert!(ok, "{stderr}");
+    let bytes = std::fs::read(&policy).unwrap();
+    let same = tmp.0.join(".").join("policy.safetensors");
+    fails_with(
+        &["eval", "--policy", policy_s, "--episodes", "1", "--out", same.to_str().unwrap()],
+        &["--out", "--policy", "policy.safetensors"],
+    );
+    assert_eq!(std::fs::read(&policy).unwrap(), bytes, "eval --out replaced the policy");
+    let summary = tmp.0.join("summary.json");
+    let (ok, _, stderr) = meben(&["eval", "--policy", policy_s, "--episodes", "1", "--out", summary.to_str().unwrap()]);
+    assert!(ok && summary.is_file(), "{stderr}");
+}
