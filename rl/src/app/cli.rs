@@ -577,6 +577,7 @@ fn cmd_ablate(a: AblateArgs) -> Result<(), String> {
         .as_deref()
         .map(|d| d.parse::<tensor::Device>().map_err(|e| RlError::config("command line", "--device", d, e).to_string()))
         .transpose()?;
+    check_sweep_devices(&sweep, device).map_err(|e| e.to_string())?;
     let options = TrainOptions { progress: !a.quiet, stop_after: None, stop: stop_on_signals()? };
     let outcome = crate::app::sweep::run_sweep(&sweep, &a.out, &selection, |c, r| {
         eprintln!("meben: run {} ({} on {}, seed {})", r.root().display(), c.model, c.env, c.seed);
@@ -590,6 +591,26 @@ fn cmd_ablate(a: AblateArgs) -> Result<(), String> {
     .map_err(|e| e.to_string())?;
     println!("meben: sweep {}: {outcome}", a.out.display());
     Ok(())
+}
+
+/// Refuses, once and before any run, a sweep whose runs would train on a device this build
+/// lacks (`--device gpu`, or `device = "gpu"` in the sweep file, without the feature `gpu`):
+/// before, every run failed in turn with the same error.
+fn check_sweep_devices(sweep: &crate::app::sweep::Sweep, device: Option<tensor::Device>) -> Result<(), RlError> {
+    let devices: Vec<(String, &str, tensor::Device)> = match device {
+        Some(d) => vec![("command line".into(), "--device", d)],
+        None => sweep.runs()?.into_iter().map(|r| (sweep.source.clone(), "device", r.config.device)).collect(),
+    };
+    match devices.into_iter().find(|(_, _, d)| !d.is_built()) {
+        Some((source, field, d)) => Err(RlError::config(
+            source,
+            field,
+            d.name(),
+            "this build has no GPU device, so no run of the sweep could train: rebuild with --features gpu \
+             (cargo build --release -p rl --features gpu)",
+        )),
+        None => Ok(()),
+    }
 }
 
 fn cmd_report(a: ReportArgs) -> Result<(), String> {

@@ -374,3 +374,31 @@ fn no_command_writes_over_a_runs_files_or_its_own_input() {
     let (ok, _, stderr) = meben(&["eval", "--policy", policy_s, "--episodes", "1", "--out", summary.to_str().unwrap()]);
     assert!(ok && summary.is_file(), "{stderr}");
 }
+
+/// Issue 77 item 11: `meben ablate --shard k/n` with more shards than runs exited 1 with a
+/// message about `--only`, where rl/sweeps/slurm_array.sh says the extra shards are empty:
+/// an empty shard exits 0 and says so. And `--device gpu` in a build without the feature is
+/// refused once, before any run (it failed every run in turn).
+#[test]
+fn an_empty_shard_succeeds_and_a_missing_device_is_refused_before_any_run() {
+    let tmp = common::TempDir::new("cli-shards");
+    let sweep = tmp.0.join("sweep.toml");
+    std::fs::write(
+        &sweep,
+        "envs = [\"team_reach/1_ant\"]\nmodels = [\"mlp_hn\"]\nseeds = [0, 1]\npreset = \"quick\"\n",
+    )
+    .unwrap();
+    let out = tmp.0.join("out");
+    let base = ["ablate", "--sweep", sweep.to_str().unwrap(), "--out", out.to_str().unwrap(), "--quiet"];
+    let (ok, stdout, stderr) = meben(&[&base[..], &["--shard", "3/8"]].concat());
+    assert!(ok, "{stderr}");
+    assert!(stderr.contains("shard 3/8") && stderr.contains("empty") && stderr.contains("2 runs"), "{stderr}");
+    assert!(stdout.contains("0 runs"), "{stdout}");
+    assert!(!out.exists());
+    if cfg!(not(feature = "gpu")) {
+        let (ok, _, stderr) = meben(&[&base[..], &["--device", "gpu"]].concat());
+        assert!(!ok && stderr.contains("--device") && stderr.contains("rebuild with --features gpu"), "{stderr}");
+        assert_eq!(stderr.matches("rebuild with").count(), 1, "{stderr}");
+        assert!(!out.exists(), "a run was started: {stderr}");
+    }
+}
