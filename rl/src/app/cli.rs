@@ -614,6 +614,8 @@ fn check_sweep_devices(sweep: &crate::app::sweep::Sweep, device: Option<tensor::
 }
 
 fn cmd_report(a: ReportArgs) -> Result<(), String> {
+    // The paper's figures are read and checked before the report writes anything.
+    let paper = a.paper.as_deref().map(crate::app::paper::PaperFigures::load).transpose().map_err(|e| e.to_string())?;
     let r = crate::app::report::report_at(&a.root, a.at_steps).map_err(|e| e.to_string())?;
     // Every run's own learning curve is redrawn too (runs written by older versions).
     for dir in crate::app::record::find_run_dirs(&a.root).map_err(|e| e.to_string())? {
@@ -622,7 +624,7 @@ fn cmd_report(a: ReportArgs) -> Result<(), String> {
     let text = std::fs::read_to_string(&r.markdown).map_err(|e| format!("{}: {e}", r.markdown.display()))?;
     println!("{text}");
     eprintln!("meben: wrote {}", r.markdown.display());
-    if let Some(paper) = &a.paper {
+    if let Some(paper) = &paper {
         let path = crate::app::paper::write_paper_table(&r.dir, &r.groups, paper).map_err(|e| e.to_string())?;
         eprintln!("meben: wrote {}", path.display());
     }

@@ -402,3 +402,29 @@ fn an_empty_shard_succeeds_and_a_missing_device_is_refused_before_any_run() {
         assert!(!out.exists(), "a run was started: {stderr}");
     }
 }
+
+/// Issue 77: `meben report --paper FILE` wrote `report.md` before it read the paper's
+/// figures, and a line break in one of their values broke `paper.md`'s table. The file is
+/// checked first, a line break refused naming the field, and nothing is written.
+#[test]
+fn a_bad_paper_file_is_refused_before_the_report_is_written() {
+    let tmp = common::TempDir::new("cli-paper");
+    let root = tmp.0.join("runs");
+    let run = root.join("run0");
+    let mut args = vec!["train", "--model", "mlp_hn", "--out", run.to_str().unwrap()];
+    args.extend_from_slice(TINY);
+    let (ok, _, stderr) = meben(&args);
+    assert!(ok, "train failed: {stderr}");
+    let paper = tmp.0.join("paper.toml");
+    std::fs::write(
+        &paper,
+        "seeds = 10\n[[figure]]\ntable = \"Table 1\\nleft\"\nenv = \"team_reach/1_ant\"\nmodel = \"mlp_hn\"\n\
+         mean = 50.0\nsd = 1.0\n",
+    )
+    .unwrap();
+    fails_with(
+        &["report", root.to_str().unwrap(), "--paper", paper.to_str().unwrap()],
+        &["paper.toml", "figure[0].table", "line break"],
+    );
+    assert!(!root.join("report.md").exists() && !root.join("paper.md").exists());
+}
