@@ -160,7 +160,8 @@ struct EvalArgs {
     #[arg(long)]
     policy: Option<String>,
     /// Also write the summary (JSON) to this file. With --run it goes to the run directory
-    /// anyway (eval.json, eval_rotate<deg>.json, ...).
+    /// anyway (eval.json, eval_rotate<deg>.json, ...). A run directory's other files
+    /// (checkpoint.json, metrics.csv, ...) and the --policy file are refused.
     #[arg(long)]
     out: Option<PathBuf>,
     /// Episodes.
@@ -287,7 +288,8 @@ struct RenderArgs {
     #[arg(long)]
     policy: Option<String>,
     /// Output file: .html (interactive animation), .gif (animated image) or .csv (body poses per frame).
-    /// A run directory's own files (metrics.csv, config.toml, ...) are refused.
+    /// A run directory's own files (metrics.csv, config.toml, ...) and the --policy file are
+    /// refused.
     #[arg(long)]
     out: PathBuf,
     /// Seed of the episode's start.

@@ -20,6 +20,11 @@
 //! the text the run wrote ([`crate::app::metrics::training_lines`]), not as read back by
 //! [`crate::app::record`]: equal text is equal bits, with no float comparison to get wrong
 //! (a NaN cell equals itself there).
+//!
+//! Nor does it write where it would harm: a destination inside the source (each export would
+//! nest the copies again) or one that is, holds or lies inside a training's run directory
+//! (its evidence overwritten, a stopped run marked finished) is refused before anything is
+//! written.
 
 use std::path::{Path, PathBuf};
 
