@@ -16,8 +16,9 @@
 # rl/sweeps/slurm_ci.sh (README, sweeps).
 #
 # Task ids must run from 1 to the array size (1-based shards): keep `--array=1-N`, not 0-based.
-# A 1-8 array has SLURM_ARRAY_TASK_COUNT = 8. More tasks than runs is allowed (the extra
-# shards are empty).
+# A 1-8 array has SLURM_ARRAY_TASK_COUNT = 8. More tasks than runs is allowed: the extra
+# shards are empty, and their tasks say so (`shard 9/10 of ... is empty: the sweep has 8 runs
+# for 10 shards; nothing to do`) and exit 0.
 #
 #SBATCH --job-name=meben-sweep
 #SBATCH --array=1-8

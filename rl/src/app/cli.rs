@@ -11,6 +11,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::OnceLock;
 
+use crate::app::outputs;
 use crate::app::presets::Preset;
 use crate::app::run::TrainOptions;
 use crate::app::run_dir::RunDir;
@@ -159,7 +160,8 @@ struct EvalArgs {
     #[arg(long)]
     policy: Option<String>,
     /// Also write the summary (JSON) to this file. With --run it goes to the run directory
-    /// anyway (eval.json, eval_rotate<deg>.json, ...).
+    /// anyway (eval.json, eval_rotate<deg>.json, ...). A run directory's other files
+    /// (checkpoint.json, metrics.csv, ...) and the --policy file are refused.
     #[arg(long)]
     out: Option<PathBuf>,
     /// Episodes.
@@ -286,7 +288,8 @@ struct RenderArgs {
     #[arg(long)]
     policy: Option<String>,
     /// Output file: .html (interactive animation), .gif (animated image) or .csv (body poses per frame).
-    /// A run directory's own files (metrics.csv, config.toml, ...) are refused.
+    /// A run directory's own files (metrics.csv, config.toml, ...) and the --policy file are
+    /// refused.
     #[arg(long)]
     out: PathBuf,
     /// Seed of the episode's start.
@@ -313,7 +316,7 @@ pub fn main() -> ExitCode {
         Some(Command::Status(a)) => cmd_status(a),
         Some(Command::Render(a)) => cmd_render(a),
         Some(Command::ExportPolicy(a)) => cmd_export_policy(a),
-        Some(Command::Sim(a)) => envs::rollout_tool::run(&a).map_err(|e| e.to_string()),
+        Some(Command::Sim(a)) => cmd_sim(a),
         Some(Command::Info(a)) => cmd_info(a),
     };
     let interrupted = STOP.get().is_some_and(StopFlag::is_requested);
@@ -485,6 +488,19 @@ fn cmd_eval(a: EvalArgs) -> Result<(), String> {
     if let Some(adapter) = crate::mappo::device::check_device(device).map_err(|e| e.to_string())? {
         eprintln!("meben: evaluating on GPU: {adapter}");
     }
+    let in_run = a.run.as_ref().map(|r| r.join(eval_file_name(a.rotate, a.translate, a.fixed)));
+    // `--out` is checked before anything is computed: never a run directory's own file
+    // (but the run's own evaluation file, written anyway) nor the policy evaluated.
+    let out = match (&a.out, &in_run) {
+        (Some(out), Some(own)) if outputs::resolved(out) == outputs::resolved(own) => None,
+        (out, _) => out.clone(),
+    };
+    if let Some(out) = &out {
+        let policy = a.policy.as_deref().map(crate::app::policy_file::resolve_policy).transpose();
+        let policy = policy.map_err(|e| e.to_string())?;
+        let inputs: Vec<(&str, &std::path::Path)> = policy.iter().map(|p| ("--policy", p.as_path())).collect();
+        outputs::check_output("--out", out, &inputs).map_err(|e| e.to_string())?;
+    }
     let (config, mut teams) = load_teams(a.run.as_ref(), a.policy.as_deref())?;
     if a.episodes == 0 {
         return Err("--episodes must be at least 1".into());
@@ -513,8 +529,7 @@ fn cmd_eval(a: EvalArgs) -> Result<(), String> {
     let e = evaluate_on_device(&config.env, &mut teams, &options, device)?;
     print_eval(config.is_sumo(), &e);
     let text = serde_json::to_string_pretty(&e).map_err(|e| e.to_string())?;
-    let in_run = a.run.as_ref().map(|r| r.join(eval_file_name(a.rotate, a.translate, a.fixed)));
-    for path in in_run.iter().chain(&a.out) {
+    for path in in_run.iter().chain(&out) {
         nn::write_atomic(path, text.as_bytes()).map_err(|e| e.to_string())?;
         eprintln!("meben: wrote {}", path.display());
     }
@@ -564,6 +579,7 @@ fn cmd_ablate(a: AblateArgs) -> Result<(), String> {
         .as_deref()
         .map(|d| d.parse::<tensor::Device>().map_err(|e| RlError::config("command line", "--device", d, e).to_string()))
         .transpose()?;
+    check_sweep_devices(&sweep, device).map_err(|e| e.to_string())?;
     let options = TrainOptions { progress: !a.quiet, stop_after: None, stop: stop_on_signals()? };
     let outcome = crate::app::sweep::run_sweep(&sweep, &a.out, &selection, |c, r| {
         eprintln!("meben: run {} ({} on {}, seed {})", r.root().display(), c.model, c.env, c.seed);
@@ -579,7 +595,29 @@ fn cmd_ablate(a: AblateArgs) -> Result<(), String> {
     Ok(())
 }
 
+/// Refuses, once and before any run, a sweep whose runs would train on a device this build
+/// lacks (`--device gpu`, or `device = "gpu"` in the sweep file, without the feature `gpu`):
+/// before, every run failed in turn with the same error.
+fn check_sweep_devices(sweep: &crate::app::sweep::Sweep, device: Option<tensor::Device>) -> Result<(), RlError> {
+    let devices: Vec<(String, &str, tensor::Device)> = match device {
+        Some(d) => vec![("command line".into(), "--device", d)],
+        None => sweep.runs()?.into_iter().map(|r| (sweep.source.clone(), "device", r.config.device)).collect(),
+    };
+    match devices.into_iter().find(|(_, _, d)| !d.is_built()) {
+        Some((source, field, d)) => Err(RlError::config(
+            source,
+            field,
+            d.name(),
+            "this build has no GPU device, so no run of the sweep could train: rebuild with --features gpu \
+             (cargo build --release -p rl --features gpu)",
+        )),
+        None => Ok(()),
+    }
+}
+
 fn cmd_report(a: ReportArgs) -> Result<(), String> {
+    // The paper's figures are read and checked before the report writes anything.
+    let paper = a.paper.as_deref().map(crate::app::paper::PaperFigures::load).transpose().map_err(|e| e.to_string())?;
     let r = crate::app::report::report_at(&a.root, a.at_steps).map_err(|e| e.to_string())?;
     // Every run's own learning curve is redrawn too (runs written by older versions).
     for dir in crate::app::record::find_run_dirs(&a.root).map_err(|e| e.to_string())? {
@@ -588,7 +626,7 @@ fn cmd_report(a: ReportArgs) -> Result<(), String> {
     let text = std::fs::read_to_string(&r.markdown).map_err(|e| format!("{}: {e}", r.markdown.display()))?;
     println!("{text}");
     eprintln!("meben: wrote {}", r.markdown.display());
-    if let Some(paper) = &a.paper {
+    if let Some(paper) = &paper {
         let path = crate::app::paper::write_paper_table(&r.dir, &r.groups, paper).map_err(|e| e.to_string())?;
         eprintln!("meben: wrote {}", path.display());
     }
@@ -652,7 +690,10 @@ fn cmd_export_policy(a: ExportPolicyArgs) -> Result<(), String> {
 }
 
 fn cmd_render(a: RenderArgs) -> Result<(), String> {
-    crate::app::run_dir::check_not_a_run_file("--out", &a.out).map_err(|e| e.to_string())?;
+    let policy = a.policy.as_deref().map(crate::app::policy_file::resolve_policy).transpose();
+    let policy = policy.map_err(|e| e.to_string())?;
+    let inputs: Vec<(&str, &std::path::Path)> = policy.iter().map(|p| ("--policy", p.as_path())).collect();
+    outputs::check_output("--out", &a.out, &inputs).map_err(|e| e.to_string())?;
     let (config, mut teams) = load_teams(a.run.as_ref(), a.policy.as_deref())?;
     let ext = a.out.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
     if !["html", "gif", "csv"].contains(&ext.as_str()) {
@@ -674,4 +715,11 @@ fn cmd_render(a: RenderArgs) -> Result<(), String> {
     nn::write_atomic(&a.out, &bytes).map_err(|e| e.to_string())?;
     eprintln!("meben: wrote {} ({} frames)", a.out.display(), traj.len());
     Ok(())
+}
+
+/// `meben sim`: the simulator's rollout tool, which refuses its own inputs as `--out`;
+/// a run directory's own files are refused here too.
+fn cmd_sim(a: envs::rollout_tool::RolloutArgs) -> Result<(), String> {
+    outputs::check_output("--out", &a.out, &[]).map_err(|e| e.to_string())?;
+    envs::rollout_tool::run(&a).map_err(|e| e.to_string())
 }

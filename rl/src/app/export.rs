@@ -20,6 +20,11 @@
 //! the text the run wrote ([`crate::app::metrics::training_lines`]), not as read back by
 //! [`crate::app::record`]: equal text is equal bits, with no float comparison to get wrong
 //! (a NaN cell equals itself there).
+//!
+//! Nor does it write where it would harm: a destination inside the source (each export would
+//! nest the copies again) or one that is, holds or lies inside a training's run directory
+//! (its evidence overwritten, a stopped run marked finished) is refused before anything is
+//! written.
 
 use std::path::{Path, PathBuf};
 
@@ -63,6 +68,7 @@ pub fn export(from: &Path, to: &Path) -> Result<ExportSummary> {
     if dirs.is_empty() {
         return Err(RlError::file(from, "holds no run directory (config.toml and metrics.csv)"));
     }
+    check_destination(from, to)?;
     // Every run is checked against what `to` holds before anything is written.
     let mut plans = Vec::with_capacity(dirs.len());
     for dir in dirs {
@@ -96,6 +102,64 @@ pub fn export(from: &Path, to: &Path) -> Result<ExportSummary> {
         summary.runs.push(rel);
     }
     Ok(summary)
+}
+
+/// Refuses a destination `to` that lies inside the source `from` (or is it): every export
+/// would copy the copies again, nesting them (2, 4, 6 runs on repeated exports); and one
+/// that is, holds or lies inside a training's run directory ([`is_training_run`]): its `done.json`
+/// would mark a stopped run finished and its `metrics.csv` replace the run's. Both were
+/// taken before (issue 77 item 12). Errors name both directories.
+fn check_destination(from: &Path, to: &Path) -> Result<()> {
+    if crate::app::outputs::is_within(to, from) {
+        return Err(RlError::file(
+            to,
+            format!(
+                "the destination lies inside the source {}: every export would copy the copies again; export to a \
+                 directory outside it",
+                from.display()
+            ),
+        ));
+    }
+    let inside = crate::app::outputs::resolved(to);
+    if let Some(run) = inside.ancestors().skip(1).find(|d| is_training_run(d)) {
+        return Err(RlError::file(
+            to,
+            format!(
+                "the destination lies inside the run directory {}: export to a directory of exported evidence or a \
+                 new one",
+                run.display()
+            ),
+        ));
+    }
+    let mut stack = vec![to.to_path_buf()];
+    while let Some(dir) = stack.pop() {
+        if is_training_run(&dir) {
+            return Err(RlError::file(
+                to,
+                format!(
+                    "the destination {} a run directory ({} holds {}): the export would write over its evidence \
+                     and could mark it finished; export to a directory of exported evidence or a new one",
+                    if dir == to { "is" } else { "holds" },
+                    dir.display(),
+                    if RunDir::new(&dir).checkpoint().is_file() { "checkpoint.json" } else { "a training's lock" }
+                ),
+            ));
+        }
+        let Ok(entries) = std::fs::read_dir(&dir) else { continue };
+        for entry in entries.flatten() {
+            let hidden = entry.file_name().to_string_lossy().starts_with('.');
+            if !hidden && entry.file_type().is_ok_and(|t| t.is_dir()) {
+                stack.push(entry.path());
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Whether `dir` is the directory of a training, not exported evidence: it holds a
+/// `checkpoint.json` or a training's lock file, which export never copies.
+fn is_training_run(dir: &Path) -> bool {
+    RunDir::new(dir).checkpoint().is_file() || dir.join(crate::app::lock::LOCK_FILE).is_file()
 }
 
 /// Compares run directory `run` with its exported evidence `exported`: `None` if there is
@@ -302,5 +366,38 @@ mod tests {
         let missing = tmp.0.join("missing");
         let msg = export(&missing, &tmp.0.join("out")).unwrap_err().to_string();
         assert!(msg.contains("missing") && msg.contains("not a directory"), "{msg}");
+    }
+
+    /// Issue 77 item 12: exporting into the source nested copies (2, 4, 6 runs on repeated
+    /// exports), and exporting a finished run into a stopped one marked it finished. Both
+    /// are refused, naming the directories, and nothing is written.
+    #[test]
+    fn a_destination_inside_the_source_or_holding_a_run_is_refused() {
+        let tmp = TempDir::new("export-guard");
+        let runs = tmp.0.join("runs");
+        let run = run_dir(&runs, "e/m/seed0", &metrics(3, 1.0));
+        std::fs::write(run.join("done.json"), "{}").unwrap();
+        for to in [runs.join("exported"), runs.clone(), run.join("..").join("x")] {
+            let msg = export(&runs, &to).unwrap_err().to_string();
+            assert!(msg.contains("inside the source") && msg.contains(&runs.display().to_string()), "{msg}");
+        }
+        assert!(!runs.join("exported").exists());
+        // A stopped run (its checkpoint, no done.json) as the destination, or under it.
+        let stopped = run_dir(&tmp.0.join("other"), "e/m/seed0", &metrics(2, 1.0));
+        std::fs::write(stopped.join("checkpoint.json"), "{}").unwrap();
+        for to in [stopped.clone(), tmp.0.join("other")] {
+            let msg = export(&run, &to).unwrap_err().to_string();
+            assert!(msg.contains("run directory") && msg.contains("checkpoint.json"), "{msg}");
+        }
+        assert!(!stopped.join("done.json").exists(), "the stopped run was marked finished");
+        let msg = export(&run, &stopped.join("sub")).unwrap_err().to_string();
+        assert!(msg.contains("inside the run directory"), "{msg}");
+        assert!(!stopped.join("sub").exists());
+        // Exported evidence (no checkpoint, no lock) is a fine destination, again and again.
+        let results = tmp.0.join("results");
+        for _ in 0..3 {
+            assert_eq!(export(&runs, &results).unwrap().runs.len(), 1);
+        }
+        assert_eq!(find_run_dirs(&results).unwrap().len(), 1);
     }
 }

@@ -101,6 +101,12 @@ fn host_name() -> String {
 /// the checkpoint tensors files (`checkpoint.<digest>.safetensors`) that its
 /// `checkpoint.json` does not name, which a crash between a save's steps leaves
 /// ([`crate::mappo::checkpoint::remove_stale_tensor_files`]).
+///
+/// Training calls it only once the run's checkpoint has loaded and passed its checks
+/// ([`crate::app::run::train`]): a `checkpoint.json` put back from an older save names a
+/// tensors file that is gone, and cleaning up before the load failed removed the newer
+/// pair's tensors file, the only good one (issue 77 item 2). A resume that fails changes
+/// nothing.
 pub fn remove_stale_temporaries(root: &Path, _lock: &RunLock) -> Result<()> {
     let entries = std::fs::read_dir(root).map_err(|e| RlError::file(root, format!("cannot list: {e}")))?;
     for entry in entries.flatten() {

@@ -5,7 +5,8 @@
 //! ([`export`](mod@export), `meben export`), the progress of runs ([`status`](mod@status),
 //! `meben status`), parameter counts ([`info`], `meben info`), episode recordings
 //! ([`render`], `meben render`), policy files and the shipped pretrained policies
-//! ([`policy_file`], `meben export-policy`, `--policy`) and the command line ([`cli`]).
+//! ([`policy_file`], `meben export-policy`, `--policy`), the checks of where a command
+//! writes ([`outputs`]) and the command line ([`cli`]).
 //!
 //! **Layers.** At the bottom, the files of a run directory: its layout ([`run_dir`]), file
 //! names ([`names`]), its lock ([`lock`]), the copies of its morphology files
@@ -22,6 +23,7 @@ pub mod lock;
 pub mod metrics;
 pub mod morphology;
 pub mod names;
+pub mod outputs;
 pub mod paper;
 pub mod plot;
 pub mod policy_file;

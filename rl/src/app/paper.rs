@@ -26,7 +26,7 @@ use std::path::{Path, PathBuf};
 
 use serde::Deserialize;
 
-use crate::app::report::{GroupReport, StartKind};
+use crate::app::report::{GroupReport, StartKind, md_cell};
 use crate::error::{Result, RlError};
 
 /// The paper's figures and claims (the file's module docs, `results/paper.toml`).
@@ -125,6 +125,7 @@ impl PaperFigures {
         if figures.seeds == 0 {
             return Err(RlError::config(source(), "seeds", 0, "at least one seed"));
         }
+        figures.check_one_line(path)?;
         for f in &figures.figure {
             check_start(path, &f.start)?;
             if !(0.0..=100.0).contains(&f.mean) || !f.sd.is_finite() || f.sd < 0.0 {
@@ -150,6 +151,32 @@ impl PaperFigures {
             }
         }
         Ok(figures)
+    }
+
+    /// Refuses a line break in any text of the file (it would end a row of `paper.md`'s
+    /// tables), naming the file, the field and the value; a `|` is escaped where written.
+    fn check_one_line(&self, path: &Path) -> Result<()> {
+        let mut texts: Vec<(String, &str)> = Vec::new();
+        for (i, f) in self.figure.iter().enumerate() {
+            for (key, v) in [("table", &f.table), ("env", &f.env), ("model", &f.model), ("start", &f.start)] {
+                texts.push((format!("figure[{i}].{key}"), v));
+            }
+        }
+        for (i, c) in self.claim.iter().enumerate() {
+            for (key, v) in [("env", &c.env), ("start", &c.start), ("above.model", &c.above.model)] {
+                texts.push((format!("claim[{i}].{key}"), v));
+            }
+            texts.push((format!("claim[{i}].below.model"), &c.below.model));
+        }
+        match texts.into_iter().find(|(_, v)| v.contains(['\n', '\r'])) {
+            Some((field, value)) => Err(RlError::config(
+                path.display().to_string(),
+                &field,
+                value,
+                "a line break would end a row of paper.md's tables: write it on one line",
+            )),
+            None => Ok(()),
+        }
     }
 
     /// The figure for `env`, `model`, `start` and `rotation_deg`, if the paper has one.
@@ -273,8 +300,11 @@ fn figures_table(groups: &[GroupReport], paper: &PaperFigures) -> String {
     );
     for g in groups {
         let what = if g.metric.starts_with("eval_win_rate") { "win" } else { "success" };
-        let model =
-            if g.opponent.is_empty() { format!("`{}`", g.model) } else { format!("`{}` vs `{}`", g.model, g.opponent) };
+        let model = if g.opponent.is_empty() {
+            format!("`{}`", md_cell(&g.model))
+        } else {
+            format!("`{}` vs `{}`", md_cell(&g.model), md_cell(&g.opponent))
+        };
         let rotation = g.rotation_deg as i64;
         let evaluated = if rotation == 0 { what.to_string() } else { format!("{what}, rotated {rotation}°") };
         let figure = if g.opponent.is_empty() { paper.find(&g.env, &g.model, start_key(g), rotation) } else { None };
@@ -283,7 +313,7 @@ fn figures_table(groups: &[GroupReport], paper: &PaperFigures) -> String {
                 format!("{} ± {}", paper_number(f.mean), paper_number(f.sd)),
                 paper.seeds.to_string(),
                 millions(f.steps as f64),
-                f.table.clone(),
+                md_cell(&f.table),
             ),
             None => ("–".into(), "–".into(), "–".into(), "not in the paper's tables".into()),
         };
@@ -294,7 +324,7 @@ fn figures_table(groups: &[GroupReport], paper: &PaperFigures) -> String {
         };
         out.push_str(&format!(
             "| `{}` | {model} | {} | {evaluated} | {here} | {ci} | {} | {} | {p} | {p_seeds} | {p_steps} | {p_table} |\n",
-            g.env,
+            md_cell(&g.env),
             g.start.label(),
             g.runs.len(),
             steps_reached(g)
@@ -427,7 +457,7 @@ fn claims_table(groups: &[GroupReport], paper: &PaperFigures) -> String {
         };
         out.push_str(&format!(
             "| {} | {} | {} | {paper_means} | {} | {apart} | {inside} | {} |\n",
-            r.claim,
+            md_cell(&r.claim),
             measured_cell(&r.above),
             measured_cell(&r.below),
             yes_no(means_in_order(&r.above, &r.below)),
@@ -449,12 +479,12 @@ pub fn paper_table(groups: &[GroupReport], paper: &PaperFigures) -> String {
     out
 }
 
-/// Writes [`paper_table`] of the report's `groups` to `root/paper.md` (atomically) and
-/// returns its path.
-pub fn write_paper_table(root: &Path, groups: &[GroupReport], paper_file: &Path) -> Result<PathBuf> {
-    let paper = PaperFigures::load(paper_file)?;
+/// Writes [`paper_table`] of the report's `groups` against `paper` (read by
+/// [`PaperFigures::load`] before the report is written: `meben report --paper`) to
+/// `root/paper.md` (atomically) and returns its path.
+pub fn write_paper_table(root: &Path, groups: &[GroupReport], paper: &PaperFigures) -> Result<PathBuf> {
     let path = root.join("paper.md");
-    nn::write_atomic(&path, paper_table(groups, &paper).as_bytes()).map_err(|e| RlError::file(&path, e.to_string()))?;
+    nn::write_atomic(&path, paper_table(groups, paper).as_bytes()).map_err(|e| RlError::file(&path, e.to_string()))?;
     Ok(path)
 }
 
@@ -672,5 +702,24 @@ mod tests {
              (`team_sumo/2_ants`, random start) | 78.52 (one run) | 5.27 (one run) | – | yes | – (one run) | \
              – (one run) | single run |"
         );
+    }
+
+    /// Issue 77: a `|` in a value of `results/paper.toml` split its row of `paper.md`, and a
+    /// line break ended it. A `|` is escaped; a line break is refused, naming the field.
+    #[test]
+    fn a_pipe_is_escaped_and_a_line_break_refused() {
+        let figure = |table: &str| {
+            format!(
+                "seeds = 10\n[[figure]]\ntable = {table:?}\nenv = \"team_reach/1_ant\"\nmodel = \"shnn\"\nmean = 60.0\n\
+                 sd = 3.0\n"
+            )
+        };
+        let p = parse(&figure("Table 1 | left")).unwrap();
+        let table = paper_table(&[group("shnn", StartKind::Random, (10_158_080, 10_158_080))], &p);
+        let row = table.lines().nth(2).unwrap();
+        assert!(row.ends_with("| Table 1 \\| left |"), "{row}");
+        assert_eq!(row.matches(" | ").count(), 11, "{row}");
+        let e = parse(&figure("Table 1\nleft")).unwrap_err().to_string();
+        assert!(e.contains("figure[0].table") && e.contains("line break"), "{e}");
     }
 }

@@ -176,7 +176,7 @@ pub struct ExportedPolicy {
 /// Writes the policy file of the run directory `run` (its `config.toml` and checkpoint) to
 /// `out`, atomically (module docs). `out` may not be one of a run directory's own files.
 pub fn export_policy(run: &RunDir, out: &Path) -> Result<ExportedPolicy> {
-    crate::app::run_dir::check_not_a_run_file("--out", out)?;
+    crate::app::outputs::check_output("--out", out, &[])?;
     let (config, c) = load_run(run)?;
     let teams = teams_of(&config, &c, &run.checkpoint())?;
     let evals: Vec<EvalSummary> = c.last_eval.iter().chain(&c.last_eval_rotated).cloned().collect();

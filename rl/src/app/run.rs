@@ -97,12 +97,37 @@ fn metrics_row(t: &Trainer, s: &IterationStats, wall: f64, sps: f64, evals: &[Ev
 /// after its checkpoint), each iteration once and in increasing order (the first row of an
 /// iteration wins), and returns the file's text, with the header of `layout`. Damaged rows
 /// (incomplete, not numbered, or with bytes that are not UTF-8) are dropped one by one: the
-/// file is read as bytes, so one bad byte does not cost the other rows.
-fn metrics_upto(path: &std::path::Path, iteration: u64, layout: &MetricsLayout) -> String {
+/// file is read as bytes, so one bad byte does not cost the other rows. A missing file has
+/// no rows; any other error reading it is an error naming the file (before, an unreadable
+/// file was taken as empty and rewritten without its rows: issue 77 item 3).
+fn metrics_upto(path: &std::path::Path, iteration: u64, layout: &MetricsLayout) -> Result<String> {
+    kept_metrics(path, std::fs::read(path), iteration, layout)
+}
+
+/// [`metrics_upto`] of the file at `path` whose reading gave `read`.
+fn kept_metrics(
+    path: &std::path::Path,
+    read: std::io::Result<Vec<u8>>,
+    iteration: u64,
+    layout: &MetricsLayout,
+) -> Result<String> {
     let mut out = layout.header();
     out.push('\n');
     let mut last: Option<u64> = None;
-    if let Ok(bytes) = std::fs::read(path) {
+    let bytes = match read {
+        Ok(bytes) => Some(bytes),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => None,
+        Err(e) => {
+            return Err(RlError::file(
+                path,
+                format!(
+                    "cannot read the run's metrics ({e}); the resume would lose its rows up to the checkpoint: make \
+                     it readable, or move it aside to start the metrics afresh"
+                ),
+            ));
+        }
+    };
+    if let Some(bytes) = bytes {
         let text = String::from_utf8_lossy(&bytes);
         for line in text.lines().skip(1) {
             let complete = line.split(',').count() == layout.columns().len();
@@ -117,7 +142,7 @@ fn metrics_upto(path: &std::path::Path, iteration: u64, layout: &MetricsLayout) 
             }
         }
     }
-    out
+    Ok(out)
 }
 
 /// The most worker threads a training may ask for on a machine of `cores` cores:
@@ -227,7 +252,6 @@ fn train_in_pool(config: &TrainConfig, run: &RunDir, options: &TrainOptions) -> 
     std::fs::create_dir_all(run.root()).map_err(|e| RlError::file(run.root(), format!("cannot create: {e}")))?;
     // Held until training returns: a second training of this directory is refused.
     let lock = RunLock::acquire(run.root())?;
-    remove_stale_temporaries(run.root(), &lock)?;
     // The morphology files the environment names: recorded with a copy by a new run,
     // checked unchanged by a resumed one ([`crate::app::morphology`]).
     crate::app::morphology::record_or_verify(run, &config.env, ckpt_path.is_file())?;
@@ -245,6 +269,15 @@ fn train_in_pool(config: &TrainConfig, run: &RunDir, options: &TrainOptions) -> 
         };
         (t, 0.0, Vec::new())
     };
+    // The rows kept up to the checkpoint, read before anything is written: an unreadable
+    // metrics.csv stops the resume with nothing changed.
+    let metrics_path = run.metrics();
+    let layout = MetricsLayout::new(&config.eval_rotations);
+    let kept_metrics = metrics_upto(&metrics_path, trainer.iteration, &layout)?;
+    // Only now that the checkpoint has loaded: a failed resume changes nothing, and the
+    // tensors file of a newer checkpoint outlives an older checkpoint.json put back in its
+    // place (issue 77 item 2).
+    remove_stale_temporaries(run.root(), &lock)?;
     let total = config.iterations();
     // Written before a finished run returns too: running the command again repairs a
     // damaged config.toml, which evaluation and rendering read.
@@ -256,9 +289,7 @@ fn train_in_pool(config: &TrainConfig, run: &RunDir, options: &TrainOptions) -> 
     }
     let _ = std::fs::remove_file(run.done());
     record_build(&run.builds(), trainer.iteration)?;
-    let metrics_path = run.metrics();
-    let layout = MetricsLayout::new(&config.eval_rotations);
-    nn::write_atomic(&metrics_path, metrics_upto(&metrics_path, trainer.iteration, &layout).as_bytes())?;
+    nn::write_atomic(&metrics_path, kept_metrics.as_bytes())?;
     let mut metrics = std::fs::OpenOptions::new()
         .append(true)
         .open(&metrics_path)
@@ -411,7 +442,7 @@ mod tests {
         let path = std::env::temp_dir().join(format!("meben-metrics-{}.csv", std::process::id()));
         let rows = [1, 2, 2, 3, 1, 4, 5].map(row).join("\n");
         std::fs::write(&path, format!("{}\n{rows}\n", layout.header())).unwrap();
-        let text = metrics_upto(&path, 4, &layout);
+        let text = metrics_upto(&path, 4, &layout).unwrap();
         let _ = std::fs::remove_file(&path);
         let kept: Vec<&str> = text.lines().skip(1).map(|l| l.split(',').next().unwrap()).collect();
         assert_eq!(kept, ["1", "2", "3", "4"]);
@@ -432,10 +463,28 @@ mod tests {
         bytes.extend_from_slice(b"\xfe garbage\n");
         bytes.extend_from_slice(format!("{}\n", row(3)).as_bytes());
         std::fs::write(&path, &bytes).unwrap();
-        let text = metrics_upto(&path, 3, &layout);
+        let text = metrics_upto(&path, 3, &layout).unwrap();
         let _ = std::fs::remove_file(&path);
         let kept: Vec<&str> = text.lines().skip(1).map(|l| l.split(',').next().unwrap()).collect();
         assert_eq!(kept, ["1", "2", "3"]);
         assert!(!text.contains(char::REPLACEMENT_CHARACTER));
+    }
+
+    /// Issue 77 item 3: a `metrics.csv` that could not be read (permissions) was taken as
+    /// empty, and the resume rewrote it without the rows before the checkpoint. Any error
+    /// but a missing file is refused, naming the file; a missing file has no rows.
+    #[test]
+    fn an_unreadable_metrics_file_is_an_error_naming_it_and_a_missing_one_is_empty() {
+        let layout = MetricsLayout::new(&[0.0]);
+        let path = std::path::Path::new("/runs/r/metrics.csv");
+        let denied = std::io::Error::from(std::io::ErrorKind::PermissionDenied);
+        let e = kept_metrics(path, Err(denied), 3, &layout).unwrap_err().to_string();
+        assert!(e.starts_with("/runs/r/metrics.csv") && e.contains("cannot read"), "{e}");
+        let missing = std::io::Error::from(std::io::ErrorKind::NotFound);
+        assert_eq!(kept_metrics(path, Err(missing), 3, &layout).unwrap(), format!("{}\n", layout.header()));
+        // A directory in its place (as root, permissions do not stop reads).
+        let dir = crate::app::test_util::TempDir::new("metrics-dir");
+        let e = metrics_upto(&dir.0, 3, &layout).unwrap_err().to_string();
+        assert!(e.starts_with(&dir.0.display().to_string()) && e.contains("cannot read"), "{e}");
     }
 }

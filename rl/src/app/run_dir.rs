@@ -19,7 +19,7 @@
 //! leaves either the old or the new version; the checkpoint's two files are atomic as a
 //! pair (the tensors first under a new name, then the JSON that names them, then the old
 //! tensors file removed). The temporary files of a killed run, and a tensors file that no
-//! `checkpoint.json` names, are removed when training resumes. `metrics.csv` and `builds.csv` grow by appended rows, one write a
+//! `checkpoint.json` names, are removed when training resumes, once the checkpoint has loaded (a resume that fails changes nothing). `metrics.csv` and `builds.csv` grow by appended rows, one write a
 //! row (a resumed run rewrites `metrics.csv` atomically up to its checkpoint first).
 
 use std::path::{Path, PathBuf};

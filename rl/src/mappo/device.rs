@@ -41,7 +41,7 @@ pub fn check_device(device: Device) -> Result<Option<String>> {
 
 /// Where a training's act step runs (`act_device`): the policy's forward pass of every
 /// collection step, on that step's observations.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum ActDevice {
     /// Where the updates run (`device`), the default: with `device = "gpu"` the act step
@@ -78,6 +78,40 @@ impl ActDevice {
     }
 }
 
+/// The values `act_device` takes, as an error names them.
+const ACT_DEVICE_NAMES: &str = "\"same\" or \"cpu\"";
+
+impl std::str::FromStr for ActDevice {
+    type Err = String;
+
+    /// `same` or `cpu`; anything else is an error naming the value and those two.
+    fn from_str(s: &str) -> std::result::Result<ActDevice, String> {
+        match s {
+            "same" => Ok(ActDevice::Same),
+            "cpu" => Ok(ActDevice::Cpu),
+            _ => Err(format!("unknown act_device {s:?}: expected {ACT_DEVICE_NAMES}")),
+        }
+    }
+}
+
+/// Reads `act_device` from its name; any other value (`act_device = 1`, which serde's enum
+/// reader called an `invalid type: unit variant`) is an error naming the accepted values.
+impl<'de> Deserialize<'de> for ActDevice {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> std::result::Result<ActDevice, D::Error> {
+        struct Name;
+        impl serde::de::Visitor<'_> for Name {
+            type Value = ActDevice;
+            fn expecting(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+                write!(f, "{ACT_DEVICE_NAMES}")
+            }
+            fn visit_str<E: serde::de::Error>(self, v: &str) -> std::result::Result<ActDevice, E> {
+                v.parse().map_err(E::custom)
+            }
+        }
+        d.deserialize_str(Name)
+    }
+}
+
 /// Whether `device` is the CPU (the default, left out of `config.toml`).
 pub fn is_cpu(device: &Device) -> bool {
     device.is_host()
@@ -110,5 +144,23 @@ mod tests {
         }
         let e = check_device(Device::Gpu).unwrap_err().to_string();
         assert!(e.contains("device") && e.contains("rebuild with --features gpu"), "{e}");
+    }
+
+    /// Issue 77: `--set act_device=1` said `invalid type: unit variant`. A value of another
+    /// type, or another name, names the accepted values.
+    #[test]
+    fn act_device_errors_name_the_accepted_values() {
+        let resolve = |v: &str| {
+            crate::mappo::config::TrainConfig::resolve(None, None, &[("act_device".into(), v.into())])
+                .map(|c| c.act_device)
+                .map_err(|e| e.to_string())
+        };
+        assert_eq!(resolve("\"cpu\"").unwrap(), ActDevice::Cpu);
+        assert_eq!(resolve("same").unwrap(), ActDevice::Same);
+        for bad in ["1", "gpu", "true"] {
+            let e = resolve(bad).unwrap_err();
+            assert!(e.contains("act_device") && e.contains(bad) && e.contains("\"same\" or \"cpu\""), "{e}");
+            assert!(!e.contains("unit variant"), "{e}");
+        }
     }
 }

@@ -276,8 +276,10 @@ fn damaged_missing_or_foreign_tensors_files_are_refused_naming_them() {
     refused(&[&short, "shape"]);
 
     // The good pair resumes (the other tensors file, named by no JSON, is removed). The
-    // good tensors file went when the JSON named the other one (it was stale then).
-    assert!(!tensors.exists());
+    // failed resumes removed nothing (issue 77 item 2: they used to remove the good tensors
+    // file as stale while the JSON named the other one).
+    assert_eq!(std::fs::read(&tensors).unwrap(), good, "a failed resume removed the good tensors file");
+    assert!(run.root().join(&other).is_file(), "a failed resume removed a tensors file");
     std::fs::write(run.checkpoint(), &json).unwrap();
     std::fs::write(&tensors, &good).unwrap();
     assert_eq!(train(&config, &run, &TrainOptions::default()).unwrap().iterations, 2);

@@ -328,3 +328,103 @@ fn sizes_beyond_the_machines_memory_are_refused_before_anything_is_built() {
     eval[4] = "2";
     assert!(meben(&eval).0);
 }
+
+/// Issue 77 item 1: `meben eval --run r --out r/checkpoint.json` exited 0 and replaced the
+/// checkpoint with the evaluation's summary, and `eval --policy F --out F` the policy. Every
+/// command that writes a file named by `--out` (eval, render, sim, export-policy) refuses a
+/// run directory's own files and its own inputs, naming the path; nothing is written.
+#[test]
+fn no_command_writes_over_a_runs_files_or_its_own_input() {
+    let tmp = common::TempDir::new("cli-outputs");
+    let run = tmp.0.join("run");
+    let run_s = run.to_str().unwrap();
+    let mut args = vec!["train", "--model", "mlp_hn", "--out", run_s];
+    args.extend_from_slice(TINY);
+    let (ok, _, stderr) = meben(&args);
+    assert!(ok, "train failed: {stderr}");
+    let checkpoint = std::fs::read(run.join("checkpoint.json")).unwrap();
+    let out = run.join("checkpoint.json");
+    let out_s = out.to_str().unwrap();
+    fails_with(&["eval", "--run", run_s, "--episodes", "1", "--out", out_s], &[out_s, "--out", "own checkpoint.json"]);
+    assert_eq!(std::fs::read(&out).unwrap(), checkpoint, "eval --out replaced the checkpoint");
+    let metrics = run.join("metrics.csv");
+    let before = std::fs::read(&metrics).unwrap();
+    fails_with(
+        &["sim", "--mjcf", "body.xml", "--controls", "c.csv", "--out", metrics.to_str().unwrap()],
+        &["metrics.csv", "--out", "own"],
+    );
+    assert_eq!(std::fs::read(&metrics).unwrap(), before);
+    // The run's own evaluation file, which eval writes anyway, is fine.
+    let own = run.join("eval.json");
+    let (ok, _, stderr) = meben(&["eval", "--run", run_s, "--episodes", "1", "--out", own.to_str().unwrap()]);
+    assert!(ok, "{stderr}");
+
+    let policy = tmp.0.join("policy.safetensors");
+    let policy_s = policy.to_str().unwrap();
+    let (ok, _, stderr) = meben(&["export-policy", "--run", run_s, "--out", policy_s]);
+    assert!(ok, "{stderr}");
+    let bytes = std::fs::read(&policy).unwrap();
+    let same = tmp.0.join(".").join("policy.safetensors");
+    fails_with(
+        &["eval", "--policy", policy_s, "--episodes", "1", "--out", same.to_str().unwrap()],
+        &["--out", "--policy", "policy.safetensors"],
+    );
+    assert_eq!(std::fs::read(&policy).unwrap(), bytes, "eval --out replaced the policy");
+    let summary = tmp.0.join("summary.json");
+    let (ok, _, stderr) = meben(&["eval", "--policy", policy_s, "--episodes", "1", "--out", summary.to_str().unwrap()]);
+    assert!(ok && summary.is_file(), "{stderr}");
+}
+
+/// Issue 77 item 11: `meben ablate --shard k/n` with more shards than runs exited 1 with a
+/// message about `--only`, where rl/sweeps/slurm_array.sh says the extra shards are empty:
+/// an empty shard exits 0 and says so. And `--device gpu` in a build without the feature is
+/// refused once, before any run (it failed every run in turn).
+#[test]
+fn an_empty_shard_succeeds_and_a_missing_device_is_refused_before_any_run() {
+    let tmp = common::TempDir::new("cli-shards");
+    let sweep = tmp.0.join("sweep.toml");
+    std::fs::write(
+        &sweep,
+        "envs = [\"team_reach/1_ant\"]\nmodels = [\"mlp_hn\"]\nseeds = [0, 1]\npreset = \"quick\"\n",
+    )
+    .unwrap();
+    let out = tmp.0.join("out");
+    let base = ["ablate", "--sweep", sweep.to_str().unwrap(), "--out", out.to_str().unwrap(), "--quiet"];
+    let (ok, stdout, stderr) = meben(&[&base[..], &["--shard", "3/8"]].concat());
+    assert!(ok, "{stderr}");
+    assert!(stderr.contains("shard 3/8") && stderr.contains("empty") && stderr.contains("2 runs"), "{stderr}");
+    assert!(stdout.contains("0 runs"), "{stdout}");
+    assert!(!out.exists());
+    if cfg!(not(feature = "gpu")) {
+        let (ok, _, stderr) = meben(&[&base[..], &["--device", "gpu"]].concat());
+        assert!(!ok && stderr.contains("--device") && stderr.contains("rebuild with --features gpu"), "{stderr}");
+        assert_eq!(stderr.matches("rebuild with").count(), 1, "{stderr}");
+        assert!(!out.exists(), "a run was started: {stderr}");
+    }
+}
+
+/// Issue 77: `meben report --paper FILE` wrote `report.md` before it read the paper's
+/// figures, and a line break in one of their values broke `paper.md`'s table. The file is
+/// checked first, a line break refused naming the field, and nothing is written.
+#[test]
+fn a_bad_paper_file_is_refused_before_the_report_is_written() {
+    let tmp = common::TempDir::new("cli-paper");
+    let root = tmp.0.join("runs");
+    let run = root.join("run0");
+    let mut args = vec!["train", "--model", "mlp_hn", "--out", run.to_str().unwrap()];
+    args.extend_from_slice(TINY);
+    let (ok, _, stderr) = meben(&args);
+    assert!(ok, "train failed: {stderr}");
+    let paper = tmp.0.join("paper.toml");
+    std::fs::write(
+        &paper,
+        "seeds = 10\n[[figure]]\ntable = \"Table 1\\nleft\"\nenv = \"team_reach/1_ant\"\nmodel = \"mlp_hn\"\n\
+         mean = 50.0\nsd = 1.0\n",
+    )
+    .unwrap();
+    fails_with(
+        &["report", root.to_str().unwrap(), "--paper", paper.to_str().unwrap()],
+        &["paper.toml", "figure[0].table", "line break"],
+    );
+    assert!(!root.join("report.md").exists() && !root.join("paper.md").exists());
+}

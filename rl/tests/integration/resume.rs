@@ -201,3 +201,68 @@ fn a_budget_not_above_the_steps_done_is_refused() {
     let again = train(&TrainConfig { steps: 161, ..config.clone() }, &run, &TrainOptions::default()).unwrap();
     assert_eq!(again.iterations, 3);
 }
+
+/// The names of the files in a run directory and their bytes (the lock file aside: every
+/// training writes its holder there).
+fn snapshot(run: &RunDir) -> Vec<(String, Vec<u8>)> {
+    let mut files: Vec<(String, Vec<u8>)> = std::fs::read_dir(run.root())
+        .unwrap()
+        .map(|e| e.unwrap())
+        .filter(|e| e.file_name() != "lock")
+        .map(|e| {
+            let bytes = if e.path().is_file() { std::fs::read(e.path()).unwrap() } else { Vec::new() };
+            (e.file_name().to_string_lossy().into_owned(), bytes)
+        })
+        .collect();
+    files.sort();
+    files
+}
+
+/// Issue 77 item 2: an older `checkpoint.json` put back (its tensors file long gone) made
+/// the resume fail, correctly, but it first removed the tensors file of the newer
+/// checkpoint as stale, so putting the newer JSON back failed too and the run was lost. A
+/// resume that fails now changes nothing, and the newer pair resumes.
+#[test]
+fn a_failed_resume_leaves_the_newer_checkpoint_whole() {
+    let dir = common::TempDir::new("resume-older-json");
+    let config = common::tiny("team_reach/1_ant", "mlp_hn", 3, &[]);
+    let run = RunDir::new(dir.0.join("run"));
+    train(&config, &run, &TrainOptions { stop_after: Some(1), ..Default::default() }).unwrap();
+    let older = std::fs::read(run.checkpoint()).unwrap();
+    train(&config, &run, &TrainOptions { stop_after: Some(2), ..Default::default() }).unwrap();
+    let newer = std::fs::read(run.checkpoint()).unwrap();
+    std::fs::write(run.checkpoint(), &older).unwrap();
+    let before = snapshot(&run);
+    let e = train(&config, &run, &TrainOptions::default()).unwrap_err().to_string();
+    assert!(e.contains("checkpoint.json") && e.contains("missing"), "{e}");
+    assert!(snapshot(&run) == before, "the failed resume changed the run directory");
+    std::fs::write(run.checkpoint(), &newer).unwrap();
+    let s = train(&config, &run, &TrainOptions::default()).unwrap();
+    assert_eq!(s.iterations, 3);
+    let text = std::fs::read_to_string(run.metrics()).unwrap();
+    let kept: Vec<&str> = text.lines().skip(1).map(|l| l.split(',').next().unwrap()).collect();
+    assert_eq!(kept, ["1", "2", "3"]);
+}
+
+/// Issue 77 item 3: a `metrics.csv` that cannot be read was taken as empty, and the resume
+/// rewrote it without the rows before the checkpoint. It is refused naming the file, and
+/// nothing is written (as root, permissions do not stop reads: a directory stands in).
+#[test]
+fn an_unreadable_metrics_file_stops_the_resume_with_nothing_written() {
+    let dir = common::TempDir::new("resume-unreadable-metrics");
+    let config = common::tiny("team_reach/1_ant", "mlp_hn", 2, &[]);
+    let run = RunDir::new(dir.0.join("run"));
+    train(&config, &run, &TrainOptions { stop_after: Some(1), ..Default::default() }).unwrap();
+    let aside = dir.0.join("metrics.csv");
+    std::fs::rename(run.metrics(), &aside).unwrap();
+    std::fs::create_dir(run.metrics()).unwrap();
+    let before = snapshot(&run);
+    let e = train(&config, &run, &TrainOptions::default()).unwrap_err().to_string();
+    let path = run.metrics().display().to_string();
+    assert!(e.starts_with(&path) && e.contains("cannot read"), "{e}");
+    assert!(snapshot(&run) == before, "the refused resume changed the run directory");
+    std::fs::remove_dir(run.metrics()).unwrap();
+    std::fs::rename(&aside, run.metrics()).unwrap();
+    assert_eq!(train(&config, &run, &TrainOptions::default()).unwrap().iterations, 2);
+    assert_eq!(common::metrics(&run).len(), 2);
+}

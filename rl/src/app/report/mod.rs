@@ -57,7 +57,7 @@ pub mod stats;
 use std::path::{Path, PathBuf};
 
 pub use aggregate::{CurvePoint, GroupReport, StartKind, group_runs};
-pub(crate) use render::count;
+pub(crate) use render::{count, md_cell};
 use render::{curve_plot, render_csv, render_markdown};
 
 use crate::app::names::sanitize_component;

@@ -96,8 +96,10 @@ fn machine_hours_cell(g: &GroupReport) -> String {
     if g.rotation_deg == 0.0 { format!("{:.1}", g.machine_hours) } else { "(same runs)".into() }
 }
 
-fn md_cell(s: &str) -> String {
-    s.replace('|', "\\|")
+/// `s` fit for a Markdown table cell: `|` escaped, a line break (which would end the row)
+/// a space.
+pub(crate) fn md_cell(s: &str) -> String {
+    s.replace('|', "\\|").replace(['\r', '\n'], " ")
 }
 
 /// `n` followed by `noun`, plural unless `n` is 1: "1 run", "3 runs".

@@ -5,6 +5,7 @@ use std::path::Path;
 
 use serde::Deserialize;
 
+use crate::app::names::sanitize_component;
 use crate::app::presets::Preset;
 use crate::error::{Result, RlError};
 use crate::mappo::config::{TrainConfig, read_text_file};
@@ -113,6 +114,7 @@ impl Sweep {
         for (i, v) in file.variants.iter().enumerate() {
             variants.push(check_variant(v, i, source, &variants)?);
         }
+        check_run_names(&envs, &models, &variants, source)?;
         if !file.include_base && variants.is_empty() {
             return Err(RlError::config(
                 source,
@@ -219,6 +221,49 @@ fn check_variant(v: &VariantFile, i: usize, source: &str, before: &[Variant]) ->
     Ok(Variant { name, config })
 }
 
+/// The longest file name most file systems take, in bytes (Linux's `NAME_MAX`, NTFS's and
+/// APFS's 255 characters).
+pub const MAX_NAME_BYTES: usize = 255;
+
+/// Checks, when the sweep file is read, that every component of every run's directory
+/// (`<env>/<model>[+<variant>]/seed<N>`, module docs of [`crate::app::sweep`]) is a file
+/// name the file system takes: at most [`MAX_NAME_BYTES`] bytes. Before, a variant name
+/// too long passed and its run failed when its turn came, hours into the sweep (issue 77
+/// item 14). Errors name the sweep file, the field and the value.
+fn check_run_names(envs: &[String], models: &[String], variants: &[Variant], source: &str) -> Result<()> {
+    let too_long = |field: &str, value: &str, component: &str| {
+        RlError::config(
+            source,
+            field,
+            value,
+            format!(
+                "the run directory name {component:?} would be {} bytes, beyond the {MAX_NAME_BYTES} a file name may \
+                 have: shorten it",
+                component.len()
+            ),
+        )
+    };
+    for env in envs {
+        let component = sanitize_component(env);
+        if component.len() > MAX_NAME_BYTES {
+            return Err(too_long("envs", env, &component));
+        }
+    }
+    for model in models {
+        let base = sanitize_component(model);
+        if base.len() > MAX_NAME_BYTES {
+            return Err(too_long("models", model, &base));
+        }
+        for (i, v) in variants.iter().enumerate() {
+            let component = format!("{base}+{}", v.name);
+            if component.len() > MAX_NAME_BYTES {
+                return Err(too_long(&format!("variants[{i}].name"), &v.name, &component));
+            }
+        }
+    }
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -306,5 +351,28 @@ mod tests {
                 assert!(msg.contains(w), "{text}\n-> {msg}\n(missing {w:?})");
             }
         }
+    }
+
+    /// Issue 77 item 14: a variant name too long for a file name passed the sweep's checks
+    /// and its run failed when its turn came. Every component of every run's directory is
+    /// checked when the file is read, naming the file, the field and the value.
+    #[test]
+    fn run_directory_names_too_long_for_a_file_name_are_refused_when_read() {
+        let head = "envs = [\"team_reach/1_ant\"]\nseeds = [0]\n";
+        let long = "v".repeat(250);
+        let text = format!("{head}models = [\"mlp_hn\"]\n[[variants]]\nname = \"{long}\"\n");
+        let msg = Sweep::parse(&text, "bad.toml").unwrap_err().to_string();
+        assert!(msg.starts_with("bad.toml") && msg.contains("variants[0].name") && msg.contains(&long), "{msg}");
+        assert!(msg.contains("257 bytes") && msg.contains("255"), "{msg}");
+        // Just fits: `mlp_hn+` and 248 characters.
+        let fits = format!("{head}models = [\"mlp_hn\"]\n[[variants]]\nname = \"{}\"\n", "v".repeat(248));
+        Sweep::parse(&fits, "ok.toml").unwrap();
+        let model = format!("mlp_hn:{}", "x".repeat(300));
+        let msg = Sweep::parse(&format!("{head}models = [\"{model}\"]\n"), "bad.toml").unwrap_err().to_string();
+        assert!(msg.contains("`models`") && msg.contains(&model), "{msg}");
+        let env = format!("team_reach:agents=ant;R={}", "5".repeat(300));
+        let text = format!("envs = [\"{env}\"]\nmodels = [\"shnn\"]\nseeds = [0]\n");
+        let msg = Sweep::parse(&text, "bad.toml").unwrap_err().to_string();
+        assert!(msg.contains("`envs`") && msg.contains(&env), "{msg}");
     }
 }

@@ -32,7 +32,10 @@
 //! under the output directory.
 //!
 //! **Shards.** `--shard k/n` runs the runs whose index `i` (0-based, in the order above)
-//! has `i % n == k - 1`; the `n` shards partition the sweep. `--only PATTERN` (repeatable)
+//! has `i % n == k - 1`; the `n` shards partition the sweep. A shard beyond the runs (more
+//! shards than runs: a Slurm array larger than the sweep) is empty: it says so and succeeds.
+//! Every run's directory name is checked when the file is read (each component a file name
+//! of at most [`MAX_NAME_BYTES`] bytes). `--only PATTERN` (repeatable)
 //! keeps the runs whose name contains one of the patterns (`--only mlp_hn/ --only
 //! 2_ants/shnn/`), applied after the shard: cheap runs first, or one run of a sweep.
 //!
@@ -56,7 +59,7 @@ mod file;
 mod plan;
 mod runner;
 
-pub use file::{MAX_SWEEP_BYTES, Sweep, SweepFile, Variant, VariantFile};
+pub use file::{MAX_NAME_BYTES, MAX_SWEEP_BYTES, Sweep, SweepFile, Variant, VariantFile};
 pub use plan::SweepRun;
 pub use runner::{RunSelection, Shard, SweepOutcome, run_sweep};
 

@@ -143,6 +143,9 @@ impl FromStr for Shard {
     }
 }
 
+/// A shard beyond the sweep's runs (`--shard 9/10` of a sweep of 8 runs) is empty: it
+/// says so on standard error and returns an outcome of no runs, writing nothing.
+///
 /// Runs the runs of `sweep` chosen by `selection` under `out`, skipping finished runs,
 /// resuming partial ones (module docs) and calling `train_fn` for the others; writes a copy
 /// of the sweep file to `<out>/sweep.toml` if there is none.
@@ -160,6 +163,19 @@ pub fn run_sweep(
 ) -> Result<SweepOutcome> {
     let all = sweep.runs()?;
     let total = all.len();
+    if let Some(shard) = selection.shard
+        && !(0..total).any(|i| shard.contains(i))
+    {
+        // More shards than runs (a Slurm array larger than the sweep): this one is empty,
+        // which is no error (rl/sweeps/slurm_array.sh).
+        eprintln!(
+            "meben: shard {shard} of {} is empty: the sweep has {} for {} shards; nothing to do",
+            sweep.source,
+            crate::app::report::count(total, "run"),
+            shard.count
+        );
+        return Ok(SweepOutcome::default());
+    }
     let runs: Vec<(usize, SweepRun)> =
         all.into_iter().enumerate().filter(|(i, r)| selection.contains(*i, &r.name)).collect();
     if runs.is_empty() {
@@ -485,5 +501,27 @@ mod tests {
         for w in ["--only", "2_ants", "no run of the 4", "s.toml", "shard 2/2"] {
             assert!(msg.contains(w), "{msg} (missing {w})");
         }
+    }
+
+    /// Issue 77 item 11: `--shard k/n` with more shards than runs exited 1 with a message
+    /// about `--only`, where rl/sweeps/slurm_array.sh says the extra shards are empty. An
+    /// empty shard succeeds with no runs, writing nothing; an `--only` that selects nothing
+    /// of a shard with runs is still an error.
+    #[test]
+    fn a_shard_beyond_the_runs_is_empty_not_an_error() {
+        let tmp = TempDir::new("sweep-empty-shard");
+        let text = "envs = [\"team_reach/1_ant\"]\nmodels = [\"mlp_hn\"]\nseeds = [0, 1]\npreset = \"quick\"";
+        let sweep = Sweep::parse(text, "s.toml").unwrap();
+        let out = tmp.0.join("out");
+        for only in [vec![], vec!["seed0".to_string()]] {
+            let selection = RunSelection { shard: Some(Shard::parse("3/8").unwrap()), only };
+            let outcome = run_sweep(&sweep, &out, &selection, |_, _| panic!("no run is in shard 3/8")).unwrap();
+            assert_eq!(outcome, SweepOutcome::default());
+            assert_eq!(outcome.to_string(), "0 runs: 0 trained, 0 resumed, 0 already done");
+        }
+        assert!(!out.exists(), "an empty shard wrote {}", out.display());
+        let none = RunSelection { shard: Some(Shard::parse("2/8").unwrap()), only: vec!["seed0".into()] };
+        let msg = run_sweep(&sweep, &out, &none, |_, _| Ok(RunSummary::default())).unwrap_err().to_string();
+        assert!(msg.contains("--only") && msg.contains("shard 2/8"), "{msg}");
     }
 }
