@@ -6,6 +6,7 @@
 #
 #   nice -n 19 rl/sweeps/repro_run.sh A &  nice -n 19 rl/sweeps/repro_run.sh B &    # the two workers
 #   nice -n 19 rl/sweeps/repro_run.sh C &  nice -n 19 rl/sweeps/repro_run.sh D &    # the second wave's
+#   nice -n 19 rl/sweeps/repro_run.sh E &                                             # the third wave's
 #   rl/sweeps/repro_run.sh export                             # evidence -> results/, reports
 #   rl/sweeps/repro_run.sh restore                            # finished runs <- results/ (A and B do it first)
 #   rl/sweeps/repro_run.sh status                             # every run's progress and hours left
@@ -27,7 +28,7 @@ BIN=${BIN:-$ROOT/target/release/meben}
 OUT=${OUT:-/tmp/runs/repro}
 THREADS=${THREADS:-1}
 SWEEPS=$ROOT/rl/sweeps
-EXPERIMENTS="reach_1_ant reach_2_ants equivariance sumo reach_2_ants_no_assignment reach_2_ants_per_slot_starts transformer_1_ant centipede"
+EXPERIMENTS="reach_1_ant reach_2_ants equivariance sumo reach_2_ants_no_assignment reach_2_ants_per_slot_starts transformer_1_ant centipede reach_2_ants_50m"
 
 run() { # <experiment> <pattern>...: the sweep's runs whose names contain a pattern
   local exp=$1; shift
@@ -94,7 +95,19 @@ list_d() {
   run transformer_1_ant /shtransformer/
 }
 
+# The third wave (issue 78): MLP+HN on 2_ants at the paper's budget and seed count (50M env
+# steps, 10 seeds; about 4.5 machine-hours a seed at one thread), seeds in order, so that
+# seeds 0-2 re-train the committed 20M rows of results/reach_2_ants first.
+list_e() {
+  for seed in 0 1 2 3 4 5 6 7 8 9; do
+    run reach_2_ants_50m "/seed$seed"
+  done
+}
+
 case "${1:-}" in
+  E)
+    list_e
+    ;;
   C)
     restore_finished
     list_c
@@ -140,7 +153,7 @@ case "${1:-}" in
     du -sh "$ROOT/results"
     ;;
   *)
-    echo "usage: $0 A | B | C | D | export | restore | status" >&2
+    echo "usage: $0 A | B | C | D | E | export | restore | status" >&2
     exit 2
     ;;
 esac
