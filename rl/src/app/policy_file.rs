@@ -24,8 +24,9 @@
 //! **Versions.** Version 2 (written since issue 77) is the above. Version 1 (the committed
 //! `policies/` files) had no `morphologies` and its digest covered the metadata and the
 //! tensor data but not the header, so swapping the offsets of two tensors of one shape went
-//! unseen. It is still read, its digest checked as it was computed, because of the check
-//! both versions pass: a file must be byte for byte the file this program writes for its
+//! unseen. It is still read, its digest checked as it was computed (and the morphology
+//! files its environment names checked against the run's record beside them:
+//! [`crate::app::policy_morphology::check_v1`]), because of the check both versions pass: a file must be byte for byte the file this program writes for its
 //! tensors and metadata (the tensors in the writer's order, contiguous, the header padded as
 //! it pads). The header is then a function of the tensors' names and shapes, which must be
 //! the model's, so nothing in it can change unseen.
@@ -283,6 +284,8 @@ pub fn policy_from_bytes(path: &Path, bytes: &[u8]) -> Result<PolicyFile> {
     let mut config = config;
     if version == FORMAT_VERSION {
         config.env = crate::app::policy_morphology::restore(path, &config.env, get(keys::MORPHOLOGIES)?)?;
+    } else {
+        crate::app::policy_morphology::check_v1(path, &config.env)?;
     }
     let json_err = |k: &str, e: serde_json::Error| bad(format!("its `{k}` is not valid: {e}"));
     let normalizers: Vec<ObsNormalizer> =

@@ -104,6 +104,41 @@ pub fn restore(path: &Path, env: &str, morphologies: &str) -> Result<String> {
     })
 }
 
+/// A version 1 policy file (`path`, of environment `env`) carries no morphology files: its
+/// environment names the run's copies by absolute path. Each is checked against the run's
+/// record beside it (`<run>/morphology.toml`, [`crate::app::morphology`]); a file no record
+/// vouches for, or whose contents changed, is refused naming it (export the policy again to
+/// carry the files).
+pub fn check_v1(path: &Path, env: &str) -> Result<()> {
+    use crate::app::morphology::{COPIES_DIR, MorphologyRecord};
+    let bad = |message: String| RlError::Policy { path: path.to_path_buf(), message };
+    for name in files_of(env)? {
+        let file = Path::new(&name);
+        let run = file.parent().filter(|d| d.file_name().is_some_and(|n| n == COPIES_DIR)).and_then(Path::parent);
+        let record = match run {
+            Some(run) => MorphologyRecord::load(&crate::app::run_dir::RunDir::new(run))?.map(|r| (run, r)),
+            None => None,
+        };
+        let Some(entry) = record.as_ref().and_then(|(run, r)| r.file.iter().find(|f| run.join(&f.copy) == file)) else {
+            return Err(bad(format!(
+                "a version 1 policy file: its environment names the morphology file {name}, which it does not \
+                 carry and no run record (morphology.toml) beside it vouches for; export the policy again with \
+                 `meben export-policy` to carry the file"
+            )));
+        };
+        let bytes = crate::bounded_read::read_bytes(file, MAX_MORPHOLOGY_BYTES, "a morphology file")?;
+        let now = sha256_hex(&bytes);
+        if now != entry.sha256 {
+            return Err(bad(format!(
+                "the morphology file {name} its environment names changed since the run was trained on it: sha256 \
+                 {} recorded, {now} now",
+                entry.sha256
+            )));
+        }
+    }
+    Ok(())
+}
+
 /// The path of `c` under the temporary directory, written there unless a file with its
 /// digest already is.
 fn materialise(c: &Carried) -> Result<PathBuf> {

@@ -366,6 +366,25 @@ fn a_policy_file_carries_its_morphology_files() {
     let carried = loaded.config.env.split('=').nth(1).unwrap().split('+').next().unwrap().to_string();
     assert_eq!(std::fs::read_to_string(&carried).unwrap(), ant, "{carried}");
     fails_with(&["eval", "--run", moved.to_str().unwrap(), "--episodes", "1"], &["0_body.xml", "changed"]);
+    // A version 1 file (no `morphologies`; its digest as version 1 computed it) of the run is
+    // checked against the run's record: the weakened copy is refused, the restored one loads.
+    std::fs::rename(&moved, run.root()).unwrap();
+    let v2 = std::fs::read(&file).unwrap();
+    let (parsed, mut meta) = tensor_file::read(&v2).unwrap();
+    let entries = tensor_file::entries_of(&parsed);
+    meta.remove(keys::MORPHOLOGIES);
+    meta.remove(keys::SHA256);
+    meta.insert(keys::FORMAT_VERSION.into(), "1".into());
+    let unsigned = tensor_file::serialize(entries.clone(), &meta).unwrap();
+    meta.insert(keys::SHA256.into(), digest_v1(&meta, &unsigned));
+    let v1 = dir.0.join("v1.safetensors");
+    std::fs::write(&v1, tensor_file::serialize(entries, &meta).unwrap()).unwrap();
+    let v1_s = v1.to_str().unwrap();
+    fails_with(&["eval", "--policy", v1_s, "--episodes", "1"], &[v1_s, "0_body.xml", "changed since the run"]);
+    std::fs::write(run.root().join("morphologies/0_body.xml"), &ant).unwrap();
+    let (ok, again, stderr) = eval(&["--policy", v1_s]);
+    assert!(ok, "{stderr}");
+    assert_eq!(again, before);
 }
 
 /// Issue 77 item 8: a policy file that is a device, FIFO or directory is refused before it
