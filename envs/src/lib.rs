@@ -24,6 +24,7 @@ pub mod layout;
 pub mod limits;
 pub mod math;
 pub mod memory;
+pub mod memory_limits;
 pub mod mjcf;
 pub mod mjcf_agent;
 pub mod model;

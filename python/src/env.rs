@@ -49,12 +49,9 @@ fn env_count(what: &str, value: i64) -> PyResult<usize> {
     Ok(value as usize)
 }
 
-/// A seed given as a Python int, checked to be non-negative.
-fn non_negative(what: &str, value: i64) -> PyResult<u64> {
-    if value < 0 {
-        return Err(bad_argument(what, value, "must be a non-negative integer"));
-    }
-    Ok(value as u64)
+/// A seed given as a Python int, checked to lie in `0 ..= i64::MAX` ([`crate::seed`]).
+fn non_negative(what: &str, value: i128) -> PyResult<u64> {
+    crate::seed::seed(what, value, crate::seed::MAX_ENV_SEED)
 }
 
 /// Batched MeBen environments (see `meben.make`).
@@ -137,9 +134,9 @@ impl PyVecEnv {
         py: Python<'_>,
         name: &str,
         num_envs: i64,
-        seed: i64,
+        seed: i128,
         auto_reset: bool,
-        fixed_start: Option<i64>,
+        fixed_start: Option<i128>,
         rotation_deg: f64,
         point: (f64, f64),
         record: bool,
@@ -179,8 +176,8 @@ impl PyVecEnv {
         py: Python<'_>,
         name: &str,
         num_envs: i64,
-        seed: i64,
-        fixed_start: Option<i64>,
+        seed: i128,
+        fixed_start: Option<i128>,
         rotation_deg: f64,
         translation: (f64, f64),
         record: bool,

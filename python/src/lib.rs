@@ -14,6 +14,7 @@ pub mod metrics;
 pub mod policy;
 pub mod pool;
 pub mod recorder;
+pub mod seed;
 pub mod spec;
 pub mod train;
 

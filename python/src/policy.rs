@@ -64,7 +64,16 @@ impl PyPolicy {
     /// eval --seed` does. A damaged, truncated or foreign file raises `ValueError` naming it.
     #[staticmethod]
     #[pyo3(signature = (run, seed=0))]
-    fn load(py: Python<'_>, run: std::path::PathBuf, seed: u64) -> PyResult<PyPolicy> {
+    fn load(py: Python<'_>, run: std::path::PathBuf, seed: i128) -> PyResult<PyPolicy> {
+        let seed = crate::seed::seed("seed", seed, u64::MAX)?;
+        if run.as_os_str().is_empty() {
+            // An empty path would name the working directory as a run directory.
+            return Err(crate::errors::bad_argument(
+                "run",
+                "''",
+                "expected a run directory or a policy file (use '.' for the working directory)",
+            ));
+        }
         let (config, teams, recorded_eval) = pool::detach(py, || -> rl::Result<_> {
             if run.is_file() {
                 let f = rl::app::policy_file::load_policy(&run)?;
@@ -85,10 +94,11 @@ impl PyPolicy {
     /// shipped raises `ValueError` listing the shipped ones.
     #[staticmethod]
     #[pyo3(signature = (env, model, seed=0))]
-    fn pretrained(py: Python<'_>, env: &str, model: &str, seed: u64) -> PyResult<PyPolicy> {
+    fn pretrained(py: Python<'_>, env: &str, model: &str, seed: i128) -> PyResult<PyPolicy> {
+        let seed = crate::seed::seed("seed", seed, u64::MAX)?;
         let dir = shipped_dir(py)?;
         let path = rl::app::policy_file::find_pretrained(&dir, &format!("{env}/{model}")).map_err(rl_error)?;
-        Self::load(py, path, seed)
+        Self::load(py, path, i128::from(seed))
     }
 
     /// The last evaluation recorded with the policy (the run's checkpoint, or the policy
@@ -161,18 +171,19 @@ impl PyPolicy {
     /// the fixed start of the run's seed, moved (the paper's equivariance test). The
     /// policy's own noise streams (`act`) are untouched. The GIL is released while playing;
     /// a `KeyboardInterrupt` abandons the evaluation and is raised.
-    #[pyo3(signature = (episodes=1024, seed=rl::mappo::evaluate::DEFAULT_EVAL_SEED, deterministic=None, fixed=false, rotation_deg=None, translation=None))]
+    #[pyo3(signature = (episodes=1024, seed=rl::mappo::evaluate::DEFAULT_EVAL_SEED as i128, deterministic=None, fixed=false, rotation_deg=None, translation=None))]
     #[allow(clippy::too_many_arguments)]
     fn evaluate<'py>(
         &self,
         py: Python<'py>,
         episodes: usize,
-        seed: u64,
+        seed: i128,
         deterministic: Option<bool>,
         fixed: bool,
         rotation_deg: Option<f64>,
         translation: Option<(f64, f64)>,
     ) -> PyResult<Bound<'py, PyAny>> {
+        let seed = crate::seed::seed("seed", seed, u64::MAX)?;
         let request = EvalRequest {
             episodes,
             seed,

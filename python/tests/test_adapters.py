@@ -150,3 +150,45 @@ def test_flat_vector_env_round_trips_every_row():
         obs, _, _, _, info_s = structured.step(actions)
         # The true last observations are flat too.
         assert info["final_obs"].shape == (3, d) and np.array_equal(info["final_obs"], flatten_obs(info_s["final_obs"]))
+
+
+def test_flatten_obs_refuses_mismatched_batches_and_dtypes():
+    # Issue 77 item 13: a [1, ...] vectors array with [2, ...] scalars gave shape (2, 292)
+    # where the flat length is 382 (rows of the wrong environments); now every array's leading
+    # shape and dtype is checked, naming the array and the shapes.
+    optional_module("gymnasium")
+    import meben
+    from meben.gymnasium import flatten_obs, unflatten_obs
+
+    env = meben.make("team_reach/2_ants", num_envs=2, seed=3)
+    obs = env.reset()
+    d = flatten_obs(obs).shape[-1]
+    assert flatten_obs(obs).shape == (2, d)
+    bad = dict(obs, vectors=obs["vectors"][:1])
+    with pytest.raises(ValueError, match=r"bad obs\['vectors'\] = an array of shape \[1, \d+, 3, 3\]: expected \[2, N, 3, 3\] \(obs\['heading'\] has shape \[2, 2\]\)"):
+        flatten_obs(bad)
+    bad = dict(obs, scalars=obs["scalars"][:, :-1])
+    with pytest.raises(ValueError, match=r"bad obs\['scalars'\] = an array of shape \[2, \d+, \d+\]: expected \[2, \d+, S\]"):
+        flatten_obs(bad)
+    with pytest.raises(ValueError, match=r"bad obs\['heading'\] = an array of dtype <U1: expected real numbers"):
+        flatten_obs(dict(obs, heading=np.array([["a", "b"], ["c", "d"]])))
+    with pytest.raises(ValueError, match=r"bad obs = a dict without 'heading'"):
+        flatten_obs({"vectors": obs["vectors"], "scalars": obs["scalars"]})
+    with pytest.raises(ValueError, match=rf"bad flat = an array of shape \[1, 2, {d}\]: expected \[{d}\] or \[B, {d}\]"):
+        unflatten_obs(np.zeros((1, 2, d), np.float32), env.spec)
+    with pytest.raises(ValueError, match=r"bad flat = an array of dtype complex64: expected real numbers"):
+        unflatten_obs(np.zeros(d, np.complex64), env.spec)
+
+
+def test_a_boolean_team_is_refused_at_construction():
+    # Issue 77: GymEnv(..., team=True) built (True passed as team 1) and then failed every step.
+    optional_module("gymnasium")
+    from meben.gymnasium import GymEnv, GymVecEnv
+
+    with pytest.raises(ValueError, match=r"bad team = True: expected an integer team index \(0 ..= 1\)"):
+        GymEnv("team_sumo/2_ants", team=True)
+    with pytest.raises(ValueError, match=r"bad team = True"):
+        GymVecEnv("team_sumo/2_ants", team=True)
+    with pytest.raises(ValueError, match=r"bad team = 1.0"):
+        GymEnv("team_sumo/2_ants", team=1.0)
+    GymEnv("team_sumo/2_ants", team=1)

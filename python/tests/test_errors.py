@@ -67,6 +67,22 @@ def test_bad_names_and_arguments():
         meben.make_eval("team_sumo/3_ants", num_envs=2**20)
     with pytest.raises(ValueError, match=r"bad seed = -1"):
         meben.make(NAME, seed=-1)
+    # Issue 77: seeds of 2^63 or more raised OverflowError.
+    with pytest.raises(ValueError, match=r"bad seed = 9223372036854775808: must be an integer in 0 ..= 9223372036854775807"):
+        meben.make(NAME, seed=2**63)
+    with pytest.raises(ValueError, match=r"bad seed = 18446744073709551616"):
+        meben.make_eval(NAME, num_envs=1, seed=2**64)
+    with pytest.raises(ValueError, match=r"bad fixed_start = 9223372036854775808"):
+        meben.make(NAME, fixed_start=2**63)
+    with pytest.raises(ValueError, match=r"bad seed = 18446744073709551616: must be an integer in 0 ..= 18446744073709551615"):
+        meben.Policy.pretrained("team_reach/1_ant", "shnn", seed=2**64)
+    # Issue 77 item 9: thousands of agents aborted the interpreter while the scene's
+    # collision pairs were built; refused before building, naming the count.
+    with pytest.raises(ValueError, match=r'bad agents "3000": at most 256 agents in a scene'):
+        meben.make("team_reach:agents=" + "+".join(["ant"] * 3000) + ";balls=1")
+    # Issue 77: an empty path loaded the working directory as a run.
+    with pytest.raises(ValueError, match=r"bad run = '': expected a run directory or a policy file"):
+        meben.Policy.load("")
     with pytest.raises(ValueError, match=r"bad path = .*expected a file name ending in .html, .gif or .csv"):
         meben.make(NAME, record=True).render("episode.mp4")
 

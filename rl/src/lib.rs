@@ -14,6 +14,7 @@
 //! the command line); [`error`] and [`stop`] (stopping on request) are shared. `app` uses `mappo`, never the other way.
 
 pub mod app;
+pub mod bounded_read;
 pub mod error;
 pub mod mappo;
 pub mod stop;

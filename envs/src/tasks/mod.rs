@@ -31,6 +31,6 @@ pub use error::TaskError;
 pub use eval_modes::{FixedStart, StartMode};
 pub use outcome::{Outcome, RootState};
 pub use placement::Start;
-pub use scene::Scene;
-pub use spec::{BUILTIN_NAMES, TaskKind, TaskSpec, is_morphology_file};
+pub use scene::{MAX_CONTACT_PAIRS, Scene};
+pub use spec::{BUILTIN_NAMES, MAX_AGENTS, TaskKind, TaskSpec, is_morphology_file};
 pub use vec_env::{MAX_ENVS, StepOutput, VecEnv, VecEnvState, check_batch_fits};

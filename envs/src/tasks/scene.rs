@@ -119,6 +119,13 @@ fn footprint(tree: &AgentTree) -> f64 {
     r
 }
 
+/// The most candidate contact pairs between the geoms of different agents in one scene
+/// (4,194,304: about 100 MB of pairs, and one warm-start slot each in every environment).
+/// [`Scene::build`] counts them from the agents' geoms before building anything and refuses
+/// more, naming the count (a few hundred agents of many bodies each used to abort the
+/// process, and a Python interpreter with it, while the pairs were built).
+pub const MAX_CONTACT_PAIRS: usize = 1 << 22;
+
 impl Scene {
     /// Builds the scene of a (validated) composition with MeBen's physical constants.
     pub fn build(spec: &TaskSpec) -> Result<Scene, TaskError> {
@@ -129,9 +136,25 @@ impl Scene {
         builder.add_geom(BodyId::WORLD, GeomSpec::plane().friction(physics.friction).named("ground"));
         let mut agents = Vec::new();
         let mut n_actions = 0;
+        let (mut geoms, mut pairs) = (0usize, 0usize);
         for (team, members) in spec.teams.iter().enumerate() {
             for name in members {
                 let tree = load_tree(name, &physics)?;
+                let g: usize = tree.bodies.iter().map(|b| b.geoms.len()).sum();
+                pairs = pairs.saturating_add(g.saturating_mul(geoms));
+                geoms = geoms.saturating_add(g);
+                if pairs > MAX_CONTACT_PAIRS {
+                    return Err(TaskError::BadSpec {
+                        what: "agents".into(),
+                        value: spec.n_agents().to_string(),
+                        message: format!(
+                            "the first {} agents already have {pairs} candidate contact pairs between their {geoms} \
+                             geoms, more than {MAX_CONTACT_PAIRS} (the collision detection's memory grows with their \
+                             square): use fewer or simpler agents",
+                            agents.len() + 1
+                        ),
+                    });
+                }
                 let prefix = format!("a{}/", agents.len());
                 let rest_height = tree.rest_height();
                 let ids =

@@ -19,6 +19,12 @@ use serde::{Deserialize, Serialize};
 /// observations and the integrator lose the precision to be meaningful).
 pub const MAX_RADIUS: f64 = 1000.0;
 
+/// The most agents in one scene, all teams together (the built-in scenes have up to 4; a
+/// composition of thousands used to exhaust memory building the collision pairs, whose
+/// number grows with the square of the bodies, and abort the process). Scenes of fewer
+/// agents with many bodies each are bounded by [`super::scene::MAX_CONTACT_PAIRS`].
+pub const MAX_AGENTS: usize = 256;
+
 /// Control step (s): one action per 0.05 s.
 pub const CONTROL_DT: f64 = 0.05;
 /// Physics steps per control step (the MeBen scenes' 0.01 s time step,
@@ -247,6 +253,15 @@ impl TaskSpec {
         if let Some(t) = self.teams.iter().position(|t| t.is_empty()) {
             return Err(bad(&format!("team{}", t + 1), "", "a team needs at least one agent"));
         }
+        let agents = self.n_agents();
+        if agents > MAX_AGENTS {
+            let what = if self.kind == TaskKind::Reach { "agents" } else { "team1 + team2" };
+            return Err(bad(
+                what,
+                &agents.to_string(),
+                &format!("at most {MAX_AGENTS} agents in a scene (the collision pairs grow with their square)"),
+            ));
+        }
         let r = self.radius;
         let min_r = if self.kind == TaskKind::Sumo { 2.0 } else { 0.0 };
         if !r.is_finite() || r <= min_r || r > MAX_RADIUS {
@@ -256,7 +271,6 @@ impl TaskSpec {
                 &format!("must be a number of metres above {min_r}, at most {MAX_RADIUS}"),
             ));
         }
-        let agents = self.n_agents();
         match self.kind {
             TaskKind::Reach if self.balls == 0 || self.balls > agents => {
                 return Err(bad("balls", &self.balls.to_string(), &format!("Team Reach needs 1 ..= {agents} balls")));
@@ -309,6 +323,15 @@ mod tests {
             let e = reach.with_files_renamed(|_| bad.to_string()).unwrap_err().to_string();
             assert!(e.contains(bad.trim()) && e.contains("x.xml"), "{e}");
         }
+    }
+
+    #[test]
+    fn scenes_of_more_than_max_agents_are_refused_before_anything_is_built() {
+        let many = vec!["ant"; MAX_AGENTS + 1].join("+");
+        let e = TaskSpec::from_name(&format!("team_reach:agents={many};R=50;balls=1")).unwrap_err().to_string();
+        assert_eq!(e, "bad agents \"257\": at most 256 agents in a scene (the collision pairs grow with their square)");
+        let e = TaskSpec::from_name(&format!("team_sumo:team1={many};team2=ant")).unwrap_err().to_string();
+        assert!(e.contains("team1 + team2") && e.contains("258"), "{e}");
     }
 
     #[test]

@@ -350,3 +350,18 @@ fn a_singular_body_is_named_with_its_morphology() {
     assert!(e.contains("mass matrix not positive definite"), "{e}");
     assert!(e.contains("body \"a1/$ Body 4_0\"") && e.contains("agent a1") && e.contains("feather_foot.txt"), "{e}");
 }
+
+/// Issue 77 item 9: scenes too large for the collision pairs are refused before anything is
+/// built (thousands of agents used to abort the process while building them): more than
+/// `MAX_AGENTS` agents by the composition, fewer agents of many bodies by counting their
+/// candidate contact pairs; each error names the field and the count.
+#[test]
+fn scenes_beyond_the_size_limits_are_refused_before_building() {
+    use envs::tasks::{MAX_AGENTS, MAX_CONTACT_PAIRS, Scene};
+    let many = vec!["ant"; 3000].join("+");
+    let e = Scene::from_name(&format!("team_reach:agents={many};R=50;balls=1")).unwrap_err().to_string();
+    assert!(e.contains("agents") && e.contains("3000") && e.contains(&format!("at most {MAX_AGENTS}")), "{e}");
+    let centipedes = vec!["centipede"; MAX_AGENTS].join("+");
+    let e = Scene::from_name(&format!("team_reach:agents={centipedes};R=50;balls=1")).unwrap_err().to_string();
+    assert!(e.contains("candidate contact pairs") && e.contains(&MAX_CONTACT_PAIRS.to_string()), "{e}");
+}

@@ -67,22 +67,58 @@ def flat_layout(spec: Spec) -> Dict[str, Tuple[slice, Tuple[int, ...]]]:
     return layout
 
 
+def _real_array(name: str, value: Any) -> NDArray[Any]:
+    """``value`` as an array of real numbers (float or integer dtype), else ``ValueError``
+    naming ``name`` and the dtype."""
+    a = np.asarray(value)
+    if a.dtype.kind not in "fiu":
+        raise ValueError(f"bad {name} = an array of dtype {a.dtype}: expected real numbers (float32)")
+    return a
+
+
+def _dims(lead: Tuple[int, ...], *rest: Any) -> str:
+    """A shape for messages: ``[2, N, 3, 3]``."""
+    return "[" + ", ".join(str(d) for d in lead + rest) + "]"
+
+
 def flatten_obs(obs: Mapping[str, Any]) -> NDArray[np.float32]:
     """An observation dict (one environment's: ``heading [A]``; or a batch's: ``heading [B,
-    A]``) as one float32 array ``[D]`` or ``[B, D]`` in the flat layout (module docs)."""
-    lead = tuple(np.shape(obs["heading"]))[:-1]
-    parts = [np.asarray(obs[key], np.float32).reshape(lead + (-1,)) for key in OBS_KEYS]
+    A]``) as one float32 array ``[D]`` or ``[B, D]`` in the flat layout (module docs). Arrays
+    whose leading (batch) shapes or node counts disagree, or that do not hold real numbers,
+    raise ``ValueError`` naming the array and the shapes."""
+    for key in OBS_KEYS:
+        if key not in obs:
+            raise ValueError(f"bad obs = a dict without {key!r}: expected the keys vectors, scalars, heading")
+    heading = _real_array("obs['heading']", obs["heading"])
+    vectors = _real_array("obs['vectors']", obs["vectors"])
+    scalars = _real_array("obs['scalars']", obs["scalars"])
+    if heading.ndim not in (1, 2):
+        raise ValueError(f"bad obs['heading'] = an array of shape {list(heading.shape)}: expected [A] or [B, A]")
+    lead = tuple(heading.shape[:-1])
+    k = len(lead)
+    if vectors.ndim != k + 3 or tuple(vectors.shape[:k]) != lead or tuple(vectors.shape[-2:]) != (3, 3):
+        raise ValueError(
+            f"bad obs['vectors'] = an array of shape {list(vectors.shape)}: expected {_dims(lead, 'N', 3, 3)} "
+            f"(obs['heading'] has shape {list(heading.shape)})"
+        )
+    n = vectors.shape[-3]
+    if scalars.ndim != k + 2 or tuple(scalars.shape[:k]) != lead or scalars.shape[-2] != n:
+        raise ValueError(
+            f"bad obs['scalars'] = an array of shape {list(scalars.shape)}: expected {_dims(lead, n, 'S')} "
+            f"(obs['vectors'] has shape {list(vectors.shape)}, obs['heading'] {list(heading.shape)})"
+        )
+    parts = [a.astype(np.float32, copy=False).reshape(lead + (-1,)) for a in (vectors, scalars, heading)]
     return np.concatenate(parts, axis=-1)
 
 
 def unflatten_obs(flat: NDArray[Any], spec: Spec) -> Observation:
     """The observation dict of ``flat`` (``[D]`` or ``[B, D]``, the flat layout of ``spec``'s
-    scene): ``flatten_obs`` undone, the same float32 values. A last axis other than ``D``
-    raises ``ValueError``."""
-    x = np.asarray(flat, np.float32)
+    scene): ``flatten_obs`` undone, the same float32 values. Another shape, or an array that
+    does not hold real numbers, raises ``ValueError``."""
+    x = _real_array("flat", flat).astype(np.float32, copy=False)
     layout = flat_layout(spec)
     d = layout["heading"][0].stop
-    if x.ndim == 0 or x.shape[-1] != d:
+    if x.ndim not in (1, 2) or x.shape[-1] != d:
         raise ValueError(
             f"bad flat = an array of shape {list(x.shape)}: expected [{d}] or [B, {d}] "
             f"(the flat observation of {spec['name']})"
@@ -102,6 +138,10 @@ def _flat_space(space: spaces.Dict) -> spaces.Box:
 
 
 def _check_team(name: str, spec: Spec, team: int) -> None:
+    """Raises ``ValueError`` unless ``team`` is an integer index of one of ``spec``'s teams
+    (``True`` is not: it used to pass as 1 and fail every step)."""
+    if isinstance(team, bool) or not isinstance(team, (int, np.integer)):
+        raise ValueError(f"bad team = {team!r}: expected an integer team index (0 ..= {spec['num_teams'] - 1})")
     if not 0 <= team < spec["num_teams"]:
         raise ValueError(f"bad team = {team}: {name} has {spec['num_teams']} team(s)")
 

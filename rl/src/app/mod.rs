@@ -27,6 +27,7 @@ pub mod outputs;
 pub mod paper;
 pub mod plot;
 pub mod policy_file;
+pub mod policy_morphology;
 pub mod presets;
 pub mod progress;
 pub mod record;

@@ -119,7 +119,11 @@ impl PaperFigures {
     /// non-negative standard deviations, at least one seed, and each claim in the order of
     /// the paper's figures where it has both.
     pub fn load(path: &Path) -> Result<PaperFigures> {
-        let text = std::fs::read_to_string(path).map_err(|e| RlError::file(path, e.to_string()))?;
+        let text = crate::bounded_read::read_text(
+            path,
+            crate::mappo::config::MAX_CONFIG_BYTES,
+            "the paper's figures (a TOML file)",
+        )?;
         let figures: PaperFigures = toml::from_str(&text).map_err(|e| RlError::file(path, e.to_string()))?;
         let source = || path.display().to_string();
         if figures.seeds == 0 {

@@ -14,9 +14,25 @@
 //! round-trip form; a JSON array, one per team), `eval` (the run's last evaluation as the
 //! JSON `meben eval` writes, `null` before the first) and `eval_rotated` (its further
 //! rotations), `iteration` and `env_steps` (how far the run trained), `meben_version` and
-//! `meben_commit` (the program that exported it) and `sha256`: the SHA-256 of the other
-//! metadata (each key and value, in key order, each followed by a zero byte) followed by the
-//! tensor data, so that a changed byte anywhere that matters is found.
+//! `meben_commit` (the program that exported it), `morphologies` (the morphology files the
+//! environment names, with their contents: [`crate::app::policy_morphology`]) and `sha256`:
+//! the SHA-256 of the other metadata (each key and value, in key order, each followed by a
+//! zero byte) followed by the tensors alone as a safetensors file (its header: every
+//! tensor's name, dtype, shape and data offsets; then the data), so that a changed byte
+//! anywhere that matters is found.
+//!
+//! **Versions.** Version 2 (written since issue 77) is the above. Version 1 (the committed
+//! `policies/` files) had no `morphologies` and its digest covered the metadata and the
+//! tensor data but not the header, so swapping the offsets of two tensors of one shape went
+//! unseen. It is still read, its digest checked as it was computed (and the morphology
+//! files its environment names checked against the run's record beside them:
+//! [`crate::app::policy_morphology::check_v1`]), because of the check both versions pass: a file must be byte for byte the file this program writes for its
+//! tensors and metadata (the tensors in the writer's order, contiguous, the header padded as
+//! it pads). The header is then a function of the tensors' names and shapes, which must be
+//! the model's, so nothing in it can change unseen.
+//!
+//! **Agreement.** The metadata's `env`, `model` and `opponent` must be those of its `config`
+//! (a file whose parts disagree is refused, naming the field and both values).
 //!
 //! A damaged, truncated or foreign file is refused by [`load_policy`] with an error naming
 //! it and what is wrong. `pretrained:<env>/<model>` names a policy shipped in the
@@ -65,6 +81,8 @@ pub mod keys {
     pub const MEBEN_VERSION: &str = "meben_version";
     /// The exporting program's git commit.
     pub const MEBEN_COMMIT: &str = "meben_commit";
+    /// The morphology files the environment names, with their contents (version 2).
+    pub const MORPHOLOGIES: &str = "morphologies";
     /// The digest (module docs).
     pub const SHA256: &str = "sha256";
 }
@@ -72,8 +90,14 @@ pub mod keys {
 /// The value of the `format` key.
 pub const FORMAT: &str = "meben policy";
 
-/// The policy file version this program writes and reads.
-pub const FORMAT_VERSION: &str = "1";
+/// The policy file version this program writes (it reads this one and [`FORMAT_VERSION_1`]).
+pub const FORMAT_VERSION: &str = "2";
+
+/// The first version (module docs: its digest does not cover the header), still read.
+pub const FORMAT_VERSION_1: &str = "1";
+
+/// The largest policy file read (1 GiB; the shipped ones are about 2 MB).
+pub const MAX_POLICY_BYTES: u64 = 1 << 30;
 
 /// The prefix of a shipped policy's name on the command line: `pretrained:<env>/<model>`.
 pub const PRETRAINED_PREFIX: &str = "pretrained:";
@@ -99,8 +123,9 @@ fn is_critic(k: usize, name: &str) -> bool {
     name.starts_with(&format!("team{k}.critic."))
 }
 
-/// The digest of a file's metadata (without [`keys::SHA256`]) and tensor data (module docs).
-fn digest(metadata: &BTreeMap<String, String>, data: &[u8]) -> String {
+/// The metadata (without [`keys::SHA256`]) as the digest reads it: each key and value
+/// followed by a zero byte.
+fn metadata_bytes(metadata: &BTreeMap<String, String>) -> Vec<u8> {
     let mut bytes = Vec::new();
     for (k, v) in metadata.iter().filter(|(k, _)| k.as_str() != keys::SHA256) {
         bytes.extend_from_slice(k.as_bytes());
@@ -108,6 +133,20 @@ fn digest(metadata: &BTreeMap<String, String>, data: &[u8]) -> String {
         bytes.extend_from_slice(v.as_bytes());
         bytes.push(0);
     }
+    bytes
+}
+
+/// The digest of a version 2 file (module docs): its metadata and its tensors as a
+/// safetensors file of their own (names, dtypes, shapes, offsets and data).
+fn digest(metadata: &BTreeMap<String, String>, entries: &[Entry]) -> std::result::Result<String, String> {
+    let mut bytes = metadata_bytes(metadata);
+    bytes.extend_from_slice(&tensor_file::serialize(entries.to_vec(), &BTreeMap::new())?);
+    Ok(sha256_hex(&bytes))
+}
+
+/// The digest of a version 1 file: its metadata and its tensor data, not its header.
+fn digest_v1(metadata: &BTreeMap<String, String>, data: &[u8]) -> String {
+    let mut bytes = metadata_bytes(metadata);
     bytes.extend_from_slice(data);
     sha256_hex(&bytes)
 }
@@ -149,9 +188,9 @@ pub fn policy_bytes(
     put(keys::ENV_STEPS, env_steps.to_string());
     put(keys::MEBEN_VERSION, crate::app::build_info::VERSION.into());
     put(keys::MEBEN_COMMIT, crate::app::build_info::COMMIT.into());
+    put(keys::MORPHOLOGIES, crate::app::policy_morphology::carry(&config.env)?);
     let serialise = |e: String| RlError::file("policy file", format!("cannot serialise: {e}"));
-    let unsigned = tensor_file::serialize(entries.clone(), &meta).map_err(serialise)?;
-    meta.insert(keys::SHA256.into(), digest(&meta, data_section(&unsigned)));
+    meta.insert(keys::SHA256.into(), digest(&meta, &entries).map_err(serialise)?);
     tensor_file::serialize(entries, &meta).map_err(serialise)
 }
 
@@ -187,7 +226,7 @@ pub fn export_policy(run: &RunDir, out: &Path) -> Result<ExportedPolicy> {
 
 /// Reads the policy file at `path` (module docs); errors name the file and what is wrong.
 pub fn load_policy(path: &Path) -> Result<PolicyFile> {
-    let bytes = std::fs::read(path).map_err(|e| RlError::file(path, format!("cannot read the policy file: {e}")))?;
+    let bytes = crate::bounded_read::read_bytes(path, MAX_POLICY_BYTES, "a policy file")?;
     if bytes.is_empty() {
         return Err(RlError::Policy { path: path.to_path_buf(), message: "an empty file".into() });
     }
@@ -206,11 +245,25 @@ pub fn policy_from_bytes(path: &Path, bytes: &[u8]) -> Result<PolicyFile> {
         )));
     }
     let version = get(keys::FORMAT_VERSION)?;
-    if version != FORMAT_VERSION {
-        return Err(bad(format!("format version {version} (this program reads version {FORMAT_VERSION})")));
+    if version != FORMAT_VERSION && version != FORMAT_VERSION_1 {
+        return Err(bad(format!(
+            "format version {version} (this program reads versions {FORMAT_VERSION_1} and {FORMAT_VERSION})"
+        )));
+    }
+    let entries = tensor_file::entries_of(&file);
+    if tensor_file::serialize(entries.clone(), &meta).map_err(bad)? != bytes {
+        return Err(bad(
+            "its header is not the layout `meben export-policy` writes for its tensors (their order, data offsets \
+             or padding were changed after it was written)"
+                .into(),
+        ));
     }
     let recorded = get(keys::SHA256)?;
-    let actual = digest(&meta, data_section(bytes));
+    let actual = if version == FORMAT_VERSION {
+        digest(&meta, &entries).map_err(bad)?
+    } else {
+        digest_v1(&meta, data_section(bytes))
+    };
     if *recorded != actual {
         return Err(bad(format!(
             "checksum mismatch: the file was changed or damaged after it was written (SHA-256 recorded {recorded}, \
@@ -220,6 +273,20 @@ pub fn policy_from_bytes(path: &Path, bytes: &[u8]) -> Result<PolicyFile> {
     let config: TrainConfig =
         toml::from_str(get(keys::CONFIG)?).map_err(|e| bad(format!("its `config` is not a run configuration: {e}")))?;
     config.validate(&format!("{} (metadata `config`)", path.display()))?;
+    for (key, value) in [(keys::ENV, &config.env), (keys::MODEL, &config.model), (keys::OPPONENT, &config.opponent)] {
+        let said = get(key)?;
+        if said != value {
+            return Err(bad(format!(
+                "its parts disagree: metadata `{key}` = {said:?}, its `config` has {key} = {value:?}"
+            )));
+        }
+    }
+    let mut config = config;
+    if version == FORMAT_VERSION {
+        config.env = crate::app::policy_morphology::restore(path, &config.env, get(keys::MORPHOLOGIES)?)?;
+    } else {
+        crate::app::policy_morphology::check_v1(path, &config.env)?;
+    }
     let json_err = |k: &str, e: serde_json::Error| bad(format!("its `{k}` is not valid: {e}"));
     let normalizers: Vec<ObsNormalizer> =
         serde_json::from_str(get(keys::NORMALIZERS)?).map_err(|e| json_err(keys::NORMALIZERS, e))?;
@@ -251,6 +318,12 @@ pub fn policy_from_bytes(path: &Path, bytes: &[u8]) -> Result<PolicyFile> {
             .map_err(|e| bad(format!("the observation normaliser of team {k} does not fit: {e}")))?;
         if let Some(stats) = norm.non_finite() {
             return Err(bad(format!("the observation normaliser of team {k} has non-finite {stats} statistics")));
+        }
+        if let Some(stats) = norm.negative() {
+            return Err(bad(format!(
+                "the observation normaliser of team {k} has a negative count or sum of squares in its {stats} \
+                 statistics (field `normalizers`)"
+            )));
         }
         t.norm = norm;
         teams.push(t);
@@ -357,11 +430,16 @@ pub fn policies_dir() -> PathBuf {
 }
 
 /// The file of the shipped policy `name` (`<env>/<model>`, e.g. `team_reach/2_ants/shnn`)
-/// in `dir`; an unknown name is an error listing the shipped ones.
+/// in `dir`, checked against its manifest entry ([`check_against_entry`]); an unknown name is
+/// an error listing the shipped ones.
 pub fn find_pretrained(dir: &Path, name: &str) -> Result<PathBuf> {
     let m = Manifest::load(dir)?;
     match m.policy.iter().find(|p| p.name() == name) {
-        Some(p) => Ok(dir.join(&p.file)),
+        Some(p) => {
+            let file = dir.join(&p.file);
+            check_against_entry(&dir.join(MANIFEST), p, &file)?;
+            Ok(file)
+        }
         None => Err(RlError::Policy {
             path: dir.join(MANIFEST),
             message: format!(
@@ -370,6 +448,36 @@ pub fn find_pretrained(dir: &Path, name: &str) -> Result<PathBuf> {
             ),
         }),
     }
+}
+
+/// Refuses the policy file `file` of the manifest entry `entry` (of the manifest `manifest`)
+/// unless its SHA-256 is the entry's and its metadata's `env`, `model` and `opponent` are
+/// the entry's: an index that names a file of another environment or model is not
+/// evaluated under the entry's name. Errors name both files, the field and both values.
+pub fn check_against_entry(manifest: &Path, entry: &ShippedPolicy, file: &Path) -> Result<()> {
+    let bytes = crate::bounded_read::read_bytes(file, MAX_POLICY_BYTES, "a policy file")?;
+    let bad = |message: String| RlError::Policy { path: file.to_path_buf(), message };
+    let actual = sha256_hex(&bytes);
+    if actual != entry.sha256 {
+        return Err(bad(format!(
+            "its SHA-256 is {actual}, the entry {} of {} records sha256 = {:?}",
+            entry.name(),
+            manifest.display(),
+            entry.sha256
+        )));
+    }
+    let (_, meta) = tensor_file::read(&bytes).map_err(bad)?;
+    for (key, listed) in [(keys::ENV, &entry.env), (keys::MODEL, &entry.model), (keys::OPPONENT, &entry.opponent)] {
+        let said = meta.get(key).map_or("", String::as_str);
+        if said != listed {
+            return Err(bad(format!(
+                "its metadata has {key} = {said:?}, the entry {} of {} has {key} = {listed:?}",
+                entry.name(),
+                manifest.display()
+            )));
+        }
+    }
+    Ok(())
 }
 
 /// A `--policy` argument as a file: `pretrained:<env>/<model>` ([`find_pretrained`] in
@@ -399,7 +507,9 @@ mod tests {
              sha256 = \"0\"\nmetric = \"success_rate\"\nfigure = 0.9\nepisodes = 1024\neval_seed = 1\nsampled = true\n",
         )
         .unwrap();
-        assert_eq!(find_pretrained(&tmp.0, "team_reach/1_ant/shnn").unwrap(), tmp.0.join("a.safetensors"));
+        // An entry whose file is missing or not the one it records is refused, naming it.
+        let e = find_pretrained(&tmp.0, "team_reach/1_ant/shnn").unwrap_err().to_string();
+        assert!(e.contains("a.safetensors") && e.contains("cannot read"), "{e}");
         let e = find_pretrained(&tmp.0, "team_reach/1_ant/mlp").unwrap_err().to_string();
         assert!(e.contains("shipped: team_reach/1_ant/shnn"), "{e}");
         std::fs::write(tmp.0.join(MANIFEST), "[[policy]]\nenv = 3\n").unwrap();

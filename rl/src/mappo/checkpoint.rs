@@ -63,6 +63,16 @@ pub const JSON_VERSION: u32 = 2;
 /// The last format version written without a checksum.
 const UNSEALED_VERSION: u32 = 1;
 
+/// The largest checkpoint JSON read (1 GiB: a version 3 JSON is kilobytes, a single-file
+/// version 2 one of the largest models tens of MB). Its tensors file is read up to the size
+/// the JSON records.
+pub const MAX_CHECKPOINT_BYTES: u64 = 1 << 30;
+
+/// The checkpoint JSON at `path`, read within [`MAX_CHECKPOINT_BYTES`].
+fn read_json(path: &Path) -> Result<Vec<u8>> {
+    crate::bounded_read::read_bytes(path, MAX_CHECKPOINT_BYTES, "a checkpoint")
+}
+
 /// The extension of a checkpoint's tensors file.
 pub const TENSORS_EXTENSION: &str = "safetensors";
 
@@ -254,8 +264,9 @@ fn remove_tensor_files_except(json: &Path, keep: Option<&str>) -> Vec<PathBuf> {
 /// When the JSON cannot be read or is damaged nothing is removed (its tensors may be
 /// needed to understand it). For the holder of the run directory's lock.
 pub fn remove_stale_tensor_files(json: &Path) -> Result<Vec<PathBuf>> {
-    let keep = match std::fs::read(json) {
-        Ok(bytes) => {
+    let keep = match json.try_exists() {
+        Ok(true) => {
+            let bytes = read_json(json)?;
             use crate::mappo::checksum::{Unsealed, unseal};
             let Ok(Unsealed::Checked(payload)) = unseal(&bytes) else {
                 // Damaged, or version 1 (no tensors file either way: nothing to keep).
@@ -272,7 +283,7 @@ pub fn remove_stale_tensor_files(json: &Path) -> Result<Vec<PathBuf>> {
                 _ => return Ok(Vec::new()),
             }
         }
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => None,
+        Ok(false) => None,
         Err(e) => return Err(RlError::file(json, format!("cannot read: {e}"))),
     };
     Ok(remove_tensor_files_except(json, keep.as_deref()))
@@ -379,11 +390,11 @@ impl Checkpoint {
         // named; the JSON then names another, so the load starts again (a few times at most).
         let mut attempt = 0;
         loop {
-            let bytes = std::fs::read(path).map_err(|e| RlError::file(path, format!("cannot read: {e}")))?;
+            let bytes = read_json(path)?;
             match Self::from_bytes(path, &bytes) {
                 Err(Loaded::TensorsMissing(e)) => {
                     attempt += 1;
-                    let changed = std::fs::read(path).is_ok_and(|now| now != bytes);
+                    let changed = read_json(path).is_ok_and(|now| now != bytes);
                     if !changed || attempt >= 5 {
                         return Err(e);
                     }
@@ -445,8 +456,8 @@ impl Checkpoint {
                 message: format!("its tensors file {}: {message}", tpath.display()),
             })
         };
-        let bytes = match std::fs::read(&tpath) {
-            Ok(b) => b,
+        let size = match std::fs::metadata(&tpath) {
+            Ok(m) => m.len(),
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
                 return Err(Loaded::TensorsMissing(RlError::Checkpoint {
                     path: path.to_path_buf(),
@@ -459,6 +470,12 @@ impl Checkpoint {
             }
             Err(e) => return Err(bad(format!("cannot read: {e}"))),
         };
+        if size != r.bytes {
+            return Err(bad(format!("{size} bytes, the checkpoint recorded {} (a truncated or other file)", r.bytes)));
+        }
+        // Read within the recorded size: a device or FIFO in its place is refused unread.
+        let bytes = crate::bounded_read::read_bytes(&tpath, r.bytes, "the checkpoint's tensors file")
+            .map_err(|e| bad(e.to_string()))?;
         if bytes.len() as u64 != r.bytes {
             return Err(bad(format!(
                 "{} bytes, the checkpoint recorded {} (a truncated or other file)",

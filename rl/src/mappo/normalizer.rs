@@ -272,6 +272,15 @@ impl ObsNormalizer {
             .map(|(name, _)| name)
     }
 
+    /// The first statistics (`positions`, `vectors` or `scalars`) with a negative count or
+    /// sum of squared deviations (impossible in statistics of data: a hand-made file), if any.
+    pub fn negative(&self) -> Option<&'static str> {
+        [("positions", &self.positions), ("vectors", &self.vectors), ("scalars", &self.scalars)]
+            .into_iter()
+            .find(|(_, s)| s.count < 0.0 || s.m2.iter().any(|&x| x < 0.0))
+            .map(|(name, _)| name)
+    }
+
     /// Adds a batch of raw observations (`[B, N, 3, 3]` vectors, `[B, N, N_SCALARS]` scalars).
     pub fn update<S: Float>(&mut self, vectors: &[S], scalars: &[S]) {
         match self.kind {

@@ -110,6 +110,18 @@ pub fn read(bytes: &[u8]) -> Result<(SafeTensors<'_>, BTreeMap<String, String>),
     Ok((tensors, metadata))
 }
 
+/// Every tensor of `file` as an [`Entry`] (its name, dtype, shape and bytes), in name
+/// order: what [`serialize`] takes to write the file again.
+pub fn entries_of(file: &SafeTensors<'_>) -> Vec<Entry> {
+    let mut entries: Vec<Entry> = file
+        .tensors()
+        .into_iter()
+        .map(|(name, t)| Entry { name, dtype: t.dtype(), shape: t.shape().to_vec(), data: t.data().to_vec() })
+        .collect();
+    entries.sort_by(|a, b| a.name.cmp(&b.name));
+    entries
+}
+
 /// The tensor `name` of `file` as f64 values (from `F32` or `F64`) with its shape; the
 /// error names the tensor.
 pub fn f64_values(file: &SafeTensors<'_>, name: &str) -> Result<(Vec<usize>, Vec<f64>), String> {

@@ -152,3 +152,40 @@ fn changed_bytes_and_inconsistent_counters_are_refused() {
     let s = train(&config, &run, &TrainOptions::default()).unwrap();
     assert_eq!(s.iterations, 2);
 }
+
+/// Issue 77 item 8: a checkpoint or tensors file that is a device (a link to `/dev/zero`,
+/// which used to be read until memory ran out) or a FIFO (which hung) is refused without
+/// reading it, naming it.
+#[test]
+fn devices_and_fifos_in_place_of_checkpoint_files_are_refused_unread() {
+    let dir = common::TempDir::new("ckpt-unbounded");
+    let (_, run) = stopped_run(&dir.0);
+    let json = run.checkpoint();
+    Checkpoint::load(&json).unwrap();
+    let tensors = std::fs::read_dir(run.root())
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .find(|p| p.extension().is_some_and(|x| x == "safetensors"))
+        .unwrap();
+    let saved = std::fs::read(&tensors).unwrap();
+    std::fs::remove_file(&tensors).unwrap();
+    std::os::unix::fs::symlink("/dev/zero", &tensors).unwrap();
+    let e = Checkpoint::load(&json).unwrap_err().to_string();
+    assert!(e.contains(tensors.to_str().unwrap()) && e.contains("the checkpoint recorded"), "{e}");
+    std::fs::remove_file(&tensors).unwrap();
+    std::fs::write(&tensors, &saved).unwrap();
+    Checkpoint::load(&json).unwrap();
+    let saved_json = std::fs::read(&json).unwrap();
+    std::fs::remove_file(&json).unwrap();
+    std::os::unix::fs::symlink("/dev/zero", &json).unwrap();
+    let e = Checkpoint::load(&json).unwrap_err().to_string();
+    assert!(e.contains(json.to_str().unwrap()) && e.contains("not a regular file"), "{e}");
+    std::fs::remove_file(&json).unwrap();
+    let status = std::process::Command::new("mkfifo").arg(&json).status().unwrap();
+    assert!(status.success());
+    let e = Checkpoint::load(&json).unwrap_err().to_string();
+    assert!(e.contains("not a regular file"), "{e}");
+    std::fs::remove_file(&json).unwrap();
+    std::fs::write(&json, saved_json).unwrap();
+    Checkpoint::load(&json).unwrap();
+}

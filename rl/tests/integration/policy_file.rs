@@ -187,3 +187,244 @@ fn damaged_truncated_or_foreign_policy_files_are_refused_naming_them() {
     fails_with(&["eval"], &["--run", "--policy"]);
     fails_with(&["eval", "--run", "x", "--policy", "y"], &["--run", "--policy"]);
 }
+
+/// The committed version 1 policy of `team_reach/1_ant` (issue 77: the files `policies/`
+/// ships stay loadable).
+fn committed_v1() -> Vec<u8> {
+    std::fs::read(policy_file::policies_dir().join("team_reach_1_ant-shnn.safetensors")).unwrap()
+}
+
+/// `bytes` with its header JSON changed by `edit`, padded with spaces to a multiple of 8
+/// bytes as the writer pads.
+fn with_header(bytes: &[u8], edit: impl FnOnce(&mut serde_json::Map<String, serde_json::Value>)) -> Vec<u8> {
+    let n = u64::from_le_bytes(bytes[..8].try_into().unwrap()) as usize;
+    let mut header: serde_json::Map<String, serde_json::Value> = serde_json::from_slice(&bytes[8..8 + n]).unwrap();
+    edit(&mut header);
+    let mut head = serde_json::to_vec(&header).unwrap();
+    head.resize(head.len().next_multiple_of(8), b' ');
+    let mut out = (head.len() as u64).to_le_bytes().to_vec();
+    out.extend_from_slice(&head);
+    out.extend_from_slice(&bytes[8 + n..]);
+    out
+}
+
+/// Two tensors of `bytes` of the same dtype and shape (their names).
+fn twins(bytes: &[u8]) -> (String, String) {
+    let (file, _) = tensor_file::read(bytes).unwrap();
+    let entries = tensor_file::entries_of(&file);
+    // Two of different values where there are (an untrained model's biases are all zero).
+    for differ in [true, false] {
+        for (i, a) in entries.iter().enumerate() {
+            let twin =
+                |b: &&tensor_file::Entry| b.shape == a.shape && b.dtype == a.dtype && (b.data != a.data || !differ);
+            if let Some(b) = entries[i + 1..].iter().find(twin) {
+                return (a.name.clone(), b.name.clone());
+            }
+        }
+    }
+    panic!("no two tensors of one shape");
+}
+
+/// The digest of `meta` and the data section of `bytes` as version 1 computed it (what
+/// anyone can recompute: the format is documented).
+fn digest_v1(meta: &std::collections::BTreeMap<String, String>, bytes: &[u8]) -> String {
+    let n = u64::from_le_bytes(bytes[..8].try_into().unwrap()) as usize;
+    let mut all = Vec::new();
+    for (k, v) in meta.iter().filter(|(k, _)| k.as_str() != keys::SHA256) {
+        all.extend_from_slice(k.as_bytes());
+        all.push(0);
+        all.extend_from_slice(v.as_bytes());
+        all.push(0);
+    }
+    all.extend_from_slice(&bytes[8 + n..]);
+    rl::mappo::checksum::sha256_hex(&all)
+}
+
+/// Issue 77 item 4: swapping the data offsets of two tensors of one shape (the digest of
+/// version 1 did not cover the header) is refused, in the committed version 1 files and in
+/// version 2 ones, naming the file; an untouched file of either version loads.
+#[test]
+fn swapped_tensor_offsets_are_refused_in_both_versions() {
+    let dir = common::TempDir::new("policy-header");
+    let file = dir.0.join("p.safetensors");
+    let file_s = file.to_str().unwrap();
+    let config = common::tiny("team_reach/1_ant", "mlp_hn", 1, &[]);
+    let spec = envs::tasks::Scene::from_name(&config.env).unwrap().obs_spec;
+    let teams: Vec<rl::Team> = (0..spec.n_teams).map(|k| rl::Team::build(&config, &spec, k).unwrap()).collect();
+    let v2 = policy_file::policy_bytes(&config, &teams, 0, 0, &[]).unwrap();
+    let v1 = committed_v1();
+    for (version, good) in [("1", &v1), ("2", &v2)] {
+        std::fs::write(&file, good).unwrap();
+        let loaded = policy_file::load_policy(&file).unwrap();
+        assert_eq!(loaded.metadata[keys::FORMAT_VERSION], version);
+        let (a, b) = twins(good);
+        let swapped = with_header(good, |h| {
+            let oa = h[&a]["data_offsets"].clone();
+            let ob = std::mem::replace(h.get_mut(&b).unwrap().get_mut("data_offsets").unwrap(), oa);
+            *h.get_mut(&a).unwrap().get_mut("data_offsets").unwrap() = ob;
+        });
+        assert_eq!(swapped.len(), good.len());
+        std::fs::write(&file, &swapped).unwrap();
+        let e = policy_file::load_policy(&file).unwrap_err().to_string();
+        assert!(e.contains(file_s) && e.contains("its header is not the layout"), "version {version}: {e}");
+        fails_with(&["eval", "--policy", file_s, "--episodes", "1"], &[file_s, "header"]);
+    }
+}
+
+/// Issue 77 item 5: a file whose metadata says another environment and model than its
+/// configuration (its digest recomputed, as anyone can) is refused naming the file, the field
+/// and both values.
+#[test]
+fn metadata_that_contradicts_the_configuration_is_refused() {
+    let dir = common::TempDir::new("policy-disagree");
+    let file = dir.0.join("p.safetensors");
+    let file_s = file.to_str().unwrap();
+    let good = committed_v1();
+    let (parsed, mut meta) = tensor_file::read(&good).unwrap();
+    let entries = tensor_file::entries_of(&parsed);
+    meta.insert(keys::ENV.into(), "team_reach/2_ants".into());
+    meta.insert(keys::MODEL.into(), "mlp".into());
+    meta.remove(keys::SHA256);
+    let unsigned = tensor_file::serialize(entries.clone(), &meta).unwrap();
+    meta.insert(keys::SHA256.into(), digest_v1(&meta, &unsigned));
+    std::fs::write(&file, tensor_file::serialize(entries, &meta).unwrap()).unwrap();
+    let needles = [file_s, "its parts disagree", "`env` = \"team_reach/2_ants\"", "env = \"team_reach/1_ant\""];
+    let e = policy_file::load_policy(&file).unwrap_err().to_string();
+    assert!(needles.iter().all(|n| e.contains(n)), "{e}");
+    fails_with(&["eval", "--policy", file_s, "--episodes", "1"], &needles);
+}
+
+/// Issue 77 item 6: a manifest entry (`MEBEN_POLICIES`) naming the file of another
+/// environment, or a file whose SHA-256 is not the recorded one, is refused naming the file,
+/// the manifest, the field and both values.
+#[test]
+fn a_manifest_entry_must_match_its_files_digest_environment_and_model() {
+    let dir = common::TempDir::new("policy-manifest");
+    let shipped = policy_file::policies_dir();
+    let m = policy_file::Manifest::load(&shipped).unwrap();
+    let one = m.policy.iter().find(|p| p.name() == "team_reach/1_ant/shnn").unwrap();
+    let two = m.policy.iter().find(|p| p.name() == "team_reach/2_ants/shnn").unwrap();
+    std::fs::copy(shipped.join(&two.file), dir.0.join(&two.file)).unwrap();
+    // The 1_ant entry names the 2_ants file, with that file's true digest.
+    let entry = policy_file::ShippedPolicy { file: two.file.clone(), sha256: two.sha256.clone(), ..one.clone() };
+    let write = |entry: &policy_file::ShippedPolicy| {
+        let text = toml::to_string(&policy_file::Manifest { policy: vec![entry.clone()] }).unwrap();
+        std::fs::write(dir.0.join(policy_file::MANIFEST), text).unwrap();
+    };
+    write(&entry);
+    let e = policy_file::find_pretrained(&dir.0, "team_reach/1_ant/shnn").unwrap_err().to_string();
+    assert!(e.contains(&two.file) && e.contains("index.toml"), "{e}");
+    assert!(e.contains("env = \"team_reach/2_ants\"") && e.contains("env = \"team_reach/1_ant\""), "{e}");
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_meben"))
+        .args(["eval", "--policy", "pretrained:team_reach/1_ant/shnn", "--episodes", "1"])
+        .env("MEBEN_POLICIES", &dir.0)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && !stderr.contains("panicked"), "{stderr}");
+    assert!(stderr.contains(&two.file) && stderr.contains("team_reach/2_ants"), "{stderr}");
+    // The right entry with another digest.
+    write(&policy_file::ShippedPolicy { sha256: "0".repeat(64), ..two.clone() });
+    let e = policy_file::find_pretrained(&dir.0, "team_reach/2_ants/shnn").unwrap_err().to_string();
+    assert!(e.contains(&two.sha256) && e.contains(&"0".repeat(64)) && e.contains("sha256"), "{e}");
+    write(two);
+    policy_file::find_pretrained(&dir.0, "team_reach/2_ants/shnn").unwrap();
+}
+
+/// Issue 77 item 7: a policy file of a run on a morphology file carries the file, so it
+/// evaluates the bodies it was trained on after the run moved and whatever became of the
+/// run's copy; `eval --run` of the moved run refuses the edited copy.
+#[test]
+fn a_policy_file_carries_its_morphology_files() {
+    let dir = common::TempDir::new("policy-morphology");
+    let body = dir.0.join("body.xml");
+    let ant = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../envs/tests/data/ant.xml")).unwrap();
+    std::fs::write(&body, &ant).unwrap();
+    let env = format!("team_reach:agents={}+ant;R=3", body.display());
+    let config = common::tiny(&env, "mlp_hn", 1, &[]);
+    let run = RunDir::new(dir.0.join("run"));
+    train(&config, &run, &TrainOptions::default()).unwrap();
+    let file = dir.0.join("p.safetensors");
+    let file_s = file.to_str().unwrap();
+    policy_file::export_policy(&run, &file).unwrap();
+    let eval = |args: &[&str]| {
+        let mut v = vec!["eval", "--episodes", "2", "--seed", "3"];
+        v.extend_from_slice(args);
+        meben(&v)
+    };
+    let (ok, before, stderr) = eval(&["--policy", file_s]);
+    assert!(ok, "{stderr}");
+    // Move the run, delete the original file, weaken the run's copy.
+    let moved = dir.0.join("moved");
+    std::fs::rename(run.root(), &moved).unwrap();
+    std::fs::remove_file(&body).unwrap();
+    std::fs::write(moved.join("morphologies/0_body.xml"), ant.replace("gear=\"350\"", "gear=\"30\"")).unwrap();
+    let (ok, after, stderr) = eval(&["--policy", file_s]);
+    assert!(ok, "{stderr}");
+    assert_eq!(after, before);
+    let loaded = policy_file::load_policy(&file).unwrap();
+    let carried = loaded.config.env.split('=').nth(1).unwrap().split('+').next().unwrap().to_string();
+    assert_eq!(std::fs::read_to_string(&carried).unwrap(), ant, "{carried}");
+    fails_with(&["eval", "--run", moved.to_str().unwrap(), "--episodes", "1"], &["0_body.xml", "changed"]);
+    // A version 1 file (no `morphologies`; its digest as version 1 computed it) of the run is
+    // checked against the run's record: the weakened copy is refused, the restored one loads.
+    std::fs::rename(&moved, run.root()).unwrap();
+    let v2 = std::fs::read(&file).unwrap();
+    let (parsed, mut meta) = tensor_file::read(&v2).unwrap();
+    let entries = tensor_file::entries_of(&parsed);
+    meta.remove(keys::MORPHOLOGIES);
+    meta.remove(keys::SHA256);
+    meta.insert(keys::FORMAT_VERSION.into(), "1".into());
+    let unsigned = tensor_file::serialize(entries.clone(), &meta).unwrap();
+    meta.insert(keys::SHA256.into(), digest_v1(&meta, &unsigned));
+    let v1 = dir.0.join("v1.safetensors");
+    std::fs::write(&v1, tensor_file::serialize(entries, &meta).unwrap()).unwrap();
+    let v1_s = v1.to_str().unwrap();
+    fails_with(&["eval", "--policy", v1_s, "--episodes", "1"], &[v1_s, "0_body.xml", "changed since the run"]);
+    std::fs::write(run.root().join("morphologies/0_body.xml"), &ant).unwrap();
+    let (ok, again, stderr) = eval(&["--policy", v1_s]);
+    assert!(ok, "{stderr}");
+    assert_eq!(again, before);
+}
+
+/// Issue 77 item 8: a policy file that is a device, FIFO or directory is refused before it
+/// is read (`/dev/zero` used to be read until memory ran out), naming it.
+#[test]
+fn a_policy_file_that_is_not_a_regular_file_is_refused_unread() {
+    let e = policy_file::load_policy(Path::new("/dev/zero")).unwrap_err().to_string();
+    assert!(e.contains("/dev/zero") && e.contains("not a regular file"), "{e}");
+    fails_with(&["eval", "--policy", "/dev/zero", "--episodes", "1"], &["/dev/zero", "not a regular file"]);
+    let e = rl::app::paper::PaperFigures::load(Path::new("/dev/zero")).unwrap_err().to_string();
+    assert!(e.contains("/dev/zero") && e.contains("not a regular file"), "{e}");
+}
+
+/// Issue 77 (smaller): a normaliser with a negative sum of squares (its digest recomputed as
+/// version 2 computes it) is refused naming the file and the field.
+#[test]
+fn a_normaliser_with_negative_sums_of_squares_is_refused() {
+    let dir = common::TempDir::new("policy-negative");
+    let file = dir.0.join("p.safetensors");
+    let config = common::tiny("team_reach/1_ant", "mlp_hn", 1, &[]);
+    let spec = envs::tasks::Scene::from_name(&config.env).unwrap().obs_spec;
+    let teams: Vec<rl::Team> = (0..spec.n_teams).map(|k| rl::Team::build(&config, &spec, k).unwrap()).collect();
+    let good = policy_file::policy_bytes(&config, &teams, 0, 0, &[]).unwrap();
+    let (parsed, mut meta) = tensor_file::read(&good).unwrap();
+    let entries = tensor_file::entries_of(&parsed);
+    let mut norms: serde_json::Value = serde_json::from_str(&meta[keys::NORMALIZERS]).unwrap();
+    let m2 = &mut norms[0]["scalars"]["m2"];
+    m2[0] = serde_json::json!(-4.0);
+    meta.insert(keys::NORMALIZERS.into(), norms.to_string());
+    meta.remove(keys::SHA256);
+    let mut all = Vec::new();
+    for (k, v) in &meta {
+        all.extend_from_slice(k.as_bytes());
+        all.push(0);
+        all.extend_from_slice(v.as_bytes());
+        all.push(0);
+    }
+    all.extend_from_slice(&tensor_file::serialize(entries.clone(), &Default::default()).unwrap());
+    meta.insert(keys::SHA256.into(), rl::mappo::checksum::sha256_hex(&all));
+    std::fs::write(&file, tensor_file::serialize(entries, &meta).unwrap()).unwrap();
+    let e = policy_file::load_policy(&file).unwrap_err().to_string();
+    assert!(e.contains(file.to_str().unwrap()) && e.contains("negative") && e.contains("scalars"), "{e}");
+}
