@@ -275,7 +275,8 @@ mod tests {
     }
 
     /// Issue 44 item 12: `--config /dev/zero` was read until memory ran out. A file above
-    /// 1 MiB is refused, named; one of 1 MiB is read.
+    /// 1 MiB is refused, named; one of 1 MiB is read. Issue 77 item 8: a device or a FIFO
+    /// (which hung) is refused before it is opened.
     #[test]
     fn a_configuration_file_above_one_mib_is_refused() {
         let dir = crate::app::test_util::TempDir::new("big-config");
@@ -291,7 +292,11 @@ mod tests {
         #[cfg(target_os = "linux")]
         {
             let e = TrainConfig::resolve(None, Some(Path::new("/dev/zero")), &[]).unwrap_err().to_string();
-            assert!(e.starts_with("/dev/zero: larger than"), "{e}");
+            assert!(e.starts_with("/dev/zero: not a regular file"), "{e}");
+            let fifo = dir.0.join("fifo.toml");
+            assert!(std::process::Command::new("mkfifo").arg(&fifo).status().unwrap().success());
+            let e = TrainConfig::resolve(None, Some(&fifo), &[]).unwrap_err().to_string();
+            assert!(e.contains("fifo.toml") && e.contains("not a regular file"), "{e}");
         }
     }
 

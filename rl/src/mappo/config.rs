@@ -504,18 +504,10 @@ pub fn read_config_text(path: &Path) -> Result<String> {
     read_text_file(path, MAX_CONFIG_BYTES, "a configuration file")
 }
 
-/// The text of the file `path` of at most `max_bytes`, else an error naming the file and
-/// the limit, and saying what the file was expected to be (`what`): a file without end
-/// (`--config /dev/zero`, which used to be read until memory ran out) is refused after
-/// reading one byte more than the limit.
+/// The text of the regular file `path` of at most `max_bytes`, else an error naming the
+/// file and the limit, and saying what the file was expected to be (`what`): a file without
+/// end (`--config /dev/zero`, which used to be read until memory ran out) or a FIFO (which
+/// hung) is refused before it is read ([`crate::bounded_read::read_text`]).
 pub fn read_text_file(path: &Path, max_bytes: u64, what: &str) -> Result<String> {
-    use std::io::Read;
-    let file = std::fs::File::open(path).map_err(|e| RlError::file(path, format!("cannot read: {e}")))?;
-    let mut bytes = Vec::new();
-    file.take(max_bytes + 1).read_to_end(&mut bytes).map_err(|e| RlError::file(path, format!("cannot read: {e}")))?;
-    if bytes.len() as u64 > max_bytes {
-        let mib = max_bytes as f64 / f64::from(1u32 << 20);
-        return Err(RlError::file(path, format!("larger than {max_bytes} bytes ({mib} MiB): too large for {what}")));
-    }
-    String::from_utf8(bytes).map_err(|e| RlError::file(path, format!("cannot read: not UTF-8 text ({e})")))
+    crate::bounded_read::read_text(path, max_bytes, what)
 }
