@@ -587,8 +587,19 @@ impl ModelDescription {
     }
 
     /// Checks what the types leave open: hidden widths positive and, but for `shgnn`'s
-    /// decoder, at least one.
+    /// decoder, at least one; `assignment=learned` only in the SHNN family (the others have
+    /// no scorer for it).
     pub fn check(&self) -> Result<()> {
+        if let Some(a) = self.assignment()
+            && a.method == AssignmentMethod::Learned
+            && self.family() != Family::Shnn
+        {
+            return Err(ModelError::Option(format!(
+                "model `{}` takes no option value `assignment=learned` (only the SHNN family does; its assignments: greedy, \
+                 hungarian, stochastic, none)",
+                self.name()
+            )));
+        }
         match self {
             Self::Shnn(o) => match &o.model {
                 ShnnModel::ShGnn { hidden, .. } => hidden.check(true),
