@@ -795,6 +795,25 @@ mod tests {
         assert!(e.contains("unknown critic `big`"), "{e}");
     }
 
+    /// `assignment=learned` is the SHNN family's: the other families that take `assignment`
+    /// refuse the value naming the model; an unknown value lists `learned` among the others.
+    #[test]
+    fn a_learned_assignment_is_the_shnn_familys() {
+        for name in ["shnn", "shnn_og3", "shnn_so3", "shtransformer", "shgnn"] {
+            let d = ModelDescription::parse(&format!("{name}:assignment=learned;seed=4")).unwrap();
+            assert_eq!(d.assignment(), Some(&TaskAssignment { method: AssignmentMethod::Learned, seed: 4 }), "{name}");
+        }
+        for name in ["hnn", "hnn_hn", "hnn_dn", "mlp", "mlp_hn"] {
+            let e = ModelDescription::parse(&format!("{name}:assignment=learned")).unwrap_err().to_string();
+            assert!(e.contains(&format!("model `{name}` takes no option value `assignment=learned`")), "{e}");
+        }
+        let e = ModelDescription::parse("shnn:assignment=learnt").unwrap_err().to_string();
+        assert!(
+            e.contains("unknown assignment `learnt` (expected greedy, hungarian, stochastic, none or learned)"),
+            "{e}"
+        );
+    }
+
     /// The table of [`ModelDescription::option_keys`] is what the types take: for every model
     /// (and MLP network), a string with one option parses exactly when the model lists it.
     #[test]
