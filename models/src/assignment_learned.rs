@@ -68,6 +68,10 @@
 //!    the action's in the PPO ratio and the entropy estimate to add to the bonus.
 //! 3. Evaluation: [`PlackettLuceAssigner::most_likely`] (or a seeded draw).
 //!
+//! [`LearnedAssignment`] does the three for a model: `shnn:assignment=learned` (the SHNN
+//! family) holds one, its scorer's parameters under `assign.`, and returns the terms with the
+//! policy's output ([`crate::PolicyOutput::assignment_terms`]).
+//!
 //! # Cost per step
 //! The scorer runs once over all `B n m` pairs (an MLP on `B n m` rows of 1 or 2 features);
 //! sampling is O(m n) per scene on the host; the log-probability and entropy are O(B k n)
