@@ -20,17 +20,23 @@ pub enum AssignmentMethod {
     Stochastic,
     /// No assignment: the entity graph stays fully connected (ablation).
     None,
+    /// A co-learnable assignment (the SHNN family only): drawn from a Plackett-Luce
+    /// distribution over learned pair scores ([`crate::assignment_learned`]) by the model,
+    /// which hands it to the graph builder. Without scores ([`Assigner::assign`]) it falls
+    /// back to Algorithm 1, the distribution's zero-temperature limit.
+    Learned,
 }
 
 impl AssignmentMethod {
-    /// Parses `greedy`, `hungarian`, `stochastic` or `none`.
+    /// Parses `greedy`, `hungarian`, `stochastic`, `none` or `learned`.
     pub fn parse(s: &str) -> Result<Self, String> {
         match s {
             "greedy" => Ok(Self::Greedy),
             "hungarian" => Ok(Self::Hungarian),
             "stochastic" => Ok(Self::Stochastic),
             "none" => Ok(Self::None),
-            _ => Err(format!("unknown assignment `{s}` (expected greedy, hungarian, stochastic or none)")),
+            "learned" => Ok(Self::Learned),
+            _ => Err(format!("unknown assignment `{s}` (expected greedy, hungarian, stochastic, none or learned)")),
         }
     }
 }
@@ -71,7 +77,8 @@ impl Assigner {
     /// Assigns the `m` objects of the `n x m` distance matrix `dist` (row-major, agent rows)
     /// to distinct agents, writing the agent of object `j` to `out[j]` (or [`UNASSIGNED`]).
     /// `rng` is only used by [`AssignmentMethod::Stochastic`]. With
-    /// [`AssignmentMethod::None`] every entry is [`UNASSIGNED`].
+    /// [`AssignmentMethod::None`] every entry is [`UNASSIGNED`]; [`AssignmentMethod::Learned`]
+    /// has no scores here and is solved as Algorithm 1 (greedy).
     pub fn assign(
         &mut self,
         method: AssignmentMethod,
@@ -84,7 +91,7 @@ impl Assigner {
         assert!(dist.len() == n * m && out.len() == m, "distance matrix {n} x {m} and {} outputs", out.len());
         assert!(n <= self.free.len() && m < self.u.len(), "problem larger than the assigner's capacity");
         match method {
-            AssignmentMethod::Greedy => self.greedy(dist, n, m, out),
+            AssignmentMethod::Greedy | AssignmentMethod::Learned => self.greedy(dist, n, m, out),
             AssignmentMethod::Hungarian => self.hungarian(dist, n, m, out),
             AssignmentMethod::Stochastic => self.stochastic(n, m, out, rng),
             AssignmentMethod::None => out.fill(UNASSIGNED),

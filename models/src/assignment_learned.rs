@@ -68,6 +68,10 @@
 //!    the action's in the PPO ratio and the entropy estimate to add to the bonus.
 //! 3. Evaluation: [`PlackettLuceAssigner::most_likely`] (or a seeded draw).
 //!
+//! [`LearnedAssignment`] does the three for a model: `shnn:assignment=learned` (the SHNN
+//! family) holds one, its scorer's parameters under `assign.`, and returns the terms with the
+//! policy's output ([`crate::PolicyOutput::assignment_terms`]).
+//!
 //! # Cost per step
 //! The scorer runs once over all `B n m` pairs (an MLP on `B n m` rows of 1 or 2 features);
 //! sampling is O(m n) per scene on the host; the log-probability and entropy are O(B k n)
@@ -553,6 +557,123 @@ pub fn log_prob<'t, T: Float>(scores: Var<'t, T>, assignment: &[usize]) -> Resul
 /// [`log_prob_and_entropy`]).
 pub fn entropy_estimate<'t, T: Float>(scores: Var<'t, T>, assignment: &[usize]) -> Result<Var<'t, T>> {
     Ok(log_prob_and_entropy(scores, assignment)?.1)
+}
+
+/// How a [`LearnedAssignment`] chooses an assignment when none is given.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LearnedChoice {
+    /// A draw from the Plackett-Luce distribution with the model's seeded stream
+    /// ([`PlackettLuceAssigner::sample`]): collection, and evaluation with sampled actions.
+    Sample,
+    /// [`PlackettLuceAssigner::most_likely`]: deterministic evaluation.
+    MostLikely,
+}
+
+/// The learned assignment as a model uses it per step (module doc, "Use per step"): the
+/// scorer (its parameters in the model's scope), the graph builder's rows and columns, the
+/// seeded stream of the draws and the host scratch. [`LearnedAssignment::assign`] scores the
+/// pairs of a batch on the tape, draws (or takes the given) assignment of every scene and
+/// returns it with its differentiable log-probability and entropy estimate.
+#[derive(Clone, Debug)]
+pub struct LearnedAssignment {
+    /// The pair scorer.
+    pub scorer: AssignmentScorer,
+    assigner: PlackettLuceAssigner,
+    rng: ChaCha8Rng,
+    choice: LearnedChoice,
+    gravity: [f64; 3],
+    agents: Vec<usize>,
+    objects: Vec<usize>,
+}
+
+impl LearnedAssignment {
+    /// A learned assignment over the rows and columns of `graph`
+    /// ([`crate::GraphBuilder::assignment_entities`]), its scorer's parameters created in
+    /// `scope`, `gravity` the unit direction of gravity, its draws seeded by `seed`.
+    pub fn new<T: Float>(
+        scope: &mut Scope<'_, T>,
+        config: ScorerConfig,
+        graph: &crate::entity_graph::GraphBuilder,
+        gravity: [f64; 3],
+        seed: u64,
+    ) -> Result<Self> {
+        check_gravity(gravity)?;
+        let (agents, objects) = graph.assignment_entities();
+        let scorer = AssignmentScorer::new(scope, config)?;
+        Ok(Self {
+            scorer,
+            assigner: PlackettLuceAssigner::new(agents.len(), objects.len()),
+            rng: <ChaCha8Rng as rand::SeedableRng>::seed_from_u64(seed),
+            choice: LearnedChoice::Sample,
+            gravity,
+            agents: agents.to_vec(),
+            objects: objects.to_vec(),
+        })
+    }
+
+    /// Restarts the stream of the draws from `seed` (the trainer reseeds it every iteration).
+    pub fn reseed(&mut self, seed: u64) {
+        self.rng = <ChaCha8Rng as rand::SeedableRng>::seed_from_u64(seed);
+    }
+
+    /// How an assignment is chosen when none is given.
+    pub fn choice(&self) -> LearnedChoice {
+        self.choice
+    }
+
+    /// Sets how an assignment is chosen when none is given.
+    pub fn set_choice(&mut self, choice: LearnedChoice) {
+        self.choice = choice;
+    }
+
+    /// The assignment of every scene of `inputs` (`[B * m]`, object -> agent index, as
+    /// [`crate::EntityGraph::assignment`]: [`crate::NO_AGENT`] for none), with its
+    /// log-probability `[B]` and chain-rule entropy estimate `[B]` on the tape of `p`
+    /// ([`log_prob_and_entropy`]). With `given` (an assignment stored at collection) that
+    /// one is scored; otherwise one is drawn or the most likely taken
+    /// ([`LearnedAssignment::choice`]) from the scores' host values. Errors name a given
+    /// assignment of another size or of probability 0.
+    pub fn assign<'t, T: Float>(
+        &mut self,
+        p: &Bound<'t, T>,
+        inputs: &crate::input::EntityInputs<T>,
+        given: Option<&[u32]>,
+    ) -> Result<(Vec<u32>, Var<'t, T>, Var<'t, T>)> {
+        let x = PairFeatures::from_entities(
+            self.scorer.config.features,
+            &inputs.positions,
+            inputs.entities,
+            &self.agents,
+            &self.objects,
+            self.gravity,
+        )?;
+        let scores = self.scorer.scores(p, &x)?;
+        let (b, n, m) = (x.batch, x.agents, x.objects);
+        let chosen: Vec<usize> = match given {
+            Some(g) => {
+                if g.len() != b * m {
+                    return Err(ModelError::Input(format!(
+                        "a given learned assignment of {} entries for {b} scenes x {m} objects",
+                        g.len()
+                    )));
+                }
+                g.iter().map(|&i| if i == crate::entity_graph::NO_AGENT { UNASSIGNED } else { i as usize }).collect()
+            }
+            None => {
+                let host = scores.value().to_host()?;
+                let mut out = vec![UNASSIGNED; b * m];
+                match self.choice {
+                    LearnedChoice::Sample => self.assigner.sample(host.data(), b, n, m, &mut self.rng, &mut out)?,
+                    LearnedChoice::MostLikely => self.assigner.most_likely(host.data(), b, n, m, &mut out)?,
+                }
+                out
+            }
+        };
+        let (log_prob, entropy) = log_prob_and_entropy(scores, &chosen)?;
+        let assignment =
+            chosen.iter().map(|&i| if i == UNASSIGNED { crate::entity_graph::NO_AGENT } else { i as u32 }).collect();
+        Ok((assignment, log_prob, entropy))
+    }
 }
 
 #[cfg(test)]

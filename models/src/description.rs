@@ -587,8 +587,19 @@ impl ModelDescription {
     }
 
     /// Checks what the types leave open: hidden widths positive and, but for `shgnn`'s
-    /// decoder, at least one.
+    /// decoder, at least one; `assignment=learned` only in the SHNN family (the others have
+    /// no scorer for it).
     pub fn check(&self) -> Result<()> {
+        if let Some(a) = self.assignment()
+            && a.method == AssignmentMethod::Learned
+            && self.family() != Family::Shnn
+        {
+            return Err(ModelError::Option(format!(
+                "model `{}` takes no option value `assignment=learned` (only the SHNN family does; its assignments: greedy, \
+                 hungarian, stochastic, none)",
+                self.name()
+            )));
+        }
         match self {
             Self::Shnn(o) => match &o.model {
                 ShnnModel::ShGnn { hidden, .. } => hidden.check(true),
@@ -782,6 +793,25 @@ mod tests {
         // A value error comes before an option the model does not take, as it always did.
         let e = ModelDescription::parse("hnn:gravity=input;critic=big").unwrap_err().to_string();
         assert!(e.contains("unknown critic `big`"), "{e}");
+    }
+
+    /// `assignment=learned` is the SHNN family's: the other families that take `assignment`
+    /// refuse the value naming the model; an unknown value lists `learned` among the others.
+    #[test]
+    fn a_learned_assignment_is_the_shnn_familys() {
+        for name in ["shnn", "shnn_og3", "shnn_so3", "shtransformer", "shgnn"] {
+            let d = ModelDescription::parse(&format!("{name}:assignment=learned;seed=4")).unwrap();
+            assert_eq!(d.assignment(), Some(&TaskAssignment { method: AssignmentMethod::Learned, seed: 4 }), "{name}");
+        }
+        for name in ["hnn", "hnn_hn", "hnn_dn", "mlp", "mlp_hn"] {
+            let e = ModelDescription::parse(&format!("{name}:assignment=learned")).unwrap_err().to_string();
+            assert!(e.contains(&format!("model `{name}` takes no option value `assignment=learned`")), "{e}");
+        }
+        let e = ModelDescription::parse("shnn:assignment=learnt").unwrap_err().to_string();
+        assert!(
+            e.contains("unknown assignment `learnt` (expected greedy, hungarian, stochastic, none or learned)"),
+            "{e}"
+        );
     }
 
     /// The table of [`ModelDescription::option_keys`] is what the types take: for every model

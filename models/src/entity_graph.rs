@@ -229,10 +229,16 @@ impl GraphBuilder {
 
     /// [`GraphBuilder::build`], with the assignment of every scene given (`[B*m]`, as
     /// [`EntityGraph::assignment`] returns it) instead of solved or drawn; `None` solves it.
-    /// A given assignment must match the batch and be one-to-one.
+    /// A given assignment must match the batch and be one-to-one; the method `learned` needs
+    /// one (its draws come from the model's scorer, [`crate::assignment_learned`]).
     pub fn build_with<T: Float>(&mut self, entities: &EntityInputs<T>, fixed: Option<&[u32]>) -> Result<EntityGraph> {
         let (nb, ne, na) = (entities.batch, self.n_entities, self.n_agents);
         let (n, m) = (self.own.len(), self.objects.len());
+        if fixed.is_none() && self.method == AssignmentMethod::Learned {
+            return Err(ModelError::Input(
+                "assignment `learned` builds a graph only with the assignment its scorer drew (none given)".into(),
+            ));
+        }
         if let Some(f) = fixed {
             let width = self.assignment_width();
             if f.len() != nb * width {

@@ -233,11 +233,11 @@ impl Hnn {
             });
         }
         if !with_value {
-            return Ok(PolicyOutput { agents: out, value: None, assignment: graph.assignment });
+            return Ok(PolicyOutput { agents: out, value: None, assignment: graph.assignment, assignment_terms: None });
         }
         let rows: Vec<usize> = (0..nb).flat_map(|b| self.critic_entities.iter().map(move |&e| b * ne + e)).collect();
         let s = h.shape()[1];
         let value = self.critic.forward(p, h.index_select(0, &rows)?.reshape(&[nb, ne * s])?)?.reshape(&[nb])?;
-        Ok(PolicyOutput { agents: out, value: Some(value), assignment: graph.assignment })
+        Ok(PolicyOutput { agents: out, value: Some(value), assignment: graph.assignment, assignment_terms: None })
     }
 }

@@ -57,6 +57,21 @@ pub struct PolicyOutput<'t, T: Float> {
     /// The task assignment the batch was processed with, `[B * Policy::assignment_width]`
     /// ([`crate::EntityGraph::assignment`]; empty for models without one).
     pub assignment: Vec<u32>,
+    /// A learned task assignment's factor of the policy, `π(a, σ | s) = π(σ | s) π(a | s, σ)`
+    /// (`assignment=learned`; `None` for the other methods and models): the log-probability
+    /// and entropy estimate of [`PolicyOutput::assignment`] on the tape.
+    pub assignment_terms: Option<AssignmentTerms<'t, T>>,
+}
+
+/// A learned task assignment's terms for a batch ([`crate::assignment_learned`]): the act step
+/// adds `log_prob` to the action's log-probability, the PPO update adds it to the new one (so
+/// that the ratio covers both factors) and `entropy` to the bonus.
+#[derive(Clone, Copy, Debug)]
+pub struct AssignmentTerms<'t, T: Float> {
+    /// `ln π(σ | s)` of each scene's assignment, `[B]`.
+    pub log_prob: Var<'t, T>,
+    /// The chain-rule entropy estimate along it, `[B]`.
+    pub entropy: Var<'t, T>,
 }
 
 impl<'t, T: Float> PolicyOutput<'t, T> {
@@ -113,6 +128,13 @@ pub trait Policy: std::fmt::Debug + Send + Sync {
     /// exact.
     fn reseed(&mut self, seed: u64) {
         let _ = seed;
+    }
+
+    /// Whether the policy's own random choices, if it has any (a learned task assignment),
+    /// take their most likely value (`true`: deterministic evaluation) instead of a draw from
+    /// its stream (`false`, the default: collection). Default: nothing to set.
+    fn set_deterministic(&mut self, deterministic: bool) {
+        let _ = deterministic;
     }
 
     /// A boxed copy (the evaluator acts with copies).

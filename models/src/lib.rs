@@ -42,7 +42,8 @@ pub mod zoo;
 
 pub use assignment::{Assigner, AssignmentMethod, UNASSIGNED, distance_matrix};
 pub use assignment_learned::{
-    AssignmentScorer, PairFeatureSet, PairFeatures, PlackettLuceAssigner, ScorerConfig, log_prob_and_entropy,
+    AssignmentScorer, LearnedAssignment, LearnedChoice, PairFeatureSet, PairFeatures, PlackettLuceAssigner,
+    ScorerConfig, log_prob_and_entropy,
 };
 pub use body_gnn::{BodyGnn, BodyGnnConfig};
 pub use config::{GravityMode, MlpVariant, MpSizes, NeighbourOffset, OPTION_KEYS};
@@ -55,7 +56,7 @@ pub use entity_graph::{EntityGraph, GraphBuilder, GraphTask, NO_AGENT};
 pub use entity_mp::{EntityFeatures, EntityMp, EntityMpConfig};
 pub use error::{ModelError, Result};
 pub use input::{AgentBody, EntityAbstraction, EntityInputs, InputProcessor, NeighbourRows, Translation};
-pub use interface::{AgentPolicy, Policy, PolicyFactory, PolicyOutput};
+pub use interface::{AgentPolicy, AssignmentTerms, Policy, PolicyFactory, PolicyOutput};
 pub use kind::ModelKind;
 pub use transformer_head::TransformerHead;
 pub use zoo::{Model, ParamCounts};

@@ -254,7 +254,7 @@ impl ReleaseMlp {
             out.push(split_head(head, p, hidden, a, spec.agent_dof[a])?);
         }
         if !with_value {
-            return Ok(PolicyOutput { agents: out, value: None, assignment: graph.assignment });
+            return Ok(PolicyOutput { agents: out, value: None, assignment: graph.assignment, assignment_terms: None });
         }
         // The value: every entity's root, relative to the mean of the roots.
         let ne = self.order.len();
@@ -268,7 +268,7 @@ impl ReleaseMlp {
         let hidden = self.critic_embed.hidden(p, &self.critic, Tensor::new(x, &[nb, ne, NODE_FEATURES])?)?;
         let last = &self.critic.layers[self.critic.layers.len() - 1];
         let value = last.forward(p, hidden)?.reshape(&[nb])?;
-        Ok(PolicyOutput { agents: out, value: Some(value), assignment: graph.assignment })
+        Ok(PolicyOutput { agents: out, value: Some(value), assignment: graph.assignment, assignment_terms: None })
     }
 }
 
@@ -395,7 +395,7 @@ impl FlatMlp {
             }
         }
         if !with_value {
-            return Ok(PolicyOutput { agents: out, value: None, assignment: Vec::new() });
+            return Ok(PolicyOutput { agents: out, value: None, assignment: Vec::new(), assignment_terms: None });
         }
         // The critic, in the frame of the team's first agent.
         let value = match &self.critic {
@@ -421,7 +421,7 @@ impl FlatMlp {
                 head.forward_all(p, tokens)?.reshape(&[nb, roots.len()])?.mean(1, false)?
             }
         };
-        Ok(PolicyOutput { agents: out, value: Some(value), assignment: Vec::new() })
+        Ok(PolicyOutput { agents: out, value: Some(value), assignment: Vec::new(), assignment_terms: None })
     }
 }
 

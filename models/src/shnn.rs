@@ -18,12 +18,18 @@
 //! 4. eq. (value): the release's separate critic ([`SubeqCritic`]), or `σ_V` on the actor's
 //!    `h'` (`critic=shared`).
 //!
+//! With `assignment=learned` the task assignment is drawn from a Plackett-Luce distribution
+//! over learned pair scores ([`crate::assignment_learned`], parameters `assign.*`) and its
+//! log-probability and entropy come with the output ([`PolicyOutput::assignment_terms`]).
+//!
 //! `shnn_og3` reads the bodies in `O_i = Z'_i` (`m` channels, no orthogonalisation),
 //! `shnn_so3` has no gravity channel anywhere.
 
 use nn::{Bound, Mlp, Scope, TransformerConfig};
 use tensor::{Activation, Float};
 
+use crate::assignment::AssignmentMethod;
+use crate::assignment_learned::{LearnedAssignment, PairFeatureSet, ScorerConfig};
 use crate::body_gnn::{BodyGnn, BodyGnnConfig};
 use crate::config::{GravityMode, NeighbourOffset, layer_sizes};
 use crate::critic::{SubeqCritic, ValueHead, critic_order};
@@ -33,7 +39,7 @@ use crate::entity_mp::{EntityMp, EntityMpConfig};
 use crate::error::{ModelError, Result};
 use crate::frame::{AgentFrame, lrf, lrf_shape};
 use crate::input::InputProcessor;
-use crate::interface::{AgentPolicy, PolicyOutput};
+use crate::interface::{AgentPolicy, AssignmentTerms, PolicyOutput};
 use crate::kind::Frame;
 use crate::transformer_head::TransformerHead;
 use crate::zoo::split_head;
@@ -69,12 +75,18 @@ pub(crate) struct Shnn {
     pub(crate) neighbour: NeighbourOffset,
     pub(crate) heads: Heads,
     pub(crate) critic: Critic,
+    /// `assignment=learned`: the scorer (parameters `assign.*`) and its draws, which give
+    /// the graph builder its assignment.
+    pub(crate) learned: Option<Box<LearnedAssignment>>,
 }
 
 impl Shnn {
     /// Builds the model `o` describes (of the SHNN family) for `agents` of `team` under scope
     /// `s`: the actor's entity stage (`entity`), the body-level heads (`actor`), the critic
-    /// (`critic`), in that order.
+    /// (`critic`), in that order, then with `assignment=learned` the assignment's scorer
+    /// (`assign`; last, so that the other parameters start as without it). The scorer reads
+    /// the pair distances and, but in `shnn_so3` (no gravity anywhere), the heights along
+    /// gravity ([`PairFeatureSet`]).
     pub(crate) fn new<T: Float>(
         s: &mut Scope<'_, T>,
         o: &ShnnOptions,
@@ -152,7 +164,15 @@ impl Shnn {
                 Critic::Shared(ValueHead::new(&mut c, ne, m.scalars, &value)?, critic_order(spec, agents))
             }
         };
-        Ok(Shnn { proc, graph, mp, frame, neighbour: stage.neighbour, heads, critic })
+        let learned = if stage.assignment.method == AssignmentMethod::Learned {
+            let features = if gravity.is_some() { PairFeatureSet::DistanceHeight } else { PairFeatureSet::Distance };
+            let config = ScorerConfig { features, ..ScorerConfig::default() };
+            let l = LearnedAssignment::new(&mut s.sub("assign"), config, &graph, g, stage.assignment.seed)?;
+            Some(Box::new(l))
+        } else {
+            None
+        };
+        Ok(Shnn { proc, graph, mp, frame, neighbour: stage.neighbour, heads, critic, learned })
     }
 
     /// Policy and (if `with_value`) value; `fixed` replaces the batch's task assignment
@@ -169,7 +189,15 @@ impl Shnn {
         let tape = p.tape();
         let nb = obs.batch;
         let inputs = self.proc.entities::<T, S>(obs)?;
-        let graph = self.graph.build_with(&inputs, fixed)?;
+        // A learned assignment is scored on the tape and drawn (or the given one scored)
+        // before the graph is built with it.
+        let (graph, assignment_terms) = match &mut self.learned {
+            None => (self.graph.build_with(&inputs, fixed)?, None),
+            Some(l) => {
+                let (drawn, log_prob, entropy) = l.assign(p, &inputs, fixed)?;
+                (self.graph.build_with(&inputs, Some(&drawn))?, Some(AssignmentTerms { log_prob, entropy }))
+            }
+        };
         let z = self.proc.actor_entities(&inputs, &graph, agents, self.neighbour)?;
         let f = self.mp.forward_inputs(p, z, &inputs, &graph)?;
         let bodies = self.proc.bodies(obs, &inputs, &graph.agent_entity, agents)?;
@@ -225,6 +253,6 @@ impl Shnn {
                 Some(head.forward(p, f.h.index_select(0, &rows)?.reshape(&[nb, ne, s])?)?)
             }
         };
-        Ok(PolicyOutput { agents: out, value, assignment: graph.assignment })
+        Ok(PolicyOutput { agents: out, value, assignment: graph.assignment, assignment_terms })
     }
 }

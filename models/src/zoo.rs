@@ -42,6 +42,7 @@ use nn::{Bound, Mlp, ParamStore, Scope};
 use tensor::{Float, Var};
 
 use crate::assignment::AssignmentMethod;
+use crate::assignment_learned::LearnedChoice;
 use crate::description::{MlpModel, MlpNetwork, ModelDescription};
 use crate::entity_graph::GraphBuilder;
 use crate::entity_mp::EntityMp;
@@ -163,12 +164,17 @@ impl Model {
         }
     }
 
-    /// Restarts the random stream of the stochastic task assignment from `seed` (no effect
-    /// on the other methods): the trainer reseeds it every iteration so that resumed runs are
+    /// Restarts the random stream of the stochastic or learned task assignment from `seed` (no
+    /// effect on the other methods): the trainer reseeds it every iteration so that resumed runs are
     /// exact.
     pub fn reseed(&mut self, seed: u64) {
         match &mut self.arch {
-            Arch::Shnn(m) => m.graph.reseed(seed),
+            Arch::Shnn(m) => {
+                m.graph.reseed(seed);
+                if let Some(l) = &mut m.learned {
+                    l.reseed(seed);
+                }
+            }
             Arch::Hnn(m) => m.reseed(seed),
             Arch::Mlp(m) => m.graph_mut().reseed(seed),
             Arch::Flat(_) => {}
@@ -191,11 +197,21 @@ impl Model {
         self.graph().map_or(0, GraphBuilder::assignment_width)
     }
 
-    /// Whether the model draws its task assignment at random (`assignment=stochastic`), so
-    /// that an update must be given the assignment the behaviour policy used
-    /// ([`Model::forward_batch_with`]) to see the same graph.
+    /// Whether the model draws its task assignment at random (`assignment=stochastic` or
+    /// `learned`), so that an update must be given the assignment the behaviour policy used
+    /// ([`Model::forward_batch_with`]) to see the same graph (and, when learned, to score it).
     pub fn assignment_is_random(&self) -> bool {
-        self.graph().is_some_and(|g| g.method() == AssignmentMethod::Stochastic)
+        self.graph().is_some_and(|g| matches!(g.method(), AssignmentMethod::Stochastic | AssignmentMethod::Learned))
+    }
+
+    /// Whether a learned task assignment takes its most likely value (`true`, deterministic
+    /// evaluation) or is drawn (`false`, the default); no effect on the other methods.
+    pub fn set_deterministic(&mut self, deterministic: bool) {
+        if let Arch::Shnn(m) = &mut self.arch
+            && let Some(l) = &mut m.learned
+        {
+            l.set_choice(if deterministic { LearnedChoice::MostLikely } else { LearnedChoice::Sample });
+        }
     }
 
     /// Number of scalar parameters of the model in `store` (the one it was built in).
@@ -320,6 +336,10 @@ impl Policy for Model {
 
     fn reseed(&mut self, seed: u64) {
         Model::reseed(self, seed)
+    }
+
+    fn set_deterministic(&mut self, deterministic: bool) {
+        Model::set_deterministic(self, deterministic)
     }
 
     fn clone_box(&self) -> Box<dyn Policy> {

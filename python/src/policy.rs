@@ -154,6 +154,8 @@ impl PyPolicy {
         pool::detach(py, || {
             for (team, (model, actor)) in teams.iter().zip(players.iter_mut()) {
                 actor.mode = mode;
+                // Mean actions take a learned task assignment's most likely value too.
+                model.set_deterministic(deterministic);
                 actor.act(model.as_mut(), &team.store, &team.norm, raw, &mut joint)?;
             }
             Ok(())

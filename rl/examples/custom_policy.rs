@@ -113,7 +113,7 @@ impl Policy for FlatPolicy {
             agents.push(AgentPolicy { agent: a, loc, scale });
         }
         let value = if value { Some(self.critic.forward(p, x)?.reshape(&[obs.len()])?) } else { None };
-        Ok(PolicyOutput { agents, value, assignment: Vec::new() })
+        Ok(PolicyOutput { agents, value, assignment: Vec::new(), assignment_terms: None })
     }
 
     fn clone_box(&self) -> Box<dyn Policy> {

@@ -86,3 +86,79 @@ fn on_meben_scenes_the_learned_assignment_follows_the_graph_builders_layout() {
         assert!(h.value().data().iter().all(|&e| e.is_finite() && e >= -1e-6), "{name}: entropy estimates");
     }
 }
+
+/// `shnn:assignment=learned` as a model: the scorer's parameters under `assign.` (created
+/// last: every other parameter starts as plain `shnn`'s), a draw per scene from the seeded
+/// stream (the same after the same reseed), its log-probability and entropy estimate on the
+/// tape, the same terms when the draw is given back (the update's path), the most likely
+/// assignment whatever the stream when deterministic, and the gradient of the
+/// log-probability reaching the scorer's weights. Team Reach and both teams of Team Sumo.
+#[test]
+fn a_learned_assignment_model_draws_scores_and_differentiates_its_assignment() {
+    use models::{Model, ModelDescription};
+    for (name, team) in [("team_reach/2_ants", 0), ("team_sumo/2_ants", 0), ("team_sumo/2_ants", 1)] {
+        let mut env = VecEnv::from_name(name, B, 7, StartMode::Random).unwrap();
+        let mut r = rng(7);
+        for _ in 0..3 {
+            let actions: Vec<f32> = (0..B * env.n_actions()).map(|_| r.random_range(-1.0..1.0)).collect();
+            env.step(&actions).unwrap();
+        }
+        let spec = env.scene().obs_spec.clone();
+        let build = |model: &str| {
+            let mut store = ParamStore::<f32>::new();
+            let mut init = nn::init_rng(3);
+            let d = ModelDescription::parse(model).unwrap();
+            let m = Model::new(&mut store.scope(&format!("team{team}"), &mut init), &d, &spec, team).unwrap();
+            (store, m)
+        };
+        let (plain_store, _) = build("shnn");
+        let (store, mut model) = build("shnn:assignment=learned");
+        let prefix = format!("team{team}.assign.");
+        let learned: Vec<(&str, &tensor::Tensor<f32>)> = store.iter().filter(|(n, _)| n.starts_with(&prefix)).collect();
+        assert!(!learned.is_empty(), "{name}");
+        let rest: Vec<(&str, Vec<f32>)> =
+            store.iter().filter(|(n, _)| !n.starts_with(&prefix)).map(|(n, t)| (n, t.to_vec())).collect();
+        let plain: Vec<(&str, Vec<f32>)> = plain_store.iter().map(|(n, t)| (n, t.to_vec())).collect();
+        assert_eq!(rest, plain, "{name}: the other parameters start as plain shnn's");
+        let extra: usize = learned.iter().map(|(_, t)| t.numel()).sum();
+        assert_eq!(model.num_params(&store), plain_store.num_elements() + extra, "{name}");
+        assert!(model.assignment_is_random(), "{name}");
+
+        let width = model.assignment_width();
+        let draw = |model: &mut Model, seed: u64, given: Option<&[u32]>| {
+            model.reseed(seed);
+            let tape = Tape::<f32>::new();
+            let p = store.bind(&tape);
+            let out = model.forward_batch_with(&p, &env.obs().rows(), given).unwrap();
+            let terms = out.assignment_terms.expect("a learned assignment's terms");
+            let (lp, h) = (terms.log_prob.value().to_vec(), terms.entropy.value().to_vec());
+            let loc = out.agents[0].loc.value().to_vec();
+            // The gradient of the log-probability reaches every weight of the scorer.
+            let grads = p.grads(&tape.backward(terms.log_prob.sum_all()).unwrap());
+            let reached = store
+                .names()
+                .iter()
+                .zip(&grads)
+                .filter(|(n, _)| n.starts_with(&prefix) && n.ends_with("weight"))
+                .all(|(_, g)| g.to_vec().iter().any(|x| *x != 0.0));
+            (out.assignment, lp, h, loc, reached)
+        };
+        let (a, lp, h, loc, reached) = draw(&mut model, 11, None);
+        assert_eq!(a.len(), B * width, "{name}");
+        assert!(lp.iter().all(|x| x.is_finite() && *x <= 1e-6), "{name}: {lp:?}");
+        assert!(h.iter().all(|x| x.is_finite() && *x >= -1e-6), "{name}: {h:?}");
+        assert!(reached, "{name}: the scorer's weights get no gradient");
+        // The same stream draws the same; the draw given back is scored alike.
+        assert_eq!(draw(&mut model, 11, None).0, a, "{name}");
+        let (a2, lp2, h2, loc2, _) = draw(&mut model, 99, Some(&a));
+        assert_eq!((a2, lp2, h2, loc2), (a.clone(), lp, h, loc), "{name}");
+        // Other streams draw other assignments somewhere in the batch; the most likely one
+        // does not depend on the stream.
+        let others: Vec<Vec<u32>> = (0..4).map(|s| draw(&mut model, 100 + s, None).0).collect();
+        assert!(others.iter().any(|o| *o != a), "{name}: every stream drew the same");
+        model.set_deterministic(true);
+        let best = draw(&mut model, 1, None).0;
+        assert_eq!(draw(&mut model, 2, None).0, best, "{name}");
+        model.set_deterministic(false);
+    }
+}

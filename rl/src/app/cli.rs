@@ -102,7 +102,7 @@ struct TrainArgs {
     /// Team Sumo: model of team 1 (default: the same as --model).
     #[arg(long)]
     opponent: Option<String>,
-    /// Task assignment (ablation): greedy, hungarian, stochastic or none (appended to the
+    /// Task assignment (ablation): greedy, hungarian, stochastic, none or learned (the SHNN family; appended to the
     /// model options).
     #[arg(long)]
     assignment: Option<String>,

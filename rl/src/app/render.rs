@@ -20,6 +20,8 @@ pub fn record_episode(
 ) -> Result<envs::tasks::render::Trajectory> {
     let scene = envs::tasks::Scene::from_name(env)?;
     let mode = if deterministic { ActMode::Mean } else { ActMode::Sample };
+    // Mean actions take a learned task assignment's most likely value too.
+    teams.iter_mut().for_each(|t| t.model.set_deterministic(deterministic));
     let mut actors: Vec<Actor> = teams
         .iter()
         .map(|t| {

@@ -5,7 +5,9 @@
 //! host; the action sent to the environment is `tanh(u)`. Training (collection),
 //! evaluation, rendering, the Python policy and the closed-loop test all act
 //! through an [`Actor`], which holds the team's action-noise streams (one per agent,
-//! MEBEN.md section 8) and its scratch.
+//! MEBEN.md section 8) and its scratch. A policy with a learned task assignment
+//! (`assignment=learned`) draws it in its forward pass; its log-probability `ln π(σ | s)` is
+//! added to the action's (the policy factorises as `π(a, σ | s) = π(σ | s) π(a | s, σ)`).
 
 use envs::layout::{ObsRows, Observation};
 use models::distribution::{normal_log_prob, std_from_scale};
@@ -37,8 +39,8 @@ pub struct JointAction {
     pub actions: Vec<f32>,
     /// `[B, n_actions]` pre-squash actions `u`, what the update evaluates.
     pub pre_squash: Vec<f32>,
-    /// Per team, `[B]` its log-probability of `u` under the Normal, summed over its agents
-    /// (0 when acting with [`ActMode::Mean`]).
+    /// Per team, `[B]` its log-probability of `u` under the Normal, summed over its agents,
+    /// plus that of a learned task assignment (0 when acting with [`ActMode::Mean`]).
     pub logp: Vec<Vec<f32>>,
     /// Per team, the task assignment it acted on (`[B * Model::assignment_width]`).
     pub assignment: Vec<Vec<u32>>,
@@ -110,6 +112,12 @@ impl Actor {
         let p = store.bind(&tape);
         let out = model.forward(&p, &self.normalised.rows(), None, false)?;
         let heads = host_heads(&out.agents)?;
+        // A learned task assignment's log-probability `ln π(σ | s)` (`[B]`), the policy's
+        // other factor: `π(a, σ | s) = π(σ | s) π(a | s, σ)`.
+        let assignment_logp = match &out.assignment_terms {
+            Some(terms) => Some(terms.log_prob.value().to_host()?),
+            None => None,
+        };
         // Sampling and log-probabilities on the host, whatever the forward's device.
         let host = Tape::<f32>::new();
         let _host_no_grad = host.no_grad();
@@ -154,6 +162,22 @@ impl Actor {
                 for (l, x) in logp.iter_mut().zip(lp.data()) {
                     *l += x;
                 }
+            }
+        }
+        if let (Some(lp), ActMode::Sample) = (&assignment_logp, self.mode) {
+            if lp.numel() != b {
+                return Err(RlError::Model(models::ModelError::Input(format!(
+                    "{} assignment log-probabilities for {b} observation rows of team {team}",
+                    lp.numel()
+                ))));
+            }
+            if let Some(i) = lp.data().iter().position(|x| !x.is_finite()) {
+                return Err(RlError::NonFinite {
+                    message: format!("task-assignment log-probability of team {team} (scene {i}) is not finite"),
+                });
+            }
+            for (l, x) in logp.iter_mut().zip(lp.data()) {
+                *l += x;
             }
         }
         joint.assignment[team] = out.assignment;

@@ -246,8 +246,9 @@ fn play(
 }
 
 /// The players of an evaluation with seed `seed`: per team a copy of its model (so that the
-/// team's own random streams are untouched) with its stochastic assignment reseeded, and an
-/// actor with the evaluation's noise streams. The Python policy acts through the same, so
+/// team's own random streams are untouched) with its stochastic assignment reseeded (a
+/// learned one drawn from the same stream, or its most likely value with [`ActMode::Mean`]),
+/// and an actor with the evaluation's noise streams. The Python policy acts through the same, so
 /// that `meben.Policy.load(run, seed=s)` acts as `meben eval --seed s` does.
 pub fn evaluation_actors(teams: &[Team], seed: u64, mode: ActMode) -> Vec<(Box<dyn Policy>, Actor)> {
     teams
@@ -256,6 +257,8 @@ pub fn evaluation_actors(teams: &[Team], seed: u64, mode: ActMode) -> Vec<(Box<d
         .map(|(k, t)| {
             let mut model = t.model.clone();
             model.reseed(crate::mappo::seeding::derive_seed(seed, "evalasgn", k as u64, 0));
+            // Mean actions take a learned assignment's most likely value too.
+            model.set_deterministic(mode == ActMode::Mean);
             let noise = t.model.agents().iter().map(|&a| stream(seed, "evalnois", t.index as u64, a as u64)).collect();
             (model, Actor::new(mode, noise))
         })

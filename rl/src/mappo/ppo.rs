@@ -14,7 +14,9 @@
 //!    ([`crate::mappo::gae`]): advantages `A` and value targets, held constant;
 //! 3. **log-probabilities and entropy** of the taken actions: `log pi(u | s)` of the
 //!    pre-squash action `u` under the policy's Normal, summed over the team's agents (the Tanh
-//!    Jacobian at `u` is the same for both policies and cancels in `rho`), and the bonus's
+//!    Jacobian at `u` is the same for both policies and cancels in `rho`; with a learned
+//!    task assignment, plus `ln π(σ | s)` of the stored assignment, the policy's other
+//!    factor, and its entropy estimate joins the bonus's), and the bonus's
 //!    entropy `H`, per [`EntropyKind`]: the reference release's Tanh-Normal estimate (Brax's
 //!    `NormalTanhDistribution.entropy`: the Normal's entropy plus `ln |d tanh(x)/dx|` at one
 //!    reparameterised sample `x = loc + std eps` per action dimension, the gradient flowing
@@ -29,7 +31,7 @@
 
 use envs::layout::ObsSpec;
 use models::distribution::{normal_entropy, normal_log_prob, std_from_scale, tanh_normal_entropy};
-use models::{AgentPolicy, Policy};
+use models::{AgentPolicy, AssignmentTerms, Policy};
 use nn::Bound;
 use rand_chacha::ChaCha8Rng;
 use tensor::{Tensor, Var};
@@ -162,7 +164,13 @@ pub fn loss<'t>(
     let values: Vec<f32> = fwd.value.value().to_host()?.data().iter().chain(&fwd.bootstrap).copied().collect();
     let (advantages, targets) = gae(mb, &values, hp.discount, hp.gae_lambda);
     // 3. log pi(u | s) of the taken actions and the bonus's entropy.
-    let (logp, entropy) = log_prob_and_entropy(&fwd.policy, mb, model.spec(), hp.entropy, entropy_noise)?;
+    let (mut logp, mut entropy) = log_prob_and_entropy(&fwd.policy, mb, model.spec(), hp.entropy, entropy_noise)?;
+    // A learned task assignment is the policy's other factor: its log-probability joins the
+    // action's (the ratio covers both) and its entropy estimate the bonus.
+    if let Some(a) = fwd.assignment {
+        logp = logp.add(a.log_prob)?;
+        entropy = entropy.add(a.entropy.mean_all()?)?;
+    }
     let t = Terms {
         logp,
         entropy,
@@ -194,6 +202,9 @@ struct Forward<'t> {
     /// Values of rows `T M ..`: the `M` states after the unrolls, then the final observations
     /// of truncated transitions (no gradient).
     bootstrap: Vec<f32>,
+    /// A learned task assignment's log-probability and entropy estimate of the transitions'
+    /// stored assignments, `[T M]` each (`None` for the other methods).
+    assignment: Option<AssignmentTerms<'t, f32>>,
 }
 
 /// Step 1 (module docs): the transitions on the tape of `p`, with the task assignment they
@@ -215,7 +226,7 @@ fn forward<'t>(model: &mut dyn Policy, p: &Bound<'t, f32>, mb: &Minibatch) -> Re
         let _no_grad = p.tape().no_grad();
         model.forward(p, &mb.obs_rows(n..rows), None, true)?.team_value()?.value().to_host()?.to_vec()
     };
-    Ok(Forward { value: out.team_value()?, policy: out.agents, bootstrap })
+    Ok(Forward { value: out.team_value()?, policy: out.agents, bootstrap, assignment: out.assignment_terms })
 }
 
 /// Step 3 (module docs): `log pi(u | s)` of the taken pre-squash actions summed over the

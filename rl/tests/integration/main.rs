@@ -14,6 +14,7 @@ mod fuzz_corpus;
 mod gpu_training;
 mod interrupt;
 mod invariance;
+mod learned_assignment;
 mod learning;
 mod mappo_on_presets;
 mod policy_file;

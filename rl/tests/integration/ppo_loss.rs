@@ -54,13 +54,15 @@ fn frozen_normaliser_gives_ratio_one_and_minus_mean_advantage() {
     }
 }
 
-/// A stochastic task assignment is drawn while collecting, stored with each transition and
-/// reused by the update: with the normaliser frozen the first minibatch's ratios are 1. Drawn
+/// A stochastic (or learned) task assignment is drawn while collecting, stored with each
+/// transition and reused by the update: with the normaliser frozen the first minibatch's
+/// ratios are 1 (a learned one's log-probability is in both the behaviour's and the update's).
+/// Drawn
 /// afresh instead (the assignment left out of the minibatch), the graphs differ and so do the
 /// ratios.
 #[test]
 fn stochastic_assignment_is_stored_with_the_transition_and_reused() {
-    for model in ["shnn:assignment=stochastic", "mlp_hn:assignment=stochastic"] {
+    for model in ["shnn:assignment=stochastic", "mlp_hn:assignment=stochastic", "shnn:assignment=learned"] {
         let config = common::tiny("team_reach/2_ants", model, 1, &[]);
         let (mut t, mut mb) = first_minibatch(&config);
         assert_eq!(mb.assignment.len(), config.unroll_length * config.batch_size * 2, "{model}");

@@ -38,6 +38,7 @@ fn resumed_runs_are_bit_identical_to_uninterrupted_ones() {
     let dir = tmp.0.clone();
     for (env, model, extra) in [
         ("team_reach/1_ant", "shnn", vec![]),
+        ("team_reach/2_ants", "shnn:assignment=learned", vec![]),
         ("team_sumo/2_ants", "shnn", vec![("opponent", "mlp_hn"), ("curriculum_fraction", "0.5")]),
     ] {
         let config = common::tiny(env, model, 4, &extra);
