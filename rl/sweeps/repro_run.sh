@@ -6,7 +6,7 @@
 #
 #   nice -n 19 rl/sweeps/repro_run.sh A &  nice -n 19 rl/sweeps/repro_run.sh B &    # the two workers
 #   nice -n 19 rl/sweeps/repro_run.sh C &  nice -n 19 rl/sweeps/repro_run.sh D &    # the second wave's
-#   nice -n 19 rl/sweeps/repro_run.sh E &                                             # the third wave's
+#   nice -n 19 rl/sweeps/repro_run.sh E &  nice -n 19 rl/sweeps/repro_run.sh F &    # the third wave's
 #   rl/sweeps/repro_run.sh export                             # evidence -> results/, reports
 #   rl/sweeps/repro_run.sh restore                            # finished runs <- results/ (A and B do it first)
 #   rl/sweeps/repro_run.sh status                             # every run's progress and hours left
@@ -28,7 +28,7 @@ BIN=${BIN:-$ROOT/target/release/meben}
 OUT=${OUT:-/tmp/runs/repro}
 THREADS=${THREADS:-1}
 SWEEPS=$ROOT/rl/sweeps
-EXPERIMENTS="reach_1_ant reach_2_ants equivariance sumo reach_2_ants_no_assignment reach_2_ants_per_slot_starts transformer_1_ant centipede reach_2_ants_50m"
+EXPERIMENTS="reach_1_ant reach_2_ants equivariance sumo reach_2_ants_no_assignment reach_2_ants_per_slot_starts transformer_1_ant centipede reach_2_ants_50m reach_1_ant_50m"
 
 run() { # <experiment> <pattern>...: the sweep's runs whose names contain a pattern
   local exp=$1; shift
@@ -103,9 +103,20 @@ list_e() {
     run reach_2_ants_50m "/seed$seed"
   done
 }
+# MLP+HN on 1_ant at 50M env steps, 10 seeds (about 1.8 machine-hours a seed: one fits in a
+# session beside other work), seeds in order; seeds 0-2 re-train results/reach_1_ant's rows.
+list_f() {
+  for seed in 0 1 2 3 4 5 6 7 8 9; do
+    run reach_1_ant_50m "/seed$seed"
+  done
+}
 
 case "${1:-}" in
   E)
+    list_e
+    ;;
+  F)
+    list_f
     list_e
     ;;
   C)
@@ -153,7 +164,7 @@ case "${1:-}" in
     du -sh "$ROOT/results"
     ;;
   *)
-    echo "usage: $0 A | B | C | D | E | export | restore | status" >&2
+    echo "usage: $0 A | B | C | D | E | F | export | restore | status" >&2
     exit 2
     ;;
 esac

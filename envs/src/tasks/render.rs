@@ -3,7 +3,9 @@
 //! self-contained HTML page ([`Trajectory::to_html`]) that plays it back on a canvas with no
 //! network access (capsules and spheres under a simple perspective camera, play/pause, a
 //! step slider, drag to turn the camera, wheel to zoom; the red circle is the Sumo arena
-//! about the centre ball or the Reach placement disc about the origin), or as an animated
+//! about the centre ball or the Reach placement disc about the origin; a dashed line in an
+//! agent's colour joins it to the entity its policy's task assignment gave it at that step,
+//! [`Trajectory::set_assignments`], named under the player), or as an animated
 //! GIF ([`Trajectory::to_gif`] with [`GifOptions`]: the same scene under a fixed camera,
 //! drawn by a small software rasterizer, `render/gif_writer.rs` and `render/raster.rs`).
 //!
@@ -44,13 +46,90 @@ pub struct Trajectory {
     pub bodies: Vec<Vec<([f64; 3], [f64; 4])>>,
     /// Per frame, the ball centres (x, y).
     pub balls: Vec<Vec<[f64; 2]>>,
+    /// Per control step, the entity each agent was assigned to by the task assignment of
+    /// the policy that chose the step's action: a scene entity index (the agents `0..A`,
+    /// then the balls `A..A+M`), `None` for an agent without one. Step `k` acts on frame
+    /// `k`, and the player shows the last step's on the final frame. Empty when no policy
+    /// with a task assignment played ([`Trajectory::set_assignments`]).
+    pub assigned: Vec<Vec<Option<usize>>>,
 }
 
 impl Trajectory {
     /// An empty trajectory of `scene`.
     pub fn new(scene: &Scene) -> Trajectory {
         let dt = scene.model.opt.timestep * scene.spec.physics_steps as f64;
-        Trajectory { name: scene.spec.name.clone(), scene: scene.clone(), dt, bodies: Vec::new(), balls: Vec::new() }
+        Trajectory {
+            name: scene.spec.name.clone(),
+            scene: scene.clone(),
+            dt,
+            bodies: Vec::new(),
+            balls: Vec::new(),
+            assigned: Vec::new(),
+        }
+    }
+
+    /// Records the task assignment of every control step ([`Trajectory::assigned`]): one
+    /// row per step, at most one per frame, each with an entry per agent naming an entity
+    /// of the scene other than the agent itself.
+    pub fn set_assignments(&mut self, per_step: Vec<Vec<Option<usize>>>) -> Result<(), TaskError> {
+        let (na, ne) = (self.scene.n_agents(), self.scene.n_agents() + self.scene.spec.balls);
+        let bad =
+            |value: String, message: String| TaskError::BadSpec { what: "task assignment".into(), value, message };
+        if per_step.len() > self.len() {
+            return Err(bad(
+                format!("{} steps", per_step.len()),
+                format!("more steps than the trajectory's {} frames", self.len()),
+            ));
+        }
+        for (k, row) in per_step.iter().enumerate() {
+            if row.len() != na {
+                return Err(bad(format!("step {k}: {} entries", row.len()), format!("the scene has {na} agents")));
+            }
+            for (a, e) in row.iter().enumerate() {
+                if let Some(e) = *e
+                    && (e >= ne || e == a)
+                {
+                    return Err(bad(
+                        format!("step {k}: agent {a} -> entity {e}"),
+                        format!("an entity of the scene ({ne}) other than the agent itself"),
+                    ));
+                }
+            }
+        }
+        self.assigned = per_step;
+        Ok(())
+    }
+
+    /// The world position of entity `e` at frame `f`: an agent's root body, or a ball's
+    /// centre.
+    fn entity_position(&self, f: usize, e: usize) -> [f64; 3] {
+        let na = self.scene.n_agents();
+        match self.scene.agents.get(e) {
+            Some(agent) => self.bodies[f][agent.root_body].0,
+            None => {
+                let b = self.balls[f][e - na];
+                [b[0], b[1], BALL_RADIUS]
+            }
+        }
+    }
+
+    /// The player's assignment marks of frame `f`: `[agent, from xyz, to xyz]` per assigned
+    /// agent (from its root body to the entity), and the caption naming each pair.
+    fn assignment_marks(&self, f: usize) -> (Vec<f64>, String) {
+        let Some(row) = self.assigned.get(f.min(self.assigned.len().saturating_sub(1))) else {
+            return (Vec::new(), String::new());
+        };
+        let na = self.scene.n_agents();
+        let (mut marks, mut caption) = (Vec::new(), Vec::new());
+        for (a, e) in row.iter().enumerate() {
+            let Some(e) = *e else { continue };
+            marks.push(a as f64);
+            marks.extend(self.entity_position(f, a));
+            marks.extend(self.entity_position(f, e));
+            let to = if e < na { format!("agent {e}") } else { format!("ball {}", e - na) };
+            caption.push(format!("agent {a} → {to}"));
+        }
+        (marks, caption.join(", "))
     }
 
     /// Appends a frame: the body poses of `data` (its kinematics must be current, as after
@@ -118,10 +197,22 @@ impl Trajectory {
             frames.push(']');
         }
         frames.push(']');
+        // The task assignment's marks, per frame (empty arrays when none was recorded).
+        let (mut marks, mut captions) = (String::from("["), String::from("["));
+        for f in 0..self.len() {
+            let (m, c) = self.assignment_marks(f);
+            let sep = if f == 0 { "" } else { "," };
+            let m: Vec<String> = m.iter().map(|x| ((x * 1000.0).round() / 1000.0).to_string()).collect();
+            let _ = write!(marks, "{sep}[{}]", m.join(","));
+            let _ = write!(captions, "{sep}\"{c}\"");
+        }
+        marks.push(']');
+        captions.push(']');
         let list = |v: Vec<String>| v.join(",");
         let data = format!(
             "{{\"name\":{:?},\"sumo\":{},\"dt\":{},\"radius\":{},\"ball\":{BALL_RADIUS},\"ballColour\":{ball_colour:?},\
-             \"kinds\":[{}],\"radii\":[{}],\"colours\":[{}],\"frames\":{frames}}}",
+             \"kinds\":[{}],\"radii\":[{}],\"colours\":[{}],\"agentColours\":[{}],\"marks\":{marks},\"captions\":{captions},\
+             \"frames\":{frames}}}",
             self.name,
             self.scene.kind() == TaskKind::Sumo,
             self.dt,
@@ -129,6 +220,9 @@ impl Trajectory {
             list(kinds.iter().map(|k| k.to_string()).collect()),
             list(radii.iter().map(|r| r.to_string()).collect()),
             list(colours.iter().map(|c| format!("{c:?}")).collect()),
+            list(
+                (0..self.scene.n_agents()).map(|a| format!("{:?}", hex(AGENT_COLOURS[self.agent_colour(a)]))).collect()
+            ),
         );
         format!("{HTML_HEAD}<script>\nconst D = {data};\n{PLAYER_JS}</script>\n</body>\n</html>\n")
     }
@@ -141,15 +235,22 @@ impl Trajectory {
         let mut out = Vec::new();
         for (g, geom) in m.geoms.iter().enumerate() {
             let Some(a) = agent_of(geom.body) else { continue };
-            let colour = if self.scene.n_teams() == 2 { self.scene.agents[a].team } else { a };
+            let colour = self.agent_colour(a);
             let (sphere, radius) = match geom.shape {
                 Shape::Sphere { radius } => (true, radius),
                 Shape::Capsule { radius, .. } => (false, radius),
                 Shape::Plane => (true, 0.0),
             };
-            out.push(AgentGeom { geom: g, colour: colour % AGENT_COLOURS.len(), sphere, radius });
+            out.push(AgentGeom { geom: g, colour, sphere, radius });
         }
         out
+    }
+
+    /// Agent `a`'s colour slot in [`AGENT_COLOURS`]: its team's when there are two teams,
+    /// else its own (cycled).
+    fn agent_colour(&self, a: usize) -> usize {
+        let slot = if self.scene.n_teams() == 2 { self.scene.agents[a].team } else { a };
+        slot % AGENT_COLOURS.len()
     }
 
     /// The world-frame axis of geom `g` in a frame's body poses: the end points of a
@@ -241,12 +342,13 @@ canvas { background: #ffffff; border: 1px solid #bbb; display: block; }
 <div id="title"></div>
 <canvas id="c" width="800" height="560"></canvas>
 <div id="bar"><button id="play">pause</button><input id="step" type="range" min="0" value="0"><span id="info"></span></div>
+<div id="assigned"></div>
 "#;
 
 const PLAYER_JS: &str = r#"
 const cv = document.getElementById('c'), g = cv.getContext('2d');
 const slider = document.getElementById('step'), info = document.getElementById('info');
-const btn = document.getElementById('play');
+const btn = document.getElementById('play'), assigned = document.getElementById('assigned');
 document.getElementById('title').textContent = D.name + '  (drag: turn, wheel: zoom)';
 slider.max = D.frames.length - 1;
 let frame = 0, playing = true, yaw = 0.6, pitch = 0.55, dist = 3 * D.radius + 4;
@@ -299,6 +401,16 @@ function draw() {
       g.beginPath(); g.moveTo(a[0], a[1]); g.lineTo(b[0], b[1]); g.stroke();
     }
   }
+  // The task assignment: a dashed line in the agent's colour from its root to its entity.
+  const M = D.marks[frame];
+  g.setLineDash([6, 4]); g.lineWidth = 2;
+  for (let i = 0; i + 7 <= M.length; i += 7) {
+    const a = project(M.slice(i + 1, i + 4), c), b = project(M.slice(i + 4, i + 7), c);
+    g.strokeStyle = D.agentColours[M[i]];
+    g.beginPath(); g.moveTo(a[0], a[1]); g.lineTo(b[0], b[1]); g.stroke();
+  }
+  g.setLineDash([]);
+  assigned.textContent = D.captions[frame] ? 'assigned: ' + D.captions[frame] : '';
   slider.value = frame;
   info.textContent = 'step ' + frame + ' / ' + (D.frames.length - 1) + '   t = ' + (frame * D.dt).toFixed(2) + ' s';
 }

@@ -45,7 +45,11 @@ fn the_html_player_runs_in_headless_chromium() {
         eprintln!("skipped: no chromium in PATH (set {REQUIRE_BROWSER}=1 to make this a failure)");
         return;
     };
-    let traj = record_episode("team_reach/2_ant_claw", 1, 40, |_obs, a| a.fill(-0.5)).unwrap();
+    let mut traj = record_episode("team_reach/2_ant_claw", 1, 40, |_obs, a| a.fill(-0.5)).unwrap();
+    // Each agent marked with the other's ball at every step.
+    let na = traj.scene.n_agents();
+    assert_eq!(na, 2);
+    traj.set_assignments(vec![vec![Some(na + 1), Some(na)]; 40]).unwrap();
     let dir = std::env::temp_dir().join(format!("meben_render_{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
@@ -82,4 +86,47 @@ fn the_html_player_runs_in_headless_chromium() {
     let step: usize =
         info.strip_prefix("step ").and_then(|s| s.split(' ').next()).and_then(|s| s.parse().ok()).unwrap_or(0);
     assert!(info.contains("/ 40") && step > 0, "the player did not run: info line {info:?}; chromium's log:\n{log}");
+    // The caption of the task assignment is written by the script, for the frame shown.
+    let caption = dom.split("id=\"assigned\">").nth(1).and_then(|s| s.split('<').next()).unwrap_or("");
+    assert_eq!(caption, "assigned: agent 0 → ball 1, agent 1 → ball 0", "chromium's log:\n{log}");
+}
+
+#[test]
+fn a_recorded_task_assignment_is_checked_and_drawn() {
+    let mut traj = record_episode("team_reach/2_ants", 2, 5, |_obs, a| a.fill(0.1)).unwrap();
+    assert!(traj.assigned.is_empty());
+    let html = traj.to_html();
+    assert!(html.contains("\"marks\":[[],[],[],[],[],[]]") && html.contains("\"captions\":[\"\",\""), "no marks");
+    // Bad rows are refused, naming the step, agent and entity, and change nothing.
+    let err = |rows: Vec<Vec<Option<usize>>>, traj: &mut envs::tasks::render::Trajectory| {
+        traj.set_assignments(rows).unwrap_err().to_string()
+    };
+    assert!(err(vec![vec![None, None]; 7], &mut traj).contains("7 steps"));
+    assert!(err(vec![vec![Some(2)]], &mut traj).contains("step 0: 1 entries"));
+    assert!(err(vec![vec![None, Some(1)]], &mut traj).contains("agent 1 -> entity 1"));
+    assert!(err(vec![vec![Some(4), None]], &mut traj).contains("agent 0 -> entity 4"));
+    assert!(traj.assigned.is_empty());
+    // Agent 0 to ball 1 (entity 3) and agent 1 to agent 0, for the 5 steps: the final frame
+    // shows the last step's. A mark runs from the agent's root to the entity.
+    traj.set_assignments(vec![vec![Some(3), Some(0)]; 5]).unwrap();
+    let html = traj.to_html();
+    assert_eq!(html.matches("\"agent 0 → ball 1, agent 1 → agent 0\"").count(), 6, "a caption per frame");
+    let root = |f: usize, a: usize| traj.bodies[f][traj.scene.agents[a].root_body].0;
+    let ball = traj.balls[5][1];
+    let r = |x: f64| (x * 1000.0).round() / 1000.0;
+    let last = format!(
+        "[0,{},{},{},{},{},0.1,1,{},{},{},{},{},{}]]",
+        r(root(5, 0)[0]),
+        r(root(5, 0)[1]),
+        r(root(5, 0)[2]),
+        r(ball[0]),
+        r(ball[1]),
+        r(root(5, 1)[0]),
+        r(root(5, 1)[1]),
+        r(root(5, 1)[2]),
+        r(root(5, 0)[0]),
+        r(root(5, 0)[1]),
+        r(root(5, 0)[2]),
+    );
+    assert!(html.contains(&last), "the final frame's marks {last} not in the page");
 }

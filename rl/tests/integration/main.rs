@@ -21,6 +21,7 @@ mod policy_file;
 mod ppo_loss;
 mod pretrained;
 mod properties;
+mod render_assignment;
 mod report;
 mod repro_check;
 mod results_doc;
