@@ -38,14 +38,31 @@ fn loss<'t>(out: &PolicyOutput<'t, f32>) -> Var<'t, f32> {
         add(a.scale.scale(0.7).tanh().scale(0.25).sum_all());
     }
     add(out.team_value().unwrap().square().scale(0.1).sum_all());
+    // A learned task assignment's log-probability and entropy, as PPO's ratio and bonus.
+    if let Some(t) = &out.assignment_terms {
+        add(t.log_prob.scale(0.3).tanh().sum_all());
+        add(t.entropy.scale(0.2).tanh().sum_all());
+    }
     total.unwrap()
 }
 
 /// The outputs (flattened) and the parameters' gradients of one pass on `device`.
 fn pass(model: &mut Model, store: &ParamStore<f32>, env: &VecEnv, device: Device) -> (Vec<f64>, Vec<Tensor<f32>>) {
+    pass_with(model, store, env, device, None)
+}
+
+/// [`pass`] with the task assignment of every scene given (a learned one's terms included
+/// in the outputs).
+fn pass_with(
+    model: &mut Model,
+    store: &ParamStore<f32>,
+    env: &VecEnv,
+    device: Device,
+    assignment: Option<&[u32]>,
+) -> (Vec<f64>, Vec<Tensor<f32>>) {
     let tape = Tape::on(device);
     let p = store.bind(&tape);
-    let out = model.forward_batch(&p, &env.obs().rows()).unwrap();
+    let out = model.forward_batch_with(&p, &env.obs().rows(), assignment).unwrap();
     let mut flat = Vec::new();
     for a in &out.agents {
         assert_eq!(a.loc.value().device(), device, "an output left the device");
@@ -53,6 +70,11 @@ fn pass(model: &mut Model, store: &ParamStore<f32>, env: &VecEnv, device: Device
         flat.extend(a.scale.value().to_host().unwrap().data().iter().map(|&x| x as f64));
     }
     flat.extend(out.team_value().unwrap().value().to_host().unwrap().data().iter().map(|&x| x as f64));
+    if let Some(t) = &out.assignment_terms {
+        for v in [t.log_prob, t.entropy] {
+            flat.extend(v.value().to_host().unwrap().data().iter().map(|&x| x as f64));
+        }
+    }
     let l = loss(&out);
     let grads = p.grads(&tape.backward(l).unwrap());
     (flat, grads.iter().map(|g| g.to_device(Device::Cpu).unwrap()).collect())
@@ -100,4 +122,39 @@ fn every_model_forward_and_backward_on_the_gpu_matches_the_cpu() {
         assert_eq!(again, out_gpu, "{name}: two GPU passes differ");
         assert!(g_again.iter().zip(&g_gpu).all(|(a, b)| a.data() == b.data()), "{name}: two GPU gradients differ");
     }
+}
+
+/// `shnn:assignment=learned`: the scorer's log-probability and entropy terms and every
+/// gradient, the scorer's included, on the GPU against the CPU, for the assignment the CPU
+/// drew (given to both passes, as an update is given the behaviour policy's).
+#[test]
+fn a_learned_assignment_on_the_gpu_matches_the_cpu() {
+    let mut env = VecEnv::from_name("team_reach/2_ants", 3, 5, StartMode::Random).unwrap();
+    let na = env.n_actions();
+    env.step(&(0..3 * na).map(|i| ((i as f32) * 0.37).cos()).collect::<Vec<_>>()).unwrap();
+    let spec = env.scene().obs_spec.clone();
+    let mut store = ParamStore::<f32>::new();
+    let mut init = nn::init_rng(4);
+    let description: ModelDescription = "shnn:assignment=learned".parse().unwrap();
+    let mut model = Model::new(&mut store.scope("team0", &mut init), &description, &spec, 0).unwrap();
+    let drawn = {
+        let tape = Tape::<f32>::new();
+        let p = store.bind(&tape);
+        let out = model.forward_batch(&p, &env.obs().rows()).unwrap();
+        assert!(out.assignment_terms.is_some(), "a learned assignment has terms");
+        out.assignment
+    };
+    let (out_cpu, g_cpu) = pass_with(&mut model, &store, &env, Device::Cpu, Some(&drawn));
+    let (out_gpu, g_gpu) = pass_with(&mut model, &store, &env, Device::Gpu, Some(&drawn));
+    let (d, i) = worst(&out_gpu, &out_cpu);
+    assert!(d <= OUTPUT_TOL, "output {i}: gpu {} vs cpu {} ({d:e})", out_gpu[i], out_cpu[i]);
+    let mut scorer_moved = false;
+    for (k, (g, c)) in g_gpu.iter().zip(&g_cpu).enumerate() {
+        let as64 = |t: &Tensor<f32>| t.data().iter().map(|&x| x as f64).collect::<Vec<_>>();
+        let (d, i) = worst(&as64(g), &as64(c));
+        let name = &store.names()[k];
+        assert!(d <= GRAD_TOL, "gradient of {name} element {i}: gpu {} vs cpu {} ({d:e})", g.data()[i], c.data()[i]);
+        scorer_moved |= name.contains(".assign.") && c.data().iter().any(|&x| x != 0.0);
+    }
+    assert!(scorer_moved, "no gradient reached the scorer: {:?}", store.names());
 }

@@ -36,8 +36,13 @@ const UPDATES: usize = 2;
 /// Three iterations (120 env steps) of 4 environments: [`UPDATES`] minibatches of 4
 /// unrolls of 5 steps, one epoch, no evaluation, a checkpoint every iteration.
 fn tiny(model: &str, device: Device) -> TrainConfig {
+    tiny_on("team_reach/1_ant", model, device)
+}
+
+/// [`tiny`] on `env`.
+fn tiny_on(env: &str, model: &str, device: Device) -> TrainConfig {
     let mut c = common::tiny(
-        "team_reach/1_ant",
+        env,
         model,
         3,
         &[("num_envs", "4"), ("num_minibatches", "2"), ("epochs", "1"), ("num_evals", "0"), ("steps", "120")],
@@ -54,13 +59,20 @@ fn close(name: &str, gpu: f64, cpu: f64) -> bool {
 
 /// Three iterations of each model on the CPU; before each, the CPU's state goes to a GPU
 /// trainer acting on the CPU (`act_device = "cpu"`) that does the same iteration: the same
-/// rollout, the update's metrics and the parameters within the tolerance (module docs).
+/// rollout, the update's metrics and the parameters within the tolerance (module docs). A
+/// learned task assignment (two ants, so that there are two assignments to choose from)
+/// enters the update through its log-probability and entropy.
 #[test]
 fn gpu_iterations_follow_the_cpu_from_the_same_state() {
-    for model in ["shnn", "mlp_hn"] {
-        let mut cpu = Trainer::new(&tiny(model, Device::Cpu)).unwrap();
+    let cases = [
+        ("team_reach/1_ant", "shnn"),
+        ("team_reach/1_ant", "mlp_hn"),
+        ("team_reach/2_ants", "shnn:assignment=learned"),
+    ];
+    for (env, model) in cases {
+        let mut cpu = Trainer::new(&tiny_on(env, model, Device::Cpu)).unwrap();
         let lr = cpu.config.learning_rate;
-        let on_gpu = TrainConfig { act_device: ActDevice::Cpu, ..tiny(model, Device::Gpu) };
+        let on_gpu = TrainConfig { act_device: ActDevice::Cpu, ..tiny_on(env, model, Device::Gpu) };
         for i in 0..3 {
             let state = cpu.checkpoint(0.0, &[]).unwrap();
             let mut gpu = Trainer::from_checkpoint(&state, &on_gpu, Path::new("memory")).unwrap();
@@ -93,6 +105,7 @@ fn the_act_step_on_the_gpu_follows_the_cpu() {
         ("team_reach/1_ant", "shnn"),
         ("team_reach/2_ants", "shnn"),
         ("team_reach/2_ants", "mlp_hn"),
+        ("team_reach/2_ants", "shnn:assignment=learned"),
         ("team_sumo/2_ants", "shnn"),
     ];
     for (env, model) in cases {
