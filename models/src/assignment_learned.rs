@@ -361,12 +361,18 @@ impl PlackettLuceAssigner {
         }
     }
 
-    fn check_capacity(&self, n: usize, m: usize) -> Result<()> {
+    /// Checks a call's arguments: scenes within the scratch's capacity, the scores
+    /// ([`check_scores`]) and `out_len` outputs, one per object of every scene.
+    fn check_call<T: Float>(&self, scores: &[T], batch: usize, n: usize, m: usize, out_len: usize) -> Result<()> {
         if n > self.capacity.0 || m > self.capacity.1 {
             return Err(ModelError::Input(format!(
                 "scenes of {n} agents x {m} objects for an assigner of at most {} x {}",
                 self.capacity.0, self.capacity.1
             )));
+        }
+        check_scores(scores, batch, n, m)?;
+        if out_len != batch * m {
+            return Err(ModelError::Input(format!("{out_len} outputs for {batch} scenes of {m} objects")));
         }
         Ok(())
     }
@@ -385,11 +391,7 @@ impl PlackettLuceAssigner {
         rng: &mut ChaCha8Rng,
         out: &mut [usize],
     ) -> Result<()> {
-        self.check_capacity(n, m)?;
-        check_scores(scores, batch, n, m)?;
-        if out.len() != batch * m {
-            return Err(ModelError::Input(format!("{} outputs for {batch} scenes of {m} objects", out.len())));
-        }
+        self.check_call(scores, batch, n, m, out.len())?;
         for (scene, o) in scores.chunks(n * m).zip(out.chunks_mut(m)) {
             let score = |i: usize, j: usize| scene[i * m + j].to_f64();
             let free = &mut self.free[..n];
@@ -431,11 +433,7 @@ impl PlackettLuceAssigner {
         m: usize,
         out: &mut [usize],
     ) -> Result<()> {
-        self.check_capacity(n, m)?;
-        check_scores(scores, batch, n, m)?;
-        if out.len() != batch * m {
-            return Err(ModelError::Input(format!("{} outputs for {batch} scenes of {m} objects", out.len())));
-        }
+        self.check_call(scores, batch, n, m, out.len())?;
         let k = n.min(m);
         // The Hungarian method only uses its rng for the stochastic method; a fixed one.
         let mut unused = <ChaCha8Rng as rand::SeedableRng>::seed_from_u64(0);

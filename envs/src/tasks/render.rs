@@ -182,7 +182,7 @@ impl Trajectory {
                     s.push(',');
                 }
                 first = false;
-                let _ = write!(s, "{}", (x * 1000.0).round() / 1000.0);
+                let _ = write!(s, "{}", millimetres(x));
             };
             for g in &geoms {
                 let (a, b) = self.segment(g.geom, bodies);
@@ -202,7 +202,7 @@ impl Trajectory {
         for f in 0..self.len() {
             let (m, c) = self.assignment_marks(f);
             let sep = if f == 0 { "" } else { "," };
-            let m: Vec<String> = m.iter().map(|x| ((x * 1000.0).round() / 1000.0).to_string()).collect();
+            let m: Vec<String> = m.iter().map(|&x| millimetres(x).to_string()).collect();
             let _ = write!(marks, "{sep}[{}]", m.join(","));
             let _ = write!(captions, "{sep}\"{c}\"");
         }
@@ -293,6 +293,11 @@ const AGENT_COLOURS: [[u8; 3]; 6] = [
 /// Reach's goal balls.
 const REACH_BALL_COLOUR: [u8; 3] = [0xe8, 0xc5, 0x47];
 /// Sumo's centre ball.
+/// `x` rounded to three decimals (millimetres, for the player's coordinates).
+fn millimetres(x: f64) -> f64 {
+    (x * 1000.0).round() / 1000.0
+}
+
 const SUMO_BALL_COLOUR: [u8; 3] = [0x88, 0x88, 0x88];
 
 /// Plays `steps` control steps (or until the episode ends) of one environment of `name`

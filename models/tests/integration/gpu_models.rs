@@ -90,6 +90,21 @@ fn worst(gpu: &[f64], cpu: &[f64]) -> (f64, usize) {
         .fold((0.0, 0), |acc, (i, d)| if d > acc.0 || d.is_nan() { (d, i) } else { acc })
 }
 
+/// Every parameter's gradient on the GPU within [`GRAD_TOL`] of the CPU's (model `name`).
+fn assert_gradients_close(name: &str, store: &ParamStore<f32>, g_gpu: &[Tensor<f32>], g_cpu: &[Tensor<f32>]) {
+    let as64 = |t: &Tensor<f32>| t.data().iter().map(|&x| x as f64).collect::<Vec<_>>();
+    for (k, (g, c)) in g_gpu.iter().zip(g_cpu).enumerate() {
+        let (d, i) = worst(&as64(g), &as64(c));
+        assert!(
+            d <= GRAD_TOL,
+            "{name}: gradient of {} element {i}: gpu {} vs cpu {} ({d:e})",
+            store.names()[k],
+            g.data()[i],
+            c.data()[i]
+        );
+    }
+}
+
 #[test]
 fn every_model_forward_and_backward_on_the_gpu_matches_the_cpu() {
     let mut env = VecEnv::from_name("team_reach/2_ants", 3, 5, StartMode::Random).unwrap();
@@ -106,17 +121,7 @@ fn every_model_forward_and_backward_on_the_gpu_matches_the_cpu() {
         let (out_gpu, g_gpu) = pass(&mut model, &store, &env, Device::Gpu);
         let (d, i) = worst(&out_gpu, &out_cpu);
         assert!(d <= OUTPUT_TOL, "{name}: output {i}: gpu {} vs cpu {} ({d:e})", out_gpu[i], out_cpu[i]);
-        for (k, (g, c)) in g_gpu.iter().zip(&g_cpu).enumerate() {
-            let as64 = |t: &Tensor<f32>| t.data().iter().map(|&x| x as f64).collect::<Vec<_>>();
-            let (d, i) = worst(&as64(g), &as64(c));
-            assert!(
-                d <= GRAD_TOL,
-                "{name}: gradient of {} element {i}: gpu {} vs cpu {} ({d:e})",
-                store.names()[k],
-                g.data()[i],
-                c.data()[i]
-            );
-        }
+        assert_gradients_close(name, &store, &g_gpu, &g_cpu);
         // The same pass again on the GPU gives the same bits.
         let (again, g_again) = pass(&mut model, &store, &env, Device::Gpu);
         assert_eq!(again, out_gpu, "{name}: two GPU passes differ");
@@ -148,13 +153,11 @@ fn a_learned_assignment_on_the_gpu_matches_the_cpu() {
     let (out_gpu, g_gpu) = pass_with(&mut model, &store, &env, Device::Gpu, Some(&drawn));
     let (d, i) = worst(&out_gpu, &out_cpu);
     assert!(d <= OUTPUT_TOL, "output {i}: gpu {} vs cpu {} ({d:e})", out_gpu[i], out_cpu[i]);
-    let mut scorer_moved = false;
-    for (k, (g, c)) in g_gpu.iter().zip(&g_cpu).enumerate() {
-        let as64 = |t: &Tensor<f32>| t.data().iter().map(|&x| x as f64).collect::<Vec<_>>();
-        let (d, i) = worst(&as64(g), &as64(c));
-        let name = &store.names()[k];
-        assert!(d <= GRAD_TOL, "gradient of {name} element {i}: gpu {} vs cpu {} ({d:e})", g.data()[i], c.data()[i]);
-        scorer_moved |= name.contains(".assign.") && c.data().iter().any(|&x| x != 0.0);
-    }
+    assert_gradients_close("shnn:assignment=learned", &store, &g_gpu, &g_cpu);
+    let scorer_moved = store
+        .names()
+        .iter()
+        .zip(&g_cpu)
+        .any(|(name, c)| name.contains(".assign.") && c.data().iter().any(|&x| x != 0.0));
     assert!(scorer_moved, "no gradient reached the scorer: {:?}", store.names());
 }

@@ -233,13 +233,10 @@ pub fn env_with_copies(run: &RunDir, env: &str) -> Result<String> {
 mod tests {
     use super::*;
 
-    const ANT_XML: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../envs/tests/data/ant.xml");
-
     #[test]
     fn a_run_records_its_files_refuses_changes_and_evaluates_its_copies() {
         let tmp = crate::app::test_util::TempDir::new("morphology");
-        let body = tmp.0.join("body.xml");
-        std::fs::copy(ANT_XML, &body).unwrap();
+        let body = crate::app::test_util::ant_body(&tmp.0);
         let env = format!("team_reach:agents={}+ant;R=3", body.display());
         let run = RunDir::new(tmp.0.join("run"));
         std::fs::create_dir_all(run.root()).unwrap();
@@ -256,8 +253,11 @@ mod tests {
         envs::tasks::Scene::from_name(&evaluated).unwrap();
 
         // Changed, then missing: refused naming the file, both digests and the copy.
-        std::fs::write(&body, std::fs::read_to_string(ANT_XML).unwrap().replace("gear=\"350\"", "gear=\"300\""))
-            .unwrap();
+        std::fs::write(
+            &body,
+            std::fs::read_to_string(crate::app::test_util::ANT_XML).unwrap().replace("gear=\"350\"", "gear=\"300\""),
+        )
+        .unwrap();
         let e = record_or_verify(&run, &env, true).unwrap_err().to_string();
         assert!(
             e.starts_with(&body.display().to_string()) && e.contains("changed") && e.contains(&record.file[0].sha256)

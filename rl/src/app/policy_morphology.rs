@@ -158,13 +158,10 @@ fn materialise(c: &Carried) -> Result<PathBuf> {
 mod tests {
     use super::*;
 
-    const ANT_XML: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../envs/tests/data/ant.xml");
-
     #[test]
     fn carried_files_come_back_checked_under_the_temporary_directory() {
         let tmp = crate::app::test_util::TempDir::new("policy-morphology");
-        let body = tmp.0.join("body.xml");
-        std::fs::copy(ANT_XML, &body).unwrap();
+        let body = crate::app::test_util::ant_body(&tmp.0);
         let env = format!("team_reach:agents={}+ant;R=3", body.display());
         let json = carry(&env).unwrap();
         std::fs::remove_file(&body).unwrap();
@@ -175,7 +172,7 @@ mod tests {
         let cached = restored.split('=').nth(1).unwrap().split('+').next().unwrap().to_string();
         std::fs::write(&cached, "<mujoco/>").unwrap();
         assert_eq!(restore(Path::new("p.safetensors"), &env, &json).unwrap(), restored);
-        assert_eq!(std::fs::read(&cached).unwrap(), std::fs::read(ANT_XML).unwrap());
+        assert_eq!(std::fs::read(&cached).unwrap(), std::fs::read(crate::app::test_util::ANT_XML).unwrap());
         // Disagreements name the file and the field.
         let e = restore(Path::new("p.safetensors"), &env, "[]").unwrap_err().to_string();
         assert!(e.contains("p.safetensors") && e.contains("`morphologies` does not carry"), "{e}");

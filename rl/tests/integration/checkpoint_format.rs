@@ -7,25 +7,14 @@
 
 use crate::common;
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Command;
 
-use common::metrics;
+use common::{metrics, tensors_files};
 use rl::mappo::checkpoint::{CRASH_ENV, Checkpoint, TensorsRef};
 use rl::mappo::checksum::{Unsealed, seal, unseal};
 use rl::mappo::tensor_file::{self, Dtype, Entry};
 use rl::{RunDir, TrainOptions, train};
-
-/// The checkpoint tensors files of a run directory, sorted.
-fn tensors_files(run: &RunDir) -> Vec<PathBuf> {
-    let mut v: Vec<PathBuf> = std::fs::read_dir(run.root())
-        .unwrap()
-        .map(|e| e.unwrap().path())
-        .filter(|p| p.extension().is_some_and(|x| x == "safetensors"))
-        .collect();
-    v.sort();
-    v
-}
 
 /// The JSON payload of a sealed checkpoint.
 fn payload(path: &Path) -> serde_json::Value {

@@ -75,12 +75,8 @@ fn changed_bytes_and_inconsistent_counters_are_refused() {
     let text = payload(&good);
     // The tensors file the checkpoint names (a version 1 checkpoint.json names none, but a
     // resume that fails removes nothing: issue 77 item 2).
-    let tensors: Vec<(std::path::PathBuf, Vec<u8>)> = std::fs::read_dir(run.root())
-        .unwrap()
-        .map(|e| e.unwrap().path())
-        .filter(|p| p.extension().is_some_and(|x| x == "safetensors"))
-        .map(|p| (p.clone(), std::fs::read(&p).unwrap()))
-        .collect();
+    let tensors: Vec<(std::path::PathBuf, Vec<u8>)> =
+        common::tensors_files(&run).into_iter().map(|p| (p.clone(), std::fs::read(&p).unwrap())).collect();
     assert_eq!(tensors.len(), 1);
     assert!(text.starts_with("{\"version\":3,") && text.contains("\"iteration\":1,"), "{}", &text[..40]);
 
@@ -162,11 +158,7 @@ fn devices_and_fifos_in_place_of_checkpoint_files_are_refused_unread() {
     let (_, run) = stopped_run(&dir.0);
     let json = run.checkpoint();
     Checkpoint::load(&json).unwrap();
-    let tensors = std::fs::read_dir(run.root())
-        .unwrap()
-        .map(|e| e.unwrap().path())
-        .find(|p| p.extension().is_some_and(|x| x == "safetensors"))
-        .unwrap();
+    let tensors = common::tensors_files(&run).remove(0);
     let saved = std::fs::read(&tensors).unwrap();
     std::fs::remove_file(&tensors).unwrap();
     std::os::unix::fs::symlink("/dev/zero", &tensors).unwrap();

@@ -5,6 +5,17 @@ use std::path::PathBuf;
 
 use rl::{Preset, TrainConfig};
 
+/// The checkpoint tensors files of a run directory (`*.safetensors`), sorted.
+pub fn tensors_files(run: &rl::RunDir) -> Vec<PathBuf> {
+    let mut v: Vec<PathBuf> = std::fs::read_dir(run.root())
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|x| x == "safetensors"))
+        .collect();
+    v.sort();
+    v
+}
+
 /// A tiny configuration: 8 environments, 2 blocks of 5 steps per iteration (80 env steps),
 /// 4 minibatches of 4 unrolls, 2 epochs, `iterations` iterations, evaluations of 4 episodes.
 pub fn tiny(env: &str, model: &str, iterations: u64, extra: &[(&str, &str)]) -> TrainConfig {

@@ -173,11 +173,7 @@ fn damaged_truncated_or_foreign_policy_files_are_refused_naming_them() {
     edited[at + 11] = b'2';
     refused(&edited, "checksum mismatch");
     // The checkpoint's tensors file is safetensors but not a policy.
-    let tensors = std::fs::read_dir(run.root())
-        .unwrap()
-        .map(|e| e.unwrap().path())
-        .find(|p| p.extension().is_some_and(|x| x == "safetensors"))
-        .unwrap();
+    let tensors = common::tensors_files(&run).remove(0);
     refused(&std::fs::read(tensors).unwrap(), "meben export-policy");
     let missing = dir.0.join("missing.safetensors");
     fails_with(&["eval", "--policy", missing.to_str().unwrap()], &["missing.safetensors", "cannot read"]);
