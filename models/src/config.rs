@@ -22,9 +22,11 @@ use crate::kind::ModelKind;
 /// (`unit`, `raw`, `none`), `critic` (`separate`, `shared`), `gravity` (`input`,
 /// `every_layer`), `actor_steps` (a positive integer, at most [`MAX_ACTOR_STEPS`]), `variant`
 /// (`release`, `flat`), `seed` (integer), `head` and `critic_hidden` (hidden widths joined by
-/// `x`, e.g. `256x256`; at most [`MAX_LAYERS`], each at most [`MAX_WIDTH`]). E.g.
-/// `shnn:assignment=hungarian;critic=shared`.
-pub const OPTION_KEYS: [&str; 11] = [
+/// `x`, e.g. `256x256`; at most [`MAX_LAYERS`], each at most [`MAX_WIDTH`]), and with
+/// `assignment=learned` its scorer's `assign_hidden` (hidden widths as `head`'s, or `none`
+/// for an affine scorer) and `assign_prior` (`λ`, a number in `[0, MAX_DISTANCE_PRIOR]`).
+/// E.g. `shnn:assignment=hungarian;critic=shared`.
+pub const OPTION_KEYS: [&str; 13] = [
     "assignment",
     "translation",
     "abstraction",
@@ -36,6 +38,8 @@ pub const OPTION_KEYS: [&str; 11] = [
     "seed",
     "head",
     "critic_hidden",
+    "assign_hidden",
+    "assign_prior",
 ];
 
 /// Sizes of the entity-level message passing (paper Table "Hyperparameters of Network").
@@ -165,6 +169,10 @@ pub(crate) struct GivenOptions {
     pub(crate) head_hidden: Option<Vec<usize>>,
     /// Option `critic_hidden`.
     pub(crate) critic_hidden: Option<Vec<usize>>,
+    /// Option `assign_hidden` (`none`: empty).
+    pub(crate) assign_hidden: Option<Vec<usize>>,
+    /// Option `assign_prior`.
+    pub(crate) assign_prior: Option<DistancePrior>,
     /// Option `seed` (default 0), which every model takes.
     pub(crate) seed: u64,
 }
@@ -176,7 +184,7 @@ impl GivenOptions {
     /// `neighbour` (`unit`, `raw`, `none`), `critic` (`separate`, `shared`), `gravity`
     /// (`input`, `every_layer`), `actor_steps` (a positive integer), `variant` (`release`,
     /// `flat`), `seed` (integer), `head` and `critic_hidden` (hidden widths joined by `x`,
-    /// e.g. `256x256`). E.g. `shnn:assignment=hungarian;critic=shared`. Whether an option
+    /// e.g. `256x256`), `assign_hidden` (the same, or `none`), `assign_prior` (a number). E.g. `shnn:assignment=hungarian;critic=shared`. Whether an option
     /// applies to the model is decided by
     /// [`ModelDescription::parse`](crate::description::ModelDescription::parse).
     pub(crate) fn parse(s: &str) -> Result<Self> {
@@ -194,6 +202,8 @@ impl GivenOptions {
             variant: None,
             head_hidden: None,
             critic_hidden: None,
+            assign_hidden: None,
+            assign_prior: None,
             seed: 0,
         };
         let mut seen: Vec<&str> = Vec::new();
@@ -231,6 +241,8 @@ impl GivenOptions {
                 }
                 "head" => c.head_hidden = Some(parse_widths(k, v)?),
                 "critic_hidden" => c.critic_hidden = Some(parse_widths(k, v)?),
+                "assign_hidden" => c.assign_hidden = Some(if v == "none" { Vec::new() } else { parse_widths(k, v)? }),
+                "assign_prior" => c.assign_prior = Some(DistancePrior::parse(v)?),
                 _ => {
                     return Err(ModelError::Option(format!(
                         "unknown model option `{k}` (known: {})",
@@ -256,6 +268,8 @@ impl GivenOptions {
             ("variant", self.variant.is_some()),
             ("head", self.head_hidden.is_some()),
             ("critic_hidden", self.critic_hidden.is_some()),
+            ("assign_hidden", self.assign_hidden.is_some()),
+            ("assign_prior", self.assign_prior.is_some()),
         ]
         .into_iter()
         .find_map(|(k, set)| set.then_some(k))
@@ -267,6 +281,39 @@ pub const MAX_WIDTH: usize = 8192;
 
 /// The most hidden layers an option may ask for.
 pub const MAX_LAYERS: usize = 16;
+
+/// The largest `assign_prior`: with distances of metres, `λ = 1000` already makes the
+/// learned assignment Algorithm 1 for any scores a network gives.
+pub const MAX_DISTANCE_PRIOR: f64 = 1000.0;
+
+/// `λ` of the learned assignment's scores `s_ij = f_θ(x_ij) - λ d_ij`
+/// ([`crate::assignment_learned`]): a finite number in `[0, MAX_DISTANCE_PRIOR]` (option
+/// `assign_prior`). It is never NaN, so it is `Eq`.
+#[derive(Clone, Copy, Debug, PartialEq, PartialOrd)]
+pub struct DistancePrior(f64);
+
+impl Eq for DistancePrior {}
+
+impl DistancePrior {
+    /// `λ = v`, if `v` is in `[0, MAX_DISTANCE_PRIOR]` (`-0` is `0`).
+    pub fn new(v: f64) -> Result<Self> {
+        if (0.0..=MAX_DISTANCE_PRIOR).contains(&v) { Ok(Self(v + 0.0)) } else { Err(Self::out_of_range(v)) }
+    }
+
+    /// Parses a decimal number in `[0, MAX_DISTANCE_PRIOR]`.
+    pub fn parse(v: &str) -> Result<Self> {
+        v.parse::<f64>().ok().and_then(|x| Self::new(x).ok()).ok_or_else(|| Self::out_of_range(v))
+    }
+
+    fn out_of_range(v: impl std::fmt::Display) -> ModelError {
+        ModelError::Option(format!("model option `assign_prior`: `{v}` is not a number in [0, {MAX_DISTANCE_PRIOR}]"))
+    }
+
+    /// `λ`.
+    pub fn get(self) -> f64 {
+        self.0
+    }
+}
 
 /// The most message-passing steps of `actor_steps`.
 pub const MAX_ACTOR_STEPS: usize = 64;

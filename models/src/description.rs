@@ -20,7 +20,7 @@
 //! [`ValueNet`]) is asked of the description.
 
 use crate::assignment::AssignmentMethod;
-use crate::config::{GivenOptions, GravityMode, MlpVariant, MpSizes, NeighbourOffset, OPTION_KEYS};
+use crate::config::{DistancePrior, GivenOptions, GravityMode, MlpVariant, MpSizes, NeighbourOffset, OPTION_KEYS};
 use crate::entity_graph::GraphBuilder;
 use crate::error::{ModelError, Result};
 use crate::input::{EntityAbstraction, InputProcessor, Translation};
@@ -288,6 +288,30 @@ pub struct ShnnOptions {
     pub stage: EntityStage,
     /// What the value network reads (option `critic`; default [`ShnnCritic::Separate`]).
     pub critic: ShnnCritic,
+    /// The scorer of `assignment=learned` (options `assign_hidden`, `assign_prior`; unused
+    /// with another assignment).
+    pub scorer: LearnedScorer,
+}
+
+/// The options of the learned assignment's scorer `s_ij = f_θ(x_ij) - λ d_ij`
+/// ([`crate::assignment_learned`]); its pair features follow the model's gravity channel.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct LearnedScorer {
+    /// Hidden widths of `f_θ` (option `assign_hidden`; default `64x64`; `none`: affine).
+    pub hidden: Vec<usize>,
+    /// `λ` (option `assign_prior`; default 1).
+    pub distance_prior: DistancePrior,
+}
+
+impl Default for LearnedScorer {
+    /// Hidden `64x64`, `λ = 1` ([`ScorerConfig::default`](crate::ScorerConfig::default)'s).
+    fn default() -> Self {
+        let d = crate::assignment_learned::ScorerConfig::default();
+        Self {
+            hidden: d.hidden,
+            distance_prior: DistancePrior::new(d.distance_prior).expect("the default λ is in range"),
+        }
+    }
 }
 
 /// A model of the HNN family: the frame its heads read the flattened vectors in.
@@ -397,7 +421,7 @@ pub struct MlpOptions {
 ///
 /// ```
 /// use models::{AssignmentMethod, EntityStage, GravityMode, HiddenWidths, ModelDescription, ShnnCritic};
-/// use models::{ShnnModel, ShnnOptions, TaskAssignment};
+/// use models::{LearnedScorer, ShnnModel, ShnnOptions, TaskAssignment};
 ///
 /// let d = ModelDescription::Shnn(ShnnOptions {
 ///     model: ShnnModel::Shnn { gravity: GravityMode::EveryLayer, hidden: HiddenWidths::default() },
@@ -407,6 +431,7 @@ pub struct MlpOptions {
 ///         ..EntityStage::default()
 ///     },
 ///     critic: ShnnCritic::Shared,
+///     scorer: LearnedScorer::default(),
 /// });
 /// let s = "shnn:assignment=hungarian;seed=3;actor_steps=2;gravity=every_layer;critic=shared";
 /// assert_eq!(ModelDescription::parse(s).unwrap(), d);
@@ -446,8 +471,14 @@ const ENTITY_KEYS: [&str; 5] = ["assignment", "translation", "abstraction", "nei
 impl ModelDescription {
     /// The model `kind` as its reference release builds it (every option at its default).
     pub fn new(kind: ModelKind) -> Self {
-        let shnn =
-            |model| Self::Shnn(ShnnOptions { model, stage: EntityStage::default(), critic: ShnnCritic::default() });
+        let shnn = |model| {
+            Self::Shnn(ShnnOptions {
+                model,
+                stage: EntityStage::default(),
+                critic: ShnnCritic::default(),
+                scorer: LearnedScorer::default(),
+            })
+        };
         let hnn =
             |model| Self::Hnn(HnnOptions { model, stage: EntityStage::default(), hidden: HiddenWidths::default() });
         let mlp = |model| {
@@ -506,7 +537,20 @@ impl ModelDescription {
                         hidden: take_hidden(&mut g, hidden),
                     },
                 };
-                Self::Shnn(ShnnOptions { model, stage, critic })
+                if stage.assignment.method != AssignmentMethod::Learned
+                    && (g.assign_hidden.is_some() || g.assign_prior.is_some())
+                {
+                    return Err(ModelError::Option(format!(
+                        "`{}`: the options assign_hidden and assign_prior set the learned assignment's scorer; \
+                         give them with assignment=learned",
+                        g.name
+                    )));
+                }
+                let scorer = LearnedScorer {
+                    hidden: g.assign_hidden.take().unwrap_or(o.scorer.hidden),
+                    distance_prior: g.assign_prior.take().unwrap_or(o.scorer.distance_prior),
+                };
+                Self::Shnn(ShnnOptions { model, stage, critic, scorer })
             }
             Self::Hnn(o) => {
                 let stage = take_entity_stage(&mut g);
@@ -562,7 +606,7 @@ impl ModelDescription {
         match self {
             Self::Shnn(o) => {
                 keys.extend(ENTITY_KEYS);
-                keys.push("critic");
+                keys.extend(["critic", "assign_hidden", "assign_prior"]);
                 if o.model.gravity().is_some() {
                     keys.push("gravity");
                 }
@@ -761,6 +805,7 @@ mod tests {
                 model: ShnnModel::ShnnSo3 { hidden: HiddenWidths::default() },
                 stage: EntityStage::default(),
                 critic: ShnnCritic::Separate,
+                scorer: LearnedScorer::default(),
             })
         );
         let d = ModelDescription::parse("mlp_hn:variant=flat;head=8").unwrap();
@@ -793,6 +838,36 @@ mod tests {
         // A value error comes before an option the model does not take, as it always did.
         let e = ModelDescription::parse("hnn:gravity=input;critic=big").unwrap_err().to_string();
         assert!(e.contains("unknown critic `big`"), "{e}");
+    }
+
+    /// The learned assignment's scorer options: parsed into [`LearnedScorer`], refused with
+    /// another assignment and by the families without a scorer, their values checked.
+    #[test]
+    fn the_scorer_options_go_with_a_learned_assignment() {
+        let d = ModelDescription::parse("shnn:assignment=learned;assign_hidden=16x8;assign_prior=0.5").unwrap();
+        let ModelDescription::Shnn(o) = &d else { panic!("{d:?}") };
+        assert_eq!(o.scorer, LearnedScorer { hidden: vec![16, 8], distance_prior: DistancePrior::new(0.5).unwrap() });
+        let d = ModelDescription::parse("shgnn:assignment=learned;assign_hidden=none;assign_prior=0").unwrap();
+        let ModelDescription::Shnn(o) = &d else { panic!("{d:?}") };
+        assert_eq!((o.scorer.hidden.len(), o.scorer.distance_prior.get()), (0, 0.0));
+        // The defaults are the scorer's (hidden 64x64, λ = 1).
+        let d = ModelDescription::parse("shnn:assignment=learned;assign_hidden=64x64;assign_prior=1").unwrap();
+        assert_eq!(d, ModelDescription::parse("shnn:assignment=learned").unwrap());
+        let e = ModelDescription::parse("shnn:assign_prior=2").unwrap_err().to_string();
+        assert!(e.contains("give them with assignment=learned"), "{e}");
+        let e = ModelDescription::parse("shnn:assignment=hungarian;assign_hidden=8").unwrap_err().to_string();
+        assert!(e.contains("give them with assignment=learned"), "{e}");
+        let e = ModelDescription::parse("hnn:assign_hidden=8").unwrap_err().to_string();
+        assert!(e.contains("`hnn` takes no option `assign_hidden`"), "{e}");
+        let e = ModelDescription::parse("mlp_hn:assign_prior=1").unwrap_err().to_string();
+        assert!(e.contains("`mlp_hn` takes no option `assign_prior`"), "{e}");
+        for bad in ["-1", "nan", "inf", "1e9", "one", ""] {
+            let e = ModelDescription::parse(&format!("shnn:assignment=learned;assign_prior={bad}")).unwrap_err();
+            assert!(e.to_string().contains(&format!("assign_prior`: `{bad}` is not a number in [0, 1000]")), "{e}");
+        }
+        let e = ModelDescription::parse("shnn:assignment=learned;assign_hidden=0").unwrap_err().to_string();
+        assert!(e.contains("assign_hidden") && e.contains("`0`"), "{e}");
+        assert_eq!(DistancePrior::new(-0.0).unwrap().get().to_bits(), 0.0f64.to_bits());
     }
 
     /// `assignment=learned` is the SHNN family's: the other families that take `assignment`
@@ -828,6 +903,9 @@ mod tests {
             "actor_steps" => "2",
             "variant" => "release",
             "seed" => "5",
+            // The scorer's options go with a learned assignment (a second option, given after).
+            "assign_prior" => "2;assignment=learned",
+            "assign_hidden" => "7x3;assignment=learned",
             _ => "7x3",
         };
         for kind in ModelKind::ALL {

@@ -46,11 +46,11 @@ pub use assignment_learned::{
     ScorerConfig, log_prob_and_entropy,
 };
 pub use body_gnn::{BodyGnn, BodyGnnConfig};
-pub use config::{GravityMode, MlpVariant, MpSizes, NeighbourOffset, OPTION_KEYS};
+pub use config::{DistancePrior, GravityMode, MAX_DISTANCE_PRIOR, MlpVariant, MpSizes, NeighbourOffset, OPTION_KEYS};
 pub use critic::{SubeqCritic, ValueHead};
 pub use description::{
-    EntityStage, HiddenWidths, HnnModel, HnnOptions, MlpModel, MlpNetwork, MlpOptions, ModelDescription, ShnnCritic,
-    ShnnModel, ShnnOptions, TaskAssignment, ValueNet,
+    EntityStage, HiddenWidths, HnnModel, HnnOptions, LearnedScorer, MlpModel, MlpNetwork, MlpOptions, ModelDescription,
+    ShnnCritic, ShnnModel, ShnnOptions, TaskAssignment, ValueNet,
 };
 pub use entity_graph::{EntityGraph, GraphBuilder, GraphTask, NO_AGENT};
 pub use entity_mp::{EntityFeatures, EntityMp, EntityMpConfig};

@@ -166,7 +166,11 @@ impl Shnn {
         };
         let learned = if stage.assignment.method == AssignmentMethod::Learned {
             let features = if gravity.is_some() { PairFeatureSet::DistanceHeight } else { PairFeatureSet::Distance };
-            let config = ScorerConfig { features, ..ScorerConfig::default() };
+            let config = ScorerConfig {
+                features,
+                hidden: o.scorer.hidden.clone(),
+                distance_prior: o.scorer.distance_prior.get(),
+            };
             let l = LearnedAssignment::new(&mut s.sub("assign"), config, &graph, g, stage.assignment.seed)?;
             Some(Box::new(l))
         } else {

@@ -7,6 +7,7 @@
 #   nice -n 19 rl/sweeps/repro_run.sh A &  nice -n 19 rl/sweeps/repro_run.sh B &    # the two workers
 #   nice -n 19 rl/sweeps/repro_run.sh C &  nice -n 19 rl/sweeps/repro_run.sh D &    # the second wave's
 #   nice -n 19 rl/sweeps/repro_run.sh E &  nice -n 19 rl/sweeps/repro_run.sh F &    # the third wave's
+#   nice -n 19 rl/sweeps/repro_run.sh H &  nice -n 19 rl/sweeps/repro_run.sh G &    # its item 3; issue 79
 #   rl/sweeps/repro_run.sh export                             # evidence -> results/, reports
 #   rl/sweeps/repro_run.sh restore                            # finished runs <- results/ (A and B do it first)
 #   rl/sweeps/repro_run.sh status                             # every run's progress and hours left
@@ -28,14 +29,20 @@ BIN=${BIN:-$ROOT/target/release/meben}
 OUT=${OUT:-/tmp/runs/repro}
 THREADS=${THREADS:-1}
 SWEEPS=$ROOT/rl/sweeps
-EXPERIMENTS="reach_1_ant reach_2_ants equivariance sumo reach_2_ants_no_assignment reach_2_ants_per_slot_starts transformer_1_ant centipede reach_2_ants_50m reach_1_ant_50m"
+EXPERIMENTS="reach_1_ant reach_2_ants equivariance sumo reach_2_ants_no_assignment reach_2_ants_per_slot_starts transformer_1_ant centipede reach_2_ants_50m reach_1_ant_50m equivariance_2_ants learned_assignment"
+
+# The sweep file of an experiment: rl/sweeps/repro_<exp>.toml, or rl/sweeps/<exp>.toml for
+# the experiments that are not reproductions (issue 79's learned_assignment).
+sweep_file() {
+  if [ -f "$SWEEPS/repro_$1.toml" ]; then echo "$SWEEPS/repro_$1.toml"; else echo "$SWEEPS/$1.toml"; fi
+}
 
 run() { # <experiment> <pattern>...: the sweep's runs whose names contain a pattern
   local exp=$1; shift
   local only=()
   for p in "$@"; do only+=(--only "$p"); done
   echo "== $(date -Is) $exp ${only[*]}"
-  "$BIN" ablate --sweep "$SWEEPS/repro_$exp.toml" --out "$OUT/$exp" --threads "$THREADS" --quiet "${only[@]}"
+  "$BIN" ablate --sweep "$(sweep_file "$exp")" --out "$OUT/$exp" --threads "$THREADS" --quiet "${only[@]}"
   # 130: stopped by Ctrl-C or SIGTERM after an iteration, with a checkpoint; the worker
   # stops too instead of starting the next sweep (the same command resumes it).
   if [ $? -eq 130 ]; then
@@ -111,7 +118,27 @@ list_f() {
   done
 }
 
+# The 2_ants half of the equivariance test (issue 78, runs item 3): MLP, then MLP+HN, 3
+# seeds at 10M each.
+list_h() {
+  run equivariance_2_ants /mlp/
+  run equivariance_2_ants /mlp_hn/
+}
+# Issue 79's evidence: shnn:assignment=learned on 2_ants, 3 seeds at 10M (about 6
+# machine-hours a seed at one thread), seeds in order.
+list_g() {
+  for seed in 0 1 2; do
+    run learned_assignment "/seed$seed"
+  done
+}
+
 case "${1:-}" in
+  G)
+    list_g
+    ;;
+  H)
+    list_h
+    ;;
   E)
     list_e
     ;;
@@ -164,7 +191,7 @@ case "${1:-}" in
     du -sh "$ROOT/results"
     ;;
   *)
-    echo "usage: $0 A | B | C | D | E | F | export | restore | status" >&2
+    echo "usage: $0 A | B | C | D | E | F | G | H | export | restore | status" >&2
     exit 2
     ;;
 esac

@@ -162,3 +162,47 @@ fn a_learned_assignment_model_draws_scores_and_differentiates_its_assignment() {
         model.set_deterministic(false);
     }
 }
+
+/// The scorer's options (`assign_hidden`, `assign_prior`) reach the built model: the
+/// network's widths set its parameter count (`[Δ, Δh] -> 8 -> 1`: 33; affine: 3), and a
+/// large `λ` turns every draw into Algorithm 1's assignment (the greedy `shnn`'s), whatever
+/// the stream, where `λ = 0` draws differ between streams.
+#[test]
+fn the_scorers_options_set_its_network_and_its_distance_prior() {
+    use models::{Model, ModelDescription};
+    let mut env = VecEnv::from_name("team_reach/2_ants", B, 5, StartMode::Random).unwrap();
+    let spec = env.scene().obs_spec.clone();
+    let mut r = rng(5);
+    let actions: Vec<f32> = (0..B * env.n_actions()).map(|_| r.random_range(-1.0..1.0)).collect();
+    env.step(&actions).unwrap();
+    let build = |model: &str| {
+        let mut store = ParamStore::<f32>::new();
+        let d = ModelDescription::parse(model).unwrap();
+        let m = Model::new(&mut store.scope("team0", &mut nn::init_rng(3)), &d, &spec, 0).unwrap();
+        (store, m)
+    };
+    let scorer_params = |store: &ParamStore<f32>| -> usize {
+        store.iter().filter(|(n, _)| n.starts_with("team0.assign.")).map(|(_, t)| t.numel()).sum()
+    };
+    assert_eq!(scorer_params(&build("shnn:assignment=learned;assign_hidden=8").0), 2 * 8 + 8 + 8 + 1);
+    assert_eq!(scorer_params(&build("shnn:assignment=learned;assign_hidden=none").0), 2 + 1);
+    assert_eq!(scorer_params(&build("shnn:assignment=learned").0), 2 * 64 + 64 + 64 * 64 + 64 + 64 + 1);
+
+    let draws = |model: &str, seeds: &[u64]| -> Vec<Vec<u32>> {
+        let (store, mut m) = build(model);
+        seeds
+            .iter()
+            .map(|&s| {
+                m.reseed(s);
+                let tape = Tape::<f32>::new();
+                m.forward_batch_with(&store.bind(&tape), &env.obs().rows(), None).unwrap().assignment
+            })
+            .collect()
+    };
+    let greedy = draws("shnn", &[0]).remove(0);
+    for a in draws("shnn:assignment=learned;assign_hidden=none;assign_prior=1000", &[1, 2, 3, 4]) {
+        assert_eq!(a, greedy, "λ = 1000 draws Algorithm 1's assignment");
+    }
+    let free = draws("shnn:assignment=learned;assign_hidden=none;assign_prior=0", &[1, 2, 3, 4]);
+    assert!(free.iter().any(|a| *a != free[0]), "λ = 0: every stream drew the same");
+}

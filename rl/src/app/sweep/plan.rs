@@ -136,7 +136,7 @@ mod tests {
 
         // The reproduction (docs/RESULTS.md): the paper preset but for the budget and the number of
         // evaluations, sampled-action evaluation on 1024 episodes.
-        let repro = |name: &str, runs: usize, steps: u64| {
+        let repro_evals = |name: &str, runs: usize, steps: u64, num_evals: usize| {
             let runs_of = Sweep::load(&dir.join(name)).unwrap().runs().unwrap();
             assert_eq!(runs_of.len(), runs, "{name}");
             for r in &runs_of {
@@ -145,7 +145,7 @@ mod tests {
                     model: r.config.model.clone(),
                     seed: r.config.seed,
                     steps,
-                    num_evals: 10,
+                    num_evals,
                     checkpoint_every: 1,
                     opponent: r.config.opponent.clone(),
                     fixed_start: r.config.fixed_start,
@@ -157,6 +157,7 @@ mod tests {
             }
             runs_of
         };
+        let repro = |name: &str, runs: usize, steps: u64| repro_evals(name, runs, steps, 10);
         for name in ["repro_reach_1_ant.toml", "repro_reach_2_ants.toml"] {
             let runs = repro(name, 6, if name.contains("2_ants") { 20_000_000 } else { 10_000_000 });
             let seeds: Vec<u64> = runs.iter().map(|r| r.config.seed).collect();
@@ -164,6 +165,11 @@ mod tests {
         }
         let eq = repro("repro_equivariance.toml", 9, 10_000_000);
         assert!(eq.iter().all(|r| r.config.fixed_start && r.config.eval_rotations == [0.0, 180.0]));
+        // Its 2_ants half (issue 78): MLP and MLP+HN, an evaluation every 2M env steps.
+        let eq = repro_evals("repro_equivariance_2_ants.toml", 6, 10_000_000, 5);
+        assert!(eq.iter().all(|r| r.config.fixed_start && r.config.eval_rotations == [0.0, 180.0]));
+        let models: Vec<&str> = eq.iter().map(|r| r.config.model.as_str()).collect();
+        assert_eq!(models, ["mlp", "mlp", "mlp", "mlp_hn", "mlp_hn", "mlp_hn"]);
         let sumo = repro("repro_sumo.toml", 1, 10_000_000);
         assert_eq!((sumo[0].config.model.as_str(), sumo[0].config.opponent.as_str()), ("shnn", "mlp_hn"));
 
