@@ -113,16 +113,22 @@ impl Trajectory {
         }
     }
 
+    /// The task assignment shown at frame `f`: `(agent, entity)` per assigned agent (the
+    /// record of the step that frame starts, the last one for the final frame; none when
+    /// nothing was recorded).
+    fn assignment_links(&self, f: usize) -> Vec<(usize, usize)> {
+        let Some(row) = self.assigned.get(f.min(self.assigned.len().saturating_sub(1))) else {
+            return Vec::new();
+        };
+        row.iter().enumerate().filter_map(|(a, e)| e.map(|e| (a, e))).collect()
+    }
+
     /// The player's assignment marks of frame `f`: `[agent, from xyz, to xyz]` per assigned
     /// agent (from its root body to the entity), and the caption naming each pair.
     fn assignment_marks(&self, f: usize) -> (Vec<f64>, String) {
-        let Some(row) = self.assigned.get(f.min(self.assigned.len().saturating_sub(1))) else {
-            return (Vec::new(), String::new());
-        };
         let na = self.scene.n_agents();
         let (mut marks, mut caption) = (Vec::new(), Vec::new());
-        for (a, e) in row.iter().enumerate() {
-            let Some(e) = *e else { continue };
+        for (a, e) in self.assignment_links(f) {
             marks.push(a as f64);
             marks.extend(self.entity_position(f, a));
             marks.extend(self.entity_position(f, e));
@@ -293,12 +299,12 @@ const AGENT_COLOURS: [[u8; 3]; 6] = [
 /// Reach's goal balls.
 const REACH_BALL_COLOUR: [u8; 3] = [0xe8, 0xc5, 0x47];
 /// Sumo's centre ball.
+const SUMO_BALL_COLOUR: [u8; 3] = [0x88, 0x88, 0x88];
+
 /// `x` rounded to three decimals (millimetres, for the player's coordinates).
 fn millimetres(x: f64) -> f64 {
     (x * 1000.0).round() / 1000.0
 }
-
-const SUMO_BALL_COLOUR: [u8; 3] = [0x88, 0x88, 0x88];
 
 /// Plays `steps` control steps (or until the episode ends) of one environment of `name`
 /// with the fixed start of `seed`, asking `policy(observation, actions)` for each action

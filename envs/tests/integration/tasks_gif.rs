@@ -116,3 +116,35 @@ fn bad_gif_options_are_errors_naming_the_field() {
     let empty = Trajectory::new(&traj.scene);
     assert!(matches!(empty.to_gif(&ok), Err(TaskError::BadArgument { what, .. }) if what == "trajectory"));
 }
+
+/// A recorded task assignment is drawn on top of each frame as a dashed line in each
+/// agent's colour: the pixels it changes are all agent 0's blue or agent 1's orange, both
+/// lines are visible, and a swap of the assignment mid-episode changes the later frames.
+#[test]
+fn the_task_assignment_is_drawn_in_each_agents_colour() {
+    let mut traj = record_episode("team_reach/2_ants", 4, 10, |_obs, a| a.fill(0.0)).unwrap();
+    let options = GifOptions { width: 240, height: 180, frame_step: 1, delay_cs: 5 };
+    let (_, _, plain, palette) = decode(&traj.to_gif(&options).unwrap());
+    // Agents 0 and 1, then the balls 2 and 3; swapped from step 5 on.
+    let rows = |swap_at: usize| -> Vec<Vec<Option<usize>>> {
+        (0..10).map(|k| if k < swap_at { vec![Some(2), Some(3)] } else { vec![Some(3), Some(2)] }).collect()
+    };
+    traj.set_assignments(rows(5)).unwrap();
+    let (_, _, marked, _) = decode(&traj.to_gif(&options).unwrap());
+    let (blue, orange) = ([0x3b, 0x7d, 0xd8], [0xe0, 0x7b, 0x39]);
+    for (i, (p, m)) in plain.iter().zip(&marked).enumerate() {
+        let changed: Vec<u8> = p.iter().zip(m).filter(|(a, b)| a != b).map(|(_, b)| *b).collect();
+        let colour = |c: &u8| palette[3 * *c as usize..3 * *c as usize + 3].to_vec();
+        assert!(changed.iter().all(|c| colour(c) == blue || colour(c) == orange), "frame {i}: other colours changed");
+        let (nb, no) = (
+            changed.iter().filter(|c| colour(c) == blue).count(),
+            changed.iter().filter(|c| colour(c) == orange).count(),
+        );
+        assert!(nb >= 10 && no >= 10, "frame {i}: {nb} blue and {no} orange mark pixels");
+    }
+    traj.set_assignments(rows(10)).unwrap();
+    let (_, _, unswapped, _) = decode(&traj.to_gif(&options).unwrap());
+    // Step k's assignment is drawn on frame k (the last step's on the final frame).
+    assert!(unswapped[..5] == marked[..5], "the frames before the swap changed");
+    assert!(unswapped[5..].iter().zip(&marked[5..]).all(|(a, b)| a != b), "a frame after the swap did not change");
+}

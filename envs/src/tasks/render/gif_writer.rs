@@ -6,7 +6,9 @@
 //! the arena ring about the centre ball. One fixed perspective camera looks down at 45 degrees
 //! and frames the bounding box of the whole episode (computed once, so it never jumps).
 //! Each frame draws blob shadows on the ground, then the capsules and balls far to near
-//! (painter's order by mean depth), each with a dark 1-pixel outline. Sixteen fixed colours;
+//! (painter's order by mean depth), each with a dark 1-pixel outline, and on top the task
+//! assignment, if one was recorded: a dashed line in each agent's colour from its root body
+//! to its entity, as the HTML player marks it. Sixteen fixed colours;
 //! after the first frame only the rectangle that changed is stored, unchanged pixels
 //! transparent, which keeps a 1000-step episode small.
 
@@ -49,6 +51,8 @@ const REACH_BALL: u8 = 5;
 const SUMO_BALL: u8 = 6;
 /// First of the six agent colours (`AGENT_COLOURS`, the HTML player's).
 const AGENT: u8 = 7;
+/// Dashes of an assignment line (agent to entity), the first at the agent, the last at the entity.
+const ASSIGNMENT_DASHES: usize = 8;
 /// Marks unchanged pixels of the delta frames; never drawn.
 const TRANSPARENT: u8 = 13;
 
@@ -238,7 +242,7 @@ impl Trajectory {
             .map_err(|e| encoding_error(options, e))?;
         let mut previous: Option<Vec<u8>> = None;
         let mut prims = Vec::new();
-        for (bodies, balls) in self.bodies.iter().zip(&self.balls).step_by(options.frame_step) {
+        for (f, (bodies, balls)) in self.bodies.iter().zip(&self.balls).enumerate().step_by(options.frame_step) {
             let mut canvas = background.clone();
             prims.clear();
             for g in &geoms {
@@ -260,6 +264,21 @@ impl Trajectory {
             for p in &prims {
                 canvas.capsule(p.a, p.b, p.radius + 1.0, OUTLINE);
                 canvas.capsule(p.a, p.b, p.radius, p.colour);
+            }
+            // The task assignment, on top: a dashed line in each assigned agent's colour
+            // from its root body to its entity (the HTML player's marks).
+            for (a, e) in self.assignment_links(f) {
+                let (from, to) = (self.entity_position(f, a), self.entity_position(f, e));
+                let at = |t: f64| cam.project([0, 1, 2].map(|k| from[k] + t * (to[k] - from[k]))).0;
+                let pieces = (2 * ASSIGNMENT_DASHES - 1) as f64;
+                for k in (0..2 * ASSIGNMENT_DASHES).step_by(2) {
+                    canvas.capsule(
+                        at(k as f64 / pieces),
+                        at((k + 1) as f64 / pieces),
+                        1.0,
+                        AGENT + self.agent_colour(a) as u8,
+                    );
+                }
             }
             let frame = match &previous {
                 None => full_frame(options, &canvas.pixels),
