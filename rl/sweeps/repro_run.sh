@@ -134,15 +134,19 @@ list_g() {
 
 case "${1:-}" in
   G)
+    restore_finished
     list_g
     ;;
   H)
+    restore_finished
     list_h
     ;;
   E)
+    restore_finished
     list_e
     ;;
   F)
+    restore_finished
     list_f
     list_e
     ;;
