@@ -17,7 +17,7 @@ use crate::kind::ModelKind;
 
 /// The option keys of a model string, `name` or `name:key=value;key=value`
 /// ([`ModelDescription::parse`](crate::description::ModelDescription::parse)): `assignment`
-/// (`greedy`, `hungarian`, `stochastic`, `none`, `learned`: the SHNN family only), `translation` (`none`, `root_mean`,
+/// (`greedy`, `hungarian`, `stochastic`, `none`, `learned`: the SHNN family, `mlp`, `mlp_hn`), `translation` (`none`, `root_mean`,
 /// `body_mean`, `assigned`, `assigned_entity`), `abstraction` (`root`, `mean`), `neighbour`
 /// (`unit`, `raw`, `none`), `critic` (`separate`, `shared`), `gravity` (`input`,
 /// `every_layer`), `actor_steps` (a positive integer, at most [`MAX_ACTOR_STEPS`]), `variant`
@@ -179,7 +179,7 @@ pub(crate) struct GivenOptions {
 
 impl GivenOptions {
     /// Parses `name` or `name:key=value;key=value`, keys [`OPTION_KEYS`]: `assignment`
-    /// (`greedy`, `hungarian`, `stochastic`, `none`, `learned`: the SHNN family only), `translation` (`none`, `root_mean`,
+    /// (`greedy`, `hungarian`, `stochastic`, `none`, `learned`: the SHNN family, `mlp`, `mlp_hn`), `translation` (`none`, `root_mean`,
     /// `body_mean`, `assigned`, `assigned_entity`), `abstraction` (`root`, `mean`),
     /// `neighbour` (`unit`, `raw`, `none`), `critic` (`separate`, `shared`), `gravity`
     /// (`input`, `every_layer`), `actor_steps` (a positive integer), `variant` (`release`,

@@ -294,13 +294,21 @@ pub struct ShnnOptions {
 }
 
 /// The options of the learned assignment's scorer `s_ij = f_θ(x_ij) - λ d_ij`
-/// ([`crate::assignment_learned`]); its pair features follow the model's gravity channel.
+/// ([`crate::assignment_learned`]) of the SHNN family and the release's MLPs; its pair
+/// features are the model's ([`LearnedScorer::config`]).
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct LearnedScorer {
     /// Hidden widths of `f_θ` (option `assign_hidden`; default `64x64`; `none`: affine).
     pub hidden: Vec<usize>,
     /// `λ` (option `assign_prior`; default 1).
     pub distance_prior: DistancePrior,
+}
+
+impl LearnedScorer {
+    /// The scorer's configuration with the pair features `features`.
+    pub fn config(&self, features: crate::PairFeatureSet) -> crate::ScorerConfig {
+        crate::ScorerConfig { features, hidden: self.hidden.clone(), distance_prior: self.distance_prior.get() }
+    }
 }
 
 impl Default for LearnedScorer {
@@ -377,6 +385,8 @@ pub enum MlpNetwork {
         assignment: TaskAssignment,
         /// The heads' and the critic's hidden widths.
         hidden: HiddenWidths,
+        /// The scorer of `assignment=learned` (options `assign_hidden`, `assign_prior`).
+        scorer: LearnedScorer,
     },
     /// `variant=flat`: this project's earlier baseline on the flat agent view
     /// ([`crate::mlp::FlatMlp`]), no task assignment; its critic reads every node
@@ -482,8 +492,11 @@ impl ModelDescription {
         let hnn =
             |model| Self::Hnn(HnnOptions { model, stage: EntityStage::default(), hidden: HiddenWidths::default() });
         let mlp = |model| {
-            let network =
-                MlpNetwork::Release { assignment: TaskAssignment::default(), hidden: HiddenWidths::default() };
+            let network = MlpNetwork::Release {
+                assignment: TaskAssignment::default(),
+                hidden: HiddenWidths::default(),
+                scorer: LearnedScorer::default(),
+            };
             Self::Mlp(MlpOptions { model, network })
         };
         let (gravity, hidden) = (GravityMode::default(), HiddenWidths::default);
@@ -537,19 +550,7 @@ impl ModelDescription {
                         hidden: take_hidden(&mut g, hidden),
                     },
                 };
-                if stage.assignment.method != AssignmentMethod::Learned
-                    && (g.assign_hidden.is_some() || g.assign_prior.is_some())
-                {
-                    return Err(ModelError::Option(format!(
-                        "`{}`: the options assign_hidden and assign_prior set the learned assignment's scorer; \
-                         give them with assignment=learned",
-                        g.name
-                    )));
-                }
-                let scorer = LearnedScorer {
-                    hidden: g.assign_hidden.take().unwrap_or(o.scorer.hidden),
-                    distance_prior: g.assign_prior.take().unwrap_or(o.scorer.distance_prior),
-                };
+                let scorer = take_scorer(&mut g, stage.assignment.method)?;
                 Self::Shnn(ShnnOptions { model, stage, critic, scorer })
             }
             Self::Hnn(o) => {
@@ -558,13 +559,14 @@ impl ModelDescription {
             }
             Self::Mlp(o) => {
                 let network = match g.variant.take().unwrap_or_default() {
-                    MlpVariant::Release => MlpNetwork::Release {
-                        assignment: TaskAssignment {
-                            method: g.assignment.take().unwrap_or(AssignmentMethod::Greedy),
-                            seed,
-                        },
-                        hidden: take_hidden(&mut g, o.network.hidden().clone()),
-                    },
+                    MlpVariant::Release => {
+                        let method = g.assignment.take().unwrap_or(AssignmentMethod::Greedy);
+                        MlpNetwork::Release {
+                            assignment: TaskAssignment { method, seed },
+                            hidden: take_hidden(&mut g, o.network.hidden().clone()),
+                            scorer: take_scorer(&mut g, method)?,
+                        }
+                    }
                     MlpVariant::Flat => {
                         // The critic's widths default to the head's.
                         let head = g.head_hidden.take().unwrap_or_else(|| HiddenWidths::flat().head);
@@ -620,7 +622,7 @@ impl ModelDescription {
             }
             Self::Mlp(o) => {
                 if let MlpNetwork::Release { .. } = o.network {
-                    keys.push("assignment");
+                    keys.extend(["assignment", "assign_hidden", "assign_prior"]);
                 }
                 keys.push("variant");
                 keys.extend(hidden);
@@ -631,16 +633,16 @@ impl ModelDescription {
     }
 
     /// Checks what the types leave open: hidden widths positive and, but for `shgnn`'s
-    /// decoder, at least one; `assignment=learned` only in the SHNN family (the others have
-    /// no scorer for it).
+    /// decoder, at least one; `assignment=learned` only in the SHNN family and the release's
+    /// MLPs (the HNN family has no scorer for it).
     pub fn check(&self) -> Result<()> {
         if let Some(a) = self.assignment()
             && a.method == AssignmentMethod::Learned
-            && self.family() != Family::Shnn
+            && self.scorer().is_none()
         {
             return Err(ModelError::Option(format!(
-                "model `{}` takes no option value `assignment=learned` (only the SHNN family does; its assignments: greedy, \
-                 hungarian, stochastic, none)",
+                "model `{}` takes no option value `assignment=learned` (only the SHNN family, `mlp` and `mlp_hn` do; its \
+                 assignments: greedy, hungarian, stochastic, none)",
                 self.name()
             )));
         }
@@ -733,6 +735,17 @@ impl ModelDescription {
         }
     }
 
+    /// The learned assignment's scorer options, if the model can learn its assignment (the
+    /// SHNN family, `mlp` and `mlp_hn` with [`MlpNetwork::Release`]); they are used with
+    /// `assignment=learned`.
+    pub fn scorer(&self) -> Option<&LearnedScorer> {
+        match self {
+            Self::Shnn(o) => Some(&o.scorer),
+            Self::Mlp(MlpOptions { network: MlpNetwork::Release { scorer, .. }, .. }) => Some(scorer),
+            _ => None,
+        }
+    }
+
     /// Sets the seed of its task assignment (option `seed`); no effect on a model without one.
     pub fn set_seed(&mut self, seed: u64) {
         match self {
@@ -768,6 +781,24 @@ fn take_entity_stage(g: &mut GivenOptions) -> EntityStage {
         actor_steps: g.actor_steps.take().unwrap_or(d.actor_steps),
         sizes: d.sizes,
     }
+}
+
+/// The learned assignment's scorer of the options `g` (`assign_hidden`, `assign_prior`),
+/// taking them, else [`LearnedScorer::default`]'s; an error if one is given with another
+/// assignment `method` (it would be ignored).
+fn take_scorer(g: &mut GivenOptions, method: AssignmentMethod) -> Result<LearnedScorer> {
+    if method != AssignmentMethod::Learned && (g.assign_hidden.is_some() || g.assign_prior.is_some()) {
+        return Err(ModelError::Option(format!(
+            "`{}`: the options assign_hidden and assign_prior set the learned assignment's scorer; give them with \
+             assignment=learned",
+            g.name
+        )));
+    }
+    let d = LearnedScorer::default();
+    Ok(LearnedScorer {
+        hidden: g.assign_hidden.take().unwrap_or(d.hidden),
+        distance_prior: g.assign_prior.take().unwrap_or(d.distance_prior),
+    })
 }
 
 /// The hidden widths of the options `g` (`head`, `critic_hidden`), taking them, else `default`'s.
@@ -860,7 +891,11 @@ mod tests {
         let e = ModelDescription::parse("hnn:assign_hidden=8").unwrap_err().to_string();
         assert!(e.contains("`hnn` takes no option `assign_hidden`"), "{e}");
         let e = ModelDescription::parse("mlp_hn:assign_prior=1").unwrap_err().to_string();
+        assert!(e.contains("give them with assignment=learned"), "{e}");
+        let e = ModelDescription::parse("mlp_hn:variant=flat;assign_prior=1").unwrap_err().to_string();
         assert!(e.contains("`mlp_hn` takes no option `assign_prior`"), "{e}");
+        let d = ModelDescription::parse("mlp_hn:assignment=learned;assign_hidden=none;assign_prior=3").unwrap();
+        assert_eq!(d.scorer().map(|s| (s.hidden.len(), s.distance_prior.get())), Some((0, 3.0)));
         for bad in ["-1", "nan", "inf", "1e9", "one", ""] {
             let e = ModelDescription::parse(&format!("shnn:assignment=learned;assign_prior={bad}")).unwrap_err();
             assert!(e.to_string().contains(&format!("assign_prior`: `{bad}` is not a number in [0, 1000]")), "{e}");
@@ -870,15 +905,17 @@ mod tests {
         assert_eq!(DistancePrior::new(-0.0).unwrap().get().to_bits(), 0.0f64.to_bits());
     }
 
-    /// `assignment=learned` is the SHNN family's: the other families that take `assignment`
-    /// refuse the value naming the model; an unknown value lists `learned` among the others.
+    /// `assignment=learned` is the SHNN family's and the release's MLPs': the HNN family,
+    /// which takes `assignment`, refuses the value naming the model; an unknown value lists
+    /// `learned` among the others.
     #[test]
-    fn a_learned_assignment_is_the_shnn_familys() {
-        for name in ["shnn", "shnn_og3", "shnn_so3", "shtransformer", "shgnn"] {
+    fn a_learned_assignment_is_the_shnn_familys_and_the_release_mlps() {
+        for name in ["shnn", "shnn_og3", "shnn_so3", "shtransformer", "shgnn", "mlp", "mlp_hn"] {
             let d = ModelDescription::parse(&format!("{name}:assignment=learned;seed=4")).unwrap();
             assert_eq!(d.assignment(), Some(&TaskAssignment { method: AssignmentMethod::Learned, seed: 4 }), "{name}");
+            assert_eq!(d.scorer(), Some(&LearnedScorer::default()), "{name}");
         }
-        for name in ["hnn", "hnn_hn", "hnn_dn", "mlp", "mlp_hn"] {
+        for name in ["hnn", "hnn_hn", "hnn_dn"] {
             let e = ModelDescription::parse(&format!("{name}:assignment=learned")).unwrap_err().to_string();
             assert!(e.contains(&format!("model `{name}` takes no option value `assignment=learned`")), "{e}");
         }

@@ -11,7 +11,9 @@
 //!   Reach its ball; Sumo its opponent and the centre ball), positions relative to its own
 //!   root (`mlp_hn`: every vector in its heading frame); with `assignment=none` the rows are
 //!   its own nodes and every other entity's root (the paper's MLP-without-assignment
-//!   ablation);
+//!   ablation); with `assignment=learned` the assignment is drawn from the learned
+//!   Plackett-Luce distribution of [`crate::assignment_learned`] (parameters `assign.*`,
+//!   created last), as in the SHNN family;
 //! - per agent an MLP 256, 256 (ReLU) on the concatenated embeddings gives `loc`, `scale`
 //!   of its `K_i - 1` DoF ("3 linear layers" of the paper's Table "Hyperparameters of
 //!   Network");
@@ -31,12 +33,14 @@ use nn::{Bound, Linear, Mlp, Scope};
 use tensor::{Activation, Float, Tensor, Var};
 
 use crate::assignment::{AssignmentMethod, UNASSIGNED};
+use crate::assignment_learned::{LearnedAssignment, ScorerConfig};
 use crate::config::layer_sizes;
 use crate::critic::critic_order;
+use crate::description::HiddenWidths;
 use crate::entity_graph::GraphBuilder;
 use crate::error::{ModelError, Result};
 use crate::input::{InputProcessor, Translation};
-use crate::interface::{AgentPolicy, PolicyOutput};
+use crate::interface::{AgentPolicy, AssignmentTerms, PolicyOutput};
 use crate::transformer_head::TransformerHead;
 use crate::zoo::split_head;
 use envs::layout::{N_SCALARS, NODE_VECTOR_LEN, NODE_VECTORS, ObsSpec};
@@ -159,19 +163,25 @@ pub struct ReleaseMlp {
     critic_embed: NodeEmbedding,
     critic: Mlp,
     order: Vec<usize>,
+    /// `assignment=learned`: the scorer (parameters `assign.*`) and its draws, which give
+    /// the graph builder its assignment (as in [`crate::shnn`]).
+    pub(crate) learned: Option<Box<LearnedAssignment>>,
 }
 
 impl ReleaseMlp {
-    /// The model for `agents` (scope `s` holds `actor` and `critic`).
+    /// The model for `agents` (scope `s` holds `actor` and `critic`, then, with `learned`
+    /// (`assignment=learned`: the scorer's configuration and the draws' seed), the scorer's
+    /// `assign`, last, so that the other parameters start as without it).
     pub(crate) fn new<T: Float>(
         s: &mut Scope<'_, T>,
         spec: &ObsSpec,
         agents: &[usize],
         graph: GraphBuilder,
         heading: bool,
-        head_hidden: &[usize],
-        critic_hidden: &[usize],
+        hidden: &HiddenWidths,
+        learned: Option<(ScorerConfig, u64)>,
     ) -> Result<Self> {
+        let (head_hidden, critic_hidden) = (&hidden.head, &hidden.critic);
         let own_root_row = graph.method() != AssignmentMethod::None;
         let slots = graph.slots();
         let mut actor = s.sub("actor");
@@ -191,6 +201,11 @@ impl ReleaseMlp {
         let critic_embed = NodeEmbedding::new(&mut c)?;
         let ne = spec.entity_root_node.len();
         let critic = Mlp::new(&mut c.sub("mlp"), &layer_sizes(2 * EMBED * ne, critic_hidden, 1), Activation::Relu)?;
+        let gravity = spec.gravity_dir.map(f64::from);
+        let learned = learned
+            .map(|(config, seed)| LearnedAssignment::new(&mut s.sub("assign"), config, &graph, gravity, seed))
+            .transpose()?
+            .map(Box::new);
         Ok(Self {
             heading,
             proc: InputProcessor::new(spec, Translation::RootMean)?,
@@ -201,6 +216,7 @@ impl ReleaseMlp {
             critic_embed,
             critic,
             order: critic_order(spec, agents),
+            learned,
         })
     }
 
@@ -228,7 +244,15 @@ impl ReleaseMlp {
     ) -> Result<PolicyOutput<'t, T>> {
         let nb = obs.batch;
         let inputs = self.proc.entities::<T, S>(obs)?;
-        let graph = self.graph.build_with(&inputs, fixed)?;
+        // A learned assignment is scored on the tape and drawn (or the given one scored)
+        // before the graph is built with it.
+        let (graph, assignment_terms) = match &mut self.learned {
+            None => (self.graph.build_with(&inputs, fixed)?, None),
+            Some(l) => {
+                let (drawn, log_prob, entropy) = l.assign(p, &inputs, fixed)?;
+                (self.graph.build_with(&inputs, Some(&drawn))?, Some(AssignmentTerms { log_prob, entropy }))
+            }
+        };
         let mut out = Vec::with_capacity(agents.len());
         for (head, &a) in self.heads.iter().zip(agents) {
             let (root, k) = (spec.agent_root_node[a], 1 + spec.agent_dof[a]);
@@ -254,7 +278,7 @@ impl ReleaseMlp {
             out.push(split_head(head, p, hidden, a, spec.agent_dof[a])?);
         }
         if !with_value {
-            return Ok(PolicyOutput { agents: out, value: None, assignment: graph.assignment, assignment_terms: None });
+            return Ok(PolicyOutput { agents: out, value: None, assignment: graph.assignment, assignment_terms });
         }
         // The value: every entity's root, relative to the mean of the roots.
         let ne = self.order.len();
@@ -268,7 +292,7 @@ impl ReleaseMlp {
         let hidden = self.critic_embed.hidden(p, &self.critic, Tensor::new(x, &[nb, ne, NODE_FEATURES])?)?;
         let last = &self.critic.layers[self.critic.layers.len() - 1];
         let value = last.forward(p, hidden)?.reshape(&[nb])?;
-        Ok(PolicyOutput { agents: out, value: Some(value), assignment: graph.assignment, assignment_terms: None })
+        Ok(PolicyOutput { agents: out, value: Some(value), assignment: graph.assignment, assignment_terms })
     }
 }
 

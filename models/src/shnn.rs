@@ -29,7 +29,7 @@ use nn::{Bound, Mlp, Scope, TransformerConfig};
 use tensor::{Activation, Float};
 
 use crate::assignment::AssignmentMethod;
-use crate::assignment_learned::{LearnedAssignment, PairFeatureSet, ScorerConfig};
+use crate::assignment_learned::{LearnedAssignment, PairFeatureSet};
 use crate::body_gnn::{BodyGnn, BodyGnnConfig};
 use crate::config::{GravityMode, NeighbourOffset, layer_sizes};
 use crate::critic::{SubeqCritic, ValueHead, critic_order};
@@ -166,11 +166,7 @@ impl Shnn {
         };
         let learned = if stage.assignment.method == AssignmentMethod::Learned {
             let features = if gravity.is_some() { PairFeatureSet::DistanceHeight } else { PairFeatureSet::Distance };
-            let config = ScorerConfig {
-                features,
-                hidden: o.scorer.hidden.clone(),
-                distance_prior: o.scorer.distance_prior.get(),
-            };
+            let config = o.scorer.config(features);
             let l = LearnedAssignment::new(&mut s.sub("assign"), config, &graph, g, stage.assignment.seed)?;
             Some(Box::new(l))
         } else {

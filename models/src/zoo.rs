@@ -42,7 +42,7 @@ use nn::{Bound, Mlp, ParamStore, Scope};
 use tensor::{Float, Var};
 
 use crate::assignment::AssignmentMethod;
-use crate::assignment_learned::LearnedChoice;
+use crate::assignment_learned::{LearnedChoice, PairFeatureSet};
 use crate::description::{MlpModel, MlpNetwork, ModelDescription};
 use crate::entity_graph::GraphBuilder;
 use crate::entity_mp::EntityMp;
@@ -103,9 +103,11 @@ impl Model {
             ModelDescription::Mlp(o) => {
                 let heading = o.model == MlpModel::MlpHn;
                 match &o.network {
-                    MlpNetwork::Release { assignment, hidden } => {
+                    MlpNetwork::Release { assignment, hidden, scorer } => {
                         let graph = assignment.graph_builder(spec, team)?;
-                        let m = ReleaseMlp::new(s, spec, &agents, graph, heading, &hidden.head, &hidden.critic)?;
+                        let learned = (assignment.method == AssignmentMethod::Learned)
+                            .then(|| (scorer.config(PairFeatureSet::DistanceHeight), assignment.seed));
+                        let m = ReleaseMlp::new(s, spec, &agents, graph, heading, hidden, learned)?;
                         Arch::Mlp(Box::new(m))
                     }
                     MlpNetwork::Flat { hidden } => {
@@ -176,7 +178,12 @@ impl Model {
                 }
             }
             Arch::Hnn(m) => m.reseed(seed),
-            Arch::Mlp(m) => m.graph_mut().reseed(seed),
+            Arch::Mlp(m) => {
+                m.graph_mut().reseed(seed);
+                if let Some(l) = &mut m.learned {
+                    l.reseed(seed);
+                }
+            }
             Arch::Flat(_) => {}
         }
     }
@@ -207,9 +214,12 @@ impl Model {
     /// Whether a learned task assignment takes its most likely value (`true`, deterministic
     /// evaluation) or is drawn (`false`, the default); no effect on the other methods.
     pub fn set_deterministic(&mut self, deterministic: bool) {
-        if let Arch::Shnn(m) = &mut self.arch
-            && let Some(l) = &mut m.learned
-        {
+        let learned = match &mut self.arch {
+            Arch::Shnn(m) => m.learned.as_deref_mut(),
+            Arch::Mlp(m) => m.learned.as_deref_mut(),
+            _ => None,
+        };
+        if let Some(l) = learned {
             l.set_choice(if deterministic { LearnedChoice::MostLikely } else { LearnedChoice::Sample });
         }
     }

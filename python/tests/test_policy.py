@@ -34,6 +34,14 @@ def sumo_run(tmp_path_factory):
     return out
 
 
+@pytest.fixture(scope="module")
+def learned_run(tmp_path_factory):
+    """A tiny run of MLP+HN with a learned task assignment (two ants: two assignments)."""
+    out = tmp_path_factory.mktemp("runs") / "learned"
+    meben.train(out=out, env="team_reach/2_ants", model="mlp_hn:assignment=learned", seed=3, **TINY)
+    return out
+
+
 def python_evaluation(policy, episodes, seed, deterministic):
     """rl::evaluate replayed with the Python API: one episode per environment."""
     env = meben.make_eval(policy.env, episodes, seed)
@@ -74,6 +82,24 @@ def test_loaded_policy_acts_as_the_rust_evaluation(run, meben_cli, deterministic
     assert policy.env == "team_reach/1_ant" and policy.model == "mlp_hn"
     python = python_evaluation(policy, episodes, seed, deterministic)
     assert rust["sampled"] == (not deterministic)
+    assert python == {k: rust[k] for k in python}, (python, rust)
+
+
+@pytest.mark.parametrize("deterministic", [True, False])
+def test_a_learned_assignment_acts_in_python_as_in_the_rust_evaluation(learned_run, meben_cli, deterministic):
+    """The assignment drawn (or, deterministic, the most likely one) from the policy's own
+    seeded stream: Python's episodes are Rust's to the bit."""
+    episodes, seed = 2, 4
+    flag = "--mean" if deterministic else "--stochastic"
+    subprocess.run(
+        [meben_cli, "eval", "--run", learned_run, "--episodes", str(episodes), "--seed", str(seed), flag],
+        check=True,
+        capture_output=True,
+    )
+    rust = json.loads((learned_run / "eval.json").read_text())
+    policy = meben.Policy.load(learned_run, seed=seed)
+    assert policy.model == "mlp_hn:assignment=learned"
+    python = python_evaluation(policy, episodes, seed, deterministic)
     assert python == {k: rust[k] for k in python}, (python, rust)
 
 

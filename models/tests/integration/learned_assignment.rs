@@ -92,11 +92,13 @@ fn on_meben_scenes_the_learned_assignment_follows_the_graph_builders_layout() {
 /// stream (the same after the same reseed), its log-probability and entropy estimate on the
 /// tape, the same terms when the draw is given back (the update's path), the most likely
 /// assignment whatever the stream when deterministic, and the gradient of the
-/// log-probability reaching the scorer's weights. Team Reach and both teams of Team Sumo.
+/// log-probability reaching the scorer's weights. Team Reach and both teams of Team Sumo;
+/// `shnn` and the release's `mlp_hn`, each against its greedy self.
 #[test]
 fn a_learned_assignment_model_draws_scores_and_differentiates_its_assignment() {
     use models::{Model, ModelDescription};
-    for (name, team) in [("team_reach/2_ants", 0), ("team_sumo/2_ants", 0), ("team_sumo/2_ants", 1)] {
+    let cases = [("team_reach/2_ants", 0), ("team_sumo/2_ants", 0), ("team_sumo/2_ants", 1)];
+    for (base, (name, team)) in ["shnn", "mlp_hn"].into_iter().flat_map(|m| cases.map(|c| (m, c))) {
         let mut env = VecEnv::from_name(name, B, 7, StartMode::Random).unwrap();
         let mut r = rng(7);
         for _ in 0..3 {
@@ -111,15 +113,15 @@ fn a_learned_assignment_model_draws_scores_and_differentiates_its_assignment() {
             let m = Model::new(&mut store.scope(&format!("team{team}"), &mut init), &d, &spec, team).unwrap();
             (store, m)
         };
-        let (plain_store, _) = build("shnn");
-        let (store, mut model) = build("shnn:assignment=learned");
+        let (plain_store, _) = build(base);
+        let (store, mut model) = build(&format!("{base}:assignment=learned"));
         let prefix = format!("team{team}.assign.");
         let learned: Vec<(&str, &tensor::Tensor<f32>)> = store.iter().filter(|(n, _)| n.starts_with(&prefix)).collect();
         assert!(!learned.is_empty(), "{name}");
         let rest: Vec<(&str, Vec<f32>)> =
             store.iter().filter(|(n, _)| !n.starts_with(&prefix)).map(|(n, t)| (n, t.to_vec())).collect();
         let plain: Vec<(&str, Vec<f32>)> = plain_store.iter().map(|(n, t)| (n, t.to_vec())).collect();
-        assert_eq!(rest, plain, "{name}: the other parameters start as plain shnn's");
+        assert_eq!(rest, plain, "{base} on {name}: the other parameters start as without a learned assignment");
         let extra: usize = learned.iter().map(|(_, t)| t.numel()).sum();
         assert_eq!(model.num_params(&store), plain_store.num_elements() + extra, "{name}");
         assert!(model.assignment_is_random(), "{name}");

@@ -354,6 +354,7 @@ fn unknown_names_and_options_are_errors_listing_the_known_ones() {
         o.network = MlpNetwork::Release {
             assignment: Default::default(),
             hidden: HiddenWidths { head: vec![], critic: vec![8] },
+            scorer: Default::default(),
         };
     }
     assert!(err(&empty, 0).contains("hidden"));

@@ -106,6 +106,7 @@ fn the_act_step_on_the_gpu_follows_the_cpu() {
         ("team_reach/2_ants", "shnn"),
         ("team_reach/2_ants", "mlp_hn"),
         ("team_reach/2_ants", "shnn:assignment=learned"),
+        ("team_reach/2_ants", "mlp_hn:assignment=learned"),
         ("team_sumo/2_ants", "shnn"),
     ];
     for (env, model) in cases {

@@ -62,7 +62,13 @@ fn frozen_normaliser_gives_ratio_one_and_minus_mean_advantage() {
 /// ratios.
 #[test]
 fn stochastic_assignment_is_stored_with_the_transition_and_reused() {
-    for model in ["shnn:assignment=stochastic", "mlp_hn:assignment=stochastic", "shnn:assignment=learned"] {
+    let models = [
+        "shnn:assignment=stochastic",
+        "mlp_hn:assignment=stochastic",
+        "shnn:assignment=learned",
+        "mlp_hn:assignment=learned",
+    ];
+    for model in models {
         let config = common::tiny("team_reach/2_ants", model, 1, &[]);
         let (mut t, mut mb) = first_minibatch(&config);
         assert_eq!(mb.assignment.len(), config.unroll_length * config.batch_size * 2, "{model}");

@@ -39,15 +39,17 @@ fn resumed_runs_are_bit_identical_to_uninterrupted_ones() {
     for (env, model, extra) in [
         ("team_reach/1_ant", "shnn", vec![]),
         ("team_reach/2_ants", "shnn:assignment=learned", vec![]),
+        ("team_reach/2_ants", "mlp_hn:assignment=learned", vec![]),
         ("team_sumo/2_ants", "shnn", vec![("opponent", "mlp_hn"), ("curriculum_fraction", "0.5")]),
     ] {
         let config = common::tiny(env, model, 4, &extra);
-        let whole = RunDir::new(dir.join(format!("{}-whole", env.replace('/', "_"))));
+        let name = format!("{env}-{model}").replace(['/', ':', '='], "_");
+        let whole = RunDir::new(dir.join(format!("{name}-whole")));
         let s1 = train(&config, &whole, &TrainOptions::default()).unwrap();
         assert_eq!(s1.iterations, 4);
 
         // Stopped after 1 and after 3 iterations, on 1 thread, then finished on 2.
-        let parts = RunDir::new(dir.join(format!("{}-parts", env.replace('/', "_"))));
+        let parts = RunDir::new(dir.join(format!("{name}-parts")));
         let mut c1 = config.clone();
         c1.threads = 1;
         let s = train(&c1, &parts, &TrainOptions { stop_after: Some(1), ..Default::default() }).unwrap();
@@ -59,9 +61,9 @@ fn resumed_runs_are_bit_identical_to_uninterrupted_ones() {
         let s2 = train(&c2, &parts, &TrainOptions::default()).unwrap();
         assert!(parts.done().exists());
 
-        assert_eq!(metrics(&whole), metrics(&parts), "{env}: metrics differ");
-        assert_eq!(params(&whole), params(&parts), "{env}: parameters differ");
-        assert_eq!(s1.final_eval, s2.final_eval, "{env}: final evaluations differ");
+        assert_eq!(metrics(&whole), metrics(&parts), "{name}: metrics differ");
+        assert_eq!(params(&whole), params(&parts), "{name}: parameters differ");
+        assert_eq!(s1.final_eval, s2.final_eval, "{name}: final evaluations differ");
         let m = metrics(&whole);
         assert_eq!(m.len(), 4);
         if env.starts_with("team_sumo") {
