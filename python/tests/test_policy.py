@@ -68,16 +68,21 @@ def python_evaluation(policy, episodes, seed, deterministic):
     }
 
 
-@pytest.mark.parametrize("deterministic", [True, False])
-def test_loaded_policy_acts_as_the_rust_evaluation(run, meben_cli, deterministic):
-    episodes, seed = 3, 5
+def rust_evaluation(meben_cli, run, episodes, seed, deterministic):
+    """What `meben eval` writes for the run (mean or sampled actions)."""
     flag = "--mean" if deterministic else "--stochastic"
     subprocess.run(
         [meben_cli, "eval", "--run", run, "--episodes", str(episodes), "--seed", str(seed), flag],
         check=True,
         capture_output=True,
     )
-    rust = json.loads((run / "eval.json").read_text())
+    return json.loads((run / "eval.json").read_text())
+
+
+@pytest.mark.parametrize("deterministic", [True, False])
+def test_loaded_policy_acts_as_the_rust_evaluation(run, meben_cli, deterministic):
+    episodes, seed = 3, 5
+    rust = rust_evaluation(meben_cli, run, episodes, seed, deterministic)
     policy = meben.Policy.load(run, seed=seed)
     assert policy.env == "team_reach/1_ant" and policy.model == "mlp_hn"
     python = python_evaluation(policy, episodes, seed, deterministic)
@@ -90,13 +95,7 @@ def test_a_learned_assignment_acts_in_python_as_in_the_rust_evaluation(learned_r
     """The assignment drawn (or, deterministic, the most likely one) from the policy's own
     seeded stream: Python's episodes are Rust's to the bit."""
     episodes, seed = 2, 4
-    flag = "--mean" if deterministic else "--stochastic"
-    subprocess.run(
-        [meben_cli, "eval", "--run", learned_run, "--episodes", str(episodes), "--seed", str(seed), flag],
-        check=True,
-        capture_output=True,
-    )
-    rust = json.loads((learned_run / "eval.json").read_text())
+    rust = rust_evaluation(meben_cli, learned_run, episodes, seed, deterministic)
     policy = meben.Policy.load(learned_run, seed=seed)
     assert policy.model == "mlp_hn:assignment=learned"
     python = python_evaluation(policy, episodes, seed, deterministic)
