@@ -20,10 +20,11 @@ pub enum AssignmentMethod {
     Stochastic,
     /// No assignment: the entity graph stays fully connected (ablation).
     None,
-    /// A co-learnable assignment (the SHNN family and the release's MLPs): drawn from a Plackett-Luce
-    /// distribution over learned pair scores ([`crate::assignment_learned`]) by the model,
-    /// which hands it to the graph builder. Without scores ([`Assigner::assign`]) it falls
-    /// back to Algorithm 1, the distribution's zero-temperature limit.
+    /// A co-learnable assignment (the SHNN family and the release's MLPs): drawn from a
+    /// Plackett-Luce distribution over learned pair scores ([`crate::assignment_learned`])
+    /// by the model, which hands it to the graph builder. Without scores
+    /// ([`Assigner::assign`]) it falls back to Algorithm 1, the distribution's
+    /// zero-temperature limit.
     Learned,
 }
 

@@ -83,7 +83,10 @@ use rand_chacha::ChaCha8Rng;
 use tensor::{Activation, Float, Tensor, Var};
 
 use crate::assignment::{Assigner, AssignmentMethod, UNASSIGNED};
+use crate::entity_graph::{EntityGraph, GraphBuilder};
 use crate::error::{ModelError, Result};
+use crate::input::EntityInputs;
+use crate::interface::AssignmentTerms;
 
 /// The E(3)-invariant features of an (agent, object) pair the scorer reads.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -582,6 +585,26 @@ pub struct LearnedAssignment {
     gravity: [f64; 3],
     agents: Vec<usize>,
     objects: Vec<usize>,
+}
+
+/// The entity graph of `inputs` with its assignment: with a learned assignment (`learned`)
+/// the draw, or the given `fixed` one, scored on the tape of `p`, and its terms; otherwise
+/// the graph builder's own assignment (or `fixed`) and no terms. The SHNN family's and the
+/// release MLP's forward passes build their graphs through it.
+pub(crate) fn build_graph<'t, T: Float>(
+    graph: &mut GraphBuilder,
+    learned: Option<&mut LearnedAssignment>,
+    p: &Bound<'t, T>,
+    inputs: &EntityInputs<T>,
+    fixed: Option<&[u32]>,
+) -> Result<(EntityGraph, Option<AssignmentTerms<'t, T>>)> {
+    match learned {
+        None => Ok((graph.build_with(inputs, fixed)?, None)),
+        Some(l) => {
+            let (drawn, log_prob, entropy) = l.assign(p, inputs, fixed)?;
+            Ok((graph.build_with(inputs, Some(&drawn))?, Some(AssignmentTerms { log_prob, entropy })))
+        }
+    }
 }
 
 impl LearnedAssignment {

@@ -17,15 +17,16 @@ use crate::kind::ModelKind;
 
 /// The option keys of a model string, `name` or `name:key=value;key=value`
 /// ([`ModelDescription::parse`](crate::description::ModelDescription::parse)): `assignment`
-/// (`greedy`, `hungarian`, `stochastic`, `none`, `learned`: the SHNN family, `mlp`, `mlp_hn`), `translation` (`none`, `root_mean`,
-/// `body_mean`, `assigned`, `assigned_entity`), `abstraction` (`root`, `mean`), `neighbour`
-/// (`unit`, `raw`, `none`), `critic` (`separate`, `shared`), `gravity` (`input`,
-/// `every_layer`), `actor_steps` (a positive integer, at most [`MAX_ACTOR_STEPS`]), `variant`
-/// (`release`, `flat`), `seed` (integer), `head` and `critic_hidden` (hidden widths joined by
-/// `x`, e.g. `256x256`; at most [`MAX_LAYERS`], each at most [`MAX_WIDTH`]), and with
-/// `assignment=learned` its scorer's `assign_hidden` (hidden widths as `head`'s, or `none`
-/// for an affine scorer) and `assign_prior` (`λ`, a number in `[0, MAX_DISTANCE_PRIOR]`).
-/// E.g. `shnn:assignment=hungarian;critic=shared`.
+/// (`greedy`, `hungarian`, `stochastic`, `none`, `learned`: the SHNN family, `mlp`,
+/// `mlp_hn`), `translation` (`none`, `root_mean`, `body_mean`, `assigned`,
+/// `assigned_entity`), `abstraction` (`root`, `mean`), `neighbour` (`unit`, `raw`, `none`),
+/// `critic` (`separate`, `shared`), `gravity` (`input`, `every_layer`), `actor_steps` (a
+/// positive integer, at most [`MAX_ACTOR_STEPS`]), `variant` (`release`, `flat`), `seed`
+/// (integer), `head` and `critic_hidden` (hidden widths joined by `x`, e.g. `256x256`; at
+/// most [`MAX_LAYERS`], each at most [`MAX_WIDTH`]), and with `assignment=learned` its
+/// scorer's `assign_hidden` (hidden widths as `head`'s, or `none` for an affine scorer) and
+/// `assign_prior` (`λ`, a number in `[0, MAX_DISTANCE_PRIOR]`). E.g.
+/// `shnn:assignment=hungarian;critic=shared`.
 pub const OPTION_KEYS: [&str; 13] = [
     "assignment",
     "translation",
@@ -178,14 +179,8 @@ pub(crate) struct GivenOptions {
 }
 
 impl GivenOptions {
-    /// Parses `name` or `name:key=value;key=value`, keys [`OPTION_KEYS`]: `assignment`
-    /// (`greedy`, `hungarian`, `stochastic`, `none`, `learned`: the SHNN family, `mlp`, `mlp_hn`), `translation` (`none`, `root_mean`,
-    /// `body_mean`, `assigned`, `assigned_entity`), `abstraction` (`root`, `mean`),
-    /// `neighbour` (`unit`, `raw`, `none`), `critic` (`separate`, `shared`), `gravity`
-    /// (`input`, `every_layer`), `actor_steps` (a positive integer), `variant` (`release`,
-    /// `flat`), `seed` (integer), `head` and `critic_hidden` (hidden widths joined by `x`,
-    /// e.g. `256x256`), `assign_hidden` (the same, or `none`), `assign_prior` (a number). E.g. `shnn:assignment=hungarian;critic=shared`. Whether an option
-    /// applies to the model is decided by
+    /// Parses `name` or `name:key=value;key=value`, keys and values as [`OPTION_KEYS`] lists
+    /// them. Whether an option applies to the model is decided by
     /// [`ModelDescription::parse`](crate::description::ModelDescription::parse).
     pub(crate) fn parse(s: &str) -> Result<Self> {
         let (name, opts) = s.split_once(':').unwrap_or((s, ""));
@@ -289,7 +284,7 @@ pub const MAX_DISTANCE_PRIOR: f64 = 1000.0;
 /// `λ` of the learned assignment's scores `s_ij = f_θ(x_ij) - λ d_ij`
 /// ([`crate::assignment_learned`]): a finite number in `[0, MAX_DISTANCE_PRIOR]` (option
 /// `assign_prior`). It is never NaN, so it is `Eq`.
-#[derive(Clone, Copy, Debug, PartialEq, PartialOrd)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct DistancePrior(f64);
 
 impl Eq for DistancePrior {}

@@ -813,6 +813,12 @@ fn take_hidden(g: &mut GivenOptions, default: HiddenWidths) -> HiddenWidths {
 mod tests {
     use super::*;
 
+    /// Asserts that the model string `s` is refused with a message containing `want`.
+    fn assert_refused(s: &str, want: &str) {
+        let e = ModelDescription::parse(s).unwrap_err().to_string();
+        assert!(e.contains(want), "{s}: {e}");
+    }
+
     #[test]
     fn defaults_resolve_to_the_release_and_options_fold_in() {
         let d = ModelDescription::parse("shtransformer").unwrap();
@@ -862,13 +868,16 @@ mod tests {
         assert!(e.contains("assignment, translation, abstraction, neighbour, actor_steps, head, critic_hidden"), "{e}");
         let e = ModelDescription::parse("transformer_hn:seed=3;head=4").unwrap_err().to_string();
         assert_eq!(e, "invalid option: model `transformer_hn` takes no option `head` (its options: none)");
-        let e = ModelDescription::parse("mlp:variant=flat;assignment=greedy").unwrap_err().to_string();
-        assert!(e.contains("`mlp` takes no option `assignment` (its options: variant, head, critic_hidden)"), "{e}");
-        let e = ModelDescription::parse("shtransformer:critic_hidden=8;gravity=input").unwrap_err().to_string();
-        assert!(e.contains("no option `critic_hidden` (its options: assignment, translation,"), "{e}");
+        assert_refused(
+            "mlp:variant=flat;assignment=greedy",
+            "`mlp` takes no option `assignment` (its options: variant, head, critic_hidden)",
+        );
+        assert_refused(
+            "shtransformer:critic_hidden=8;gravity=input",
+            "no option `critic_hidden` (its options: assignment, translation,",
+        );
         // A value error comes before an option the model does not take, as it always did.
-        let e = ModelDescription::parse("hnn:gravity=input;critic=big").unwrap_err().to_string();
-        assert!(e.contains("unknown critic `big`"), "{e}");
+        assert_refused("hnn:gravity=input;critic=big", "unknown critic `big`");
     }
 
     /// The learned assignment's scorer options: parsed into [`LearnedScorer`], refused with
@@ -884,16 +893,11 @@ mod tests {
         // The defaults are the scorer's (hidden 64x64, λ = 1).
         let d = ModelDescription::parse("shnn:assignment=learned;assign_hidden=64x64;assign_prior=1").unwrap();
         assert_eq!(d, ModelDescription::parse("shnn:assignment=learned").unwrap());
-        let e = ModelDescription::parse("shnn:assign_prior=2").unwrap_err().to_string();
-        assert!(e.contains("give them with assignment=learned"), "{e}");
-        let e = ModelDescription::parse("shnn:assignment=hungarian;assign_hidden=8").unwrap_err().to_string();
-        assert!(e.contains("give them with assignment=learned"), "{e}");
-        let e = ModelDescription::parse("hnn:assign_hidden=8").unwrap_err().to_string();
-        assert!(e.contains("`hnn` takes no option `assign_hidden`"), "{e}");
-        let e = ModelDescription::parse("mlp_hn:assign_prior=1").unwrap_err().to_string();
-        assert!(e.contains("give them with assignment=learned"), "{e}");
-        let e = ModelDescription::parse("mlp_hn:variant=flat;assign_prior=1").unwrap_err().to_string();
-        assert!(e.contains("`mlp_hn` takes no option `assign_prior`"), "{e}");
+        assert_refused("shnn:assign_prior=2", "give them with assignment=learned");
+        assert_refused("shnn:assignment=hungarian;assign_hidden=8", "give them with assignment=learned");
+        assert_refused("hnn:assign_hidden=8", "`hnn` takes no option `assign_hidden`");
+        assert_refused("mlp_hn:assign_prior=1", "give them with assignment=learned");
+        assert_refused("mlp_hn:variant=flat;assign_prior=1", "`mlp_hn` takes no option `assign_prior`");
         let d = ModelDescription::parse("mlp_hn:assignment=learned;assign_hidden=none;assign_prior=3").unwrap();
         assert_eq!(d.scorer().map(|s| (s.hidden.len(), s.distance_prior.get())), Some((0, 3.0)));
         for bad in ["-1", "nan", "inf", "1e9", "one", ""] {

@@ -33,14 +33,14 @@ use nn::{Bound, Linear, Mlp, Scope};
 use tensor::{Activation, Float, Tensor, Var};
 
 use crate::assignment::{AssignmentMethod, UNASSIGNED};
-use crate::assignment_learned::{LearnedAssignment, ScorerConfig};
+use crate::assignment_learned::{LearnedAssignment, ScorerConfig, build_graph};
 use crate::config::layer_sizes;
 use crate::critic::critic_order;
 use crate::description::HiddenWidths;
 use crate::entity_graph::GraphBuilder;
 use crate::error::{ModelError, Result};
 use crate::input::{InputProcessor, Translation};
-use crate::interface::{AgentPolicy, AssignmentTerms, PolicyOutput};
+use crate::interface::{AgentPolicy, PolicyOutput};
 use crate::transformer_head::TransformerHead;
 use crate::zoo::split_head;
 use envs::layout::{N_SCALARS, NODE_VECTOR_LEN, NODE_VECTORS, ObsSpec};
@@ -246,13 +246,7 @@ impl ReleaseMlp {
         let inputs = self.proc.entities::<T, S>(obs)?;
         // A learned assignment is scored on the tape and drawn (or the given one scored)
         // before the graph is built with it.
-        let (graph, assignment_terms) = match &mut self.learned {
-            None => (self.graph.build_with(&inputs, fixed)?, None),
-            Some(l) => {
-                let (drawn, log_prob, entropy) = l.assign(p, &inputs, fixed)?;
-                (self.graph.build_with(&inputs, Some(&drawn))?, Some(AssignmentTerms { log_prob, entropy }))
-            }
-        };
+        let (graph, assignment_terms) = build_graph(&mut self.graph, self.learned.as_deref_mut(), p, &inputs, fixed)?;
         let mut out = Vec::with_capacity(agents.len());
         for (head, &a) in self.heads.iter().zip(agents) {
             let (root, k) = (spec.agent_root_node[a], 1 + spec.agent_dof[a]);

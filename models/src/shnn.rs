@@ -29,7 +29,7 @@ use nn::{Bound, Mlp, Scope, TransformerConfig};
 use tensor::{Activation, Float};
 
 use crate::assignment::AssignmentMethod;
-use crate::assignment_learned::{LearnedAssignment, PairFeatureSet};
+use crate::assignment_learned::{LearnedAssignment, PairFeatureSet, build_graph};
 use crate::body_gnn::{BodyGnn, BodyGnnConfig};
 use crate::config::{GravityMode, NeighbourOffset, layer_sizes};
 use crate::critic::{SubeqCritic, ValueHead, critic_order};
@@ -39,7 +39,7 @@ use crate::entity_mp::{EntityMp, EntityMpConfig};
 use crate::error::{ModelError, Result};
 use crate::frame::{AgentFrame, lrf, lrf_shape};
 use crate::input::InputProcessor;
-use crate::interface::{AgentPolicy, AssignmentTerms, PolicyOutput};
+use crate::interface::{AgentPolicy, PolicyOutput};
 use crate::kind::Frame;
 use crate::transformer_head::TransformerHead;
 use crate::zoo::split_head;
@@ -191,13 +191,7 @@ impl Shnn {
         let inputs = self.proc.entities::<T, S>(obs)?;
         // A learned assignment is scored on the tape and drawn (or the given one scored)
         // before the graph is built with it.
-        let (graph, assignment_terms) = match &mut self.learned {
-            None => (self.graph.build_with(&inputs, fixed)?, None),
-            Some(l) => {
-                let (drawn, log_prob, entropy) = l.assign(p, &inputs, fixed)?;
-                (self.graph.build_with(&inputs, Some(&drawn))?, Some(AssignmentTerms { log_prob, entropy }))
-            }
-        };
+        let (graph, assignment_terms) = build_graph(&mut self.graph, self.learned.as_deref_mut(), p, &inputs, fixed)?;
         let z = self.proc.actor_entities(&inputs, &graph, agents, self.neighbour)?;
         let f = self.mp.forward_inputs(p, z, &inputs, &graph)?;
         let bodies = self.proc.bodies(obs, &inputs, &graph.agent_entity, agents)?;

@@ -42,7 +42,7 @@ use nn::{Bound, Mlp, ParamStore, Scope};
 use tensor::{Float, Var};
 
 use crate::assignment::AssignmentMethod;
-use crate::assignment_learned::{LearnedChoice, PairFeatureSet};
+use crate::assignment_learned::{LearnedAssignment, LearnedChoice, PairFeatureSet};
 use crate::description::{MlpModel, MlpNetwork, ModelDescription};
 use crate::entity_graph::GraphBuilder;
 use crate::entity_mp::EntityMp;
@@ -171,20 +171,22 @@ impl Model {
     /// exact.
     pub fn reseed(&mut self, seed: u64) {
         match &mut self.arch {
-            Arch::Shnn(m) => {
-                m.graph.reseed(seed);
-                if let Some(l) = &mut m.learned {
-                    l.reseed(seed);
-                }
-            }
+            Arch::Shnn(m) => m.graph.reseed(seed),
             Arch::Hnn(m) => m.reseed(seed),
-            Arch::Mlp(m) => {
-                m.graph_mut().reseed(seed);
-                if let Some(l) = &mut m.learned {
-                    l.reseed(seed);
-                }
-            }
+            Arch::Mlp(m) => m.graph_mut().reseed(seed),
             Arch::Flat(_) => {}
+        }
+        if let Some(l) = self.learned_mut() {
+            l.reseed(seed);
+        }
+    }
+
+    /// The learned task assignment, if the model has one (`assignment=learned`).
+    fn learned_mut(&mut self) -> Option<&mut LearnedAssignment> {
+        match &mut self.arch {
+            Arch::Shnn(m) => m.learned.as_deref_mut(),
+            Arch::Mlp(m) => m.learned.as_deref_mut(),
+            _ => None,
         }
     }
 
@@ -214,12 +216,7 @@ impl Model {
     /// Whether a learned task assignment takes its most likely value (`true`, deterministic
     /// evaluation) or is drawn (`false`, the default); no effect on the other methods.
     pub fn set_deterministic(&mut self, deterministic: bool) {
-        let learned = match &mut self.arch {
-            Arch::Shnn(m) => m.learned.as_deref_mut(),
-            Arch::Mlp(m) => m.learned.as_deref_mut(),
-            _ => None,
-        };
-        if let Some(l) = learned {
+        if let Some(l) = self.learned_mut() {
             l.set_choice(if deterministic { LearnedChoice::MostLikely } else { LearnedChoice::Sample });
         }
     }

@@ -267,17 +267,14 @@ impl Trajectory {
             }
             // The task assignment, on top: a dashed line in each assigned agent's colour
             // from its root body to its entity (the HTML player's marks).
+            // The segment is cut into `2 ASSIGNMENT_DASHES - 1` pieces, every other one drawn.
+            let pieces = (2 * ASSIGNMENT_DASHES - 1) as f64;
             for (a, e) in self.assignment_links(f) {
                 let (from, to) = (self.entity_position(f, a), self.entity_position(f, e));
                 let at = |t: f64| cam.project([0, 1, 2].map(|k| from[k] + t * (to[k] - from[k]))).0;
-                let pieces = (2 * ASSIGNMENT_DASHES - 1) as f64;
+                let colour = AGENT + self.agent_colour(a) as u8;
                 for k in (0..2 * ASSIGNMENT_DASHES).step_by(2) {
-                    canvas.capsule(
-                        at(k as f64 / pieces),
-                        at((k + 1) as f64 / pieces),
-                        1.0,
-                        AGENT + self.agent_colour(a) as u8,
-                    );
+                    canvas.capsule(at(k as f64 / pieces), at((k + 1) as f64 / pieces), 1.0, colour);
                 }
             }
             let frame = match &previous {
