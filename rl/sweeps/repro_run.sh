@@ -8,6 +8,7 @@
 #   nice -n 19 rl/sweeps/repro_run.sh C &  nice -n 19 rl/sweeps/repro_run.sh D &    # the second wave's
 #   nice -n 19 rl/sweeps/repro_run.sh E &  nice -n 19 rl/sweeps/repro_run.sh F &    # the third wave's
 #   nice -n 19 rl/sweeps/repro_run.sh H &  nice -n 19 rl/sweeps/repro_run.sh G &    # its item 3; issue 79
+#   nice -n 19 rl/sweeps/repro_run.sh I &                                            # issue 79, assign_prior=10
 #   rl/sweeps/repro_run.sh export                             # evidence -> results/, reports
 #   rl/sweeps/repro_run.sh restore                            # finished runs <- results/ (A and B do it first)
 #   rl/sweeps/repro_run.sh status                             # every run's progress and hours left
@@ -29,10 +30,11 @@ BIN=${BIN:-$ROOT/target/release/meben}
 OUT=${OUT:-/tmp/runs/repro}
 THREADS=${THREADS:-1}
 SWEEPS=$ROOT/rl/sweeps
-EXPERIMENTS="reach_1_ant reach_2_ants equivariance sumo reach_2_ants_no_assignment reach_2_ants_per_slot_starts transformer_1_ant centipede reach_2_ants_50m reach_1_ant_50m equivariance_2_ants learned_assignment"
+EXPERIMENTS="reach_1_ant reach_2_ants equivariance sumo reach_2_ants_no_assignment reach_2_ants_per_slot_starts transformer_1_ant centipede reach_2_ants_50m reach_1_ant_50m equivariance_2_ants learned_assignment learned_assignment_prior"
 
 # The sweep file of an experiment: rl/sweeps/repro_<exp>.toml, or rl/sweeps/<exp>.toml for
-# the experiments that are not reproductions (issue 79's learned_assignment).
+# the experiments that are not reproductions (issue 79's learned_assignment and
+# learned_assignment_prior).
 sweep_file() {
   if [ -f "$SWEEPS/repro_$1.toml" ]; then echo "$SWEEPS/repro_$1.toml"; else echo "$SWEEPS/$1.toml"; fi
 }
@@ -135,7 +137,19 @@ list_g() {
   done
 }
 
+# Issue 79's follow-up: mlp_hn:assignment=learned with the sharper prior assign_prior=10, 3
+# seeds at 10M (about 1 machine-hour a seed at one thread).
+list_i() {
+  for seed in 0 1 2; do
+    run learned_assignment_prior "/seed$seed"
+  done
+}
+
 case "${1:-}" in
+  I)
+    restore_finished
+    list_i
+    ;;
   G)
     restore_finished
     list_g
@@ -198,7 +212,7 @@ case "${1:-}" in
     du -sh "$ROOT/results"
     ;;
   *)
-    echo "usage: $0 A | B | C | D | E | F | G | H | export | restore | status" >&2
+    echo "usage: $0 A | B | C | D | E | F | G | H | I | export | restore | status" >&2
     exit 2
     ;;
 esac

@@ -1,6 +1,7 @@
 //! The rl crate's integration tests, one binary (one link on the 2-core CI):
 //! one module per subject, each with its own doc comment.
 
+mod assignment_diagnostics;
 mod checkpoint_format;
 mod checkpoint_trust;
 mod cli;

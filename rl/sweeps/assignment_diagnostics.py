@@ -1,0 +1,173 @@
+#!/usr/bin/env python3
+"""What a learned task assignment (`assignment=learned`, issue 79) learned, from finished runs.
+
+For each run directory (it must still hold its checkpoint: run directories outside the work
+tree, not the committed evidence) this prints, as Markdown:
+
+1. the learned scores s(d) = f_θ(d, Δh) - λ d of an (agent, ball) pair at distances d and
+   Δh = -0.42 m (a ball 0.1 m high, an ant's root about 0.52 m), from the checkpoint's
+   `team0.assign.*` parameters, and the chance that a ball picks the nearer of two agents
+   whose distances differ by 1 m;
+2. over episodes recorded by `meben render` (episode seeds 0..N-1), with the most likely
+   assignment (mean actions, the run's deterministic evaluation) and with sampled actions
+   and assignments (`--stochastic`, as in training and the paper preset's evaluation): the
+   share of steps on which the learned assignment equals Algorithm 1's (recomputed from the
+   recorded root and ball positions: balls in order, each taking its nearest free agent)
+   and the matching of least total distance (every one-to-one matching tried), and how many
+   times per 1000 steps the learned assignment and Algorithm 1's change.
+
+Standard library only (the HTML player's data and the safetensors header are JSON).
+
+    rl/sweeps/assignment_diagnostics.py --bin target/release/meben --episodes 8 <run dir>...
+"""
+
+import argparse
+import itertools
+import json
+import math
+import os
+import re
+import struct
+import subprocess
+import sys
+import tempfile
+from array import array
+
+# The height of a ball's centre above an ant's root at rest (0.1 m against about 0.52 m).
+DH = -0.42
+
+
+def load_scorer(run):
+    """The scorer's layers [(weight rows, bias)] from the run's checkpoint, and λ."""
+    files = [f for f in os.listdir(run) if f.startswith("checkpoint.") and f.endswith(".safetensors")]
+    if len(files) != 1:
+        sys.exit(f"{run}: expected one checkpoint.*.safetensors, found {len(files)}")
+    blob = open(os.path.join(run, files[0]), "rb").read()
+    (n,) = struct.unpack("<Q", blob[:8])
+    header = json.loads(blob[8 : 8 + n])
+    tensors = {}
+    for name, t in header.items():
+        if not name.startswith("team0.assign."):
+            continue
+        if t["dtype"] != "F32":
+            sys.exit(f"{run}: {name} is {t['dtype']}, expected F32")
+        start, end = t["data_offsets"]
+        values = array("f")
+        values.frombytes(blob[8 + n + start : 8 + n + end])
+        tensors[name] = (t["shape"], list(values))
+    layers = []
+    i = 0
+    while f"team0.assign.mlp.{i}.weight" in tensors:
+        (rows, cols), w = tensors[f"team0.assign.mlp.{i}.weight"]
+        _, b = tensors[f"team0.assign.mlp.{i}.bias"]
+        layers.append(([w[r * cols : (r + 1) * cols] for r in range(rows)], b))
+        i += 1
+    if not layers:
+        sys.exit(f"{run}: no team0.assign.* parameters (not an assignment=learned run?)")
+    config = open(os.path.join(run, "config.toml")).read()
+    prior = re.search(r"assign_prior=([0-9.eE+-]+)", config)
+    return layers, float(prior.group(1)) if prior else 1.0
+
+
+def score(layers, prior, d, dh):
+    """s = f_θ([d, Δh]) - λ d (tanh hidden layers, a linear output)."""
+    x = [d, dh]
+    for k, (w, b) in enumerate(layers):
+        x = [sum(x[r] * w[r][c] for r in range(len(x))) + b[c] for c in range(len(b))]
+        if k + 1 < len(layers):
+            x = [math.tanh(v) for v in x]
+    return x[0] - prior * d
+
+
+def greedy(roots, balls):
+    """Algorithm 1: balls in order, each taking its nearest free agent; agent -> ball."""
+    free = list(range(len(roots)))
+    out = [None] * len(roots)
+    for j, b in enumerate(balls):
+        i = min(free, key=lambda a: math.dist(roots[a], b))
+        out[i] = j
+        free.remove(i)
+    return out
+
+
+def least_total_distance(roots, balls):
+    """The one-to-one matching of least summed distance (all tried); agent -> ball."""
+    best = min(
+        itertools.permutations(range(len(balls)), len(roots)),
+        key=lambda p: sum(math.dist(roots[i], balls[j]) for i, j in enumerate(p)),
+    )
+    return list(best)
+
+
+def episode(meben, run, seed, stochastic, path):
+    """(steps, steps equal to Algorithm 1, steps equal to the least-distance matching,
+    learned changes, Algorithm 1 changes)."""
+    cmd = [meben, "render", "--run", run, "--out", path, "--seed", str(seed)]
+    if stochastic:
+        cmd.append("--stochastic")
+    subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    html = open(path).read()
+    start = html.index("const D = ") + len("const D = ")
+    data, _ = json.JSONDecoder().raw_decode(html[start:])
+    agree = nearest = changes = greedy_changes = 0
+    prev = prev_greedy = None
+    for marks, caption in zip(data["marks"], data["captions"]):
+        per_agent = sorted((marks[k : k + 7] for k in range(0, len(marks), 7)), key=lambda m: m[0])
+        roots = [m[1:4] for m in per_agent]
+        learned = [int(j) for j in re.findall(r"ball (\d+)", caption)]
+        # Each agent's mark ends at its ball; the ball positions by index.
+        balls = [None] * len(learned)
+        for m, j in zip(per_agent, learned):
+            balls[j] = m[4:7]
+        g = greedy(roots, balls)
+        agree += g == learned
+        nearest += least_total_distance(roots, balls) == learned
+        changes += prev is not None and learned != prev
+        greedy_changes += prev_greedy is not None and g != prev_greedy
+        prev, prev_greedy = learned, g
+    return len(data["captions"]), agree, nearest, changes, greedy_changes
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--bin", default="target/release/meben", help="the meben program")
+    ap.add_argument("--episodes", type=int, default=8, help="episode seeds 0..N-1")
+    ap.add_argument("runs", nargs="+", help="run directories with their checkpoints")
+    a = ap.parse_args()
+
+    distances = [1, 2, 3, 4, 5, 6]
+    print(f"Learned scores s(d) = f_θ(d, Δh) - λ d at Δh = {DH} m; P(nearer): a ball's chance")
+    print("of picking the nearer of two agents at 2 and 3 m.\n")
+    print("| run | λ | " + " | ".join(f"s({d} m)" for d in distances) + " | P(nearer) |")
+    print("|---|---:|" + "---:|" * len(distances) + "---:|")
+    for run in a.runs:
+        layers, prior = load_scorer(run)
+        s = [score(layers, prior, d, DH) for d in distances]
+        p = 1 / (1 + math.exp(score(layers, prior, 3, DH) - score(layers, prior, 2, DH)))
+        print(f"| `{run}` | {prior:g} | " + " | ".join(f"{v:.2f}" for v in s) + f" | {p:.2f} |")
+
+    print(f"\nOver episode seeds 0-{a.episodes - 1} (`meben render`): the share of steps on which the")
+    print("learned assignment is Algorithm 1's and the least-total-distance matching, and changes per")
+    print("1000 steps of the learned assignment and of Algorithm 1's.\n")
+    print(
+        "| run | actions and assignment | steps | learned = Algorithm 1 | learned = least distance "
+        "| learned changes /1000 | Algorithm 1 changes /1000 |"
+    )
+    print("|---|---|---:|---:|---:|---:|---:|")
+    with tempfile.TemporaryDirectory() as tmp:
+        path = os.path.join(tmp, "episode.html")
+        for run in a.runs:
+            for stochastic in (False, True):
+                totals = [0, 0, 0, 0, 0]
+                for seed in range(a.episodes):
+                    totals = [t + x for t, x in zip(totals, episode(a.bin, run, seed, stochastic, path))]
+                steps, agree, nearest, changes, greedy_changes = totals
+                mode = "sampled" if stochastic else "most likely (mean actions)"
+                print(
+                    f"| `{run}` | {mode} | {steps} | {100 * agree / steps:.1f}% | {100 * nearest / steps:.1f}% | "
+                    f"{1000 * changes / steps:.1f} | {1000 * greedy_changes / steps:.1f} |"
+                )
+
+
+if __name__ == "__main__":
+    main()
