@@ -138,7 +138,8 @@ list_g() {
 }
 
 # Issue 79's follow-up: mlp_hn:assignment=learned with the sharper prior assign_prior=10, 3
-# seeds at 10M (about 1 machine-hour a seed at one thread).
+# seeds at 10M (about 1 machine-hour a seed at one thread); worker I then joins worker G's
+# list (a run another worker is training is skipped: its directory is locked).
 list_i() {
   for seed in 0 1 2; do
     run learned_assignment_prior "/seed$seed"
@@ -149,6 +150,7 @@ case "${1:-}" in
   I)
     restore_finished
     list_i
+    list_g
     ;;
   G)
     restore_finished
