@@ -42,15 +42,19 @@ fn train(model: &str, out: &Path) {
     assert!(ok, "train {model} failed: {err}");
 }
 
-/// Runs the script on `run` over `episodes` episodes; (success, stdout, stderr).
-fn diagnose(run: &Path, episodes: &str) -> (bool, String, String) {
+/// Trains a short run of `model` in the scratch directory `scratch` (one per test: tests run
+/// in parallel) and runs the script on it over `episodes` episodes; (success, stdout, stderr).
+fn diagnose(scratch: &str, model: &str, episodes: &str) -> (bool, String, String) {
+    let tmp = common::TempDir::new(scratch);
+    let run = tmp.0.join("run");
+    train(model, &run);
     let out = Command::new("python3")
         .arg(script())
         .args(["--bin", env!("CARGO_BIN_EXE_meben"), "--episodes", episodes])
-        .arg(run)
+        .arg(&run)
         .output()
         .expect("python3 runs the script");
-    (out.status.success(), String::from_utf8_lossy(&out.stdout).into(), String::from_utf8_lossy(&out.stderr).into())
+    common::outcome(out)
 }
 
 /// The cells of the table row whose second column is `second` (a table of `run`).
@@ -64,10 +68,7 @@ fn row<'a>(stdout: &'a str, second: &str) -> Vec<&'a str> {
 
 #[test]
 fn the_diagnostics_find_algorithm_1_in_a_run_with_the_largest_prior() {
-    let tmp = common::TempDir::new("assignment_diagnostics");
-    let run = tmp.0.join("run");
-    train("mlp_hn:assignment=learned;assign_prior=1000", &run);
-    let (ok, stdout, stderr) = diagnose(&run, "2");
+    let (ok, stdout, stderr) = diagnose("assignment_diagnostics", "mlp_hn:assignment=learned;assign_prior=1000", "2");
     assert!(ok, "{stdout}{stderr}");
 
     // Scores: λ read from the model string, s(d + 1) - s(d) = -1000 up to the small
@@ -92,10 +93,7 @@ fn the_diagnostics_find_algorithm_1_in_a_run_with_the_largest_prior() {
 
 #[test]
 fn the_diagnostics_refuse_a_run_without_a_learned_assignment() {
-    let tmp = common::TempDir::new("assignment_diagnostics_greedy");
-    let run = tmp.0.join("greedy");
-    train("mlp_hn", &run);
-    let (ok, stdout, stderr) = diagnose(&run, "1");
+    let (ok, stdout, stderr) = diagnose("assignment_diagnostics_greedy", "mlp_hn", "1");
     assert!(!ok, "{stdout}");
-    assert!(stderr.contains("greedy") && stderr.contains("no team0.assign.* parameters"), "{stderr}");
+    assert!(stderr.contains("/run: no team0.assign.* parameters"), "the run is named: {stderr}");
 }

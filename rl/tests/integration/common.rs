@@ -69,6 +69,10 @@ pub fn metrics(run: &rl::RunDir) -> Vec<Vec<(String, f64)>> {
 
 /// Runs the `meben` program with `args`: whether it succeeded, its stdout and its stderr.
 pub fn meben(args: &[&str]) -> (bool, String, String) {
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_meben")).args(args).output().unwrap();
+    outcome(std::process::Command::new(env!("CARGO_BIN_EXE_meben")).args(args).output().unwrap())
+}
+
+/// A finished process as whether it succeeded, its stdout and its stderr.
+pub fn outcome(out: std::process::Output) -> (bool, String, String) {
     (out.status.success(), String::from_utf8_lossy(&out.stdout).into(), String::from_utf8_lossy(&out.stderr).into())
 }
