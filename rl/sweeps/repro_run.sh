@@ -9,6 +9,7 @@
 #   nice -n 19 rl/sweeps/repro_run.sh E &  nice -n 19 rl/sweeps/repro_run.sh F &    # the third wave's
 #   nice -n 19 rl/sweeps/repro_run.sh H &  nice -n 19 rl/sweeps/repro_run.sh G &    # its item 3; issue 79
 #   nice -n 19 rl/sweeps/repro_run.sh I &                                            # issue 79, assign_prior=10
+#   nice -n 19 rl/sweeps/repro_run.sh J &                                            # issue 79, Team Sumo
 #   rl/sweeps/repro_run.sh export                             # evidence -> results/, reports
 #   rl/sweeps/repro_run.sh restore                            # finished runs <- results/ (A and B do it first)
 #   rl/sweeps/repro_run.sh status                             # every run's progress and hours left
@@ -30,11 +31,11 @@ BIN=${BIN:-$ROOT/target/release/meben}
 OUT=${OUT:-/tmp/runs/repro}
 THREADS=${THREADS:-1}
 SWEEPS=$ROOT/rl/sweeps
-EXPERIMENTS="reach_1_ant reach_2_ants equivariance sumo reach_2_ants_no_assignment reach_2_ants_per_slot_starts transformer_1_ant centipede reach_2_ants_50m reach_1_ant_50m equivariance_2_ants learned_assignment learned_assignment_prior"
+EXPERIMENTS="reach_1_ant reach_2_ants equivariance sumo reach_2_ants_no_assignment reach_2_ants_per_slot_starts transformer_1_ant centipede reach_2_ants_50m reach_1_ant_50m equivariance_2_ants learned_assignment learned_assignment_prior learned_assignment_sumo"
 
 # The sweep file of an experiment: rl/sweeps/repro_<exp>.toml, or rl/sweeps/<exp>.toml for
-# the experiments that are not reproductions (issue 79's learned_assignment and
-# learned_assignment_prior).
+# the experiments that are not reproductions (issue 79's learned_assignment,
+# learned_assignment_prior and learned_assignment_sumo).
 sweep_file() {
   if [ -f "$SWEEPS/repro_$1.toml" ]; then echo "$SWEEPS/repro_$1.toml"; else echo "$SWEEPS/$1.toml"; fi
 }
@@ -146,15 +147,27 @@ list_i() {
   done
 }
 
+# Issue 79's Team Sumo run: shnn:assignment=learned against MLP+HN, one seed at 10M (about
+# 15 machine-hours at one thread), after the Team Reach seeds of workers G and I.
+list_j() {
+  run learned_assignment_sumo /shnn_assignment-learned/
+}
+
 case "${1:-}" in
   I)
     restore_finished
     list_i
     list_g
+    list_j
     ;;
   G)
     restore_finished
     list_g
+    list_j
+    ;;
+  J)
+    restore_finished
+    list_j
     ;;
   H)
     restore_finished

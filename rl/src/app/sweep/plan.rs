@@ -172,6 +172,11 @@ mod tests {
         assert_eq!(models, ["mlp", "mlp", "mlp", "mlp_hn", "mlp_hn", "mlp_hn"]);
         let sumo = repro("repro_sumo.toml", 1, 10_000_000);
         assert_eq!((sumo[0].config.model.as_str(), sumo[0].config.opponent.as_str()), ("shnn", "mlp_hn"));
+        // Issue 79's Team Sumo run: the same run but for team 0's assignment.
+        let learned_sumo = repro("learned_assignment_sumo.toml", 1, 10_000_000);
+        let expected = TrainConfig { model: "shnn:assignment=learned".into(), ..sumo[0].config.clone() };
+        assert_eq!(learned_sumo[0].config, expected);
+        assert_eq!(learned_sumo[0].name, "team_sumo_2_ants/shnn_assignment-learned/seed0");
 
         // The diagnostics beside experiment 1b: each changes one thing of `mlp_hn` on 2_ants.
         let load = |name: &str| Sweep::load(&dir.join(name)).unwrap().runs().unwrap();
