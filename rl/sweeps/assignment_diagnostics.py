@@ -22,6 +22,8 @@ Standard library only (the HTML player's data and the safetensors header are JSO
 """
 
 import argparse
+import contextlib
+import io
 import itertools
 import json
 import math
@@ -37,21 +39,34 @@ from array import array
 DH = -0.42
 
 
+def refuse(message):
+    """Stops with `message` on stderr and exit status 1 (bad input: no traceback)."""
+    sys.exit(f"assignment_diagnostics.py: {message}")
+
+
 def load_scorer(run):
     """The scorer's layers [(weight rows, bias)] from the run's checkpoint, and λ."""
+    if not os.path.isdir(run):
+        refuse(f"{run}: not a run directory")
     files = [f for f in os.listdir(run) if f.startswith("checkpoint.") and f.endswith(".safetensors")]
     if len(files) != 1:
-        sys.exit(f"{run}: expected one checkpoint.*.safetensors, found {len(files)}")
-    blob = open(os.path.join(run, files[0]), "rb").read()
-    (n,) = struct.unpack("<Q", blob[:8])
-    header = json.loads(blob[8 : 8 + n])
+        refuse(f"{run}: expected one checkpoint.*.safetensors, found {len(files)}")
+    path = os.path.join(run, files[0])
+    try:
+        blob = open(path, "rb").read()
+        (n,) = struct.unpack("<Q", blob[:8])
+        header = json.loads(blob[8 : 8 + n])
+    except (OSError, struct.error, ValueError) as e:
+        refuse(f"{path}: not a readable safetensors file ({e})")
     tensors = {}
     for name, t in header.items():
         if not name.startswith("team0.assign."):
             continue
-        if t["dtype"] != "F32":
-            sys.exit(f"{run}: {name} is {t['dtype']}, expected F32")
+        if not isinstance(t, dict) or t.get("dtype") != "F32":
+            refuse(f"{path}: tensor {name} is not F32 ({t!r:.80})")
         start, end = t["data_offsets"]
+        if not (0 <= start <= end <= len(blob) - 8 - n) or (end - start) % 4:
+            refuse(f"{path}: tensor {name} has data offsets {start}..{end} outside its {len(blob) - 8 - n} data bytes")
         values = array("f")
         values.frombytes(blob[8 + n + start : 8 + n + end])
         tensors[name] = (t["shape"], list(values))
@@ -59,12 +74,17 @@ def load_scorer(run):
     i = 0
     while f"team0.assign.mlp.{i}.weight" in tensors:
         (rows, cols), w = tensors[f"team0.assign.mlp.{i}.weight"]
-        _, b = tensors[f"team0.assign.mlp.{i}.bias"]
-        layers.append(([w[r * cols : (r + 1) * cols] for r in range(rows)], b))
+        bias = f"team0.assign.mlp.{i}.bias"
+        if bias not in tensors or rows * cols != len(w):
+            refuse(f"{path}: layer {i} of the scorer has no bias or a weight of another size")
+        layers.append(([w[r * cols : (r + 1) * cols] for r in range(rows)], tensors[bias][1]))
         i += 1
     if not layers:
-        sys.exit(f"{run}: no team0.assign.* parameters (not an assignment=learned run?)")
-    config = open(os.path.join(run, "config.toml")).read()
+        refuse(f"{run}: no team0.assign.* parameters (not an assignment=learned run?)")
+    try:
+        config = open(os.path.join(run, "config.toml")).read()
+    except OSError as e:
+        refuse(f"{run}: no readable config.toml ({e})")
     prior = re.search(r"assign_prior=([0-9.eE+-]+)", config)
     return layers, float(prior.group(1)) if prior else 1.0
 
@@ -105,8 +125,13 @@ def episode(meben, run, seed, stochastic, path):
     cmd = [meben, "render", "--run", run, "--out", path, "--seed", str(seed)]
     if stochastic:
         cmd.append("--stochastic")
-    subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    done = subprocess.run(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    if done.returncode != 0:
+        said = done.stderr.strip() or "no message"
+        refuse(f"{run}: `meben render --seed {seed}` failed with exit status {done.returncode}:\n{said}")
     html = open(path).read()
+    if "const D = " not in html:
+        refuse(f"{run}: the episode `meben render --seed {seed}` wrote holds no player data (const D)")
     start = html.index("const D = ") + len("const D = ")
     data, _ = json.JSONDecoder().raw_decode(html[start:])
     agree = nearest = changes = greedy_changes = 0
@@ -134,16 +159,30 @@ def main():
     ap.add_argument("--episodes", type=int, default=8, help="episode seeds 0..N-1")
     ap.add_argument("runs", nargs="+", help="run directories with their checkpoints")
     a = ap.parse_args()
+    if a.episodes < 1:
+        ap.error(f"--episodes {a.episodes}: at least 1")
+    if not (os.path.isfile(a.bin) and os.access(a.bin, os.X_OK)):
+        refuse(f"--bin {a.bin}: not an executable file (build it: cargo build --release -p rl)")
+    # Every run is read first, and the tables are printed only once every episode has been
+    # rendered: bad input stops with its message and no partial table.
+    scorers = [load_scorer(run) for run in a.runs]
+    tables = io.StringIO()
+    with contextlib.redirect_stdout(tables):
+        write_tables(a, scorers)
+    sys.stdout.write(tables.getvalue())
 
+
+def write_tables(a, scorers):
+    """The two tables (module doc) of the runs `a.runs` with their `scorers`, to stdout."""
     distances = [1, 2, 3, 4, 5, 6]
     print(f"Learned scores s(d) = f_θ(d, Δh) - λ d at Δh = {DH} m; P(nearer): a ball's chance")
     print("of picking the nearer of two agents at 2 and 3 m.\n")
     print("| run | λ | " + " | ".join(f"s({d} m)" for d in distances) + " | P(nearer) |")
     print("|---|---:|" + "---:|" * len(distances) + "---:|")
-    for run in a.runs:
-        layers, prior = load_scorer(run)
+    for run, (layers, prior) in zip(a.runs, scorers):
         s = [score(layers, prior, d, DH) for d in distances]
-        p = 1 / (1 + math.exp(score(layers, prior, 3, DH) - score(layers, prior, 2, DH)))
+        # The logistic of s(2 m) - s(3 m), kept from overflowing where the scores rise steeply.
+        p = 1 / (1 + math.exp(min(score(layers, prior, 3, DH) - score(layers, prior, 2, DH), 700.0)))
         print(f"| `{run}` | {prior:g} | " + " | ".join(f"{v:.2f}" for v in s) + f" | {p:.2f} |")
 
     print(f"\nOver episode seeds 0-{a.episodes - 1} (`meben render`): the share of steps on which the")

@@ -3,7 +3,8 @@
 //! its largest (`assign_prior=1000`) the draw is Algorithm 1's (`models`' tests), so the
 //! script must find its scores falling by 1000 a metre, the sampled assignment equal to its
 //! own Algorithm 1 on every step, and the most likely one equal to the least-distance
-//! matching; a run without a learned assignment is refused by name.
+//! matching; a run without a learned assignment, and bad input (a missing run or program, a
+//! cut checkpoint, no episodes), are refused by name, with no partial table.
 
 use crate::common;
 
@@ -91,9 +92,44 @@ fn the_diagnostics_find_algorithm_1_in_a_run_with_the_largest_prior() {
     assert_eq!(most_likely[4], "100.0%", "{most_likely:?}");
 }
 
+/// Asserts a refusal: a failure with nothing on stdout (no partial table), `expected` on
+/// stderr, and no Python traceback.
+fn assert_refused((ok, stdout, stderr): (bool, String, String), expected: &str) {
+    assert!(!ok, "{stdout}");
+    assert!(stdout.is_empty(), "no partial table: {stdout}");
+    assert!(stderr.contains(expected), "expected {expected:?} in: {stderr}");
+    assert!(!stderr.contains("Traceback"), "a message, not a traceback: {stderr}");
+}
+
+/// Runs the script with `args` (no training).
+fn run_script(args: &[&str]) -> (bool, String, String) {
+    common::outcome(Command::new("python3").arg(script()).args(args).output().expect("python3 runs the script"))
+}
+
 #[test]
 fn the_diagnostics_refuse_a_run_without_a_learned_assignment() {
-    let (ok, stdout, stderr) = diagnose("assignment_diagnostics_greedy", "mlp_hn", "1");
-    assert!(!ok, "{stdout}");
-    assert!(stderr.contains("/run: no team0.assign.* parameters"), "the run is named: {stderr}");
+    let refusal = diagnose("assignment_diagnostics_greedy", "mlp_hn", "1");
+    assert_refused(refusal, "/run: no team0.assign.* parameters");
+}
+
+#[test]
+fn the_diagnostics_refuse_bad_input_by_name() {
+    let tmp = common::TempDir::new("assignment_diagnostics_bad_input");
+    let meben = env!("CARGO_BIN_EXE_meben");
+    let missing = tmp.0.join("no_such_run");
+    let missing = missing.to_str().unwrap();
+    assert_refused(run_script(&["--bin", meben, missing]), &format!("{missing}: not a run directory"));
+    assert_refused(run_script(&["--bin", meben, "--episodes", "0", missing]), "--episodes 0: at least 1");
+    let no_bin = tmp.0.join("no_meben");
+    let no_bin = no_bin.to_str().unwrap();
+    assert_refused(run_script(&["--bin", no_bin, missing]), &format!("--bin {no_bin}: not an executable file"));
+    // A checkpoint cut short: its header's JSON ends early.
+    let cut = tmp.0.join("cut");
+    std::fs::create_dir(&cut).unwrap();
+    let mut blob = 200u64.to_le_bytes().to_vec();
+    blob.extend_from_slice(br#"{"team0.assign.mlp.0.weight": {"dtype": "F32", "sha"#);
+    std::fs::write(cut.join("checkpoint.0123.safetensors"), blob).unwrap();
+    let cut_file = cut.join("checkpoint.0123.safetensors");
+    let expected = format!("{}: not a readable safetensors file", cut_file.display());
+    assert_refused(run_script(&["--bin", meben, cut.to_str().unwrap()]), &expected);
 }
