@@ -65,8 +65,9 @@ def load_scorer(run):
         if not isinstance(t, dict) or t.get("dtype") != "F32":
             refuse(f"{path}: tensor {name} is not F32 ({t!r:.80})")
         start, end = t["data_offsets"]
-        if not (0 <= start <= end <= len(blob) - 8 - n) or (end - start) % 4:
-            refuse(f"{path}: tensor {name} has data offsets {start}..{end} outside its {len(blob) - 8 - n} data bytes")
+        data_bytes = len(blob) - 8 - n
+        if not (0 <= start <= end <= data_bytes) or (end - start) % 4:
+            refuse(f"{path}: tensor {name} has data offsets {start}..{end} outside its {data_bytes} data bytes")
         values = array("f")
         values.frombytes(blob[8 + n + start : 8 + n + end])
         tensors[name] = (t["shape"], list(values))
@@ -130,9 +131,10 @@ def episode(meben, run, seed, stochastic, path):
         said = done.stderr.strip() or "no message"
         refuse(f"{run}: `meben render --seed {seed}` failed with exit status {done.returncode}:\n{said}")
     html = open(path).read()
-    if "const D = " not in html:
+    marker = html.find("const D = ")
+    if marker < 0:
         refuse(f"{run}: the episode `meben render --seed {seed}` wrote holds no player data (const D)")
-    start = html.index("const D = ") + len("const D = ")
+    start = marker + len("const D = ")
     data, _ = json.JSONDecoder().raw_decode(html[start:])
     agree = nearest = changes = greedy_changes = 0
     prev = prev_greedy = None
@@ -182,7 +184,7 @@ def write_tables(a, scorers):
     for run, (layers, prior) in zip(a.runs, scorers):
         s = [score(layers, prior, d, DH) for d in distances]
         # The logistic of s(2 m) - s(3 m), kept from overflowing where the scores rise steeply.
-        p = 1 / (1 + math.exp(min(score(layers, prior, 3, DH) - score(layers, prior, 2, DH), 700.0)))
+        p = 1 / (1 + math.exp(min(s[2] - s[1], 700.0)))
         print(f"| `{run}` | {prior:g} | " + " | ".join(f"{v:.2f}" for v in s) + f" | {p:.2f} |")
 
     print(f"\nOver episode seeds 0-{a.episodes - 1} (`meben render`): the share of steps on which the")

@@ -49,13 +49,7 @@ fn diagnose(scratch: &str, model: &str, episodes: &str) -> (bool, String, String
     let tmp = common::TempDir::new(scratch);
     let run = tmp.0.join("run");
     train(model, &run);
-    let out = Command::new("python3")
-        .arg(script())
-        .args(["--bin", env!("CARGO_BIN_EXE_meben"), "--episodes", episodes])
-        .arg(&run)
-        .output()
-        .expect("python3 runs the script");
-    common::outcome(out)
+    run_script(&["--bin", env!("CARGO_BIN_EXE_meben"), "--episodes", episodes, run.to_str().unwrap()])
 }
 
 /// The cells of the table row whose second column is `second` (a table of `run`).
@@ -128,8 +122,8 @@ fn the_diagnostics_refuse_bad_input_by_name() {
     std::fs::create_dir(&cut).unwrap();
     let mut blob = 200u64.to_le_bytes().to_vec();
     blob.extend_from_slice(br#"{"team0.assign.mlp.0.weight": {"dtype": "F32", "sha"#);
-    std::fs::write(cut.join("checkpoint.0123.safetensors"), blob).unwrap();
     let cut_file = cut.join("checkpoint.0123.safetensors");
+    std::fs::write(&cut_file, blob).unwrap();
     let expected = format!("{}: not a readable safetensors file", cut_file.display());
     assert_refused(run_script(&["--bin", meben, cut.to_str().unwrap()]), &expected);
 }
