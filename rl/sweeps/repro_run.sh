@@ -10,6 +10,7 @@
 #   nice -n 19 rl/sweeps/repro_run.sh H &  nice -n 19 rl/sweeps/repro_run.sh G &    # its item 3; issue 79
 #   nice -n 19 rl/sweeps/repro_run.sh I &                                            # issue 79, assign_prior=10
 #   nice -n 19 rl/sweeps/repro_run.sh J &                                            # issue 79, Team Sumo
+#   nice -n 19 rl/sweeps/repro_run.sh K &                                            # issue 79, no assignment bonus
 #   rl/sweeps/repro_run.sh export                             # evidence -> results/, reports
 #   rl/sweeps/repro_run.sh restore                            # finished runs <- results/ (A and B do it first)
 #   rl/sweeps/repro_run.sh status                             # every run's progress and hours left
@@ -31,11 +32,11 @@ BIN=${BIN:-$ROOT/target/release/meben}
 OUT=${OUT:-/tmp/runs/repro}
 THREADS=${THREADS:-1}
 SWEEPS=$ROOT/rl/sweeps
-EXPERIMENTS="reach_1_ant reach_2_ants equivariance sumo reach_2_ants_no_assignment reach_2_ants_per_slot_starts transformer_1_ant centipede reach_2_ants_50m reach_1_ant_50m equivariance_2_ants learned_assignment learned_assignment_prior learned_assignment_sumo"
+EXPERIMENTS="reach_1_ant reach_2_ants equivariance sumo reach_2_ants_no_assignment reach_2_ants_per_slot_starts transformer_1_ant centipede reach_2_ants_50m reach_1_ant_50m equivariance_2_ants learned_assignment learned_assignment_prior learned_assignment_sumo learned_assignment_entropy"
 
 # The sweep file of an experiment: rl/sweeps/repro_<exp>.toml, or rl/sweeps/<exp>.toml for
 # the experiments that are not reproductions (issue 79's learned_assignment,
-# learned_assignment_prior and learned_assignment_sumo).
+# learned_assignment_prior, learned_assignment_sumo and learned_assignment_entropy).
 sweep_file() {
   if [ -f "$SWEEPS/repro_$1.toml" ]; then echo "$SWEEPS/repro_$1.toml"; else echo "$SWEEPS/$1.toml"; fi
 }
@@ -153,6 +154,15 @@ list_j() {
   run learned_assignment_sumo /shnn_assignment-learned/
 }
 
+# Issue 79's second follow-up: mlp_hn:assignment=learned without the assignment's entropy
+# bonus (assignment_entropy_scale = 0, a field binaries before it refuse), 3 seeds at 10M
+# (about 1 machine-hour a seed at one thread).
+list_k() {
+  for seed in 0 1 2; do
+    run learned_assignment_entropy "/seed$seed"
+  done
+}
+
 case "${1:-}" in
   I)
     restore_finished
@@ -168,6 +178,10 @@ case "${1:-}" in
   J)
     restore_finished
     list_j
+    ;;
+  K)
+    restore_finished
+    list_k
     ;;
   H)
     restore_finished
@@ -227,7 +241,7 @@ case "${1:-}" in
     du -sh "$ROOT/results"
     ;;
   *)
-    echo "usage: $0 A | B | C | D | E | F | G | H | I | export | restore | status" >&2
+    echo "usage: $0 A | B | C | D | E | F | G | H | I | J | K | export | restore | status" >&2
     exit 2
     ;;
 esac

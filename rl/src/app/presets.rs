@@ -65,6 +65,7 @@ impl TrainConfig {
             value_coef: 0.25,
             entropy_coef: 1e-2,
             entropy: EntropyKind::TanhNormal,
+            assignment_entropy_scale: 1.0,
             learning_rate: 3e-4,
             lr_decay: false,
             grad_clip: 0.1,
@@ -416,5 +417,61 @@ mod tests {
         assert!(both.contains("train_starts") && both.contains("fixed_start"), "{both}");
         let unknown = set(&[("train_starts", "cached")]).unwrap_err().to_string();
         assert!(unknown.contains("train_starts") && unknown.contains("cached"), "{unknown}");
+    }
+
+    /// `assignment_entropy_scale`: 1 by default and then left out of `config.toml` (the files
+    /// of earlier runs read as before); another value is written, read back, and taken only
+    /// where a team's model learns its assignment, as a finite non-negative number.
+    #[test]
+    fn the_assignment_entropy_scale_is_written_only_when_set_and_only_for_a_learned_assignment() {
+        let set = |pairs: &[(&str, &str)]| {
+            let ov: Vec<(String, String)> = pairs.iter().map(|(k, v)| (k.to_string(), v.to_string())).collect();
+            TrainConfig::resolve(Some(Preset::Paper), None, &ov)
+        };
+        let learned = ("model", "shnn:assignment=learned");
+        let c = set(&[("env", "team_reach/2_ants"), learned]).unwrap();
+        assert_eq!(c.assignment_entropy_scale, 1.0);
+        assert!(!c.to_toml().contains("assignment_entropy_scale"), "the default is left out of config.toml");
+        for (value, expected) in [("0", 0.0), ("0.5", 0.5), ("2", 2.0)] {
+            let kept = set(&[("env", "team_reach/2_ants"), learned, ("assignment_entropy_scale", value)]).unwrap();
+            assert_eq!(kept.assignment_entropy_scale, expected);
+            assert!(kept.to_toml().contains("assignment_entropy_scale = "), "{value}");
+            let back: TrainConfig = toml::from_str(&kept.to_toml()).unwrap();
+            assert_eq!(back, kept);
+        }
+        // Team Sumo: either team's model may be the one that learns.
+        for (model, opponent) in [("shnn:assignment=learned", "mlp_hn"), ("mlp_hn", "mlp_hn:assignment=learned")] {
+            let sumo = [
+                ("env", "team_sumo/2_ants"),
+                ("model", model),
+                ("opponent", opponent),
+                ("assignment_entropy_scale", "0"),
+            ];
+            assert_eq!(set(&sumo).unwrap().assignment_entropy_scale, 0.0, "{model} against {opponent}");
+        }
+        let refused = |pairs: &[(&str, &str)], says: &[&str]| {
+            let e = set(pairs).unwrap_err().to_string();
+            for s in says {
+                assert!(e.contains(s), "{pairs:?}: {e}");
+            }
+        };
+        refused(
+            &[("assignment_entropy_scale", "0")],
+            &["assignment_entropy_scale", "`shnn` does not", "assignment=learned"],
+        );
+        refused(
+            &[("env", "team_sumo/2_ants"), ("model", "shnn:assignment=hungarian"), ("assignment_entropy_scale", "0.5")],
+            &["assignment_entropy_scale", "`shnn:assignment=hungarian` does not"],
+        );
+        refused(
+            &[("env", "team_sumo/2_ants"), ("opponent", "mlp_hn"), ("assignment_entropy_scale", "0.5")],
+            &["neither `shnn` nor `mlp_hn`"],
+        );
+        for bad in ["-1", "nan", "inf"] {
+            refused(
+                &[learned, ("assignment_entropy_scale", bad)],
+                &["assignment_entropy_scale", "finite and non-negative"],
+            );
+        }
     }
 }

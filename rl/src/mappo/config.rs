@@ -153,6 +153,14 @@ pub struct TrainConfig {
     /// written before it existed: `normal`, what those runs used.
     #[serde(default = "entropy_before_the_field")]
     pub entropy: EntropyKind,
+    /// The weight `s` of a learned task assignment's entropy in the bonus, relative to the
+    /// action's: the bonus is `c_H (H(u) + s H(sigma))` ([`crate::mappo::ppo::loss`]). 1 (the
+    /// default) is issue 79's formulation, the assignment a factor of the policy like the
+    /// action; 0 leaves the assignment out of the bonus. Only with a model of
+    /// `assignment=learned`; written to `config.toml` only when not 1, so earlier files read
+    /// as before.
+    #[serde(default = "one", skip_serializing_if = "is_one")]
+    pub assignment_entropy_scale: f64,
     /// Adam learning rate.
     pub learning_rate: f64,
     /// The learning rate falls linearly to 0 over the run's updates (CleanRL's `anneal_lr`;
@@ -261,6 +269,7 @@ impl TrainConfig {
         let starts = toml::Value::try_from(self.train_starts)
             .unwrap_or_else(|e| unreachable!("a TrainStarts always serialises: {e}"));
         table.entry("train_starts").or_insert(starts);
+        table.entry("assignment_entropy_scale").or_insert(toml::Value::Float(self.assignment_entropy_scale));
         table.entry("device").or_insert_with(|| toml::Value::String(self.device.name().into()));
         table.entry("act_device").or_insert_with(|| toml::Value::String(self.act_device.name().into()));
         table.entry("gpu_matmul_tile").or_insert_with(|| toml::Value::Integer(self.gpu_matmul_tile as i64));
@@ -346,7 +355,29 @@ impl TrainConfig {
             // Parsed and resolved: an option the model does not take fails here, not at build.
             models::ModelDescription::parse(spec).map_err(|e| RlError::config(source, field, spec, e.to_string()))?;
         }
-        self.validate_except_models(source)
+        self.validate_except_models(source)?;
+        if !is_one(&self.assignment_entropy_scale) && !self.learns_an_assignment() {
+            let models = if self.opponent.is_empty() {
+                format!("the model `{}` does not", self.model)
+            } else {
+                format!("neither `{}` nor `{}` does", self.model, self.opponent)
+            };
+            return Err(RlError::config(
+                source,
+                "assignment_entropy_scale",
+                self.assignment_entropy_scale.to_string(),
+                format!("weighs a learned task assignment's entropy, and {models} learn one (assignment=learned)"),
+            ));
+        }
+        Ok(())
+    }
+
+    /// Whether a team's model (of the zoo) learns its task assignment (`assignment=learned`).
+    fn learns_an_assignment(&self) -> bool {
+        [&self.model, &self.opponent].into_iter().filter(|s| !s.is_empty()).any(|spec| {
+            models::ModelDescription::parse(spec)
+                .is_ok_and(|d| d.assignment().is_some_and(|a| a.method == models::AssignmentMethod::Learned))
+        })
     }
 
     /// [`TrainConfig::validate`] but for `model` and `opponent` naming models of the zoo: a
@@ -447,6 +478,7 @@ impl TrainConfig {
             ("clip_epsilon", self.clip_epsilon),
             ("value_coef", self.value_coef),
             ("entropy_coef", self.entropy_coef),
+            ("assignment_entropy_scale", self.assignment_entropy_scale),
             ("grad_clip", self.grad_clip),
             ("reward_scaling", self.reward_scaling),
         ] {
@@ -477,6 +509,16 @@ impl TrainConfig {
         }
         Ok(())
     }
+}
+
+/// 1: [`TrainConfig::assignment_entropy_scale`]'s default.
+fn one() -> f64 {
+    1.0
+}
+
+/// Whether the scale is its default, 1 (left out of `config.toml`).
+fn is_one(v: &f64) -> bool {
+    *v == 1.0
 }
 
 /// Configurations written before the `entropy` field existed trained with the Normal part's

@@ -26,7 +26,9 @@
 //! 4. **the loss**
 //!
 //!    `L = -mean(min(rho A, clip(rho, 1 - eps, 1 + eps) A)) + c_v mean((V - v_target)^2)
-//!         - c_H mean(H)`, with `rho = exp(log pi(u | s) - log pi_old(u | s))`;
+//!         - c_H mean(H)`, with `rho = exp(log pi(u | s) - log pi_old(u | s))`; with a
+//!    learned assignment the bonus is `c_H (H(u) + s H(sigma))`, `s` the configuration's
+//!    `assignment_entropy_scale` (1 by default: `H` above);
 //! 5. **statistics** ([`LossStats`]), in f64 from the same tensors.
 
 use envs::layout::ObsSpec;
@@ -53,6 +55,9 @@ pub struct PpoParams {
     pub entropy_coef: f64,
     /// Which entropy the bonus uses.
     pub entropy: EntropyKind,
+    /// The weight `s` of a learned assignment's entropy in the bonus, relative to the
+    /// action's ([`crate::TrainConfig::assignment_entropy_scale`]).
+    pub assignment_entropy_scale: f64,
     /// Discount.
     pub discount: f64,
     /// GAE lambda.
@@ -67,6 +72,7 @@ impl PpoParams {
             value_coef: c.value_coef,
             entropy_coef: c.entropy_coef,
             entropy: c.entropy,
+            assignment_entropy_scale: c.assignment_entropy_scale,
             discount: c.discount,
             gae_lambda: c.gae_lambda,
         }
@@ -165,28 +171,39 @@ pub fn loss<'t>(
     let (advantages, targets) = gae(mb, &values, hp.discount, hp.gae_lambda);
     // 3. log pi(u | s) of the taken actions and the bonus's entropy.
     let (mut logp, mut entropy) = log_prob_and_entropy(&fwd.policy, mb, model.spec(), hp.entropy, entropy_noise)?;
+    let mut bonus = entropy;
     // A learned task assignment is the policy's other factor: its log-probability joins the
-    // action's (the ratio covers both) and its entropy estimate the bonus.
+    // action's (the ratio covers both) and its entropy estimate the bonus, weighted by s:
+    // H = H(u) + H(sigma), the bonus H(u) + s H(sigma) (the same tensor when s = 1).
     if let Some(a) = fwd.assignment {
         logp = logp.add(a.log_prob)?;
-        entropy = entropy.add(a.entropy.mean_all()?)?;
+        let assignment_entropy = a.entropy.mean_all()?;
+        let action_entropy = entropy;
+        entropy = action_entropy.add(assignment_entropy)?;
+        bonus = if hp.assignment_entropy_scale == 1.0 {
+            entropy
+        } else {
+            action_entropy.add(assignment_entropy.scale(hp.assignment_entropy_scale))?
+        };
     }
     let t = Terms {
         logp,
         entropy,
+        bonus,
         logp_old: tape.constant(Tensor::new(mb.logp_old.clone(), &[n])?),
         advantages: tape.constant(Tensor::new(advantages, &[n])?),
         value: fwd.value,
         value_target: tape.constant(Tensor::new(targets, &[n])?),
     };
-    // 4. L = -mean(min(rho A, clip(rho, 1 - eps, 1 + eps) A)) + c_v mean((V - v_target)^2) - c_H H.
+    // 4. L = -mean(min(rho A, clip(rho, 1 - eps, 1 + eps) A)) + c_v mean((V - v_target)^2)
+    //        - c_H (H(u) + s H(sigma)).
     let value_loss = t.value.sub(t.value_target)?.square().mean_all()?;
     let ratio = t.logp.sub(t.logp_old)?.exp();
     let eps = hp.clip_epsilon;
     let unclipped = ratio.mul(t.advantages)?;
     let clipped = ratio.clamp(1.0 - eps, 1.0 + eps).mul(t.advantages)?;
     let policy_loss = unclipped.minimum(clipped)?.mean_all()?.neg();
-    let total = policy_loss.add(value_loss.scale(hp.value_coef))?.sub(t.entropy.scale(hp.entropy_coef))?;
+    let total = policy_loss.add(value_loss.scale(hp.value_coef))?.sub(t.bonus.scale(hp.entropy_coef))?;
     // 5. Statistics.
     let stats = statistics(&t, [total, policy_loss, value_loss, ratio], hp)?;
     Ok((total, stats))
@@ -279,8 +296,11 @@ fn log_prob_and_entropy<'t>(
 struct Terms<'t> {
     /// `log pi(u | s)`, `[n]`.
     logp: Var<'t, f32>,
-    /// The bonus's entropy (a scalar).
+    /// The policy's entropy `H(u) + H(sigma)` (a scalar; the statistic).
     entropy: Var<'t, f32>,
+    /// What the bonus weighs by `c_H`: `H(u) + s H(sigma)` (a scalar; `entropy` when `s = 1`
+    /// or the assignment is not learned).
+    bonus: Var<'t, f32>,
     /// `log pi_old(u | s)`, `[n]` (constant).
     logp_old: Var<'t, f32>,
     /// Advantages `A`, `[n]` (constant).

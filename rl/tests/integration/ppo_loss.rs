@@ -84,6 +84,50 @@ fn stochastic_assignment_is_stored_with_the_transition_and_reused() {
     assert!(first_minibatch(&config).1.assignment.is_empty());
 }
 
+/// `assignment_entropy_scale = s` weighs only a learned assignment's entropy in the bonus
+/// `c_H (H(u) + s H(sigma))`: the loss is affine in `s` with slope `-c_H H(sigma) < 0`, the
+/// statistics (the entropy among them, `H(u) + H(sigma)`) do not depend on it, and at
+/// `s = 0` the scorer's gradient no longer depends on `c_H` (only the ratio reaches it),
+/// where at `s = 1` it does.
+#[test]
+fn the_assignment_entropy_scale_weighs_only_the_assignments_entropy() {
+    let config = common::tiny("team_reach/2_ants", "mlp_hn:assignment=learned", 1, &[]);
+    assert_eq!(config.assignment_entropy_scale, 1.0, "the default");
+    let (mut t, mb) = first_minibatch(&config);
+    let team = &mut t.teams[0];
+    let scorer: Vec<usize> =
+        team.store.iter().enumerate().filter(|(_, (n, _))| n.starts_with("team0.assign.")).map(|(i, _)| i).collect();
+    assert!(!scorer.is_empty());
+    // The loss, its statistics and the scorer's gradient at (c_H, s).
+    let mut run = |entropy_coef: f64, scale: f64| {
+        let tape = Tape::<f32>::new();
+        let p = team.store.bind(&tape);
+        let hp = PpoParams { entropy_coef, assignment_entropy_scale: scale, ..params(&config) };
+        let mut noise = minibatch_stream(config.seed, "entropy", 0, 0, 0, 0);
+        let (loss, st) = ppo::loss(team.model.as_mut(), &p, &mb, &hp, &mut noise).unwrap();
+        let grads = p.grads(&tape.backward(loss).unwrap());
+        let g: Vec<Vec<f32>> = scorer.iter().map(|&i| grads[i].to_vec()).collect();
+        (loss.value().item().unwrap() as f64, st, g)
+    };
+    let c_h = 0.5;
+    let [(l0, s0, g0), (l1, s1, g1), (l2, s2, _)] = [0.0, 1.0, 2.0].map(|s| run(c_h, s));
+    for st in [&s1, &s2] {
+        let same = |a: f64, b: f64| a.to_bits() == b.to_bits();
+        assert!(same(st.entropy, s0.entropy) && same(st.policy_loss, s0.policy_loss), "{st:?} against {s0:?}");
+        assert!(same(st.value_loss, s0.value_loss), "{st:?} against {s0:?}");
+    }
+    let (slope_low, slope_high) = (l1 - l0, l2 - l1);
+    assert!(slope_low < 0.0, "a larger s should lower the loss by c_H H(sigma): {l0} {l1} {l2}");
+    assert!((slope_low - slope_high).abs() <= 1e-5 * (1.0 + l1.abs()), "not affine in s: {l0} {l1} {l2}");
+    // H(sigma) of two balls and two ants is at most ln 2 per step.
+    let h_sigma = -slope_low / c_h;
+    assert!(h_sigma > 0.0 && h_sigma <= std::f64::consts::LN_2 + 1e-4, "H(sigma) = {h_sigma}");
+    let (_, _, g0_without_bonus) = run(0.0, 0.0);
+    assert_eq!(g0, g0_without_bonus, "at s = 0 the bonus should not reach the scorer");
+    let (_, _, g1_without_bonus) = run(0.0, 1.0);
+    assert_ne!(g1, g1_without_bonus, "at s = 1 the bonus should reach the scorer");
+}
+
 #[test]
 fn loss_matches_a_hand_computation_from_the_model_outputs() {
     for kind in [EntropyKind::TanhNormal, EntropyKind::Normal] {

@@ -177,6 +177,16 @@ mod tests {
         let expected = TrainConfig { model: "shnn:assignment=learned".into(), ..sumo[0].config.clone() };
         assert_eq!(learned_sumo[0].config, expected);
         assert_eq!(learned_sumo[0].name, "team_sumo_2_ants/shnn_assignment-learned/seed0");
+        // Its follow-up without the assignment's entropy bonus: learned_assignment.toml's
+        // MLP+HN runs but for `assignment_entropy_scale`.
+        let learned = Sweep::load(&dir.join("learned_assignment.toml")).unwrap().runs().unwrap();
+        let no_bonus = Sweep::load(&dir.join("learned_assignment_entropy.toml")).unwrap().runs().unwrap();
+        assert_eq!(no_bonus.len(), 3);
+        for (r, l) in no_bonus.iter().zip(&learned[..3]) {
+            assert_eq!(l.config.model, "mlp_hn:assignment=learned");
+            assert_eq!(r.config, TrainConfig { assignment_entropy_scale: 0.0, ..l.config.clone() }, "{}", r.name);
+            assert_eq!(r.name, l.name);
+        }
 
         // The diagnostics beside experiment 1b: each changes one thing of `mlp_hn` on 2_ants.
         let load = |name: &str| Sweep::load(&dir.join(name)).unwrap().runs().unwrap();
