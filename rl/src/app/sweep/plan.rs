@@ -185,7 +185,8 @@ mod tests {
         for (r, l) in no_bonus.iter().zip(&learned[..3]) {
             assert_eq!(l.config.model, "mlp_hn:assignment=learned");
             assert_eq!(r.config, TrainConfig { assignment_entropy_scale: 0.0, ..l.config.clone() }, "{}", r.name);
-            assert_eq!(r.name, l.name);
+            let name = l.name.replace("/seed", "+no_assignment_bonus/seed");
+            assert_eq!(r.name, name);
         }
 
         // The diagnostics beside experiment 1b: each changes one thing of `mlp_hn` on 2_ants.
