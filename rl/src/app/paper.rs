@@ -293,6 +293,12 @@ fn start_key(g: &GroupReport) -> &'static str {
     if g.start == StartKind::Fixed { "fixed" } else { "random" }
 }
 
+/// The name of a sweep's named variant in a group's run path (`<env>/<model>+<variant>`,
+/// [`crate::app::sweep`]), which changes configuration fields that the model does not show.
+fn sweep_variant(path: &str) -> Option<&str> {
+    path.rsplit('/').next().and_then(|last| last.split_once('+')).map(|(_, variant)| variant)
+}
+
 /// The table of the report's `groups` against the paper's figures (module docs), as
 /// Markdown. A Team Reach group is matched by environment, model, rotation and start (see
 /// [`start_key`]); Team Sumo's figures are not in the data file.
@@ -304,11 +310,14 @@ fn figures_table(groups: &[GroupReport], paper: &PaperFigures) -> String {
     );
     for g in groups {
         let what = if g.metric.starts_with("eval_win_rate") { "win" } else { "success" };
-        let model = if g.opponent.is_empty() {
+        let mut model = if g.opponent.is_empty() {
             format!("`{}`", md_cell(&g.model))
         } else {
             format!("`{}` vs `{}`", md_cell(&g.model), md_cell(&g.opponent))
         };
+        if let Some(variant) = sweep_variant(&g.variant) {
+            model.push_str(&format!(", variant `{}`", md_cell(variant)));
+        }
         let rotation = g.rotation_deg as i64;
         let evaluated = if rotation == 0 { what.to_string() } else { format!("{what}, rotated {rotation}°") };
         let figure = if g.opponent.is_empty() { paper.find(&g.env, &g.model, start_key(g), rotation) } else { None };
@@ -632,10 +641,14 @@ mod tests {
         .unwrap();
         let mut single = group("mlp", StartKind::Random, (10_158_080, 10_158_080));
         single.runs.truncate(1);
+        // A sweep's named variant (run paths `<env>/<model>+<variant>/seed<N>`) is named.
+        let mut variant = group("shnn:assignment=learned", StartKind::Random, (10_158_080, 10_158_080));
+        variant.variant = "team_reach_1_ant/shnn_assignment-learned+no_assignment_bonus".into();
         let groups = [
             group("shnn", StartKind::Fixed, (10_158_080, 10_158_080)),
             group("shnn", StartKind::RandomPerSlot, (1_146_880, 10_158_080)),
             single,
+            variant,
         ];
         let table = paper_table(&groups, &p);
         assert!(table.starts_with(
@@ -643,7 +656,7 @@ mod tests {
              paper: % (mean ± s.d.) | paper's seeds |"
         ));
         let rows: Vec<&str> = table.lines().skip(2).collect();
-        assert_eq!(rows.len(), 3, "no claims, no second table: {table}");
+        assert_eq!(rows.len(), 4, "no claims, no second table: {table}");
         assert_eq!(
             rows[0],
             "| `team_reach/1_ant` | `shnn` | fixed | success | 15.00 ± 7.07 | [10.00, 20.00] | 2 | 10.16M | \
@@ -656,6 +669,13 @@ mod tests {
         );
         assert!(rows[2].contains("| 15.00 (one run) | – | 1 |"), "{}", rows[2]);
         assert!(rows[2].ends_with("| – | – | – | not in the paper's tables |"), "{}", rows[2]);
+        assert!(
+            rows[3].starts_with(
+                "| `team_reach/1_ant` | `shnn:assignment=learned`, variant `no_assignment_bonus` | random |"
+            ),
+            "{}",
+            rows[3]
+        );
     }
 
     #[test]
