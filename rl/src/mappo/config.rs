@@ -348,15 +348,18 @@ impl TrainConfig {
 
     /// Checks every value; errors name `source`, the field and the value.
     pub fn validate(&self, source: &str) -> Result<()> {
+        let mut learns_an_assignment = false;
         for (field, spec) in [("model", &self.model), ("opponent", &self.opponent)] {
             if field == "opponent" && spec.is_empty() {
                 continue;
             }
             // Parsed and resolved: an option the model does not take fails here, not at build.
-            models::ModelDescription::parse(spec).map_err(|e| RlError::config(source, field, spec, e.to_string()))?;
+            let d = models::ModelDescription::parse(spec)
+                .map_err(|e| RlError::config(source, field, spec, e.to_string()))?;
+            learns_an_assignment |= d.assignment().is_some_and(|a| a.method == models::AssignmentMethod::Learned);
         }
         self.validate_except_models(source)?;
-        if !is_one(&self.assignment_entropy_scale) && !self.learns_an_assignment() {
+        if !is_one(&self.assignment_entropy_scale) && !learns_an_assignment {
             let models = if self.opponent.is_empty() {
                 format!("the model `{}` does not", self.model)
             } else {
@@ -370,14 +373,6 @@ impl TrainConfig {
             ));
         }
         Ok(())
-    }
-
-    /// Whether a team's model (of the zoo) learns its task assignment (`assignment=learned`).
-    fn learns_an_assignment(&self) -> bool {
-        [&self.model, &self.opponent].into_iter().filter(|s| !s.is_empty()).any(|spec| {
-            models::ModelDescription::parse(spec)
-                .is_ok_and(|d| d.assignment().is_some_and(|a| a.method == models::AssignmentMethod::Learned))
-        })
     }
 
     /// [`TrainConfig::validate`] but for `model` and `opponent` naming models of the zoo: a
