@@ -170,10 +170,13 @@ impl PyPolicy {
     /// (the dict `meben eval` writes to `eval.json`: `success_rate`, `win_rate`,
     /// `draw_rate`, `mean_return`, `mean_length`, ...). `deterministic=None` takes the run's
     /// `eval_deterministic`; `fixed`, a `rotation_deg` or a `translation` `(x, y)` plays
-    /// the fixed start of the run's seed, moved (the paper's equivariance test). The
-    /// policy's own noise streams (`act`) are untouched. The GIL is released while playing;
-    /// a `KeyboardInterrupt` abandons the evaluation and is raised.
-    #[pyo3(signature = (episodes=1024, seed=rl::mappo::evaluate::DEFAULT_EVAL_SEED as i128, deterministic=None, fixed=false, rotation_deg=None, translation=None))]
+    /// the fixed start of the run's seed, moved (the paper's equivariance test).
+    /// `assignment_sensitivity=True` also measures how much each team's actions depend on
+    /// its task assignment (`meben eval --assignment-sensitivity`; the summary's
+    /// `assignment_sensitivity`). The policy's own noise streams (`act`) are untouched. The
+    /// GIL is released while playing; a `KeyboardInterrupt` abandons the evaluation and is
+    /// raised.
+    #[pyo3(signature = (episodes=1024, seed=rl::mappo::evaluate::DEFAULT_EVAL_SEED as i128, deterministic=None, fixed=false, rotation_deg=None, translation=None, assignment_sensitivity=false))]
     #[allow(clippy::too_many_arguments)]
     fn evaluate<'py>(
         &self,
@@ -184,6 +187,7 @@ impl PyPolicy {
         fixed: bool,
         rotation_deg: Option<f64>,
         translation: Option<(f64, f64)>,
+        assignment_sensitivity: bool,
     ) -> PyResult<Bound<'py, PyAny>> {
         let seed = crate::seed::seed("seed", seed, u64::MAX)?;
         let request = EvalRequest {
@@ -194,7 +198,7 @@ impl PyPolicy {
             rotation_deg,
             translation: translation.map(|(x, y)| [x, y]),
         };
-        let options = request.options(&self.config);
+        let options = rl::mappo::evaluate::EvalOptions { assignment_sensitivity, ..request.options(&self.config) };
         let (env, teams) = (&self.config.env, &self.teams);
         let stop = StopFlag::new();
         let stopping = "Policy.evaluate: interrupted: abandoning the evaluation";

@@ -251,6 +251,23 @@ def test_policy_evaluate_returns_what_meben_eval_writes(run, meben_cli, flags, k
     assert python["episodes"] == episodes and python["rotation_deg"] == kwargs.get("rotation_deg", 0.0)
 
 
+def test_policy_evaluate_measures_the_assignment_sensitivity_as_meben_eval_does(tmp_path, meben_cli):
+    # The shipped 2_ants SHNN: two ants, two balls, so one other assignment a step.
+    out = tmp_path / "eval.json"
+    flags = ["--episodes", "2", "--seed", "3", "--stochastic", "--assignment-sensitivity", "--out", str(out)]
+    subprocess.run([meben_cli, "eval", "--policy", "pretrained:team_reach/2_ants/shnn", *flags], check=True, capture_output=True)
+    policy = meben.Policy.pretrained("team_reach/2_ants", "shnn")
+    python = policy.evaluate(episodes=2, seed=3, deterministic=False, assignment_sensitivity=True)
+    assert python == json.loads(out.read_text())
+    (s,) = python["assignment_sensitivity"]
+    assert s["team"] == 0 and s["alternatives"] == 1.0
+    assert s["steps"] == round(2 * python["mean_length"]) and s["mean_kl"] > 0.0
+    # Without the flag the summary has no such key, and the episodes are the same.
+    plain = policy.evaluate(episodes=2, seed=3, deterministic=False)
+    assert "assignment_sensitivity" not in plain
+    assert plain == {k: v for k, v in python.items() if k != "assignment_sensitivity"}
+
+
 def test_policy_evaluate_rejects_bad_requests_by_name(run):
     policy = meben.Policy.load(run)
     with pytest.raises(ValueError, match="episodes"):

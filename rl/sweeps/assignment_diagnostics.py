@@ -14,7 +14,13 @@ tree, not the committed evidence) this prints, as Markdown:
    share of steps on which the learned assignment equals Algorithm 1's (recomputed from the
    recorded root and ball positions: balls in order, each taking its nearest free agent)
    and the matching of least total distance (every one-to-one matching tried), and how many
-   times per 1000 steps the learned assignment and Algorithm 1's change.
+   times per 1000 steps the learned assignment and Algorithm 1's change;
+3. how much the actions depend on the assignment, from `meben eval --assignment-sensitivity`
+   over `--sensitivity-episodes` episodes with sampled actions (the run's policy written to a
+   scratch file by `meben export-policy` first, so nothing is written to the run): the KL
+   divergence (nats) from the action distribution under the assignment acted on to that
+   under the other one-to-one assignment, per scene-step (mean, median, 90th percentile, and
+   the mean over each episode's first 100 steps), beside the evaluation's success rate.
 
 Standard library only (the HTML player's data and the safetensors header are JSON).
 
@@ -159,10 +165,15 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--bin", default="target/release/meben", help="the meben program")
     ap.add_argument("--episodes", type=int, default=8, help="episode seeds 0..N-1")
+    ap.add_argument(
+        "--sensitivity-episodes", type=int, default=32, help="episodes of the assignment-sensitivity evaluation"
+    )
     ap.add_argument("runs", nargs="+", help="run directories with their checkpoints")
     a = ap.parse_args()
     if a.episodes < 1:
         ap.error(f"--episodes {a.episodes}: at least 1")
+    if a.sensitivity_episodes < 1:
+        ap.error(f"--sensitivity-episodes {a.sensitivity_episodes}: at least 1")
     if not (os.path.isfile(a.bin) and os.access(a.bin, os.X_OK)):
         refuse(f"--bin {a.bin}: not an executable file (build it: cargo build --release -p rl)")
     # Every run is read first, and the tables are printed only once every episode has been
@@ -174,8 +185,29 @@ def main():
     sys.stdout.write(tables.getvalue())
 
 
+def sensitivity(meben, run, episodes, tmp):
+    """The `assignment_sensitivity` entry of team 0 and the success rate of an evaluation of
+    `run` over `episodes` episodes with sampled actions (module doc, table 3)."""
+    policy, summary = os.path.join(tmp, "policy.safetensors"), os.path.join(tmp, "eval.json")
+    for cmd in (
+        [meben, "export-policy", "--run", run, "--out", policy],
+        [meben, "eval", "--policy", policy, "--episodes", str(episodes), "--stochastic", "--assignment-sensitivity",
+         "--out", summary],
+    ):
+        done = subprocess.run(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+        if done.returncode != 0:
+            said = done.stderr.strip() or "no message"
+            refuse(f"{run}: `meben {cmd[1]}` failed with exit status {done.returncode}:\n{said}")
+    try:
+        e = json.load(open(summary))
+        s = next(x for x in e["assignment_sensitivity"] if x["team"] == 0)
+        return e["success_rate"], s
+    except (OSError, ValueError, KeyError, StopIteration) as err:
+        refuse(f"{run}: the evaluation summary holds no assignment sensitivity of team 0 ({err!r})")
+
+
 def write_tables(a, scorers):
-    """The two tables (module doc) of the runs `a.runs` with their `scorers`, to stdout."""
+    """The three tables (module doc) of the runs `a.runs` with their `scorers`, to stdout."""
     distances = [1, 2, 3, 4, 5, 6]
     print(f"Learned scores s(d) = f_θ(d, Δh) - λ d at Δh = {DH} m; P(nearer): a ball's chance")
     print("of picking the nearer of two agents at 2 and 3 m.\n")
@@ -208,6 +240,20 @@ def write_tables(a, scorers):
                     f"| `{run}` | {mode} | {steps} | {100 * agree / steps:.1f}% | {100 * nearest / steps:.1f}% | "
                     f"{1000 * changes / steps:.1f} | {1000 * greedy_changes / steps:.1f} |"
                 )
+
+        n = a.sensitivity_episodes
+        print(f"\nHow much the actions depend on the assignment (`meben eval --episodes {n} --stochastic")
+        print("--assignment-sensitivity`): per scene-step, KL(π(·|s,σ) ‖ π(·|s,σ')) in nats from the action")
+        print("distribution under the assignment acted on, σ, to that under the other one, σ', over the")
+        print("steps of every episode and over each episode's first 100 steps.\n")
+        print("| run | evaluation | success | scene-steps | KL mean | KL median | KL 90th percentile | KL mean, first 100 steps |")
+        print("|---|---|---:|---:|---:|---:|---:|---:|")
+        for run in a.runs:
+            success, s = sensitivity(a.bin, run, n, tmp)
+            print(
+                f"| `{run}` | {n} episodes, sampled actions | {100 * success:.1f}% | {s['steps']} | {s['mean_kl']:.2f} | "
+                f"{s['median_kl']:.2f} | {s['p90_kl']:.2f} | {s['early_mean_kl']:.2f} |"
+            )
 
 
 if __name__ == "__main__":

@@ -110,6 +110,7 @@ class Policy:
         fixed: bool = False,
         rotation_deg: Optional[float] = None,
         translation: Optional[Tuple[float, float]] = None,
+        assignment_sensitivity: bool = False,
     ) -> EvalSummary: ...
     @property
     def run(self) -> pathlib.Path:

@@ -13,7 +13,7 @@ from typing import List, Optional, Tuple, TypedDict
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["EvalSummary", "Observation", "RunSummary", "Spec", "StepInfo"]
+__all__ = ["AssignmentSensitivity", "EvalSummary", "Observation", "RunSummary", "Spec", "StepInfo"]
 
 
 class Observation(TypedDict):
@@ -74,10 +74,29 @@ class Spec(TypedDict):
     node_is_root: List[bool]
 
 
-class EvalSummary(TypedDict):
+class AssignmentSensitivity(TypedDict):
+    """How much a team's actions depend on its task assignment (``Policy.evaluate(...,
+    assignment_sensitivity=True)``, ``meben eval --assignment-sensitivity``): per
+    scene-step, the KL divergence in nats from the action distribution under the
+    assignment acted on to that under each other one-to-one assignment."""
+
+    team: int
+    steps: int
+    alternatives: float
+    mean_kl: float
+    median_kl: float
+    p90_kl: float
+    early_mean_kl: float
+
+
+class _EvalSummaryMeasuredOnRequest(TypedDict, total=False):
+    assignment_sensitivity: List[AssignmentSensitivity]
+
+
+class EvalSummary(_EvalSummaryMeasuredOnRequest):
     """One evaluation (``Policy.evaluate``; ``meben eval``'s ``eval.json``): rates are
     fractions in [0, 1]; ``win_rate`` and ``mean_return`` have one entry per team;
-    ``translation`` is ``[x, y]`` in m."""
+    ``translation`` is ``[x, y]`` in m; ``assignment_sensitivity`` only when asked for."""
 
     episodes: int
     success_rate: float

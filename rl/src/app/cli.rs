@@ -18,7 +18,7 @@ use crate::app::run_dir::RunDir;
 use crate::app::signals::{INTERRUPTED_EXIT_CODE, install_signal_handler};
 use crate::error::RlError;
 use crate::mappo::config::TrainConfig;
-use crate::mappo::evaluate::EvalRequest;
+use crate::mappo::evaluate::{EvalOptions, EvalRequest};
 use crate::stop::StopFlag;
 use clap::{ArgGroup, Args, Parser, Subcommand};
 
@@ -193,6 +193,12 @@ struct EvalArgs {
     /// on the CPU either way; GPU results differ from the CPU's by f32 rounding.
     #[arg(long, default_value = "cpu")]
     device: String,
+    /// Also measure how much each team's actions depend on its task assignment: at every
+    /// step, the KL divergence (nats) from its action distribution under the assignment it
+    /// acted on to that under each other one-to-one assignment (the episodes play as
+    /// without; the summary gains `assignment_sensitivity`). Models with an assignment only.
+    #[arg(long)]
+    assignment_sensitivity: bool,
 }
 
 /// `X,Y` as two finite numbers.
@@ -526,8 +532,26 @@ fn cmd_eval(a: EvalArgs) -> Result<(), String> {
         translation: a.translate,
     }
     .options(&config);
+    let options = EvalOptions { assignment_sensitivity: a.assignment_sensitivity, ..options };
     let e = evaluate_on_device(&config.env, &mut teams, &options, device)?;
     print_eval(config.is_sumo(), &e);
+    for s in &e.assignment_sensitivity {
+        if s.steps == 0 {
+            println!("team {} assignment sensitivity: no other one-to-one assignment to compare with", s.team);
+            continue;
+        }
+        println!(
+            "team {} assignment sensitivity: KL(π(·|s,σ) ‖ π(·|s,σ')) mean {:.4}, median {:.4}, 90th percentile {:.4} nats over {} scene-steps, {} other assignment(s) a step; mean over each episode's first {} steps {:.4}",
+            s.team,
+            s.mean_kl,
+            s.median_kl,
+            s.p90_kl,
+            s.steps,
+            s.alternatives,
+            crate::mappo::assignment_sensitivity::EARLY_STEPS,
+            s.early_mean_kl
+        );
+    }
     let text = serde_json::to_string_pretty(&e).map_err(|e| e.to_string())?;
     for path in in_run.iter().chain(&out) {
         nn::write_atomic(path, text.as_bytes()).map_err(|e| e.to_string())?;

@@ -191,7 +191,7 @@ type HostHead = (usize, Tensor<f32>, Tensor<f32>);
 /// Every agent's `(agent, loc, scale)` on the host: from another device all of them in one
 /// transfer (`tensor::to_host_all`: one staging buffer, one wait, no kernel); on the host
 /// they are already there.
-fn host_heads(agents: &[AgentPolicy<'_, f32>]) -> Result<Vec<HostHead>> {
+pub(crate) fn host_heads(agents: &[AgentPolicy<'_, f32>]) -> Result<Vec<HostHead>> {
     let values: Vec<Tensor<f32>> = agents.iter().flat_map(|a| [a.loc.value(), a.scale.value()]).collect();
     let host = tensor::to_host_all(&values)?;
     Ok(agents.iter().zip(host.chunks_exact(2)).map(|(a, ls)| (a.agent, ls[0].clone(), ls[1].clone())).collect())

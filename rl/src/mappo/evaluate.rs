@@ -20,6 +20,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::error::Result;
 use crate::mappo::actor::{ActMode, Actor, JointAction};
+use crate::mappo::assignment_sensitivity::{AssignmentSensitivity, SensitivityProbe};
 use crate::mappo::config::TrainConfig;
 use crate::mappo::seeding::stream;
 use crate::mappo::team::Team;
@@ -49,6 +50,11 @@ pub struct EvalSummary {
     /// Horizontal translation of every start (x, y) in m.
     #[serde(default)]
     pub translation: [f64; 2],
+    /// How much each team's actions depend on its task assignment, for the teams that have
+    /// one ([`crate::mappo::assignment_sensitivity`]); measured only when
+    /// [`EvalOptions::assignment_sensitivity`] asks (empty otherwise, and then not written).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub assignment_sensitivity: Vec<AssignmentSensitivity>,
 }
 
 /// What to evaluate.
@@ -68,12 +74,23 @@ pub struct EvalOptions {
     /// Every start translated horizontally by this (x, y) in m, after the rotation; the
     /// balls (goal balls, Sumo's centre ball) move with the agents.
     pub translation: [f64; 2],
+    /// Also measure, at every step, how much each team's actions depend on its task
+    /// assignment ([`EvalSummary::assignment_sensitivity`]; the episodes play as without).
+    pub assignment_sensitivity: bool,
 }
 
 impl EvalOptions {
     /// `episodes` episodes from `mode` with seed `seed`, unmoved.
     pub fn new(episodes: usize, deterministic: bool, seed: u64, mode: StartMode) -> Self {
-        EvalOptions { episodes, deterministic, seed, mode, rotation_deg: 0.0, translation: [0.0, 0.0] }
+        EvalOptions {
+            episodes,
+            deterministic,
+            seed,
+            mode,
+            rotation_deg: 0.0,
+            translation: [0.0, 0.0],
+            assignment_sensitivity: false,
+        }
     }
 
     /// The motion applied to every start.
@@ -204,6 +221,21 @@ fn play(
     let (b, na, nt) = (options.episodes, venv.n_actions(), venv.scene().n_teams());
     let mode = if options.deterministic { ActMode::Mean } else { ActMode::Sample };
     let mut players = evaluation_actors(teams, options.seed, mode);
+    // The teams with a task assignment, when their sensitivity to it is asked for.
+    let mut probes: Vec<Option<SensitivityProbe>> = players
+        .iter()
+        .enumerate()
+        .map(|(k, (model, _))| {
+            (options.assignment_sensitivity && model.assignment_width() > 0).then(|| SensitivityProbe::new(k))
+        })
+        .collect();
+    if options.assignment_sensitivity && probes.iter().all(Option::is_none) {
+        let models: Vec<&str> = players.iter().map(|(m, _)| m.name()).collect();
+        return Err(crate::RlError::Model(models::ModelError::Input(format!(
+            "assignment sensitivity: no team's model has a task assignment to vary ({})",
+            models.join(", ")
+        ))));
+    }
     let mut joint = JointAction::new(b, na, nt);
     let mut alive = vec![true; b];
     let mut returns = vec![0.0f64; b * nt];
@@ -211,7 +243,7 @@ fn play(
     let mut length = vec![0u32; b];
     let mut remaining = b;
     let max_steps = spec.episode_steps + 1;
-    for _ in 0..max_steps {
+    for step in 0..max_steps {
         if remaining == 0 {
             break;
         }
@@ -220,6 +252,12 @@ fn play(
         }
         for ((team, store), (model, actor)) in teams.iter().zip(stores).zip(&mut players) {
             actor.act(model.as_mut(), store, &team.norm, venv.obs().rows(), &mut joint)?;
+        }
+        for (k, probe) in probes.iter_mut().enumerate() {
+            if let Some(probe) = probe {
+                let (model, store, norm) = (players[k].0.as_mut(), stores[k], &teams[k].norm);
+                probe.observe(model, store, norm, venv.obs().rows(), &joint.assignment[k], &alive, step)?;
+            }
         }
         let out = venv.step(&joint.actions)?;
         for e in 0..b {
@@ -241,6 +279,7 @@ fn play(
         sampled: !options.deterministic,
         rotation_deg: options.rotation_deg,
         translation: options.translation,
+        assignment_sensitivity: probes.iter().flatten().map(SensitivityProbe::summary).collect(),
         ..summarise(&outcome, &returns, &length, nt)
     }))
 }

@@ -12,7 +12,8 @@
 //! - [`ppo`]: the PPO loss of a minibatch, in one function (forward, [`gae`], log-probabilities
 //!   and entropy, the loss, its statistics);
 //! - [`normalizer`]: observation statistics; [`seeding`]: the random streams;
-//! - [`evaluate`](mod@evaluate): episodes of the trained teams;
+//! - [`evaluate`](mod@evaluate): episodes of the trained teams, and
+//!   [`assignment_sensitivity`]: how much their actions depend on their task assignment;
 //! - [`checkpoint`] (the exact training state) with its [`checksum`] and its tensors'
 //!   [`tensor_file`] (safetensors), and [`memory`] (whether an iteration's buffers fit);
 //! - [`device`]: where the updates run (`device = "cpu" | "gpu"`) and whether this build and
@@ -22,6 +23,7 @@
 //! configuration files itself ([`config::read_config_text`]).
 
 pub mod actor;
+pub mod assignment_sensitivity;
 pub mod checkpoint;
 pub mod checksum;
 pub mod config;

@@ -84,6 +84,14 @@ fn the_diagnostics_find_algorithm_1_in_a_run_with_the_largest_prior() {
     // matching.
     let most_likely = row(&stdout, "most likely (mean actions)");
     assert_eq!(most_likely[4], "100.0%", "{most_likely:?}");
+
+    // The actions' dependence on the assignment, from `meben eval --assignment-sensitivity`
+    // over the default 32 episodes: every scene-step counted, a positive divergence (the
+    // head reads the assigned ball).
+    let kl = row(&stdout, "32 episodes, sampled actions");
+    assert!(kl[3].parse::<usize>().unwrap() > 32, "{kl:?}");
+    let figures: Vec<f64> = kl[4..8].iter().map(|c| c.parse().unwrap()).collect();
+    assert!(figures.iter().all(|&x| x > 0.0) && figures[1] <= figures[2], "{kl:?}");
 }
 
 /// Asserts a refusal: a failure with nothing on stdout (no partial table), `expected` on
@@ -114,6 +122,8 @@ fn the_diagnostics_refuse_bad_input_by_name() {
     let missing = missing.to_str().unwrap();
     assert_refused(run_script(&["--bin", meben, missing]), &format!("{missing}: not a run directory"));
     assert_refused(run_script(&["--bin", meben, "--episodes", "0", missing]), "--episodes 0: at least 1");
+    let zero = ["--bin", meben, "--sensitivity-episodes", "0", missing];
+    assert_refused(run_script(&zero), "--sensitivity-episodes 0: at least 1");
     let no_bin = tmp.0.join("no_meben");
     let no_bin = no_bin.to_str().unwrap();
     assert_refused(run_script(&["--bin", no_bin, missing]), &format!("--bin {no_bin}: not an executable file"));

@@ -2,6 +2,7 @@
 //! one module per subject, each with its own doc comment.
 
 mod assignment_diagnostics;
+mod assignment_sensitivity;
 mod checkpoint_format;
 mod checkpoint_trust;
 mod cli;
