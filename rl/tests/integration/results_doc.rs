@@ -18,9 +18,11 @@
 //!   ([`the_reproduction_prose_quotes_the_committed_evidence`]): a run's evaluated success,
 //!   win, loss or draw rate at any of its evaluations and rotations, a statistic of a
 //!   report (`report.csv`, also at a matched budget: mean, s.e., s.d., IQM, intervals), a
-//!   figure of `results/paper.toml`, or a value of a `metrics.csv` column the paragraph
-//!   names in backticks (`entropy_t0`). A retyped per-seed figure that no longer matches
-//!   any of them fails; one edited into another value of the same evidence does not.
+//!   figure of `results/paper.toml`, a value of a `metrics.csv` column the paragraph
+//!   names in backticks (`entropy_t0`), or a number in a table of the experiment's
+//!   generated `diagnostics.md` (`rl/sweeps/assignment_diagnostics.py`; a `%` cell counts as
+//!   its number). A retyped per-seed figure that no longer matches any of them fails; one
+//!   edited into another value of the same evidence does not.
 //!
 //! A section's experiments are the `results/<experiment>/report.md` files it links (a
 //! section that links none: those its `## ` part links). A figure
@@ -423,6 +425,9 @@ fn evidence(experiments: &[String], named: &[String]) -> Vec<f64> {
                 values.push(r["se_pct"].parse::<f64>().unwrap() * seeds.sqrt());
             }
         }
+        if let Ok(text) = std::fs::read_to_string(dir.join("diagnostics.md")) {
+            values.extend(table_numbers(&text));
+        }
         for run in runs_of(std::slice::from_ref(exp)) {
             for row in read_metrics(&run) {
                 for (column, v) in row.cells() {
@@ -443,6 +448,21 @@ fn evidence(experiments: &[String], named: &[String]) -> Vec<f64> {
         }
     }
     values
+}
+
+/// Every number in a cell of a Markdown table of `text` (`| 8.57 |`, `| 96.9% |`).
+fn table_numbers(text: &str) -> Vec<f64> {
+    text.lines()
+        .filter(|l| l.starts_with('|'))
+        .flat_map(|l| l.split('|'))
+        .filter_map(|c| c.trim().trim_end_matches('%').parse::<f64>().ok())
+        .collect()
+}
+
+#[test]
+fn a_diagnostics_table_gives_its_cells_numbers() {
+    let text = "Scores at 2 m: 1.25.\n\n| run | P | steps | share |\n|---|---:|---:|---:|\n| `a/seed0` | 0.93 | 8008 | 97.8% |\n";
+    assert_eq!(table_numbers(text), vec![0.93, 8008.0, 97.8]);
 }
 
 /// The names in backticks in `text` (`entropy_t0`).
