@@ -57,7 +57,25 @@ def load_scorer(run):
     files = [f for f in os.listdir(run) if f.startswith("checkpoint.") and f.endswith(".safetensors")]
     if len(files) != 1:
         refuse(f"{run}: expected one checkpoint.*.safetensors, found {len(files)}")
-    path = os.path.join(run, files[0])
+    layers = scorer_layers(os.path.join(run, files[0]))
+    if not layers:
+        refuse(f"{run}: no team0.assign.* parameters (not an assignment=learned run?)")
+    try:
+        config = open(os.path.join(run, "config.toml")).read()
+    except OSError as e:
+        refuse(f"{run}: no readable config.toml ({e})")
+    return layers, prior_of(config)
+
+
+def prior_of(config):
+    """λ of the model string in a configuration's text (`assign_prior=`; default 1)."""
+    prior = re.search(r"assign_prior=([0-9.eE+-]+)", config)
+    return float(prior.group(1)) if prior else 1.0
+
+
+def scorer_layers(path):
+    """The scorer's layers [(weight rows, bias)] in the safetensors file `path` (a checkpoint
+    or a policy file: tensors `team0.assign.mlp.<i>.{weight,bias}`); [] when it has none."""
     try:
         blob = open(path, "rb").read()
         (n,) = struct.unpack("<Q", blob[:8])
@@ -86,14 +104,14 @@ def load_scorer(run):
             refuse(f"{path}: layer {i} of the scorer has no bias or a weight of another size")
         layers.append(([w[r * cols : (r + 1) * cols] for r in range(rows)], tensors[bias][1]))
         i += 1
-    if not layers:
-        refuse(f"{run}: no team0.assign.* parameters (not an assignment=learned run?)")
-    try:
-        config = open(os.path.join(run, "config.toml")).read()
-    except OSError as e:
-        refuse(f"{run}: no readable config.toml ({e})")
-    prior = re.search(r"assign_prior=([0-9.eE+-]+)", config)
-    return layers, float(prior.group(1)) if prior else 1.0
+    return layers
+
+
+def p_nearer(layers, prior):
+    """A ball's chance of picking the nearer of two agents at 2 and 3 m (at Δh = DH)."""
+    s2, s3 = score(layers, prior, 2, DH), score(layers, prior, 3, DH)
+    # The logistic of s(2 m) - s(3 m), kept from overflowing where the scores rise steeply.
+    return 1 / (1 + math.exp(min(s3 - s2, 700.0)))
 
 
 def score(layers, prior, d, dh):
@@ -215,8 +233,7 @@ def write_tables(a, scorers):
     print("|---|---:|" + "---:|" * len(distances) + "---:|")
     for run, (layers, prior) in zip(a.runs, scorers):
         s = [score(layers, prior, d, DH) for d in distances]
-        # The logistic of s(2 m) - s(3 m), kept from overflowing where the scores rise steeply.
-        p = 1 / (1 + math.exp(min(s[2] - s[1], 700.0)))
+        p = p_nearer(layers, prior)
         print(f"| `{run}` | {prior:g} | " + " | ".join(f"{v:.2f}" for v in s) + f" | {p:.2f} |")
 
     print(f"\nOver episode seeds 0-{a.episodes - 1} (`meben render`): the share of steps on which the")

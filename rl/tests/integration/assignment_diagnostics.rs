@@ -137,3 +137,60 @@ fn the_diagnostics_refuse_bad_input_by_name() {
     let expected = format!("{}: not a readable safetensors file", cut_file.display());
     assert_refused(run_script(&["--bin", meben, cut.to_str().unwrap()]), &expected);
 }
+
+fn trace_script() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("sweeps/sensitivity_trace.py")
+}
+
+#[test]
+fn the_sensitivity_trace_appends_one_row_per_new_checkpoint() {
+    let tmp = common::TempDir::new("sensitivity_trace");
+    let (learned, greedy) = (tmp.0.join("learned"), tmp.0.join("greedy"));
+    train("mlp_hn:assignment=learned;assign_prior=1000", &learned);
+    train("mlp_hn", &greedy);
+    let out = tmp.0.join("trace.csv");
+    let meben = env!("CARGO_BIN_EXE_meben");
+    let run = |args: &[&str]| {
+        common::outcome(
+            Command::new("python3").arg(trace_script()).args(args).output().expect("python3 runs the script"),
+        )
+    };
+    let args = ["--bin", meben, "--episodes", "2", "--out", out.to_str().unwrap()];
+    let runs = [learned.to_str().unwrap(), greedy.to_str().unwrap()];
+    let (ok, _, err) = run(&[&args[..], &runs[..]].concat());
+    assert!(ok, "{err}");
+    let text = std::fs::read_to_string(&out).unwrap();
+    let rows: Vec<Vec<&str>> = text.lines().map(|l| l.split(',').collect()).collect();
+    assert_eq!(rows[0].join(","), "run,iteration,env_steps,success,kl_mean,kl_median,kl_p90,kl_early,p_nearer");
+    assert_eq!(rows.len(), 3, "{text}");
+    // 2560 env steps, 320 an iteration (16 environments x 20 steps): 8 iterations.
+    for (row, run) in rows[1..].iter().zip(runs) {
+        assert_eq!((row[0], row[1], row[2]), (run, "8", "2560"), "{text}");
+        let kl: f64 = row[4].parse().unwrap();
+        assert!(kl > 0.0, "{text}");
+    }
+    // λ = 1000: the nearer agent always; greedy: no scorer.
+    assert_eq!((rows[1][8], rows[2][8]), ("1.0000", ""), "{text}");
+    // Looking again at unchanged checkpoints adds nothing.
+    let (ok, _, err) = run(&[&args[..], &runs[..]].concat());
+    assert!(ok, "{err}");
+    assert_eq!(std::fs::read_to_string(&out).unwrap(), text);
+    // The trace as Markdown: a row per traced checkpoint, the rates as percents.
+    let (ok, table, err) = run(&["--out", out.to_str().unwrap(), "--table"]);
+    assert!(ok, "{err}");
+    let lines: Vec<&str> = table.lines().collect();
+    assert_eq!(lines.len(), 4, "{table}");
+    assert!(
+        lines[2].starts_with(&format!("| `{}` | 8 | 0.00M |", runs[0])) && lines[2].ends_with("| 100.0% |"),
+        "{table}"
+    );
+    assert!(lines[3].ends_with("| – |"), "{table}");
+    // Another file is not appended to; a missing run is refused by name.
+    let other = tmp.0.join("other.csv");
+    std::fs::write(&other, "a,b\n").unwrap();
+    let (ok, _, err) = run(&["--bin", meben, "--out", other.to_str().unwrap(), runs[0]]);
+    assert!(!ok && err.contains("not a trace of this script") && !err.contains("Traceback"), "{err}");
+    let missing = tmp.0.join("no_run");
+    let (ok, _, err) = run(&["--bin", meben, "--out", out.to_str().unwrap(), missing.to_str().unwrap()]);
+    assert!(!ok && err.contains("no_run: not a run directory"), "{err}");
+}
