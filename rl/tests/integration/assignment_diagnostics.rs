@@ -15,40 +15,12 @@ fn script() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("sweeps/assignment_diagnostics.py")
 }
 
-/// Trains a short `team_reach/2_ants` run of `model` into `out` (no evaluation).
-fn train(model: &str, out: &Path) {
-    let args = [
-        "train",
-        "--env",
-        "team_reach/2_ants",
-        "--model",
-        model,
-        "--steps",
-        "2560",
-        "--num-envs",
-        "16",
-        "--seed",
-        "3",
-        "--threads",
-        "1",
-        "--set",
-        "batch_size=8",
-        "--set",
-        "num_evals=0",
-        "--quiet",
-        "--out",
-        out.to_str().unwrap(),
-    ];
-    let (ok, _, err) = common::meben(&args);
-    assert!(ok, "train {model} failed: {err}");
-}
-
 /// Trains a short run of `model` in the scratch directory `scratch` (one per test: tests run
 /// in parallel) and runs the script on it over `episodes` episodes; (success, stdout, stderr).
 fn diagnose(scratch: &str, model: &str, episodes: &str) -> (bool, String, String) {
     let tmp = common::TempDir::new(scratch);
     let run = tmp.0.join("run");
-    train(model, &run);
+    common::train_2_ants(model, &run);
     run_script(&["--bin", env!("CARGO_BIN_EXE_meben"), "--episodes", episodes, run.to_str().unwrap()])
 }
 
@@ -146,8 +118,8 @@ fn trace_script() -> PathBuf {
 fn the_sensitivity_trace_appends_one_row_per_new_checkpoint() {
     let tmp = common::TempDir::new("sensitivity_trace");
     let (learned, greedy) = (tmp.0.join("learned"), tmp.0.join("greedy"));
-    train("mlp_hn:assignment=learned;assign_prior=1000", &learned);
-    train("mlp_hn", &greedy);
+    common::train_2_ants("mlp_hn:assignment=learned;assign_prior=1000", &learned);
+    common::train_2_ants("mlp_hn", &greedy);
     let out = tmp.0.join("trace.csv");
     let meben = env!("CARGO_BIN_EXE_meben");
     let run = |args: &[&str]| {

@@ -128,29 +128,7 @@ fn meben_eval_measures_the_sensitivity_and_refuses_a_model_without_an_assignment
     for (model, ok) in [("mlp_hn", true), ("mlp_hn:assignment=none", false)] {
         let run = tmp.0.join(model.replace([':', '='], "_"));
         let run_s = run.to_str().unwrap();
-        let (trained, _, err) = common::meben(&[
-            "train",
-            "--env",
-            "team_reach/2_ants",
-            "--model",
-            model,
-            "--steps",
-            "160",
-            "--num-envs",
-            "8",
-            "--seed",
-            "1",
-            "--threads",
-            "1",
-            "--set",
-            "batch_size=4",
-            "--set",
-            "num_evals=0",
-            "--quiet",
-            "--out",
-            run_s,
-        ]);
-        assert!(trained, "{err}");
+        common::train_2_ants(model, &run);
         let (status, out, err) =
             common::meben(&["eval", "--run", run_s, "--episodes", "2", "--assignment-sensitivity"]);
         if ok {

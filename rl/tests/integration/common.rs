@@ -1,7 +1,7 @@
 //! Helpers shared by the `rl` integration tests.
 #![allow(dead_code)]
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use rl::{Preset, TrainConfig};
 
@@ -75,4 +75,33 @@ pub fn meben(args: &[&str]) -> (bool, String, String) {
 /// A finished process as whether it succeeded, its stdout and its stderr.
 pub fn outcome(out: std::process::Output) -> (bool, String, String) {
     (out.status.success(), String::from_utf8_lossy(&out.stdout).into(), String::from_utf8_lossy(&out.stderr).into())
+}
+
+/// Trains a short `team_reach/2_ants` run of `model` into `out` with the `meben` program
+/// (2560 env steps in 8 iterations, no evaluation).
+pub fn train_2_ants(model: &str, out: &Path) {
+    let args = [
+        "train",
+        "--env",
+        "team_reach/2_ants",
+        "--model",
+        model,
+        "--steps",
+        "2560",
+        "--num-envs",
+        "16",
+        "--seed",
+        "3",
+        "--threads",
+        "1",
+        "--set",
+        "batch_size=8",
+        "--set",
+        "num_evals=0",
+        "--quiet",
+        "--out",
+        out.to_str().unwrap(),
+    ];
+    let (ok, _, err) = meben(&args);
+    assert!(ok, "train {model} failed: {err}");
 }
