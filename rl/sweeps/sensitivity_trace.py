@@ -16,7 +16,7 @@ the policy file's scorer, as `assignment_diagnostics.py` gives it; empty otherwi
 iteration and env steps are the policy file's. Rows already in --out are not traced again,
 so a restarted trace goes on where it stopped. With --every S it looks again every S
 seconds until interrupted; without it, once. --table prints the trace at --out as a Markdown
-table (success and p_nearer as percents) and exits.
+table (each run's rows together, by iteration; success and p_nearer as percents) and exits.
 
     rl/sweeps/sensitivity_trace.py --bin target/release/meben --out trace.csv [--every 1200] <run dir>...
     rl/sweeps/sensitivity_trace.py --out trace.csv --table
@@ -101,12 +101,17 @@ def trace(meben, run, episodes, tmp, seen):
 
 
 def print_table(out):
-    """The trace at `out` as a Markdown table, rows in the file's order."""
+    """The trace at `out` as a Markdown table: each run's rows together (runs in the order they
+    first appear), by iteration."""
     if not os.path.exists(out):
         refuse(f"--out {out}: no such trace")
     traced(out)  # refuses another file
     with open(out, newline="") as f:
         rows = list(csv.reader(f))[1:]
+    first = {}
+    for r in rows:
+        first.setdefault(r[0], len(first))
+    rows.sort(key=lambda r: (first[r[0]], int(r[1])))
     print("| run | iteration | env steps | success | KL mean | KL median | KL 90th percentile | KL mean, first 100 steps | P(nearer) |")
     print("|---|---:|---:|---:|---:|---:|---:|---:|---:|")
     for r in rows:
