@@ -46,8 +46,9 @@ DH = -0.42
 
 
 def refuse(message):
-    """Stops with `message` on stderr and exit status 1 (bad input: no traceback)."""
-    sys.exit(f"assignment_diagnostics.py: {message}")
+    """Stops with `message` on stderr, named by the script running (this one, or
+    `sensitivity_trace.py`, which imports it), and exit status 1 (bad input: no traceback)."""
+    sys.exit(f"{os.path.basename(sys.argv[0])}: {message}")
 
 
 def load_scorer(run):
@@ -203,25 +204,42 @@ def main():
     sys.stdout.write(tables.getvalue())
 
 
-def sensitivity(meben, run, episodes, tmp):
-    """The `assignment_sensitivity` entry of team 0 and the success rate of an evaluation of
-    `run` over `episodes` episodes with sampled actions (module doc, table 3)."""
-    policy, summary = os.path.join(tmp, "policy.safetensors"), os.path.join(tmp, "eval.json")
-    for cmd in (
-        [meben, "export-policy", "--run", run, "--out", policy],
-        [meben, "eval", "--policy", policy, "--episodes", str(episodes), "--stochastic", "--assignment-sensitivity",
-         "--out", summary],
-    ):
-        done = subprocess.run(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-        if done.returncode != 0:
-            said = done.stderr.strip() or "no message"
-            refuse(f"{run}: `meben {cmd[1]}` failed with exit status {done.returncode}:\n{said}")
+def export_policy(meben, run, policy):
+    """Writes the run's policy to the file `policy` (`meben export-policy`, which reads the
+    checkpoint and writes nothing to the run); None, or what `meben` said when it failed."""
+    cmd = [meben, "export-policy", "--run", run, "--out", policy]
+    done = subprocess.run(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    if done.returncode == 0:
+        return None
+    return f"exit status {done.returncode}:\n{done.stderr.strip() or 'no message'}"
+
+
+def policy_sensitivity(meben, run, policy, episodes, summary):
+    """The success rate and team 0's `assignment_sensitivity` entry of `meben eval --policy
+    <policy> --episodes <episodes> --stochastic --assignment-sensitivity` (its summary
+    written to the file `summary`); `run` names the policy's run in a refusal."""
+    cmd = [meben, "eval", "--policy", policy, "--episodes", str(episodes), "--stochastic", "--assignment-sensitivity",
+           "--out", summary]
+    done = subprocess.run(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    if done.returncode != 0:
+        said = done.stderr.strip() or "no message"
+        refuse(f"{run}: `meben eval --assignment-sensitivity` failed with exit status {done.returncode}:\n{said}")
     try:
         e = json.load(open(summary))
         s = next(x for x in e["assignment_sensitivity"] if x["team"] == 0)
         return e["success_rate"], s
     except (OSError, ValueError, KeyError, StopIteration) as err:
         refuse(f"{run}: the evaluation summary holds no assignment sensitivity of team 0 ({err!r})")
+
+
+def sensitivity(meben, run, episodes, tmp):
+    """The success rate and team 0's `assignment_sensitivity` entry of an evaluation of `run`
+    over `episodes` episodes with sampled actions (module doc, table 3)."""
+    policy = os.path.join(tmp, "policy.safetensors")
+    failed = export_policy(meben, run, policy)
+    if failed:
+        refuse(f"{run}: `meben export-policy` failed with {failed}")
+    return policy_sensitivity(meben, run, policy, episodes, os.path.join(tmp, "eval.json"))
 
 
 def write_tables(a, scorers):

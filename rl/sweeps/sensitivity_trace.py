@@ -27,20 +27,14 @@ import csv
 import json
 import os
 import struct
-import subprocess
 import sys
 import tempfile
 import time
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from assignment_diagnostics import p_nearer, prior_of, scorer_layers  # noqa: E402
+from assignment_diagnostics import export_policy, p_nearer, policy_sensitivity, prior_of, refuse, scorer_layers  # noqa: E402
 
 COLUMNS = ["run", "iteration", "env_steps", "success", "kl_mean", "kl_median", "kl_p90", "kl_early", "p_nearer"]
-
-
-def refuse(message):
-    """Stops with `message` on stderr and exit status 1 (bad input: no traceback)."""
-    sys.exit(f"sensitivity_trace.py: {message}")
 
 
 def metadata(path):
@@ -67,31 +61,24 @@ def traced(out):
 def trace(meben, run, episodes, tmp, seen):
     """One row for the run's current checkpoint (module doc), or None when its iteration is in
     `seen` or the checkpoint is being replaced (the next look reads the new one)."""
-    policy, summary = os.path.join(tmp, "policy.safetensors"), os.path.join(tmp, "eval.json")
-    done = subprocess.run(
-        [meben, "export-policy", "--run", run, "--out", policy], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True
-    )
-    if done.returncode != 0:
+    policy = os.path.join(tmp, "policy.safetensors")
+    failed = export_policy(meben, run, policy)
+    if failed:
         if not os.path.isdir(run):
             refuse(f"{run}: not a run directory")
-        print(f"sensitivity_trace.py: {run}: `meben export-policy` failed, trying at the next look:\n{done.stderr.strip()}", file=sys.stderr)
+        print(f"sensitivity_trace.py: {run}: `meben export-policy` failed, trying at the next look: {failed}", file=sys.stderr)
         return None
     meta = metadata(policy)
     if (run, int(meta["iteration"])) in seen:
         return None
-    cmd = [meben, "eval", "--policy", policy, "--episodes", str(episodes), "--stochastic", "--assignment-sensitivity", "--out", summary]
-    done = subprocess.run(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-    if done.returncode != 0:
-        refuse(f"{run}: `meben eval --assignment-sensitivity` failed with exit status {done.returncode}:\n{done.stderr.strip()}")
-    e = json.load(open(summary))
-    s = next(x for x in e["assignment_sensitivity"] if x["team"] == 0)
+    success, s = policy_sensitivity(meben, run, policy, episodes, os.path.join(tmp, "eval.json"))
     layers = scorer_layers(policy)
     p = f"{p_nearer(layers, prior_of(meta.get('config', ''))):.4f}" if layers else ""
     return [
         run,
         int(meta["iteration"]),
         int(meta["env_steps"]),
-        f"{e['success_rate']:.4f}",
+        f"{success:.4f}",
         f"{s['mean_kl']:.4f}",
         f"{s['median_kl']:.4f}",
         f"{s['p90_kl']:.4f}",

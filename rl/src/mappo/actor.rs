@@ -81,6 +81,12 @@ impl Actor {
         Self { mode, noise, normalised: Observation::empty(0, 0) }
     }
 
+    /// The normalised observation rows the last [`Actor::act`] gave the policy (empty before
+    /// the first).
+    pub fn normalised(&self) -> &Observation {
+        &self.normalised
+    }
+
     /// Chooses the actions of `model`'s agents (its team `k = model.team()`) for raw
     /// observation rows `obs`, through the observation normaliser `norm` and the parameters
     /// `store` (the forward pass runs on their device; from the GPU the means and scales

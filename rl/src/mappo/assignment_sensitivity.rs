@@ -23,7 +23,7 @@
 //! The probe's extra forward passes are given their assignments, so they draw nothing from
 //! a learned assignment's stream: an evaluation gives the same summary with and without it.
 
-use envs::layout::{ObsRows, Observation};
+use envs::layout::ObsRows;
 use models::distribution::std_from_scale;
 use models::{NO_AGENT, Policy};
 use nn::ParamStore;
@@ -32,7 +32,6 @@ use tensor::Tape;
 
 use crate::error::{Result, RlError};
 use crate::mappo::actor::host_heads;
-use crate::mappo::normalizer::ObsNormalizer;
 
 /// The most alternative assignments a scene may have (5 agents for 5 objects: 119).
 pub const MAX_ALTERNATIVES: usize = 119;
@@ -64,7 +63,6 @@ pub struct AssignmentSensitivity {
 #[derive(Debug)]
 pub struct SensitivityProbe {
     team: usize,
-    normalised: Observation,
     kl: Vec<f64>,
     alternatives: usize,
     early: (f64, usize),
@@ -73,19 +71,17 @@ pub struct SensitivityProbe {
 impl SensitivityProbe {
     /// A probe of team `team`'s policy.
     pub fn new(team: usize) -> Self {
-        Self { team, normalised: Observation::empty(0, 0), kl: Vec::new(), alternatives: 0, early: (0.0, 0) }
+        Self { team, kl: Vec::new(), alternatives: 0, early: (0.0, 0) }
     }
 
-    /// Measures control step `step` (0 at the episodes' start): `obs` the raw observation
-    /// rows of `B` scenes, `acted` the assignment `model` acted on (`[B *
-    /// assignment_width]`), `alive[b]` whether scene `b` still plays (only those are
-    /// counted).
-    #[allow(clippy::too_many_arguments)]
+    /// Measures control step `step` (0 at the episodes' start): `obs` the normalised
+    /// observation rows of `B` scenes the team acted on ([`crate::mappo::actor::Actor::normalised`]),
+    /// `acted` the assignment `model` acted on (`[B * assignment_width]`), `alive[b]` whether
+    /// scene `b` still plays (only those are counted).
     pub fn observe(
         &mut self,
         model: &mut dyn Policy,
         store: &ParamStore<f32>,
-        norm: &ObsNormalizer,
         obs: ObsRows<'_, f32>,
         acted: &[u32],
         alive: &[bool],
@@ -104,8 +100,7 @@ impl SensitivityProbe {
         let alternatives: Vec<Vec<Vec<u32>>> =
             acted.chunks(width).map(|sigma| alternatives_of(sigma, n)).collect::<Result<_>>()?;
         let rounds = alternatives.iter().map(Vec::len).max().unwrap_or(0);
-        norm.apply_rows(obs, &mut self.normalised);
-        let reference = self.heads(model, store, acted)?;
+        let reference = heads(model, store, obs, acted)?;
         let mut sum = vec![0.0f64; b];
         for r in 0..rounds {
             // The r-th alternative of every scene that has one; the others keep σ.
@@ -115,7 +110,7 @@ impl SensitivityProbe {
                     batch[s * width..(s + 1) * width].copy_from_slice(alt);
                 }
             }
-            let other = self.heads(model, store, &batch)?;
+            let other = heads(model, store, obs, &batch)?;
             for (s, alts) in alternatives.iter().enumerate() {
                 if r < alts.len() {
                     sum[s] += team_kl(&reference, &other, s);
@@ -156,30 +151,36 @@ impl SensitivityProbe {
             early_mean_kl: self.early.0 / self.early.1.max(1) as f64,
         }
     }
+}
 
-    /// Each agent's `(loc, std)` rows `[B, dof]` (f64, on the host) under `assignment`.
-    fn heads(&self, model: &mut dyn Policy, store: &ParamStore<f32>, assignment: &[u32]) -> Result<Vec<AgentNormals>> {
-        let tape = Tape::<f32>::on(store.device());
-        let _no_grad = tape.no_grad();
-        let p = store.bind(&tape);
-        let out = model.forward(&p, &self.normalised.rows(), Some(assignment), false)?;
-        let host = Tape::<f32>::new();
-        let _host_no_grad = host.no_grad();
-        let mut heads = Vec::new();
-        for (agent, loc, scale) in host_heads(&out.agents)? {
-            let dof = loc.shape().last().copied().unwrap_or(0);
-            let std = std_from_scale(host.constant(scale)).value();
-            let as_f64 = |d: &[f32]| d.iter().map(|&x| x as f64).collect::<Vec<f64>>();
-            let (loc, std) = (as_f64(loc.data()), as_f64(std.data()));
-            if let Some(i) = loc.iter().chain(&std).position(|x| !x.is_finite()) {
-                return Err(RlError::NonFinite {
-                    message: format!("policy output of agent {agent} (entry {i}) is not finite"),
-                });
-            }
-            heads.push(AgentNormals { loc, std, dof });
+/// Each agent's `(loc, std)` rows `[B, dof]` (f64, on the host) of `model` for the
+/// normalised rows `obs` under `assignment`.
+fn heads(
+    model: &mut dyn Policy,
+    store: &ParamStore<f32>,
+    obs: ObsRows<'_, f32>,
+    assignment: &[u32],
+) -> Result<Vec<AgentNormals>> {
+    let tape = Tape::<f32>::on(store.device());
+    let _no_grad = tape.no_grad();
+    let p = store.bind(&tape);
+    let out = model.forward(&p, &obs, Some(assignment), false)?;
+    let host = Tape::<f32>::new();
+    let _host_no_grad = host.no_grad();
+    let mut heads = Vec::new();
+    for (agent, loc, scale) in host_heads(&out.agents)? {
+        let dof = loc.shape().last().copied().unwrap_or(0);
+        let std = std_from_scale(host.constant(scale)).value();
+        let as_f64 = |d: &[f32]| d.iter().map(|&x| x as f64).collect::<Vec<f64>>();
+        let (loc, std) = (as_f64(loc.data()), as_f64(std.data()));
+        if let Some(i) = loc.iter().chain(&std).position(|x| !x.is_finite()) {
+            return Err(RlError::NonFinite {
+                message: format!("policy output of agent {agent} (entry {i}) is not finite"),
+            });
         }
-        Ok(heads)
+        heads.push(AgentNormals { loc, std, dof });
     }
+    Ok(heads)
 }
 
 /// One agent's pre-squash Normals over a batch, on the host.

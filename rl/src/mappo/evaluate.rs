@@ -255,8 +255,15 @@ fn play(
         }
         for (k, probe) in probes.iter_mut().enumerate() {
             if let Some(probe) = probe {
-                let (model, store, norm) = (players[k].0.as_mut(), stores[k], &teams[k].norm);
-                probe.observe(model, store, norm, venv.obs().rows(), &joint.assignment[k], &alive, step)?;
+                let (model, actor) = &mut players[k];
+                probe.observe(
+                    model.as_mut(),
+                    stores[k],
+                    actor.normalised().rows(),
+                    &joint.assignment[k],
+                    &alive,
+                    step,
+                )?;
             }
         }
         let out = venv.step(&joint.actions)?;

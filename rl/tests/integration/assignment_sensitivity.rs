@@ -52,11 +52,11 @@ fn the_probe_gives_each_scenes_closed_form_divergence_to_the_other_assignment() 
         // Scenes acting on different assignments, so that each scene's alternative differs.
         let acted = [0u32, 1, 1, 0, 0, 1];
         let alive = [true, false, true];
-        let mut probe = SensitivityProbe::new(0);
-        probe.observe(team.model.as_mut(), &team.store, &team.norm, venv.obs().rows(), &acted, &alive, 0).unwrap();
-        // By hand: the swap of every scene, the KL summed over agents and dimensions.
         let mut obs = Observation::empty(0, 0);
         team.norm.apply_rows(venv.obs().rows(), &mut obs);
+        let mut probe = SensitivityProbe::new(0);
+        probe.observe(team.model.as_mut(), &team.store, obs.rows(), &acted, &alive, 0).unwrap();
+        // By hand: the swap of every scene, the KL summed over agents and dimensions.
         let swapped = [1u32, 0, 0, 1, 1, 0];
         let (p, q) = (heads(&mut team, &obs, &acted), heads(&mut team, &obs, &swapped));
         let kl = |s: usize| -> f64 {
@@ -78,13 +78,13 @@ fn the_probe_gives_each_scenes_closed_form_divergence_to_the_other_assignment() 
         assert!(close(s.median_kl, 0.5 * (k0 + k2)) && close(s.p90_kl, k0.max(k2)), "{model}: {s:?}");
         assert!(close(s.early_mean_kl, s.mean_kl));
         // Past the early steps a scene-step counts in the whole mean only.
-        probe.observe(team.model.as_mut(), &team.store, &team.norm, venv.obs().rows(), &acted, &alive, 100).unwrap();
+        probe.observe(team.model.as_mut(), &team.store, obs.rows(), &acted, &alive, 100).unwrap();
         let s = probe.summary();
         assert_eq!(s.steps, 4);
         assert!(close(s.early_mean_kl, 0.5 * (k0 + k2)) && close(s.mean_kl, 0.5 * (k0 + k2)));
         // An assignment that is not one-to-one is refused.
         let e = probe
-            .observe(team.model.as_mut(), &team.store, &team.norm, venv.obs().rows(), &[0, 0, 1, 0, 0, 1], &alive, 0)
+            .observe(team.model.as_mut(), &team.store, obs.rows(), &[0, 0, 1, 0, 0, 1], &alive, 0)
             .unwrap_err()
             .to_string();
         assert!(e.contains("not one-to-one"), "{e}");
