@@ -582,15 +582,17 @@ pub struct LearnedAssignment {
     assigner: PlackettLuceAssigner,
     rng: ChaCha8Rng,
     choice: LearnedChoice,
+    warmup: bool,
     gravity: [f64; 3],
     agents: Vec<usize>,
     objects: Vec<usize>,
 }
 
 /// The entity graph of `inputs` with its assignment: with a learned assignment (`learned`)
-/// the draw, or the given `fixed` one, scored on the tape of `p`, and its terms; otherwise
-/// the graph builder's own assignment (or `fixed`) and no terms. The SHNN family's and the
-/// release MLP's forward passes build their graphs through it.
+/// the draw, or the given `fixed` one, scored on the tape of `p`, and its terms; otherwise,
+/// and for a learned assignment in its warm-up, the graph builder's own assignment (or
+/// `fixed`; a learned one in warm-up is Algorithm 1's, as the greedy model's) and no terms.
+/// The SHNN family's and the release MLP's forward passes build their graphs through it.
 pub(crate) fn build_graph<'t, T: Float>(
     graph: &mut GraphBuilder,
     learned: Option<&mut LearnedAssignment>,
@@ -600,6 +602,7 @@ pub(crate) fn build_graph<'t, T: Float>(
 ) -> Result<(EntityGraph, Option<AssignmentTerms<'t, T>>)> {
     match learned {
         None => Ok((graph.build_with(inputs, fixed)?, None)),
+        Some(l) if l.in_warmup() => Ok((graph.build_solving(inputs, fixed)?, None)),
         Some(l) => {
             let (drawn, log_prob, entropy) = l.assign(p, inputs, fixed)?;
             Ok((graph.build_with(inputs, Some(&drawn))?, Some(AssignmentTerms { log_prob, entropy })))
@@ -626,6 +629,7 @@ impl LearnedAssignment {
             assigner: PlackettLuceAssigner::new(agents.len(), objects.len()),
             rng: <ChaCha8Rng as rand::SeedableRng>::seed_from_u64(seed),
             choice: LearnedChoice::Sample,
+            warmup: false,
             gravity,
             agents: agents.to_vec(),
             objects: objects.to_vec(),
@@ -645,6 +649,17 @@ impl LearnedAssignment {
     /// Sets how an assignment is chosen when none is given.
     pub fn set_choice(&mut self, choice: LearnedChoice) {
         self.choice = choice;
+    }
+
+    /// Whether the assignment is in its warm-up: Algorithm 1's (the paper's greedy rule),
+    /// solved by the graph builder, the scorer unused ([`build_graph`]).
+    pub fn in_warmup(&self) -> bool {
+        self.warmup
+    }
+
+    /// Puts the assignment in its warm-up (`true`) or takes it out (`false`, the default).
+    pub fn set_warmup(&mut self, warmup: bool) {
+        self.warmup = warmup;
     }
 
     /// The assignment of every scene of `inputs` (`[B * m]`, object -> agent index, as

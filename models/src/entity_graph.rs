@@ -232,13 +232,24 @@ impl GraphBuilder {
     /// A given assignment must match the batch and be one-to-one; the method `learned` needs
     /// one (its draws come from the model's scorer, [`crate::assignment_learned`]).
     pub fn build_with<T: Float>(&mut self, entities: &EntityInputs<T>, fixed: Option<&[u32]>) -> Result<EntityGraph> {
-        let (nb, ne, na) = (entities.batch, self.n_entities, self.n_agents);
-        let (n, m) = (self.own.len(), self.objects.len());
         if fixed.is_none() && self.method == AssignmentMethod::Learned {
             return Err(ModelError::Input(
                 "assignment `learned` builds a graph only with the assignment its scorer drew (none given)".into(),
             ));
         }
+        self.build_solving(entities, fixed)
+    }
+
+    /// [`GraphBuilder::build_with`], solving the assignment when none is given whatever the
+    /// method: the method `learned` then takes Algorithm 1's (its warm-up,
+    /// [`crate::assignment_learned::LearnedAssignment::in_warmup`]).
+    pub(crate) fn build_solving<T: Float>(
+        &mut self,
+        entities: &EntityInputs<T>,
+        fixed: Option<&[u32]>,
+    ) -> Result<EntityGraph> {
+        let (nb, ne, na) = (entities.batch, self.n_entities, self.n_agents);
+        let (n, m) = (self.own.len(), self.objects.len());
         if let Some(f) = fixed {
             let width = self.assignment_width();
             if f.len() != nb * width {

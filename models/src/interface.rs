@@ -137,6 +137,14 @@ pub trait Policy: std::fmt::Debug + Send + Sync {
         let _ = deterministic;
     }
 
+    /// Whether a learned task assignment is in its warm-up (`true`): the policy then acts as
+    /// the paper's greedy model, the assignment Algorithm 1's, solved again whenever none is
+    /// given, and its scorer unused (no [`PolicyOutput::assignment_terms`]). The trainer sets it
+    /// while a run's env steps are below its `assignment_warmup_steps`. Default: nothing to set.
+    fn set_assignment_warmup(&mut self, warmup: bool) {
+        let _ = warmup;
+    }
+
     /// A boxed copy (the evaluator acts with copies).
     fn clone_box(&self) -> Box<dyn Policy>;
 }

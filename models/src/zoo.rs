@@ -221,6 +221,14 @@ impl Model {
         }
     }
 
+    /// Whether a learned task assignment is in its warm-up ([`Policy::set_assignment_warmup`]):
+    /// Algorithm 1's assignment, the scorer unused; no effect on the other methods.
+    pub fn set_assignment_warmup(&mut self, warmup: bool) {
+        if let Some(l) = self.learned_mut() {
+            l.set_warmup(warmup);
+        }
+    }
+
     /// Number of scalar parameters of the model in `store` (the one it was built in).
     pub fn num_params<T: Float>(&self, store: &ParamStore<T>) -> usize {
         store.num_elements_under(&self.prefix)
@@ -347,6 +355,10 @@ impl Policy for Model {
 
     fn set_deterministic(&mut self, deterministic: bool) {
         Model::set_deterministic(self, deterministic)
+    }
+
+    fn set_assignment_warmup(&mut self, warmup: bool) {
+        Model::set_assignment_warmup(self, warmup)
     }
 
     fn clone_box(&self) -> Box<dyn Policy> {

@@ -66,6 +66,7 @@ impl TrainConfig {
             entropy_coef: 1e-2,
             entropy: EntropyKind::TanhNormal,
             assignment_entropy_scale: 1.0,
+            assignment_warmup_steps: 0,
             learning_rate: 3e-4,
             lr_decay: false,
             grad_clip: 0.1,
@@ -472,6 +473,41 @@ mod tests {
                 &[learned, ("assignment_entropy_scale", bad)],
                 &["assignment_entropy_scale", "finite and non-negative"],
             );
+        }
+    }
+
+    /// `assignment_warmup_steps`: 0 by default and then left out of `config.toml`; another
+    /// value is written, read back, and taken only where a team's model learns its
+    /// assignment, as a whole number of env steps.
+    #[test]
+    fn the_assignment_warmup_is_written_only_when_set_and_only_for_a_learned_assignment() {
+        let set = |pairs: &[(&str, &str)]| {
+            let ov: Vec<(String, String)> = pairs.iter().map(|(k, v)| (k.to_string(), v.to_string())).collect();
+            TrainConfig::resolve(Some(Preset::Paper), None, &ov)
+        };
+        let learned = ("model", "mlp_hn:assignment=learned");
+        let c = set(&[("env", "team_reach/2_ants"), learned]).unwrap();
+        assert_eq!(c.assignment_warmup_steps, 0);
+        assert!(!c.assignment_warmup_at(0));
+        assert!(!c.to_toml().contains("assignment_warmup_steps"), "the default is left out of config.toml");
+        let kept = set(&[("env", "team_reach/2_ants"), learned, ("assignment_warmup_steps", "5000000")]).unwrap();
+        assert_eq!(kept.assignment_warmup_steps, 5_000_000);
+        assert!(kept.assignment_warmup_at(4_999_999) && !kept.assignment_warmup_at(5_000_000));
+        assert!(kept.to_toml().contains("assignment_warmup_steps = 5000000"));
+        let back: TrainConfig = toml::from_str(&kept.to_toml()).unwrap();
+        assert_eq!(back, kept);
+        let sumo =
+            [("env", "team_sumo/2_ants"), ("opponent", "shnn:assignment=learned"), ("assignment_warmup_steps", "1")];
+        assert_eq!(set(&sumo).unwrap().assignment_warmup_steps, 1);
+        let refused = |pairs: &[(&str, &str)], says: &[&str]| {
+            let e = set(pairs).unwrap_err().to_string();
+            for s in says {
+                assert!(e.contains(s), "{pairs:?}: {e}");
+            }
+        };
+        refused(&[("assignment_warmup_steps", "100")], &["assignment_warmup_steps", "100", "`shnn` does not"]);
+        for bad in ["-1", "1.5", "soon"] {
+            refused(&[learned, ("assignment_warmup_steps", bad)], &["assignment_warmup_steps", bad]);
         }
     }
 }

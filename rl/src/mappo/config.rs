@@ -161,6 +161,15 @@ pub struct TrainConfig {
     /// as before.
     #[serde(default = "one", skip_serializing_if = "is_one")]
     pub assignment_entropy_scale: f64,
+    /// The env steps of a learned task assignment's warm-up, `W` (0, the default: none).
+    /// While a run's env steps are below `W` its learned assignments act as the paper's greedy
+    /// rule (Algorithm 1, the scorer unused: no `ln π(σ | s)` in the ratio, no entropy of σ in
+    /// the bonus, the scorer's parameters unchanged), so that the policy first learns to act on
+    /// its assignment; from the first iteration that starts at or past `W`, the scorer's
+    /// draws. Evaluations and checkpoints follow the env steps they are taken at. Only with a
+    /// model of `assignment=learned`; written to `config.toml` only when set.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub assignment_warmup_steps: u64,
     /// Adam learning rate.
     pub learning_rate: f64,
     /// The learning rate falls linearly to 0 over the run's updates (CleanRL's `anneal_lr`;
@@ -270,6 +279,7 @@ impl TrainConfig {
             .unwrap_or_else(|e| unreachable!("a TrainStarts always serialises: {e}"));
         table.entry("train_starts").or_insert(starts);
         table.entry("assignment_entropy_scale").or_insert(toml::Value::Float(self.assignment_entropy_scale));
+        table.entry("assignment_warmup_steps").or_insert(toml::Value::Integer(self.assignment_warmup_steps as i64));
         table.entry("device").or_insert_with(|| toml::Value::String(self.device.name().into()));
         table.entry("act_device").or_insert_with(|| toml::Value::String(self.act_device.name().into()));
         table.entry("gpu_matmul_tile").or_insert_with(|| toml::Value::Integer(self.gpu_matmul_tile as i64));
@@ -359,20 +369,36 @@ impl TrainConfig {
             learns_an_assignment |= d.assignment().is_some_and(|a| a.method == models::AssignmentMethod::Learned);
         }
         self.validate_except_models(source)?;
-        if !is_one(&self.assignment_entropy_scale) && !learns_an_assignment {
-            let models = if self.opponent.is_empty() {
+        let models = || {
+            if self.opponent.is_empty() {
                 format!("the model `{}` does not", self.model)
             } else {
                 format!("neither `{}` nor `{}` does", self.model, self.opponent)
-            };
+            }
+        };
+        if !is_one(&self.assignment_entropy_scale) && !learns_an_assignment {
             return Err(RlError::config(
                 source,
                 "assignment_entropy_scale",
                 self.assignment_entropy_scale.to_string(),
-                format!("weighs a learned task assignment's entropy, and {models} learn one (assignment=learned)"),
+                format!("weighs a learned task assignment's entropy, and {} learn one (assignment=learned)", models()),
+            ));
+        }
+        if self.assignment_warmup_steps != 0 && !learns_an_assignment {
+            return Err(RlError::config(
+                source,
+                "assignment_warmup_steps",
+                self.assignment_warmup_steps,
+                format!("is a learned task assignment's warm-up, and {} learn one (assignment=learned)", models()),
             ));
         }
         Ok(())
+    }
+
+    /// Whether a learned task assignment is in its warm-up at `env_steps`
+    /// ([`TrainConfig::assignment_warmup_steps`]).
+    pub fn assignment_warmup_at(&self, env_steps: u64) -> bool {
+        env_steps < self.assignment_warmup_steps
     }
 
     /// [`TrainConfig::validate`] but for `model` and `opponent` naming models of the zoo: a
@@ -509,6 +535,11 @@ impl TrainConfig {
 /// 1: [`TrainConfig::assignment_entropy_scale`]'s default.
 fn one() -> f64 {
     1.0
+}
+
+/// Whether a count is its default, 0 (left out of `config.toml`).
+fn is_zero(v: &u64) -> bool {
+    *v == 0
 }
 
 /// Whether the scale is its default, 1 (left out of `config.toml`).

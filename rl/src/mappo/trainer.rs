@@ -288,7 +288,7 @@ impl Trainer {
         );
         let na = env.n_actions();
         place_teams(config, &mut teams)?;
-        Ok(Trainer {
+        let mut trainer = Trainer {
             config: config.clone(),
             spec: obs_spec,
             teams,
@@ -300,7 +300,21 @@ impl Trainer {
             joint: JointAction::new(config.num_envs, na, nt),
             mb: Minibatch::default(),
             env,
-        })
+        };
+        trainer.sync_assignment_warmup();
+        Ok(trainer)
+    }
+
+    /// Puts every team's learned task assignment in its warm-up while the env steps are below
+    /// the configuration's `assignment_warmup_steps`, and takes it out from there on (no
+    /// effect on the other methods). Kept in step with [`Trainer::env_steps`]: at the start
+    /// and end of every iteration and when a run is built or restored, so that collection,
+    /// the update and the evaluations after an iteration all see the env steps' state.
+    fn sync_assignment_warmup(&mut self) {
+        let warmup = self.config.assignment_warmup_at(self.env_steps);
+        for t in &mut self.teams {
+            t.model.set_assignment_warmup(warmup);
+        }
     }
 
     /// The run restored from a checkpoint (its configuration, except the
@@ -388,6 +402,7 @@ impl Trainer {
         t.env_steps = c.env_steps;
         t.evals_done = c.evals_done;
         t.episode_returns = c.episode_returns.clone();
+        t.sync_assignment_warmup();
         Ok(t)
     }
 
@@ -447,6 +462,7 @@ impl Trainer {
         for t in &mut self.teams {
             t.model.reseed(derive_seed(self.config.seed, "assign", t.index as u64, self.iteration));
         }
+        self.sync_assignment_warmup();
         let mut timings = Timings::default();
         let episodes = self.collect_timed(&mut timings)?;
         let mut mark = Instant::now();
@@ -459,6 +475,7 @@ impl Trainer {
         let losses = self.update(&mut timings)?;
         self.iteration += 1;
         self.env_steps += self.config.steps_per_iteration();
+        self.sync_assignment_warmup();
         Ok(IterationStats { episodes, losses, alpha, timings })
     }
 
@@ -499,6 +516,9 @@ impl Trainer {
     fn update(&mut self, timings: &mut Timings) -> Result<Vec<LossStats>> {
         let c = &self.config;
         let hp = PpoParams::from_config(c);
+        // In a learned assignment's warm-up the update solves Algorithm 1 again from the
+        // minibatch, as the greedy model's does, instead of scoring the stored assignment.
+        let warmup = c.assignment_warmup_at(self.env_steps);
         let mut all = Vec::with_capacity(self.teams.len());
         for team in self.teams.iter_mut() {
             // The parameters the update reads and writes, on the configuration's device.
@@ -512,6 +532,9 @@ impl Trainer {
                     let at = Where { team: team.index, iteration: self.iteration, epoch, minibatch: k };
                     // Gather the minibatch's unrolls (time-major) and normalise them.
                     self.rollout.gather(ids, team.index, &mut self.mb);
+                    if warmup {
+                        self.mb.assignment.clear();
+                    }
                     self.mb.normalise(&team.norm);
                     lap(&mut mark, &mut timings.minibatch_s);
                     // The PPO loss; the entropy estimate draws from the minibatch's stream.

@@ -3,6 +3,7 @@
 
 mod assignment_diagnostics;
 mod assignment_sensitivity;
+mod assignment_warmup;
 mod checkpoint_format;
 mod checkpoint_trust;
 mod cli;
