@@ -11,6 +11,7 @@
 #   nice -n 19 rl/sweeps/repro_run.sh I &                                            # issue 79, assign_prior=10
 #   nice -n 19 rl/sweeps/repro_run.sh J &                                            # issue 79, Team Sumo
 #   nice -n 19 rl/sweeps/repro_run.sh K &                                            # issue 79, no assignment bonus
+#   nice -n 19 rl/sweeps/repro_run.sh L &                                            # issue 79, a warm-up
 #   rl/sweeps/repro_run.sh export                             # evidence -> results/, reports
 #   rl/sweeps/repro_run.sh restore                            # finished runs <- results/ (A and B do it first)
 #   rl/sweeps/repro_run.sh status                             # every run's progress and hours left
@@ -32,11 +33,12 @@ BIN=${BIN:-$ROOT/target/release/meben}
 OUT=${OUT:-/tmp/runs/repro}
 THREADS=${THREADS:-1}
 SWEEPS=$ROOT/rl/sweeps
-EXPERIMENTS="reach_1_ant reach_2_ants equivariance sumo reach_2_ants_no_assignment reach_2_ants_per_slot_starts transformer_1_ant centipede reach_2_ants_50m reach_1_ant_50m equivariance_2_ants learned_assignment learned_assignment_prior learned_assignment_sumo learned_assignment_entropy"
+EXPERIMENTS="reach_1_ant reach_2_ants equivariance sumo reach_2_ants_no_assignment reach_2_ants_per_slot_starts transformer_1_ant centipede reach_2_ants_50m reach_1_ant_50m equivariance_2_ants learned_assignment learned_assignment_prior learned_assignment_sumo learned_assignment_entropy learned_assignment_warmup"
 
 # The sweep file of an experiment: rl/sweeps/repro_<exp>.toml, or rl/sweeps/<exp>.toml for
 # the experiments that are not reproductions (issue 79's learned_assignment,
-# learned_assignment_prior, learned_assignment_sumo and learned_assignment_entropy).
+# learned_assignment_prior, learned_assignment_sumo, learned_assignment_entropy and
+# learned_assignment_warmup).
 sweep_file() {
   if [ -f "$SWEEPS/repro_$1.toml" ]; then echo "$SWEEPS/repro_$1.toml"; else echo "$SWEEPS/$1.toml"; fi
 }
@@ -163,6 +165,14 @@ list_k() {
   done
 }
 
+# Issue 79's third follow-up: mlp_hn:assignment=learned with a 16M warm-up as greedy MLP+HN,
+# then 10M learning the assignment, 3 seeds (about 1.6 machine-hours a seed at one thread).
+list_l() {
+  for seed in 0 1 2; do
+    run learned_assignment_warmup "/seed$seed"
+  done
+}
+
 case "${1:-}" in
   I)
     restore_finished
@@ -182,6 +192,10 @@ case "${1:-}" in
   K)
     restore_finished
     list_k
+    ;;
+  L)
+    restore_finished
+    list_l
     ;;
   H)
     restore_finished

@@ -188,6 +188,23 @@ mod tests {
             let name = l.name.replace("/seed", "+no_assignment_bonus/seed");
             assert_eq!(r.name, name);
         }
+        // Its follow-up with a warm-up: the same runs but for the warm-up and a longer budget,
+        // whose first 16M env steps are greedy MLP+HN's (the seeds of repro_reach_2_ants.toml).
+        let warmup = Sweep::load(&dir.join("learned_assignment_warmup.toml")).unwrap().runs().unwrap();
+        let greedy = repro("repro_reach_2_ants.toml", 6, 20_000_000);
+        assert_eq!(warmup.len(), 3);
+        for ((r, l), g) in warmup.iter().zip(&learned[..3]).zip(&greedy[3..]) {
+            let expected = TrainConfig {
+                assignment_warmup_steps: 16_000_000,
+                steps: 26_000_000,
+                num_evals: 13,
+                ..l.config.clone()
+            };
+            assert_eq!(r.config, expected, "{}", r.name);
+            assert_eq!(r.name, l.name.replace("/seed", "+warmup_16m/seed"));
+            let as_greedy = TrainConfig { model: "mlp_hn".into(), assignment_warmup_steps: 0, ..r.config.clone() };
+            assert_eq!(TrainConfig { steps: g.config.steps, num_evals: g.config.num_evals, ..as_greedy }, g.config);
+        }
 
         // The diagnostics beside experiment 1b: each changes one thing of `mlp_hn` on 2_ants.
         let load = |name: &str| Sweep::load(&dir.join(name)).unwrap().runs().unwrap();
