@@ -652,7 +652,7 @@ impl LearnedAssignment {
     }
 
     /// Whether the assignment is in its warm-up: Algorithm 1's (the paper's greedy rule),
-    /// solved by the graph builder, the scorer unused ([`build_graph`]).
+    /// solved by the graph builder as the greedy model solves it, the scorer unused.
     pub fn in_warmup(&self) -> bool {
         self.warmup
     }

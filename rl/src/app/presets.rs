@@ -420,15 +420,26 @@ mod tests {
         assert!(unknown.contains("train_starts") && unknown.contains("cached"), "{unknown}");
     }
 
+    /// The paper preset with the fields `pairs` set (as `--set` gives them).
+    fn paper_with(pairs: &[(&str, &str)]) -> crate::Result<TrainConfig> {
+        let ov: Vec<(String, String)> = pairs.iter().map(|(k, v)| (k.to_string(), v.to_string())).collect();
+        TrainConfig::resolve(Some(Preset::Paper), None, &ov)
+    }
+
+    /// [`paper_with`] refuses `pairs` with an error that says each of `says`.
+    fn assert_paper_refuses(pairs: &[(&str, &str)], says: &[&str]) {
+        let e = paper_with(pairs).unwrap_err().to_string();
+        for s in says {
+            assert!(e.contains(s), "{pairs:?}: {e}");
+        }
+    }
+
     /// `assignment_entropy_scale`: 1 by default and then left out of `config.toml` (the files
     /// of earlier runs read as before); another value is written, read back, and taken only
     /// where a team's model learns its assignment, as a finite non-negative number.
     #[test]
     fn the_assignment_entropy_scale_is_written_only_when_set_and_only_for_a_learned_assignment() {
-        let set = |pairs: &[(&str, &str)]| {
-            let ov: Vec<(String, String)> = pairs.iter().map(|(k, v)| (k.to_string(), v.to_string())).collect();
-            TrainConfig::resolve(Some(Preset::Paper), None, &ov)
-        };
+        let set = paper_with;
         let learned = ("model", "shnn:assignment=learned");
         let c = set(&[("env", "team_reach/2_ants"), learned]).unwrap();
         assert_eq!(c.assignment_entropy_scale, 1.0);
@@ -450,12 +461,7 @@ mod tests {
             ];
             assert_eq!(set(&sumo).unwrap().assignment_entropy_scale, 0.0, "{model} against {opponent}");
         }
-        let refused = |pairs: &[(&str, &str)], says: &[&str]| {
-            let e = set(pairs).unwrap_err().to_string();
-            for s in says {
-                assert!(e.contains(s), "{pairs:?}: {e}");
-            }
-        };
+        let refused = assert_paper_refuses;
         refused(
             &[("assignment_entropy_scale", "0")],
             &["assignment_entropy_scale", "`shnn` does not", "assignment=learned"],
@@ -481,10 +487,7 @@ mod tests {
     /// assignment, as a whole number of env steps.
     #[test]
     fn the_assignment_warmup_is_written_only_when_set_and_only_for_a_learned_assignment() {
-        let set = |pairs: &[(&str, &str)]| {
-            let ov: Vec<(String, String)> = pairs.iter().map(|(k, v)| (k.to_string(), v.to_string())).collect();
-            TrainConfig::resolve(Some(Preset::Paper), None, &ov)
-        };
+        let set = paper_with;
         let learned = ("model", "mlp_hn:assignment=learned");
         let c = set(&[("env", "team_reach/2_ants"), learned]).unwrap();
         assert_eq!(c.assignment_warmup_steps, 0);
@@ -499,12 +502,7 @@ mod tests {
         let sumo =
             [("env", "team_sumo/2_ants"), ("opponent", "shnn:assignment=learned"), ("assignment_warmup_steps", "1")];
         assert_eq!(set(&sumo).unwrap().assignment_warmup_steps, 1);
-        let refused = |pairs: &[(&str, &str)], says: &[&str]| {
-            let e = set(pairs).unwrap_err().to_string();
-            for s in says {
-                assert!(e.contains(s), "{pairs:?}: {e}");
-            }
-        };
+        let refused = assert_paper_refuses;
         refused(&[("assignment_warmup_steps", "100")], &["assignment_warmup_steps", "100", "`shnn` does not"]);
         for bad in ["-1", "1.5", "soon"] {
             refused(&[learned, ("assignment_warmup_steps", bad)], &["assignment_warmup_steps", bad]);
