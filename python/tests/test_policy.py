@@ -102,6 +102,19 @@ def test_a_learned_assignment_acts_in_python_as_in_the_rust_evaluation(learned_r
     assert python == {k: rust[k] for k in python}, (python, rust)
 
 
+def test_a_learned_assignment_in_its_warmup_acts_as_the_greedy_policy(tmp_path):
+    """A run still in its assignment warm-up (`assignment_warmup_steps` past its env steps)
+    is the greedy model's run, and loaded in Python acts as that run's policy: Algorithm 1's
+    assignment, the scorer unused."""
+    warm, greedy = tmp_path / "warm", tmp_path / "greedy"
+    meben.train(out=warm, env="team_reach/2_ants", model="mlp_hn:assignment=learned", seed=3,
+                assignment_warmup_steps=10**6, **TINY)
+    meben.train(out=greedy, env="team_reach/2_ants", model="mlp_hn", seed=3, **TINY)
+    for deterministic in (True, False):
+        episodes = [python_evaluation(meben.Policy.load(r, seed=4), 2, 4, deterministic) for r in (warm, greedy)]
+        assert episodes[0] == episodes[1], (deterministic, episodes)
+
+
 def test_the_run_names_the_build_that_trained_it(run, meben_cli):
     commit = meben.BUILD_COMMIT
     sha = commit.split("+")[0]
