@@ -517,7 +517,9 @@ impl Trainer {
         let c = &self.config;
         let hp = PpoParams::from_config(c);
         // In a learned assignment's warm-up the update solves Algorithm 1 again from the
-        // minibatch, as the greedy model's does, instead of scoring the stored assignment.
+        // minibatch, as the greedy model's does, instead of taking the stored assignment
+        // (also Algorithm 1's, from the observations before the normaliser's update: the
+        // same in every test run so far, so this keeps the greedy run's path by construction).
         let warmup = c.assignment_warmup_at(self.env_steps);
         let mut all = Vec::with_capacity(self.teams.len());
         for team in self.teams.iter_mut() {
