@@ -7,7 +7,8 @@
 #   nice -n 19 rl/sweeps/repro_run.sh A &  nice -n 19 rl/sweeps/repro_run.sh B &    # the two workers
 #   nice -n 19 rl/sweeps/repro_run.sh C &  nice -n 19 rl/sweeps/repro_run.sh D &    # the second wave's
 #   nice -n 19 rl/sweeps/repro_run.sh E &  nice -n 19 rl/sweeps/repro_run.sh F &    # the third wave's
-#   nice -n 19 rl/sweeps/repro_run.sh H &  nice -n 19 rl/sweeps/repro_run.sh G &    # its item 3; issue 79
+#   nice -n 19 rl/sweeps/repro_run.sh H &  nice -n 19 rl/sweeps/repro_run.sh H &    # its item 3 (two workers)
+#   nice -n 19 rl/sweeps/repro_run.sh G &                                            # issue 79
 #   nice -n 19 rl/sweeps/repro_run.sh I &                                            # issue 79, assign_prior=10
 #   nice -n 19 rl/sweeps/repro_run.sh J &                                            # issue 79, Team Sumo
 #   nice -n 19 rl/sweeps/repro_run.sh K &                                            # issue 79, no assignment bonus
@@ -51,10 +52,27 @@ run() { # <experiment> <pattern>...: the sweep's runs whose names contain a patt
   "$BIN" ablate --sweep "$(sweep_file "$exp")" --out "$OUT/$exp" --threads "$THREADS" --quiet "${only[@]}"
   # 130: stopped by Ctrl-C or SIGTERM after an iteration, with a checkpoint; the worker
   # stops too instead of starting the next sweep (the same command resumes it).
-  if [ $? -eq 130 ]; then
+  local rc=$?
+  if [ $rc -eq 130 ]; then
     echo "== $(date -Is) interrupted: worker stops"
     exit 130
   fi
+  # A run that finished goes into results/ at once (the work tree, not yet a commit): a
+  # machine that is not handed back loses its run directories, and so lost a finished,
+  # unexported run once (docs/RESULTS.md, the warm-up seed 0).
+  [ $rc -eq 0 ] && export_experiment "$exp"
+}
+
+# Copies an experiment's evidence into results/<exp> and redraws its reports, those at a
+# matched budget (results/<exp>/at_<N>/) included.
+export_experiment() {
+  local exp=$1 at
+  "$BIN" export "$OUT/$exp" "$ROOT/results/$exp" && (cd "$ROOT" && "$BIN" report "results/$exp" --paper results/paper.toml > /dev/null)
+  for at in "$ROOT/results/$exp"/at_*/; do
+    [ -d "$at" ] || continue
+    at=${at%/}
+    (cd "$ROOT" && "${REPORT_BIN:-$BIN}" report "results/$exp" --paper results/paper.toml --at-steps "${at##*/at_}" > /dev/null)
+  done
 }
 
 # On a fresh machine (no run directories under OUT), the finished runs come back from their
@@ -124,11 +142,14 @@ list_f() {
   done
 }
 
-# The 2_ants half of the equivariance test (issue 78, runs item 3): MLP, then MLP+HN, 3
-# seeds at 10M each.
+# The 2_ants half of the equivariance test (issue 78, runs item 3): MLP and MLP+HN, 3 seeds
+# at 10M each (about 1 machine-hour a run at one thread: each fits in a session), a seed of
+# each model in turn. Two H workers share the list: each skips the run the other holds.
 list_h() {
-  run equivariance_2_ants /mlp/
-  run equivariance_2_ants /mlp_hn/
+  for seed in 0 1 2; do
+    run equivariance_2_ants "/mlp/seed$seed"
+    run equivariance_2_ants "/mlp_hn/seed$seed"
+  done
 }
 # Issue 79's evidence on 2_ants, 3 seeds at 10M each: mlp_hn:assignment=learned first
 # (about 1 machine-hour a seed at one thread), then shnn:assignment=learned (about 6.7).
@@ -243,19 +264,12 @@ case "${1:-}" in
   export)
     for exp in $EXPERIMENTS; do
       [ -d "$OUT/$exp" ] || continue
-      # The report names the directory it was given: relative, as a reader would type it.
-      "$BIN" export "$OUT/$exp" "$ROOT/results/$exp" && (cd "$ROOT" && "$BIN" report "results/$exp" --paper results/paper.toml > /dev/null)
-      # Its committed reports at a matched budget (results/<exp>/at_<N>/) are redrawn too.
-      for at in "$ROOT/results/$exp"/at_*/; do
-        [ -d "$at" ] || continue
-        at=${at%/}
-        (cd "$ROOT" && "${REPORT_BIN:-$BIN}" report "results/$exp" --paper results/paper.toml --at-steps "${at##*/at_}" > /dev/null)
-      done
+      export_experiment "$exp"
     done
     du -sh "$ROOT/results"
     ;;
   *)
-    echo "usage: $0 A | B | C | D | E | F | G | H | I | J | K | export | restore | status" >&2
+    echo "usage: $0 A | B | C | D | E | F | G | H | I | J | K | L | export | restore | status" >&2
     exit 2
     ;;
 esac
