@@ -115,7 +115,9 @@ impl PyPolicy {
     /// Observations that are not float32 arrays of the scene's shapes, with no row (`B` =
     /// 0), or that hold NaN or infinity raise `ValueError` naming the array (and the first
     /// non-finite entry); a call while another thread is acting with this policy raises
-    /// `RuntimeError` (each thread needs its own policy).
+    /// `RuntimeError` (each thread needs its own policy). A run whose learned task assignment
+    /// is held for `k` steps (`assignment_hold_steps`) draws it at this policy's calls
+    /// `0, k, 2k, ..` since it was loaded, and again whenever `B` changes.
     #[pyo3(signature = (obs, deterministic=true))]
     fn act<'py>(&self, py: Python<'py>, obs: &Bound<'py, PyDict>, deterministic: bool) -> PyResult<Bound<'py, PyAny>> {
         let (n, a) = (self.spec.n_nodes, self.spec.n_agents);

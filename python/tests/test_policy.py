@@ -115,6 +115,20 @@ def test_a_learned_assignment_in_its_warmup_acts_as_the_greedy_policy(tmp_path):
         assert episodes[0] == episodes[1], (deterministic, episodes)
 
 
+def test_a_held_learned_assignment_acts_in_python_as_in_the_rust_evaluation(tmp_path, meben_cli):
+    """A learned assignment held for 3 steps (`assignment_hold_steps`): the policy loaded in
+    Python holds its draws from its first `act` as `meben eval` does from each episode's
+    start, so its episodes are Rust's to the bit."""
+    held = tmp_path / "held"
+    meben.train(out=held, env="team_reach/2_ants", model="mlp_hn:assignment=learned", seed=3,
+                assignment_hold_steps=3, **TINY)
+    assert "assignment_hold_steps = 3" in (held / "config.toml").read_text()
+    episodes, seed = 2, 4
+    rust = rust_evaluation(meben_cli, held, episodes, seed, False)
+    python = python_evaluation(meben.Policy.load(held, seed=seed), episodes, seed, False)
+    assert python == {k: rust[k] for k in python}, (python, rust)
+
+
 def test_the_run_names_the_build_that_trained_it(run, meben_cli):
     commit = meben.BUILD_COMMIT
     sha = commit.split("+")[0]

@@ -13,6 +13,7 @@
 #   nice -n 19 rl/sweeps/repro_run.sh J &                                            # issue 79, Team Sumo
 #   nice -n 19 rl/sweeps/repro_run.sh K &                                            # issue 79, no assignment bonus
 #   nice -n 19 rl/sweeps/repro_run.sh L &                                            # issue 79, a warm-up
+#   nice -n 19 rl/sweeps/repro_run.sh M &                                            # issue 79, a held draw
 #   rl/sweeps/repro_run.sh export                             # evidence -> results/, reports
 #   rl/sweeps/repro_run.sh restore                            # finished runs <- results/ (A and B do it first)
 #   rl/sweeps/repro_run.sh status                             # every run's progress and hours left
@@ -34,12 +35,12 @@ BIN=${BIN:-$ROOT/target/release/meben}
 OUT=${OUT:-/tmp/runs/repro}
 THREADS=${THREADS:-1}
 SWEEPS=$ROOT/rl/sweeps
-EXPERIMENTS="reach_1_ant reach_2_ants equivariance sumo reach_2_ants_no_assignment reach_2_ants_per_slot_starts transformer_1_ant centipede reach_2_ants_50m reach_1_ant_50m equivariance_2_ants learned_assignment learned_assignment_prior learned_assignment_sumo learned_assignment_entropy learned_assignment_warmup"
+EXPERIMENTS="reach_1_ant reach_2_ants equivariance sumo reach_2_ants_no_assignment reach_2_ants_per_slot_starts transformer_1_ant centipede reach_2_ants_50m reach_1_ant_50m equivariance_2_ants learned_assignment learned_assignment_prior learned_assignment_sumo learned_assignment_entropy learned_assignment_warmup learned_assignment_hold"
 
 # The sweep file of an experiment: rl/sweeps/repro_<exp>.toml, or rl/sweeps/<exp>.toml for
 # the experiments that are not reproductions (issue 79's learned_assignment,
-# learned_assignment_prior, learned_assignment_sumo, learned_assignment_entropy and
-# learned_assignment_warmup).
+# learned_assignment_prior, learned_assignment_sumo, learned_assignment_entropy,
+# learned_assignment_warmup and learned_assignment_hold).
 sweep_file() {
   if [ -f "$SWEEPS/repro_$1.toml" ]; then echo "$SWEEPS/repro_$1.toml"; else echo "$SWEEPS/$1.toml"; fi
 }
@@ -194,6 +195,15 @@ list_l() {
   done
 }
 
+# Issue 79's fourth follow-up: mlp_hn:assignment=learned with each draw held for an unroll
+# (assignment_hold_steps = 5, a field binaries before it refuse), 3 seeds at 10M (about half
+# a machine-hour a seed at one thread alone on the machine).
+list_m() {
+  for seed in 0 1 2; do
+    run learned_assignment_hold "/seed$seed"
+  done
+}
+
 case "${1:-}" in
   I)
     restore_finished
@@ -217,6 +227,10 @@ case "${1:-}" in
   L)
     restore_finished
     list_l
+    ;;
+  M)
+    restore_finished
+    list_m
     ;;
   H)
     restore_finished
@@ -269,7 +283,7 @@ case "${1:-}" in
     du -sh "$ROOT/results"
     ;;
   *)
-    echo "usage: $0 A | B | C | D | E | F | G | H | I | J | K | L | export | restore | status" >&2
+    echo "usage: $0 A | B | C | D | E | F | G | H | I | J | K | L | M | export | restore | status" >&2
     exit 2
     ;;
 esac

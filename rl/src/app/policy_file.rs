@@ -339,15 +339,18 @@ pub fn policy_from_bytes(path: &Path, bytes: &[u8]) -> Result<PolicyFile> {
     if let Some(t) = teams.iter().find(|t| t.store.iter().any(|(_, v)| !v.data().iter().all(|x| x.is_finite()))) {
         return Err(bad(format!("team {}'s parameters are not finite", t.index)));
     }
-    // A policy exported in a learned assignment's warm-up acts as its run did then.
-    if config.assignment_warmup_steps != 0 {
+    // A policy exported in a learned assignment's warm-up acts as its run did then, and
+    // holds its drawn assignment as the run does.
+    let env_steps = if config.assignment_warmup_steps != 0 {
         let said = get(keys::ENV_STEPS)?;
-        let env_steps: u64 = said.parse().map_err(|_| {
+        said.parse().map_err(|_| {
             bad(format!("its metadata `{}` = {said:?} is not a whole number of env steps", keys::ENV_STEPS))
-        })?;
-        for t in &mut teams {
-            t.model.set_assignment_warmup(config.assignment_warmup_at(env_steps));
-        }
+        })?
+    } else {
+        0
+    };
+    for t in &mut teams {
+        t.sync_assignment(&config, env_steps);
     }
     Ok(PolicyFile { config, teams, eval, eval_rotated, metadata: meta })
 }

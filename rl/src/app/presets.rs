@@ -67,6 +67,7 @@ impl TrainConfig {
             entropy: EntropyKind::TanhNormal,
             assignment_entropy_scale: 1.0,
             assignment_warmup_steps: 0,
+            assignment_hold_steps: 1,
             learning_rate: 3e-4,
             lr_decay: false,
             grad_clip: 0.1,
@@ -506,6 +507,37 @@ mod tests {
         refused(&[("assignment_warmup_steps", "100")], &["assignment_warmup_steps", "100", "`shnn` does not"]);
         for bad in ["-1", "1.5", "soon"] {
             refused(&[learned, ("assignment_warmup_steps", bad)], &["assignment_warmup_steps", bad]);
+        }
+    }
+
+    /// `assignment_hold_steps`: 1 by default (drawn at every step) and then left out of
+    /// `config.toml`; another value is written, read back, held at 1 in a warm-up, and taken
+    /// only where a team's model learns its assignment; 0 is refused.
+    #[test]
+    fn the_assignment_hold_is_written_only_when_set_and_only_for_a_learned_assignment() {
+        let set = paper_with;
+        let learned = ("model", "mlp_hn:assignment=learned");
+        let c = set(&[("env", "team_reach/2_ants"), learned]).unwrap();
+        assert_eq!((c.assignment_hold_steps, c.assignment_hold_at(0)), (1, 1));
+        assert!(!c.to_toml().contains("assignment_hold_steps"), "the default is left out of config.toml");
+        let kept = set(&[("env", "team_reach/2_ants"), learned, ("assignment_hold_steps", "5")]).unwrap();
+        assert_eq!((kept.assignment_hold_steps, kept.assignment_hold_at(0)), (5, 5));
+        assert!(kept.to_toml().contains("assignment_hold_steps = 5"));
+        let back: TrainConfig = toml::from_str(&kept.to_toml()).unwrap();
+        assert_eq!(back, kept);
+        let warm = set(&[
+            ("env", "team_reach/2_ants"),
+            learned,
+            ("assignment_hold_steps", "5"),
+            ("assignment_warmup_steps", "100"),
+        ]);
+        let warm = warm.unwrap();
+        assert_eq!((warm.assignment_hold_at(99), warm.assignment_hold_at(100)), (1, 5));
+        let refused = assert_paper_refuses;
+        refused(&[("assignment_hold_steps", "5")], &["assignment_hold_steps", "5", "`shnn` does not"]);
+        refused(&[learned, ("assignment_hold_steps", "0")], &["assignment_hold_steps", "0", "at least 1"]);
+        for bad in ["-1", "1.5", "often"] {
+            refused(&[learned, ("assignment_hold_steps", bad)], &["assignment_hold_steps", bad]);
         }
     }
 }

@@ -53,7 +53,9 @@ pub fn record_episode(
         .iter()
         .map(|t| {
             let noise = t.model.agents().iter().map(|&a| stream(seed, "rendnois", t.index as u64, a as u64)).collect();
-            Actor::new(mode, noise)
+            let mut actor = Actor::new(mode, noise);
+            actor.hold.set_every(t.actor.hold.every());
+            actor
         })
         .collect();
     let mut joint = JointAction::new(1, scene.n_actions, teams.len());

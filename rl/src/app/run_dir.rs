@@ -209,8 +209,9 @@ pub fn teams_of(config: &TrainConfig, c: &Checkpoint, path: &Path) -> Result<Vec
             message: format!("the observation normaliser of team {k} does not fit: {e}"),
         })?;
         t.norm = s.normalizer.clone();
-        // A checkpoint taken in a learned assignment's warm-up acts as the run did then.
-        t.model.set_assignment_warmup(config.assignment_warmup_at(c.env_steps));
+        // A checkpoint taken in a learned assignment's warm-up acts as the run did then, and
+        // holds its drawn assignment as the run does.
+        t.sync_assignment(config, c.env_steps);
         teams.push(t);
     }
     Ok(teams)

@@ -7,7 +7,9 @@
 //! through an [`Actor`], which holds the team's action-noise streams (one per agent,
 //! MEBEN.md section 8) and its scratch. A policy with a learned task assignment
 //! (`assignment=learned`) draws it in its forward pass; its log-probability `ln π(σ | s)` is
-//! added to the action's (the policy factorises as `π(a, σ | s) = π(σ | s) π(a | s, σ)`).
+//! added to the action's (the policy factorises as `π(a, σ | s) = π(σ | s) π(a | s, σ)`). A
+//! drawn assignment held for `k` steps ([`AssignmentHold`]) is given back to the policy at
+//! the steps between draws, and its log-probability added only where it is drawn.
 
 use envs::layout::{ObsRows, Observation};
 use models::distribution::{normal_log_prob, std_from_scale};
@@ -17,6 +19,7 @@ use rand_chacha::ChaCha8Rng;
 use tensor::{Tape, Tensor};
 
 use crate::error::{Result, RlError};
+use crate::mappo::assignment_hold::AssignmentHold;
 use crate::mappo::normalizer::ObsNormalizer;
 use crate::mappo::seeding::standard_normal;
 
@@ -73,12 +76,15 @@ pub struct Actor {
     pub noise: Vec<ChaCha8Rng>,
     /// The normalised observation rows of the last step.
     normalised: Observation,
+    /// A task assignment drawn at random, held between draws (1 step by default: drawn at
+    /// every step).
+    pub hold: AssignmentHold,
 }
 
 impl Actor {
     /// An actor choosing actions as `mode` says, with one noise stream per agent.
     pub fn new(mode: ActMode, noise: Vec<ChaCha8Rng>) -> Self {
-        Self { mode, noise, normalised: Observation::empty(0, 0) }
+        Self { mode, noise, normalised: Observation::empty(0, 0), hold: AssignmentHold::default() }
     }
 
     /// The normalised observation rows the last [`Actor::act`] gave the policy (empty before
@@ -116,7 +122,11 @@ impl Actor {
         let tape = Tape::<f32>::on(store.device());
         let _no_grad = tape.no_grad();
         let p = store.bind(&tape);
-        let out = model.forward(&p, &self.normalised.rows(), None, false)?;
+        // A held assignment is given back (`assignment_hold`); the others are drawn or solved.
+        let width = b * model.assignment_width();
+        let draws = !model.assignment_is_random() || self.hold.draws_next(width);
+        let given = if draws { None } else { Some(self.hold.held()) };
+        let out = model.forward(&p, &self.normalised.rows(), given, false)?;
         let heads = host_heads(&out.agents)?;
         // A learned task assignment's log-probability `ln π(σ | s)` (`[B]`), the policy's
         // other factor: `π(a, σ | s) = π(σ | s) π(a | s, σ)`.
@@ -170,7 +180,8 @@ impl Actor {
                 }
             }
         }
-        if let (Some(lp), ActMode::Sample) = (&assignment_logp, self.mode) {
+        // A held assignment's `π(σ | s)` was counted at the step that drew it.
+        if let (Some(lp), ActMode::Sample, true) = (&assignment_logp, self.mode, draws) {
             if lp.numel() != b {
                 return Err(RlError::Model(models::ModelError::Input(format!(
                     "{} assignment log-probabilities for {b} observation rows of team {team}",
@@ -186,6 +197,7 @@ impl Actor {
                 *l += x;
             }
         }
+        self.hold.record(&out.assignment, draws);
         joint.assignment[team] = out.assignment;
         Ok(())
     }

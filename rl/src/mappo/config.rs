@@ -170,6 +170,16 @@ pub struct TrainConfig {
     /// model of `assignment=learned`; written to `config.toml` only when set.
     #[serde(default, skip_serializing_if = "is_zero")]
     pub assignment_warmup_steps: u64,
+    /// A learned task assignment is drawn every `k` control steps and held in between (1,
+    /// the default: drawn afresh at every step). Each iteration's collection draws at its
+    /// steps `0, k, 2k, ..` of every environment (an iteration begins with a draw, so no
+    /// assignment outlives a checkpoint); `ln π(σ | s)` joins the PPO ratio and `H(σ)` the
+    /// bonus only at the steps that draw, and a held step's action is `π(a | s, σ)` of the
+    /// held `σ`. Evaluations draw at their episodes' steps `0, k, 2k, ..`. In a warm-up the
+    /// assignment is Algorithm 1's at every step. Only with a model of `assignment=learned`;
+    /// written to `config.toml` only when not 1.
+    #[serde(default = "one_step", skip_serializing_if = "is_one_step")]
+    pub assignment_hold_steps: u64,
     /// Adam learning rate.
     pub learning_rate: f64,
     /// The learning rate falls linearly to 0 over the run's updates (CleanRL's `anneal_lr`;
@@ -280,6 +290,7 @@ impl TrainConfig {
         table.entry("train_starts").or_insert(starts);
         table.entry("assignment_entropy_scale").or_insert(toml::Value::Float(self.assignment_entropy_scale));
         table.entry("assignment_warmup_steps").or_insert(toml::Value::Integer(self.assignment_warmup_steps as i64));
+        table.entry("assignment_hold_steps").or_insert(toml::Value::Integer(self.assignment_hold_steps as i64));
         table.entry("device").or_insert_with(|| toml::Value::String(self.device.name().into()));
         table.entry("act_device").or_insert_with(|| toml::Value::String(self.act_device.name().into()));
         table.entry("gpu_matmul_tile").or_insert_with(|| toml::Value::Integer(self.gpu_matmul_tile as i64));
@@ -392,7 +403,25 @@ impl TrainConfig {
                 format!("is a learned task assignment's warm-up, and {} learn one (assignment=learned)", models()),
             ));
         }
+        if self.assignment_hold_steps != 1 && !learns_an_assignment {
+            return Err(RlError::config(
+                source,
+                "assignment_hold_steps",
+                self.assignment_hold_steps,
+                format!(
+                    "holds a learned task assignment for that many steps, and {} learn one (assignment=learned)",
+                    models()
+                ),
+            ));
+        }
         Ok(())
+    }
+
+    /// The steps a learned task assignment is held for at `env_steps`: 1 (drawn at every
+    /// step) in its warm-up, where it is Algorithm 1's, else
+    /// [`TrainConfig::assignment_hold_steps`].
+    pub fn assignment_hold_at(&self, env_steps: u64) -> usize {
+        if self.assignment_warmup_at(env_steps) { 1 } else { self.assignment_hold_steps as usize }
     }
 
     /// Whether a learned task assignment is in its warm-up at `env_steps`
@@ -431,6 +460,13 @@ impl TrainConfig {
                 return err(field, &v, "must be at least 1");
             }
         }
+        if self.assignment_hold_steps == 0 {
+            return err(
+                "assignment_hold_steps",
+                &0,
+                "must be at least 1 (1: a learned assignment drawn at every step)",
+            );
+        }
         // TOML integers are signed 64-bit: a larger value is written to config.toml but
         // cannot be read back, and the run could then neither resume nor be evaluated.
         for (field, v) in [
@@ -440,6 +476,7 @@ impl TrainConfig {
             ("num_evals", self.num_evals as u64),
             ("checkpoint_every", self.checkpoint_every as u64),
             ("threads", self.threads as u64),
+            ("assignment_hold_steps", self.assignment_hold_steps),
         ] {
             if v > i64::MAX as u64 {
                 return err(field, &v, "at most 9223372036854775807 (TOML integers are signed 64-bit)");
@@ -540,6 +577,16 @@ fn one() -> f64 {
 /// Whether a count is its default, 0 (left out of `config.toml`).
 fn is_zero(v: &u64) -> bool {
     *v == 0
+}
+
+/// 1: [`TrainConfig::assignment_hold_steps`]'s default.
+fn one_step() -> u64 {
+    1
+}
+
+/// Whether a hold is its default, 1 step (left out of `config.toml`).
+fn is_one_step(v: &u64) -> bool {
+    *v == 1
 }
 
 /// Whether the scale is its default, 1 (left out of `config.toml`).

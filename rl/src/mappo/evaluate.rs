@@ -306,7 +306,10 @@ pub fn evaluation_actors(teams: &[Team], seed: u64, mode: ActMode) -> Vec<(Box<d
             // Mean actions take a learned assignment's most likely value too.
             model.set_deterministic(mode == ActMode::Mean);
             let noise = t.model.agents().iter().map(|&a| stream(seed, "evalnois", t.index as u64, a as u64)).collect();
-            (model, Actor::new(mode, noise))
+            let mut actor = Actor::new(mode, noise);
+            // A held assignment is held as in training, from each evaluation's first step.
+            actor.hold.set_every(t.actor.hold.every());
+            (model, actor)
         })
         .collect()
 }

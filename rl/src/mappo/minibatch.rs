@@ -43,6 +43,9 @@ pub struct Minibatch {
     /// `[T M, width]` the task assignment each transition was acted on (empty: the model
     /// solves it again, the same for the deterministic methods).
     pub assignment: Vec<u32>,
+    /// `[T M]` whether each transition drew its task assignment (`false`: held from an
+    /// earlier step, [`crate::mappo::assignment_hold`]); empty when every step draws.
+    pub assignment_drawn: Vec<bool>,
 }
 
 impl Default for Minibatch {
@@ -59,6 +62,7 @@ impl Default for Minibatch {
             truncated: Vec::new(),
             final_row: Vec::new(),
             assignment: Vec::new(),
+            assignment_drawn: Vec::new(),
         }
     }
 }

@@ -5,7 +5,8 @@
 //! - [`trainer`]: one training iteration, read top to bottom ([`trainer::Trainer::iterate`]:
 //!   collect, normalise, update);
 //! - [`actor`]: a team's act step (normalise, policy, sample, log-probability), used by
-//!   collection, evaluation, rendering and the Python policy;
+//!   collection, evaluation, rendering and the Python policy, and [`assignment_hold`]: a
+//!   task assignment drawn every `k` steps;
 //! - [`team`]: one team's learner (model, parameters, Adam, normaliser, actor);
 //! - [`rollout`]: an iteration's data, written once per step, from which the update gathers
 //!   its [`minibatch`]es;
@@ -23,6 +24,7 @@
 //! configuration files itself ([`config::read_config_text`]).
 
 pub mod actor;
+pub mod assignment_hold;
 pub mod assignment_sensitivity;
 pub mod checkpoint;
 pub mod checksum;

@@ -175,7 +175,15 @@ pub fn loss<'t>(
     // A learned task assignment is the policy's other factor: its log-probability joins the
     // action's (the ratio covers both) and its entropy estimate the bonus, weighted by s:
     // H = H(u) + H(sigma), the bonus H(u) + s H(sigma) (the same tensor when s = 1).
-    if let Some(a) = fwd.assignment {
+    // Held for k steps, the assignment is the policy's factor only where it was drawn: the
+    // terms of the held steps are masked out, and H(sigma) is averaged over every transition.
+    if let Some(mut a) = fwd.assignment {
+        if !mb.assignment_drawn.is_empty() {
+            let drawn: Vec<f32> = mb.assignment_drawn.iter().map(|&d| if d { 1.0 } else { 0.0 }).collect();
+            let mask = tape.constant(Tensor::new(drawn, &[n])?);
+            a.log_prob = a.log_prob.mul(mask)?;
+            a.entropy = a.entropy.mul(mask)?;
+        }
         logp = logp.add(a.log_prob)?;
         let assignment_entropy = a.entropy.mean_all()?;
         let action_entropy = entropy;

@@ -18,6 +18,7 @@ use envs::layout::{ObsRows, Observation, RowWidths};
 use envs::tasks::StepOutput;
 
 use crate::mappo::actor::JointAction;
+use crate::mappo::assignment_hold::draws_at;
 use crate::mappo::minibatch::{Minibatch, NO_FINAL};
 
 /// One iteration's data (module docs).
@@ -55,6 +56,9 @@ pub struct Rollout {
     assignment_width: Vec<usize>,
     /// Per team, `[U T E, width]` the task assignment each transition was acted on.
     assignment: Vec<Vec<u32>>,
+    /// Per team, the steps its collection held a drawn assignment for (1: drawn at every
+    /// step; [`crate::mappo::assignment_hold`]), set by [`Rollout::begin`].
+    assignment_hold: Vec<usize>,
 }
 
 impl Rollout {
@@ -114,6 +118,7 @@ impl Rollout {
             finals: Observation::empty(nodes, agents),
             assignment: assignment_width.iter().map(|&w| vec![0; tr * w]).collect(),
             assignment_width: assignment_width.to_vec(),
+            assignment_hold: vec![1; teams],
         }
     }
 
@@ -128,8 +133,11 @@ impl Rollout {
     }
 
     /// Starts an iteration's collection from the environments' current observations `obs`
-    /// (the previous iteration's data is forgotten).
-    pub fn begin(&mut self, obs: &Observation) {
+    /// (the previous iteration's data is forgotten), each team `k` holding a drawn task
+    /// assignment for `assignment_hold[k]` steps (1: drawn at every step).
+    pub fn begin(&mut self, obs: &Observation, assignment_hold: &[usize]) {
+        assert_eq!(assignment_hold.len(), self.teams, "one assignment hold per team");
+        self.assignment_hold.copy_from_slice(assignment_hold);
         self.cursor = 0;
         self.finals.clear();
         self.final_index.iter_mut().for_each(|x| *x = NO_FINAL);
@@ -211,7 +219,10 @@ impl Rollout {
         mb.truncated.clear();
         mb.final_row.clear();
         mb.assignment.clear();
+        mb.assignment_drawn.clear();
         let w = self.assignment_width[team];
+        // Where a drawn assignment was held, which steps drew it (the act step's rule).
+        let hold = if w > 0 { self.assignment_hold[team] } else { 1 };
         for t in 0..=t_len {
             for &q in ids {
                 let r = self.obs_row(q / e_n, t) + q % e_n;
@@ -228,6 +239,9 @@ impl Rollout {
                 mb.terminated.push(self.terminated[i]);
                 mb.truncated.push(self.truncated[i]);
                 mb.assignment.extend_from_slice(&self.assignment[team][i * w..(i + 1) * w]);
+                if hold > 1 {
+                    mb.assignment_drawn.push(draws_at((q / e_n) * t_len + t, hold));
+                }
                 let f = self.final_index[i];
                 if f == NO_FINAL {
                     mb.final_row.push(NO_FINAL);

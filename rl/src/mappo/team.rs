@@ -122,6 +122,19 @@ impl Team {
         Ok(())
     }
 
+    /// Puts the team's task assignment in the state of a run of `config` at `env_steps`:
+    /// a learned one in its warm-up below `assignment_warmup_steps`, and an assignment drawn
+    /// at random held for [`TrainConfig::assignment_hold_at`] steps (the actor's hold; 1 for
+    /// the models whose assignment is not drawn). Run directories, policy files and the
+    /// trainer all set it here.
+    pub fn sync_assignment(&mut self, config: &TrainConfig, env_steps: u64) {
+        self.model.set_assignment_warmup(config.assignment_warmup_at(env_steps));
+        let hold = if self.model.assignment_is_random() { config.assignment_hold_at(env_steps) } else { 1 };
+        if hold != self.actor.hold.every() {
+            self.actor.hold.set_every(hold);
+        }
+    }
+
     /// The team's actions for raw observation rows `obs`, with its own model, parameters,
     /// normaliser and noise ([`Actor::act`]).
     pub fn act(&mut self, obs: ObsRows<'_, f32>, joint: &mut JointAction) -> Result<()> {

@@ -301,19 +301,19 @@ impl Trainer {
             mb: Minibatch::default(),
             env,
         };
-        trainer.sync_assignment_warmup();
+        trainer.sync_assignment_state();
         Ok(trainer)
     }
 
     /// Puts every team's learned task assignment in its warm-up while the env steps are below
     /// the configuration's `assignment_warmup_steps`, and takes it out from there on (no
-    /// effect on the other methods). Kept in step with [`Trainer::env_steps`]: at the start
+    /// effect on the other methods), with the hold of its draws at those env steps
+    /// ([`Team::sync_assignment`]). Kept in step with [`Trainer::env_steps`]: at the start
     /// and end of every iteration and when a run is built or restored, so that collection,
     /// the update and the evaluations after an iteration all see the env steps' state.
-    fn sync_assignment_warmup(&mut self) {
-        let warmup = self.config.assignment_warmup_at(self.env_steps);
+    fn sync_assignment_state(&mut self) {
         for t in &mut self.teams {
-            t.model.set_assignment_warmup(warmup);
+            t.sync_assignment(&self.config, self.env_steps);
         }
     }
 
@@ -402,7 +402,7 @@ impl Trainer {
         t.env_steps = c.env_steps;
         t.evals_done = c.evals_done;
         t.episode_returns = c.episode_returns.clone();
-        t.sync_assignment_warmup();
+        t.sync_assignment_state();
         Ok(t)
     }
 
@@ -462,7 +462,7 @@ impl Trainer {
         for t in &mut self.teams {
             t.model.reseed(derive_seed(self.config.seed, "assign", t.index as u64, self.iteration));
         }
-        self.sync_assignment_warmup();
+        self.sync_assignment_state();
         let mut timings = Timings::default();
         let episodes = self.collect_timed(&mut timings)?;
         let mut mark = Instant::now();
@@ -475,7 +475,7 @@ impl Trainer {
         let losses = self.update(&mut timings)?;
         self.iteration += 1;
         self.env_steps += self.config.steps_per_iteration();
-        self.sync_assignment_warmup();
+        self.sync_assignment_state();
         Ok(IterationStats { episodes, losses, alpha, timings })
     }
 
@@ -494,7 +494,16 @@ impl Trainer {
     fn collect_timed(&mut self, timings: &mut Timings) -> Result<EpisodeStats> {
         let scale = self.config.reward_scaling as f32;
         let mut stats = EpisodeStats::new(self.spec.n_teams);
-        self.rollout.begin(self.env.obs());
+        // Every iteration's collection begins with a draw of each held assignment.
+        let holds: Vec<usize> = self
+            .teams
+            .iter_mut()
+            .map(|t| {
+                t.actor.hold.restart();
+                t.actor.hold.every()
+            })
+            .collect();
+        self.rollout.begin(self.env.obs(), &holds);
         let mut mark = Instant::now();
         while !self.rollout.is_full() {
             for team in self.teams.iter_mut() {

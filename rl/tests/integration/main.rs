@@ -2,6 +2,7 @@
 //! one module per subject, each with its own doc comment.
 
 mod assignment_diagnostics;
+mod assignment_hold;
 mod assignment_sensitivity;
 mod assignment_warmup;
 mod checkpoint_format;

@@ -188,6 +188,14 @@ mod tests {
             let name = l.name.replace("/seed", "+no_assignment_bonus/seed");
             assert_eq!(r.name, name);
         }
+        // Its follow-up with the draw held for an unroll: the same runs but for the hold.
+        let hold = Sweep::load(&dir.join("learned_assignment_hold.toml")).unwrap().runs().unwrap();
+        assert_eq!(hold.len(), 3);
+        for (r, l) in hold.iter().zip(&learned[..3]) {
+            assert_eq!(r.config, TrainConfig { assignment_hold_steps: 5, ..l.config.clone() }, "{}", r.name);
+            assert_eq!(r.config.assignment_hold_steps as usize, r.config.unroll_length);
+            assert_eq!(r.name, l.name.replace("/seed", "+hold_5/seed"));
+        }
         // Its follow-up with a warm-up: the same runs but for the warm-up and a longer budget,
         // whose first 16M env steps are greedy MLP+HN's (the seeds of repro_reach_2_ants.toml).
         let warmup = Sweep::load(&dir.join("learned_assignment_warmup.toml")).unwrap().runs().unwrap();
