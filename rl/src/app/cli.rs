@@ -309,6 +309,37 @@ struct RenderArgs {
     stochastic: bool,
 }
 
+/// A line of a command's report on standard output, as `println!` but never a panic: a reader
+/// that stops reading (`meben status | head`) ends the report quietly while the command
+/// finishes its work (files are written all the same), and another write error is said once
+/// on standard error ([`out`]).
+macro_rules! outln {
+    ($($arg:tt)*) => {
+        out(format_args!($($arg)*), true)
+    };
+}
+
+/// Whether standard output has failed once: nothing more is written to it.
+static STDOUT_GONE: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
+/// Writes `text` (and a newline if `newline`) to standard output unless it has failed before
+/// ([`outln!`]): a closed pipe silently, another error said once on standard error.
+fn out(text: std::fmt::Arguments<'_>, newline: bool) {
+    use std::io::Write;
+    use std::sync::atomic::Ordering;
+    if STDOUT_GONE.load(Ordering::Relaxed) {
+        return;
+    }
+    let mut stdout = std::io::stdout().lock();
+    let written = if newline { writeln!(stdout, "{text}") } else { write!(stdout, "{text}") };
+    if let Err(e) = written.and_then(|()| stdout.flush()) {
+        STDOUT_GONE.store(true, Ordering::Relaxed);
+        if e.kind() != std::io::ErrorKind::BrokenPipe {
+            eprintln!("meben: standard output: {e}; the rest of this command's report is not written there");
+        }
+    }
+}
+
 /// Runs the `meben` program on the process's arguments (module docs); its exit code.
 pub fn main() -> ExitCode {
     let cli = Cli::parse();
@@ -440,19 +471,19 @@ fn announce_device(device: tensor::Device) -> Result<(), String> {
 }
 
 fn print_summary(config: &TrainConfig, s: &crate::app::record::RunSummary) {
-    println!("iterations {} env_steps {} wall_s {:.1}", s.iterations, s.env_steps, s.wall_s);
+    outln!("iterations {} env_steps {} wall_s {:.1}", s.iterations, s.env_steps, s.wall_s);
     if let Some(e) = &s.final_eval {
         print_eval(config.is_sumo(), e);
     }
     for e in &s.final_eval_rotated {
-        print!("rotated {} degrees: ", e.rotation_deg);
+        out(format_args!("rotated {} degrees: ", e.rotation_deg), false);
         print_eval(config.is_sumo(), e);
     }
 }
 
 fn print_eval(sumo: bool, e: &crate::mappo::evaluate::EvalSummary) {
     if sumo {
-        println!(
+        outln!(
             "episodes {} win_rate_t0 {:.4} win_rate_t1 {:.4} draw_rate {:.4} mean_length {:.1} actions {}",
             e.episodes,
             e.win_rate[0],
@@ -462,7 +493,7 @@ fn print_eval(sumo: bool, e: &crate::mappo::evaluate::EvalSummary) {
             if e.sampled { "sampled" } else { "mean" }
         );
     } else {
-        println!(
+        outln!(
             "episodes {} success_rate {:.4} mean_return {:.1} mean_length {:.1} actions {}",
             e.episodes,
             e.success_rate,
@@ -537,10 +568,10 @@ fn cmd_eval(a: EvalArgs) -> Result<(), String> {
     print_eval(config.is_sumo(), &e);
     for s in &e.assignment_sensitivity {
         if s.steps == 0 {
-            println!("team {} assignment sensitivity: no other one-to-one assignment to compare with", s.team);
+            outln!("team {} assignment sensitivity: no other one-to-one assignment to compare with", s.team);
             continue;
         }
-        println!(
+        outln!(
             "team {} assignment sensitivity: KL(π(·|s,σ) ‖ π(·|s,σ')) mean {:.4}, median {:.4}, 90th percentile {:.4} nats over {} scene-steps, {} other assignment(s) a step; mean over each episode's first {} steps {:.4}",
             s.team,
             s.mean_kl,
@@ -615,7 +646,7 @@ fn cmd_ablate(a: AblateArgs) -> Result<(), String> {
         crate::app::run::train(&c, r, &options)
     })
     .map_err(|e| e.to_string())?;
-    println!("meben: sweep {}: {outcome}", a.out.display());
+    outln!("meben: sweep {}: {outcome}", a.out.display());
     Ok(())
 }
 
@@ -648,7 +679,7 @@ fn cmd_report(a: ReportArgs) -> Result<(), String> {
         crate::app::curve::write_run_curve(&RunDir::new(dir)).map_err(|e| e.to_string())?;
     }
     let text = std::fs::read_to_string(&r.markdown).map_err(|e| format!("{}: {e}", r.markdown.display()))?;
-    println!("{text}");
+    outln!("{text}");
     eprintln!("meben: wrote {}", r.markdown.display());
     if let Some(paper) = &paper {
         let path = crate::app::paper::write_paper_table(&r.dir, &r.groups, paper).map_err(|e| e.to_string())?;
@@ -659,7 +690,7 @@ fn cmd_report(a: ReportArgs) -> Result<(), String> {
 
 fn cmd_export(a: ExportArgs) -> Result<(), String> {
     let s = crate::app::export::export(&a.from, &a.to).map_err(|e| e.to_string())?;
-    println!(
+    outln!(
         "meben: exported {} ({} unfinished, {} bytes) from {} to {}",
         crate::app::report::count(s.runs.len(), "run"),
         s.unfinished.len(),
@@ -668,10 +699,10 @@ fn cmd_export(a: ExportArgs) -> Result<(), String> {
         a.to.display()
     );
     for u in &s.unfinished {
-        println!("  unfinished: {}", u.display());
+        outln!("  unfinished: {}", u.display());
     }
     for k in &s.kept {
-        println!(
+        outln!(
             "  kept: {} (the exported metrics.csv has {} rows; this run's {} are equal to its first ones)",
             k.run.display(),
             k.kept_rows,
@@ -684,14 +715,14 @@ fn cmd_export(a: ExportArgs) -> Result<(), String> {
 fn cmd_status(a: StatusArgs) -> Result<(), String> {
     let runs = crate::app::status::status(&a.root).map_err(|e| e.to_string())?;
     for line in crate::app::status::status_lines(&runs) {
-        println!("{line}");
+        outln!("{line}");
     }
     Ok(())
 }
 
 fn cmd_info(a: InfoArgs) -> Result<(), String> {
     for line in crate::app::info::info_lines(&a.env, &a.model, a.opponent.as_deref()).map_err(|e| e.to_string())? {
-        println!("{line}");
+        outln!("{line}");
     }
     Ok(())
 }
@@ -704,7 +735,7 @@ fn cmd_export_policy(a: ExportPolicyArgs) -> Result<(), String> {
         Some(e) => format!("success rate {:.4} on {} episodes", e.success_rate, e.episodes),
         None => "not evaluated yet".into(),
     };
-    println!(
+    outln!(
         "meben: wrote {} ({} bytes): the policy after {} env steps; last evaluation: {eval}",
         a.out.display(),
         s.bytes,

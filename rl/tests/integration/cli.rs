@@ -172,6 +172,22 @@ fn info_prints_each_teams_parameter_counts_and_rejects_bad_names() {
     assert!(!ok && stderr.contains("model") && stderr.contains("critic"), "{stderr}");
 }
 
+/// A reader that stops reading (`meben status | head`) is no error: the command ends
+/// quietly, its work done, where it used to panic ("failed printing to stdout").
+#[test]
+fn a_closed_standard_output_ends_the_report_quietly() {
+    let results = concat!(env!("CARGO_MANIFEST_DIR"), "/../results/learned_assignment");
+    let commands: [&[&str]; 2] = [&["info", "--env", "team_sumo/2_ants", "--model", "shnn"], &["status", results]];
+    for args in commands {
+        let (reader, writer) = std::io::pipe().unwrap();
+        drop(reader);
+        let out = Command::new(env!("CARGO_BIN_EXE_meben")).args(args).stdout(writer).output().unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "{args:?}: {:?} {stderr}", out.status);
+        assert!(!stderr.contains("panicked"), "{args:?}: {stderr}");
+    }
+}
+
 #[test]
 fn a_second_training_of_a_run_directory_is_refused_naming_the_first() {
     let dir = common::TempDir::new("cli-lock");

@@ -54,6 +54,7 @@ pub mod aggregate;
 pub mod render;
 pub mod stats;
 
+use std::io::Write;
 use std::path::{Path, PathBuf};
 
 pub use aggregate::{CurvePoint, GroupReport, StartKind, group_runs};
@@ -138,6 +139,7 @@ pub fn report_at(root: &Path, at_steps: Option<u64>) -> Result<Report> {
     }
     nn::write_atomic(&markdown, render_markdown(root, at_steps, &groups, &pending).as_bytes())?;
     nn::write_atomic(&csv, render_csv(&groups).as_bytes())?;
-    println!("{}", markdown.display());
+    // The report's path on standard output; a reader that stopped reading is no error here.
+    let _ = writeln!(std::io::stdout(), "{}", markdown.display());
     Ok(Report { root: root.to_path_buf(), dir: out, groups, pending, markdown, csv, curves })
 }
