@@ -35,6 +35,8 @@ pub struct PyPolicy {
     recorded_eval: Option<rl::EvalSummary>,
     config: TrainConfig,
     teams: Vec<Team>,
+    /// The task-assignment rule acting in place of the run's own (`load`'s `assignment`).
+    assignment: Option<String>,
     /// What acting changes (one thread at a time: module docs).
     acting: Mutex<Acting>,
     spec: ObsSpec,
@@ -62,9 +64,12 @@ impl PyPolicy {
     /// as the `meben` program writes them) or a policy file (`meben export-policy`,
     /// `.safetensors`). `seed` seeds the action noise and stochastic assignments as `meben
     /// eval --seed` does. A damaged, truncated or foreign file raises `ValueError` naming it.
+    /// `assignment` (`"greedy"`, `"hungarian"` or `"stochastic"`) acts and evaluates with
+    /// that task-assignment rule in place of the run's own, on the same parameters (`meben
+    /// eval --assignment`); one the run's models cannot take raises `ValueError` saying why.
     #[staticmethod]
-    #[pyo3(signature = (run, seed=0))]
-    fn load(py: Python<'_>, run: std::path::PathBuf, seed: i128) -> PyResult<PyPolicy> {
+    #[pyo3(signature = (run, seed=0, assignment=None))]
+    fn load(py: Python<'_>, run: std::path::PathBuf, seed: i128, assignment: Option<String>) -> PyResult<PyPolicy> {
         let seed = crate::seed::seed("seed", seed, u64::MAX)?;
         if run.as_os_str().is_empty() {
             // An empty path would name the working directory as a run directory.
@@ -86,19 +91,30 @@ impl PyPolicy {
             }
         })?
         .map_err(rl_error)?;
-        Self::new(py, run, config, teams, recorded_eval, seed)
+        let teams = match &assignment {
+            Some(rule) => rl::app::eval_assignment::reassign(&config, teams, rule)
+                .map_err(|e| bad_argument("assignment", format!("{rule:?}"), &e))?,
+            None => teams,
+        };
+        Self::new(py, run, config, teams, recorded_eval, seed, assignment)
     }
 
     /// The shipped pretrained policy of `model` on `env` (`policies/index.toml` in the
     /// package, e.g. `Policy.pretrained("team_reach/2_ants", "shnn")`); a name that is not
     /// shipped raises `ValueError` listing the shipped ones.
     #[staticmethod]
-    #[pyo3(signature = (env, model, seed=0))]
-    fn pretrained(py: Python<'_>, env: &str, model: &str, seed: i128) -> PyResult<PyPolicy> {
+    #[pyo3(signature = (env, model, seed=0, assignment=None))]
+    fn pretrained(
+        py: Python<'_>,
+        env: &str,
+        model: &str,
+        seed: i128,
+        assignment: Option<String>,
+    ) -> PyResult<PyPolicy> {
         let seed = crate::seed::seed("seed", seed, u64::MAX)?;
         let dir = shipped_dir(py)?;
         let path = rl::app::policy_file::find_pretrained(&dir, &format!("{env}/{model}")).map_err(rl_error)?;
-        Self::load(py, path, i128::from(seed))
+        Self::load(py, path, i128::from(seed), assignment)
     }
 
     /// The last evaluation recorded with the policy (the run's checkpoint, or the policy
@@ -209,9 +225,10 @@ impl PyPolicy {
         if let Some(e) = interrupt {
             return Err(e);
         }
-        let summary = result
+        let mut summary = result
             .map_err(rl_error)?
             .ok_or_else(|| pyo3::exceptions::PyRuntimeError::new_err("Policy.evaluate stopped without an interrupt"))?;
+        summary.assignment = self.assignment.clone();
         let text =
             serde_json::to_string(&summary).map_err(|e| pyo3::exceptions::PyRuntimeError::new_err(e.to_string()))?;
         py.import("json")?.call_method1("loads", (text,))
@@ -276,6 +293,7 @@ impl PyPolicy {
         teams: Vec<Team>,
         recorded_eval: Option<rl::EvalSummary>,
         seed: u64,
+        assignment: Option<String>,
     ) -> PyResult<PyPolicy> {
         let scene =
             pool::detach(py, || envs::tasks::Scene::from_name(&config.env))?.map_err(crate::errors::task_error)?;
@@ -285,6 +303,7 @@ impl PyPolicy {
             recorded_eval,
             config,
             teams,
+            assignment,
             acting: Mutex::new(Acting { players, obs: Default::default() }),
             spec: scene.obs_spec,
             n_actions: scene.n_actions,

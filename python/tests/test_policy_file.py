@@ -98,3 +98,20 @@ def test_the_shipped_shnn_ant_loads_from_the_wheel_and_reaches_its_goal():
     # sampling (about 7 standard deviations).
     result = policy.evaluate(episodes=64, deterministic=False)
     assert result["success_rate"] >= 0.8, result
+
+
+def test_a_policy_loaded_with_another_assignment_rule_evaluates_with_it():
+    # `assignment=` is `meben eval --assignment`: the shipped SHNN on two ants (trained with
+    # the paper's greedy rule) given its own rule by name plays the same episodes, and a
+    # random one-to-one assignment at every step plays others; the summary names the rule.
+    own = meben.Policy.pretrained("team_reach/2_ants", "shnn").evaluate(episodes=8, deterministic=False)
+    greedy = meben.Policy.pretrained("team_reach/2_ants", "shnn", assignment="greedy")
+    named = greedy.evaluate(episodes=8, deterministic=False)
+    assert named.pop("assignment") == "greedy"
+    assert named == own and "assignment" not in own
+    random = meben.Policy.pretrained("team_reach/2_ants", "shnn", assignment="stochastic")
+    summary = random.evaluate(episodes=8, deterministic=False)
+    assert summary["assignment"] == "stochastic"
+    assert summary["mean_return"] != own["mean_return"]
+    with pytest.raises(ValueError, match=r"bad assignment = \"none\".*greedy, hungarian, stochastic"):
+        meben.Policy.pretrained("team_reach/2_ants", "shnn", assignment="none")

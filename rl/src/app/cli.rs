@@ -199,6 +199,13 @@ struct EvalArgs {
     /// without; the summary gains `assignment_sensitivity`). Models with an assignment only.
     #[arg(long)]
     assignment_sensitivity: bool,
+    /// Evaluate with this task-assignment rule in place of the one the policy was trained
+    /// with, on the same parameters: greedy (Algorithm 1), hungarian (least total distance)
+    /// or stochastic (a random one-to-one assignment at every step). Models with a greedy,
+    /// hungarian or stochastic assignment only; with --run the summary goes to
+    /// eval[...]_assignment-<rule>.json, beside the run's own.
+    #[arg(long, value_name = "RULE")]
+    assignment: Option<String>,
 }
 
 /// `X,Y` as two finite numbers.
@@ -525,7 +532,11 @@ fn cmd_eval(a: EvalArgs) -> Result<(), String> {
     if let Some(adapter) = crate::mappo::device::check_device(device).map_err(|e| e.to_string())? {
         eprintln!("meben: evaluating on GPU: {adapter}");
     }
-    let in_run = a.run.as_ref().map(|r| r.join(eval_file_name(a.rotate, a.translate, a.fixed)));
+    if let Some(rule) = &a.assignment {
+        crate::app::eval_assignment::check_rule(rule)?;
+    }
+    let in_run =
+        a.run.as_ref().map(|r| r.join(eval_file_name(a.rotate, a.translate, a.fixed, a.assignment.as_deref())));
     // `--out` is checked before anything is computed: never a run directory's own file
     // (but the run's own evaluation file, written anyway) nor the policy evaluated.
     let out = match (&a.out, &in_run) {
@@ -538,7 +549,11 @@ fn cmd_eval(a: EvalArgs) -> Result<(), String> {
         let inputs: Vec<(&str, &std::path::Path)> = policy.iter().map(|p| ("--policy", p.as_path())).collect();
         outputs::check_output("--out", out, &inputs).map_err(|e| e.to_string())?;
     }
-    let (config, mut teams) = load_teams(a.run.as_ref(), a.policy.as_deref())?;
+    let (config, teams) = load_teams(a.run.as_ref(), a.policy.as_deref())?;
+    let mut teams = match &a.assignment {
+        Some(rule) => crate::app::eval_assignment::reassign(&config, teams, rule)?,
+        None => teams,
+    };
     if a.episodes == 0 {
         return Err("--episodes must be at least 1".into());
     }
@@ -564,7 +579,11 @@ fn cmd_eval(a: EvalArgs) -> Result<(), String> {
     }
     .options(&config);
     let options = EvalOptions { assignment_sensitivity: a.assignment_sensitivity, ..options };
-    let e = evaluate_on_device(&config.env, &mut teams, &options, device)?;
+    let mut e = evaluate_on_device(&config.env, &mut teams, &options, device)?;
+    e.assignment = a.assignment.clone();
+    if let Some(rule) = &e.assignment {
+        outln!("assignment: {rule}, in place of the policy's own");
+    }
     print_eval(config.is_sumo(), &e);
     for s in &e.assignment_sensitivity {
         if s.steps == 0 {
@@ -606,9 +625,10 @@ fn evaluate_on_device(
 }
 
 /// The file an evaluation is written to: `eval.json`, `eval_fixed.json`,
-/// `eval_rotate<deg>.json`, `eval[_rotate<deg>]_translate<x>_<y>.json`, every number in at
+/// `eval_rotate<deg>.json`, `eval[_rotate<deg>]_translate<x>_<y>.json` (each with
+/// `_assignment-<rule>` before `.json` under `--assignment`), every number in at
 /// most 24 characters (`1e308`, not 309 digits: a file name has a length limit).
-fn eval_file_name(rotate: Option<f64>, translate: Option<[f64; 2]>, fixed: bool) -> String {
+fn eval_file_name(rotate: Option<f64>, translate: Option<[f64; 2]>, fixed: bool, assignment: Option<&str>) -> String {
     let num = |x: f64| {
         let plain = x.to_string();
         if plain.len() <= 24 { plain } else { format!("{x:e}") }
@@ -621,6 +641,9 @@ fn eval_file_name(rotate: Option<f64>, translate: Option<[f64; 2]>, fixed: bool)
     if let Some([x, y]) = translate {
         let base = if rotate.is_some() { name.as_str() } else { "eval" };
         name = format!("{base}_translate{}_{}", num(x), num(y));
+    }
+    if let Some(rule) = assignment {
+        name = format!("{name}_assignment-{rule}");
     }
     format!("{name}.json")
 }

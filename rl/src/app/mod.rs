@@ -17,6 +17,7 @@
 pub mod build_info;
 pub mod cli;
 pub mod curve;
+pub mod eval_assignment;
 pub mod export;
 pub mod info;
 pub mod lock;

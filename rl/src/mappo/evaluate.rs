@@ -55,6 +55,10 @@ pub struct EvalSummary {
     /// [`EvalOptions::assignment_sensitivity`] asks (empty otherwise, and then not written).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub assignment_sensitivity: Vec<AssignmentSensitivity>,
+    /// The task-assignment rule the teams acted with in place of their own (`meben eval
+    /// --assignment`, [`crate::app::eval_assignment`]); `None`, and not written, for their own.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub assignment: Option<String>,
 }
 
 /// What to evaluate.

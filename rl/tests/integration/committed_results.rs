@@ -64,6 +64,14 @@ fn every_committed_report_regenerates_from_the_committed_run_files() {
     for exp in &experiments {
         let name = exp.file_name().unwrap().to_str().unwrap();
         let files = files_under(exp);
+        // An experiment of evaluations only (`results/assignment_swap`: summaries of a
+        // shipped policy and the diagnostics.md its script draws from them) has no run to
+        // report on; one with a run always has its report.
+        if !files.iter().any(|f| f.ends_with("metrics.csv"))
+            && files.iter().any(|f| f.as_path() == Path::new("diagnostics.md"))
+        {
+            continue;
+        }
         let outputs: Vec<&PathBuf> = files.iter().filter(|f| is_report_output(f)).collect();
         assert!(
             outputs.iter().any(|f| f.as_path() == Path::new("report.md")),

@@ -13,6 +13,7 @@ mod common;
 mod custom_policy;
 mod device;
 mod distribution;
+mod eval_assignment;
 mod evaluation;
 mod fuzz_corpus;
 mod gpu_training;

@@ -24,8 +24,8 @@
 //!   its number). A retyped per-seed figure that no longer matches any of them fails; one
 //!   edited into another value of the same evidence does not.
 //!
-//! A section's experiments are the `results/<experiment>/report.md` files it links (a
-//! section that links none: those its `## ` part links). A figure
+//! A section's experiments are the `results/<experiment>/report.md` and `diagnostics.md`
+//! files it links (a section that links none: those its `## ` part links). A figure
 //! matches when it equals the evidence rounded to the decimals it is written with (either
 //! way at an exact tie, since `{:.2}` and Python's rounding differ there).
 
@@ -93,9 +93,11 @@ fn reproduction(doc: &str) -> (HashMap<String, String>, Vec<Table>) {
 fn linked_experiments(text: &str) -> Vec<String> {
     let mut out: Vec<String> = Vec::new();
     for piece in text.split("results/").skip(1) {
-        if let Some((name, _)) = piece.split_once("/report.md")
-            && !name.is_empty()
-            && !name.contains(['/', ' ', '(', ')', '`'])
+        let named = ["/report.md", "/diagnostics.md"]
+            .iter()
+            .filter_map(|file| piece.split_once(file).map(|(name, _)| name))
+            .find(|name| !name.is_empty() && !name.contains(['/', ' ', '(', ')', '`']));
+        if let Some(name) = named
             && !out.iter().any(|o| o == name)
         {
             out.push(name.to_string());
@@ -173,6 +175,7 @@ fn check_final_rates(t: &Table, experiments: &[String], tally: &mut Tally) {
     let results = root().join("results");
     let reports: Vec<(&String, HashMap<String, String>)> = experiments
         .iter()
+        .filter(|exp| results.join(exp).join("report.csv").is_file())
         .flat_map(|exp| read_report(&results.join(exp).join("report.csv")).into_iter().map(move |r| (exp, r)))
         .collect();
     for row in &t.rows {
@@ -328,6 +331,13 @@ fn a_figure_matches_only_to_its_decimals() {
         linked_experiments("[a](../results/sumo/report.md) and `results/reach_1_ant/report.md`"),
         ["sumo", "reach_1_ant"]
     );
+    // A linked diagnostics file names its experiment too, once.
+    assert_eq!(
+        linked_experiments(
+            "[d](../results/swap/diagnostics.md), [r](../results/sumo/report.md), results/swap/report.md"
+        ),
+        ["swap", "sumo"]
+    );
 }
 
 /// Every experiment's generated paper-versus-here table (`results/<experiment>/paper.md`,
@@ -400,7 +410,8 @@ fn evidence(experiments: &[String], named: &[String]) -> Vec<f64> {
     let mut values = Vec::new();
     for exp in experiments {
         let dir = results.join(exp);
-        let mut reports = vec![dir.join("report.csv")];
+        // An experiment of evaluations only (`results/assignment_swap`) has no report.
+        let mut reports: Vec<PathBuf> = [dir.join("report.csv")].into_iter().filter(|r| r.is_file()).collect();
         for sub in std::fs::read_dir(&dir).unwrap() {
             let sub = sub.unwrap().path();
             if sub.file_name().and_then(|n| n.to_str()).and_then(rl::app::report::at_steps_of).is_some() {

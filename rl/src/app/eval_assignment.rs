@@ -1,0 +1,118 @@
+//! `meben eval --assignment RULE`: a trained policy evaluated with another task-assignment
+//! rule than the one it was trained with, on the same parameters and normaliser. It asks
+//! how much a trained policy relies on its rule (the paper's Limitations: assignment and
+//! equivariance depend on each other): an SHNN trained with Algorithm 1's greedy rule,
+//! evaluated with the least-total-distance matching or with a random one-to-one assignment.
+//!
+//! Only the one-to-one rules that change nothing but the links are offered: `greedy`,
+//! `hungarian` and `stochastic`. `none` is refused (it changes the graph and the model's
+//! translation default, not only the links) and so is `learned` (its scorer is parameters
+//! a policy trained without it does not have); a policy trained with `learned` is refused
+//! too, as its parameters include the scorer.
+
+use models::{AssignmentMethod, ModelDescription};
+
+use crate::mappo::config::TrainConfig;
+use crate::mappo::team::Team;
+
+/// The rules `--assignment` takes.
+pub const RULES: [&str; 3] = ["greedy", "hungarian", "stochastic"];
+
+/// An error naming the flag and the value unless `rule` is one of [`RULES`].
+pub fn check_rule(rule: &str) -> Result<(), String> {
+    if RULES.contains(&rule) {
+        return Ok(());
+    }
+    Err(format!(
+        "--assignment {rule}: expected one of {} (the one-to-one rules that change only the links)",
+        RULES.join(", ")
+    ))
+}
+
+/// `model` (a model string, `name` or `name:key=value;...`) with its `assignment` option set
+/// to `rule`, every other option kept. `None` where the model has no task assignment.
+pub fn with_assignment(model: &str, rule: &str) -> Result<Option<String>, String> {
+    let d = ModelDescription::parse(model).map_err(|e| format!("model `{model}`: {e}"))?;
+    let Some(own) = d.assignment() else { return Ok(None) };
+    if own.method == AssignmentMethod::Learned {
+        return Err(format!(
+            "--assignment {rule}: model `{model}` learned its assignment; its parameters include the scorer, \
+             so it is evaluated with its own draws only"
+        ));
+    }
+    let (name, options) = model.split_once(':').unwrap_or((model, ""));
+    let mut kept: Vec<&str> = options
+        .split(';')
+        .filter(|o| !o.is_empty() && o.split('=').next().map(str::trim) != Some("assignment"))
+        .collect();
+    let set = format!("assignment={rule}");
+    kept.push(&set);
+    Ok(Some(format!("{name}:{}", kept.join(";"))))
+}
+
+/// `teams` (of a run or policy file of `config`) rebuilt with the assignment rule `rule` in
+/// place of their own, each with its own parameters and normaliser. Teams without a task
+/// assignment are kept as they are; errors name the flag, the rule and the model.
+pub fn reassign(config: &TrainConfig, teams: Vec<Team>, rule: &str) -> Result<Vec<Team>, String> {
+    check_rule(rule)?;
+    let mut swapped = config.clone();
+    let mut any = false;
+    if let Some(m) = with_assignment(&config.model, rule)? {
+        swapped.model = m;
+        any = true;
+    }
+    if !config.opponent.is_empty()
+        && let Some(m) = with_assignment(&config.opponent, rule)?
+    {
+        swapped.opponent = m;
+        any = true;
+    }
+    if !any {
+        return Err(format!("--assignment {rule}: no team's model (`{}`) has a task assignment", config.model));
+    }
+    let spec = envs::tasks::Scene::from_name(&config.env).map_err(|e| e.to_string())?.obs_spec;
+    let mut out = Vec::with_capacity(teams.len());
+    for old in teams {
+        let k = old.index;
+        if swapped.team_model(k) == config.team_model(k) {
+            out.push(old);
+            continue;
+        }
+        let mut new = Team::build(&swapped, &spec, k).map_err(|e| e.to_string())?;
+        let state = nn::StateDict::from_store(&old.store).map_err(|e| e.to_string())?;
+        state.load_into(&mut new.store).map_err(|e| {
+            format!("--assignment {rule}: team {k}'s parameters do not fit `{}`: {e}", swapped.team_model(k))
+        })?;
+        new.norm = old.norm.clone();
+        out.push(new);
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_assignment_option_is_set_and_the_others_kept() {
+        assert_eq!(with_assignment("shnn", "hungarian").unwrap().as_deref(), Some("shnn:assignment=hungarian"));
+        assert_eq!(
+            with_assignment("mlp_hn:assignment=hungarian;seed=3", "stochastic").unwrap().as_deref(),
+            Some("mlp_hn:seed=3;assignment=stochastic")
+        );
+        // The result parses, to the rule asked for.
+        let m = with_assignment("shnn:gravity=every_layer", "stochastic").unwrap().unwrap();
+        let d = ModelDescription::parse(&m).unwrap();
+        assert_eq!(d.assignment().unwrap().method, AssignmentMethod::Stochastic);
+    }
+
+    #[test]
+    fn a_model_without_an_assignment_or_with_a_learned_one_is_not_swapped() {
+        assert_eq!(with_assignment("transformer_hn", "greedy").unwrap(), None);
+        let e = with_assignment("mlp_hn:assignment=learned", "greedy").unwrap_err();
+        assert!(
+            e.contains("--assignment greedy") && e.contains("mlp_hn:assignment=learned") && e.contains("scorer"),
+            "{e}"
+        );
+    }
+}
