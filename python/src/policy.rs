@@ -35,8 +35,9 @@ pub struct PyPolicy {
     recorded_eval: Option<rl::EvalSummary>,
     config: TrainConfig,
     teams: Vec<Team>,
-    /// The task-assignment rule acting in place of the run's own (`load`'s `assignment`).
-    assignment: Option<String>,
+    /// The task-assignment rule and hold acting in place of the run's own (`load`'s
+    /// `assignment` and `assignment_hold`).
+    assignment: (Option<String>, Option<usize>),
     /// What acting changes (one thread at a time: module docs).
     acting: Mutex<Acting>,
     spec: ObsSpec,
@@ -67,9 +68,17 @@ impl PyPolicy {
     /// `assignment` (`"greedy"`, `"hungarian"` or `"stochastic"`) acts and evaluates with
     /// that task-assignment rule in place of the run's own, on the same parameters (`meben
     /// eval --assignment`); one the run's models cannot take raises `ValueError` saying why.
+    /// `assignment_hold=k` holds each random assignment (`"stochastic"`, or a learned one)
+    /// for `k` steps in place of the run's own hold (`meben eval --assignment-hold`).
     #[staticmethod]
-    #[pyo3(signature = (run, seed=0, assignment=None))]
-    fn load(py: Python<'_>, run: std::path::PathBuf, seed: i128, assignment: Option<String>) -> PyResult<PyPolicy> {
+    #[pyo3(signature = (run, seed=0, assignment=None, assignment_hold=None))]
+    fn load(
+        py: Python<'_>,
+        run: std::path::PathBuf,
+        seed: i128,
+        assignment: Option<String>,
+        assignment_hold: Option<usize>,
+    ) -> PyResult<PyPolicy> {
         let seed = crate::seed::seed("seed", seed, u64::MAX)?;
         if run.as_os_str().is_empty() {
             // An empty path would name the working directory as a run directory.
@@ -91,30 +100,35 @@ impl PyPolicy {
             }
         })?
         .map_err(rl_error)?;
-        let teams = match &assignment {
+        let mut teams = match &assignment {
             Some(rule) => rl::app::eval_assignment::reassign(&config, teams, rule)
                 .map_err(|e| bad_argument("assignment", format!("{rule:?}"), &e))?,
             None => teams,
         };
-        Self::new(py, run, config, teams, recorded_eval, seed, assignment)
+        if let Some(every) = assignment_hold {
+            rl::app::eval_assignment::hold(&mut teams, every)
+                .map_err(|e| bad_argument("assignment_hold", every, &e))?;
+        }
+        Self::new(py, run, config, teams, recorded_eval, seed, (assignment, assignment_hold))
     }
 
     /// The shipped pretrained policy of `model` on `env` (`policies/index.toml` in the
     /// package, e.g. `Policy.pretrained("team_reach/2_ants", "shnn")`); a name that is not
     /// shipped raises `ValueError` listing the shipped ones.
     #[staticmethod]
-    #[pyo3(signature = (env, model, seed=0, assignment=None))]
+    #[pyo3(signature = (env, model, seed=0, assignment=None, assignment_hold=None))]
     fn pretrained(
         py: Python<'_>,
         env: &str,
         model: &str,
         seed: i128,
         assignment: Option<String>,
+        assignment_hold: Option<usize>,
     ) -> PyResult<PyPolicy> {
         let seed = crate::seed::seed("seed", seed, u64::MAX)?;
         let dir = shipped_dir(py)?;
         let path = rl::app::policy_file::find_pretrained(&dir, &format!("{env}/{model}")).map_err(rl_error)?;
-        Self::load(py, path, i128::from(seed), assignment)
+        Self::load(py, path, i128::from(seed), assignment, assignment_hold)
     }
 
     /// The last evaluation recorded with the policy (the run's checkpoint, or the policy
@@ -228,7 +242,7 @@ impl PyPolicy {
         let mut summary = result
             .map_err(rl_error)?
             .ok_or_else(|| pyo3::exceptions::PyRuntimeError::new_err("Policy.evaluate stopped without an interrupt"))?;
-        summary.assignment = self.assignment.clone();
+        (summary.assignment, summary.assignment_hold) = self.assignment.clone();
         let text =
             serde_json::to_string(&summary).map_err(|e| pyo3::exceptions::PyRuntimeError::new_err(e.to_string()))?;
         py.import("json")?.call_method1("loads", (text,))
@@ -293,7 +307,7 @@ impl PyPolicy {
         teams: Vec<Team>,
         recorded_eval: Option<rl::EvalSummary>,
         seed: u64,
-        assignment: Option<String>,
+        assignment: (Option<String>, Option<usize>),
     ) -> PyResult<PyPolicy> {
         let scene =
             pool::detach(py, || envs::tasks::Scene::from_name(&config.env))?.map_err(crate::errors::task_error)?;

@@ -113,5 +113,12 @@ def test_a_policy_loaded_with_another_assignment_rule_evaluates_with_it():
     summary = random.evaluate(episodes=8, deterministic=False)
     assert summary["assignment"] == "stochastic"
     assert summary["mean_return"] != own["mean_return"]
+    # Held for the episode: one random assignment an episode, other episodes again.
+    held = meben.Policy.pretrained("team_reach/2_ants", "shnn", assignment="stochastic", assignment_hold=1000)
+    per_episode = held.evaluate(episodes=8, deterministic=False)
+    assert per_episode["assignment"] == "stochastic" and per_episode["assignment_hold"] == 1000
+    assert per_episode["mean_return"] != summary["mean_return"]
     with pytest.raises(ValueError, match=r"bad assignment = \"none\".*greedy, hungarian, stochastic"):
         meben.Policy.pretrained("team_reach/2_ants", "shnn", assignment="none")
+    with pytest.raises(ValueError, match=r"bad assignment_hold = 5.*no team draws its assignment at random"):
+        meben.Policy.pretrained("team_reach/2_ants", "shnn", assignment_hold=5)

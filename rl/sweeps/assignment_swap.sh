@@ -2,7 +2,8 @@
 # How much a trained policy relies on its task-assignment rule (issue 79; `meben eval
 # --assignment`, docs/TRAINING.md): the shipped SHNN on team_reach/2_ants (trained with the
 # paper's greedy rule, Algorithm 1) evaluated on 1024 sampled-action episodes with its own
-# rule, and with each one-to-one rule in place of it on the same parameters. Writes the
+# rule, and with each one-to-one rule in place of it on the same parameters (the random one
+# drawn at every step, and drawn once an episode). Writes the
 # summaries (JSON) and diagnostics.md, a table of them, into OUT (default
 # results/assignment_swap); a summary already there is kept. About 2 minutes an evaluation at one thread; the stochastic
 # rule's episodes run longer.
@@ -20,12 +21,16 @@ for rule in greedy hungarian stochastic; do
   [ -f "$OUT/$rule.json" ] \
     || "$BIN" eval --policy "$POLICY" --episodes 1024 --stochastic --assignment "$rule" --out "$OUT/$rule.json"
 done
+# A random assignment drawn once an episode (held for Team Reach's 1000 steps).
+[ -f "$OUT/stochastic_hold1000.json" ] || "$BIN" eval --policy "$POLICY" --episodes 1024 --stochastic \
+  --assignment stochastic --assignment-hold 1000 --out "$OUT/stochastic_hold1000.json"
 python3 - "$OUT" "$POLICY" <<'PY'
 import json, pathlib, sys
 out, policy = pathlib.Path(sys.argv[1]), sys.argv[2]
 rows = []
 for name, label in [("own", "its own (greedy, Algorithm 1)"), ("greedy", "greedy, by `--assignment`"),
-                    ("hungarian", "hungarian (least total distance)"), ("stochastic", "stochastic (random, each step)")]:
+                    ("hungarian", "hungarian (least total distance)"), ("stochastic", "stochastic (random, each step)"),
+                    ("stochastic_hold1000", "stochastic, drawn once an episode (`--assignment-hold 1000`)")]:
     s = json.loads((out / f"{name}.json").read_text())
     rows.append(f"| {label} | {s['episodes']} | {100 * s['success_rate']:.2f}% | {s['mean_return'][0]:.1f} | {s['mean_length']:.1f} |")
 text = f"""# How much the shipped SHNN relies on its assignment rule (issue 79)

@@ -88,15 +88,21 @@ class VecEnv:
 @final
 class Policy:
     @staticmethod
-    def load(run: _Path, seed: int = 0, assignment: str | None = None) -> Policy:
+    def load(
+        run: _Path, seed: int = 0, assignment: str | None = None, assignment_hold: int | None = None
+    ) -> Policy:
         """The trained teams of ``run``: a run directory (``config.toml`` and checkpoint) or
         a policy file (``meben export-policy``, ``.safetensors``). A damaged, truncated or
         foreign file raises ``ValueError`` naming it. ``assignment`` (``"greedy"``,
         ``"hungarian"`` or ``"stochastic"``) acts and evaluates with that task-assignment
         rule in place of the run's own, on the same parameters (``meben eval
-        --assignment``); one the run's models cannot take raises ``ValueError``."""
+        --assignment``); one the run's models cannot take raises ``ValueError``.
+        ``assignment_hold=k`` holds each random assignment for ``k`` steps (``meben eval
+        --assignment-hold``)."""
     @staticmethod
-    def pretrained(env: str, model: str, seed: int = 0, assignment: str | None = None) -> Policy:
+    def pretrained(
+        env: str, model: str, seed: int = 0, assignment: str | None = None, assignment_hold: int | None = None
+    ) -> Policy:
         """A shipped pretrained policy (``meben/policies/index.toml``), e.g.
         ``Policy.pretrained("team_reach/2_ants", "shnn")``; one not shipped raises
         ``ValueError`` listing the shipped ones."""

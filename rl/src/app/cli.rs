@@ -206,6 +206,12 @@ struct EvalArgs {
     /// eval[...]_assignment-<rule>.json, beside the run's own.
     #[arg(long, value_name = "RULE")]
     assignment: Option<String>,
+    /// Hold each random task assignment (stochastic, or learned) for K steps instead of the
+    /// run's own hold: drawn at the evaluation's steps 0, K, 2K, ... (K = 1000, Team
+    /// Reach's episode, draws one assignment an episode). With --run the summary goes to
+    /// eval[...]_hold<K>.json.
+    #[arg(long, value_name = "K")]
+    assignment_hold: Option<usize>,
 }
 
 /// `X,Y` as two finite numbers.
@@ -535,8 +541,10 @@ fn cmd_eval(a: EvalArgs) -> Result<(), String> {
     if let Some(rule) = &a.assignment {
         crate::app::eval_assignment::check_rule(rule)?;
     }
-    let in_run =
-        a.run.as_ref().map(|r| r.join(eval_file_name(a.rotate, a.translate, a.fixed, a.assignment.as_deref())));
+    let in_run = a
+        .run
+        .as_ref()
+        .map(|r| r.join(eval_file_name(a.rotate, a.translate, a.fixed, a.assignment.as_deref(), a.assignment_hold)));
     // `--out` is checked before anything is computed: never a run directory's own file
     // (but the run's own evaluation file, written anyway) nor the policy evaluated.
     let out = match (&a.out, &in_run) {
@@ -554,6 +562,9 @@ fn cmd_eval(a: EvalArgs) -> Result<(), String> {
         Some(rule) => crate::app::eval_assignment::reassign(&config, teams, rule)?,
         None => teams,
     };
+    if let Some(every) = a.assignment_hold {
+        crate::app::eval_assignment::hold(&mut teams, every)?;
+    }
     if a.episodes == 0 {
         return Err("--episodes must be at least 1".into());
     }
@@ -581,8 +592,12 @@ fn cmd_eval(a: EvalArgs) -> Result<(), String> {
     let options = EvalOptions { assignment_sensitivity: a.assignment_sensitivity, ..options };
     let mut e = evaluate_on_device(&config.env, &mut teams, &options, device)?;
     e.assignment = a.assignment.clone();
+    e.assignment_hold = a.assignment_hold;
     if let Some(rule) = &e.assignment {
         outln!("assignment: {rule}, in place of the policy's own");
+    }
+    if let Some(every) = e.assignment_hold {
+        outln!("assignment held for {every} steps at a time");
     }
     print_eval(config.is_sumo(), &e);
     for s in &e.assignment_sensitivity {
@@ -626,9 +641,16 @@ fn evaluate_on_device(
 
 /// The file an evaluation is written to: `eval.json`, `eval_fixed.json`,
 /// `eval_rotate<deg>.json`, `eval[_rotate<deg>]_translate<x>_<y>.json` (each with
-/// `_assignment-<rule>` before `.json` under `--assignment`), every number in at
+/// `_assignment-<rule>` under `--assignment`, then `_hold<K>` under `--assignment-hold`,
+/// before `.json`), every number in at
 /// most 24 characters (`1e308`, not 309 digits: a file name has a length limit).
-fn eval_file_name(rotate: Option<f64>, translate: Option<[f64; 2]>, fixed: bool, assignment: Option<&str>) -> String {
+fn eval_file_name(
+    rotate: Option<f64>,
+    translate: Option<[f64; 2]>,
+    fixed: bool,
+    assignment: Option<&str>,
+    hold: Option<usize>,
+) -> String {
     let num = |x: f64| {
         let plain = x.to_string();
         if plain.len() <= 24 { plain } else { format!("{x:e}") }
@@ -644,6 +666,9 @@ fn eval_file_name(rotate: Option<f64>, translate: Option<[f64; 2]>, fixed: bool,
     }
     if let Some(rule) = assignment {
         name = format!("{name}_assignment-{rule}");
+    }
+    if let Some(every) = hold {
+        name = format!("{name}_hold{every}");
     }
     format!("{name}.json")
 }

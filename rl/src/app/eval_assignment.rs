@@ -4,6 +4,9 @@
 //! equivariance depend on each other): an SHNN trained with Algorithm 1's greedy rule,
 //! evaluated with the least-total-distance matching or with a random one-to-one assignment.
 //!
+//! [`hold`] (`--assignment-hold K`) holds a random assignment for `K` steps: with
+//! `stochastic` and `K` the episode's length, one random assignment an episode.
+//!
 //! Only the one-to-one rules that change nothing but the links are offered: `greedy`,
 //! `hungarian` and `stochastic`. `none` is refused (it changes the graph and the model's
 //! translation default, not only the links) and so is `learned` (its scorer is parameters
@@ -87,6 +90,31 @@ pub fn reassign(config: &TrainConfig, teams: Vec<Team>, rule: &str) -> Result<Ve
         out.push(new);
     }
     Ok(out)
+}
+
+/// Holds each random task assignment of `teams` (a `stochastic` or `learned` one) for
+/// `every` steps instead of their own hold (`meben eval --assignment-hold`): drawn at an
+/// evaluation's steps `0, every, 2 every, ...` and given back in between, so `every` at
+/// least the episode's length draws one assignment an episode. Errors name the flag and
+/// the value, or the models, where no team draws its assignment.
+pub fn hold(teams: &mut [Team], every: usize) -> Result<(), String> {
+    if every == 0 {
+        return Err("--assignment-hold 0: an assignment is held for at least 1 step".into());
+    }
+    let mut any = false;
+    for t in teams.iter_mut().filter(|t| t.model.assignment_is_random()) {
+        t.actor.hold.set_every(every);
+        any = true;
+    }
+    if !any {
+        let models: Vec<&str> = teams.iter().map(|t| t.model.name()).collect();
+        return Err(format!(
+            "--assignment-hold {every}: no team draws its assignment at random ({}); \
+             give --assignment stochastic, or a run with assignment=learned",
+            models.join(", ")
+        ));
+    }
+    Ok(())
 }
 
 #[cfg(test)]

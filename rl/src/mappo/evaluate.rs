@@ -59,6 +59,10 @@ pub struct EvalSummary {
     /// --assignment`, [`crate::app::eval_assignment`]); `None`, and not written, for their own.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub assignment: Option<String>,
+    /// The steps each random task assignment was held for in place of the run's own hold
+    /// (`meben eval --assignment-hold`); `None`, and not written, for the run's own.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub assignment_hold: Option<usize>,
 }
 
 /// What to evaluate.

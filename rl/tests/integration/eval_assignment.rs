@@ -81,3 +81,52 @@ fn rules_that_change_more_than_the_links_and_models_without_one_are_refused() {
         &["--assignment hungarian", "no team's model", "mlp_hn:variant=flat"],
     );
 }
+
+/// Team 0's assignments over the first `steps` steps of an 8-episode evaluation of `team`
+/// (the evaluation's own players: `rl::mappo::evaluate::evaluation_actors`).
+fn assignments_played(team: &rl::Team, steps: usize) -> Vec<Vec<u32>> {
+    use rl::mappo::actor::{ActMode, JointAction};
+    use rl::mappo::evaluate::{EvalOptions, eval_envs, evaluation_actors};
+    let mut venv =
+        eval_envs("team_reach/2_ants", &EvalOptions::new(8, false, 7, envs::tasks::StartMode::Random)).unwrap();
+    let mut players = evaluation_actors(std::slice::from_ref(team), 7, ActMode::Sample);
+    let mut joint = JointAction::new(8, venv.n_actions(), 1);
+    let mut seen = Vec::new();
+    for _ in 0..steps {
+        let (model, actor) = &mut players[0];
+        actor.act(model.as_mut(), &team.store, &team.norm, venv.obs().rows(), &mut joint).unwrap();
+        seen.push(joint.assignment[0].clone());
+        venv.step(&joint.actions).unwrap();
+    }
+    seen
+}
+
+#[test]
+fn a_held_random_assignment_stays_for_its_steps_and_no_team_to_hold_is_refused() {
+    let config = common::tiny("team_reach/2_ants", "mlp_hn", 1, &[]);
+    let spec = envs::tasks::Scene::from_name("team_reach/2_ants").unwrap().obs_spec;
+    let greedy = vec![rl::Team::build(&config, &spec, 0).unwrap()];
+    let mut random = rl::app::eval_assignment::reassign(&config, greedy.clone(), "stochastic").unwrap();
+    // Drawn at every step, a random assignment of 8 scenes changes within 12 steps.
+    let every_step = assignments_played(&random[0], 12);
+    assert!(every_step.windows(2).any(|w| w[0] != w[1]), "{every_step:?}");
+    // Held for 5 steps: drawn at steps 0, 5 and 10 only, and changed at one of them.
+    rl::app::eval_assignment::hold(&mut random, 5).unwrap();
+    let held = assignments_played(&random[0], 12);
+    for (step, pair) in held.windows(2).enumerate() {
+        if (step + 1) % 5 != 0 {
+            assert_eq!(pair[0], pair[1], "changed at step {} while held", step + 1);
+        }
+    }
+    assert!(held[0] != held[5] || held[5] != held[10], "{held:?}");
+    // Held for the episode: one assignment throughout.
+    rl::app::eval_assignment::hold(&mut random, 1000).unwrap();
+    let episode = assignments_played(&random[0], 12);
+    assert!(episode.iter().all(|a| *a == episode[0]), "{episode:?}");
+    // Nothing to hold, or no step to hold for, is an error naming the flag.
+    let mut greedy = greedy;
+    let e = rl::app::eval_assignment::hold(&mut greedy, 5).unwrap_err();
+    assert!(e.contains("--assignment-hold 5") && e.contains("mlp_hn") && e.contains("stochastic"), "{e}");
+    let e = rl::app::eval_assignment::hold(&mut random, 0).unwrap_err();
+    assert!(e.contains("--assignment-hold 0"), "{e}");
+}
