@@ -13,6 +13,7 @@ use envs::layout::{N_SCALARS, ObsSpec};
 use numpy::PyUntypedArrayMethods;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
+use rl::app::eval_assignment::{self, AssignmentOverride};
 use rl::mappo::actor::{ActMode, Actor, JointAction};
 use rl::mappo::evaluate::{evaluate_unless_stopped, evaluation_actors};
 use rl::{EvalRequest, RunDir, StopFlag, Team, TrainConfig};
@@ -37,7 +38,7 @@ pub struct PyPolicy {
     teams: Vec<Team>,
     /// The task-assignment rule and hold acting in place of the run's own (`load`'s
     /// `assignment` and `assignment_hold`).
-    assignment: (Option<String>, Option<usize>),
+    assignment: AssignmentOverride,
     /// What acting changes (one thread at a time: module docs).
     acting: Mutex<Acting>,
     spec: ObsSpec,
@@ -100,16 +101,17 @@ impl PyPolicy {
             }
         })?
         .map_err(rl_error)?;
-        let mut teams = match &assignment {
-            Some(rule) => rl::app::eval_assignment::reassign(&config, teams, rule)
-                .map_err(|e| bad_argument("assignment", format!("{rule:?}"), &e))?,
-            None => teams,
-        };
-        if let Some(every) = assignment_hold {
-            rl::app::eval_assignment::hold(&mut teams, every)
-                .map_err(|e| bad_argument("assignment_hold", every, &e))?;
+        let mut teams = teams;
+        let over = AssignmentOverride { rule: assignment, hold: assignment_hold };
+        // `AssignmentOverride::apply`'s two steps, each error naming its argument.
+        if let Some(rule) = &over.rule {
+            eval_assignment::reassign(&config, &mut teams, rule)
+                .map_err(|e| bad_argument("assignment", format!("{rule:?}"), &e))?;
         }
-        Self::new(py, run, config, teams, recorded_eval, seed, (assignment, assignment_hold))
+        if let Some(every) = over.hold {
+            eval_assignment::hold(&mut teams, every).map_err(|e| bad_argument("assignment_hold", every, &e))?;
+        }
+        Self::new(py, run, config, teams, recorded_eval, seed, over)
     }
 
     /// The shipped pretrained policy of `model` on `env` (`policies/index.toml` in the
@@ -242,7 +244,7 @@ impl PyPolicy {
         let mut summary = result
             .map_err(rl_error)?
             .ok_or_else(|| pyo3::exceptions::PyRuntimeError::new_err("Policy.evaluate stopped without an interrupt"))?;
-        (summary.assignment, summary.assignment_hold) = self.assignment.clone();
+        self.assignment.record(&mut summary);
         let text =
             serde_json::to_string(&summary).map_err(|e| pyo3::exceptions::PyRuntimeError::new_err(e.to_string()))?;
         py.import("json")?.call_method1("loads", (text,))
@@ -307,7 +309,7 @@ impl PyPolicy {
         teams: Vec<Team>,
         recorded_eval: Option<rl::EvalSummary>,
         seed: u64,
-        assignment: (Option<String>, Option<usize>),
+        assignment: AssignmentOverride,
     ) -> PyResult<PyPolicy> {
         let scene =
             pool::detach(py, || envs::tasks::Scene::from_name(&config.env))?.map_err(crate::errors::task_error)?;

@@ -11,6 +11,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::OnceLock;
 
+use crate::app::eval_assignment::{AssignmentOverride, check_rule};
 use crate::app::outputs;
 use crate::app::presets::Preset;
 use crate::app::run::TrainOptions;
@@ -539,7 +540,7 @@ fn cmd_eval(a: EvalArgs) -> Result<(), String> {
         eprintln!("meben: evaluating on GPU: {adapter}");
     }
     if let Some(rule) = &a.assignment {
-        crate::app::eval_assignment::check_rule(rule)?;
+        check_rule(rule)?;
     }
     let in_run = a
         .run
@@ -557,14 +558,9 @@ fn cmd_eval(a: EvalArgs) -> Result<(), String> {
         let inputs: Vec<(&str, &std::path::Path)> = policy.iter().map(|p| ("--policy", p.as_path())).collect();
         outputs::check_output("--out", out, &inputs).map_err(|e| e.to_string())?;
     }
-    let (config, teams) = load_teams(a.run.as_ref(), a.policy.as_deref())?;
-    let mut teams = match &a.assignment {
-        Some(rule) => crate::app::eval_assignment::reassign(&config, teams, rule)?,
-        None => teams,
-    };
-    if let Some(every) = a.assignment_hold {
-        crate::app::eval_assignment::hold(&mut teams, every)?;
-    }
+    let (config, mut teams) = load_teams(a.run.as_ref(), a.policy.as_deref())?;
+    let assignment = AssignmentOverride { rule: a.assignment.clone(), hold: a.assignment_hold };
+    assignment.apply(&config, &mut teams)?;
     if a.episodes == 0 {
         return Err("--episodes must be at least 1".into());
     }
@@ -591,8 +587,7 @@ fn cmd_eval(a: EvalArgs) -> Result<(), String> {
     .options(&config);
     let options = EvalOptions { assignment_sensitivity: a.assignment_sensitivity, ..options };
     let mut e = evaluate_on_device(&config.env, &mut teams, &options, device)?;
-    e.assignment = a.assignment.clone();
-    e.assignment_hold = a.assignment_hold;
+    assignment.record(&mut e);
     if let Some(rule) = &e.assignment {
         outln!("assignment: {rule}, in place of the policy's own");
     }

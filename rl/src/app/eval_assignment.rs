@@ -53,10 +53,11 @@ pub fn with_assignment(model: &str, rule: &str) -> Result<Option<String>, String
     Ok(Some(format!("{name}:{}", kept.join(";"))))
 }
 
-/// `teams` (of a run or policy file of `config`) rebuilt with the assignment rule `rule` in
-/// place of their own, each with its own parameters and normaliser. Teams without a task
-/// assignment are kept as they are; errors name the flag, the rule and the model.
-pub fn reassign(config: &TrainConfig, teams: Vec<Team>, rule: &str) -> Result<Vec<Team>, String> {
+/// `teams` (of a run or policy file of `config`) with the assignment rule `rule` in place of
+/// their own: only each team's model is rebuilt; its parameters (checked to fit the new
+/// model), normaliser and streams stay. Teams without a task assignment are kept as they
+/// are; errors name the flag, the rule and the model.
+pub fn reassign(config: &TrainConfig, teams: &mut [Team], rule: &str) -> Result<(), String> {
     check_rule(rule)?;
     let mut swapped = config.clone();
     let mut any = false;
@@ -74,22 +75,47 @@ pub fn reassign(config: &TrainConfig, teams: Vec<Team>, rule: &str) -> Result<Ve
         return Err(format!("--assignment {rule}: no team's model (`{}`) has a task assignment", config.model));
     }
     let spec = envs::tasks::Scene::from_name(&config.env).map_err(|e| e.to_string())?.obs_spec;
-    let mut out = Vec::with_capacity(teams.len());
-    for old in teams {
-        let k = old.index;
-        if swapped.team_model(k) == config.team_model(k) {
-            out.push(old);
-            continue;
-        }
-        let mut new = Team::build(&swapped, &spec, k).map_err(|e| e.to_string())?;
-        let state = nn::StateDict::from_store(&old.store).map_err(|e| e.to_string())?;
-        state.load_into(&mut new.store).map_err(|e| {
+    for team in teams.iter_mut().filter(|t| swapped.team_model(t.index) != config.team_model(t.index)) {
+        let k = team.index;
+        let mut fresh = Team::build(&swapped, &spec, k).map_err(|e| e.to_string())?;
+        let state = nn::StateDict::from_store(&team.store).map_err(|e| e.to_string())?;
+        state.load_into(&mut fresh.store).map_err(|e| {
             format!("--assignment {rule}: team {k}'s parameters do not fit `{}`: {e}", swapped.team_model(k))
         })?;
-        new.norm = old.norm.clone();
-        out.push(new);
+        team.model = fresh.model;
     }
-    Ok(out)
+    Ok(())
+}
+
+/// What `meben eval --assignment` and `--assignment-hold` (Python: `Policy.load`'s
+/// `assignment` and `assignment_hold`) change of a trained policy: one place applies them to
+/// its teams and records them in an evaluation's summary.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct AssignmentOverride {
+    /// The rule in place of the teams' own ([`reassign`]).
+    pub rule: Option<String>,
+    /// The steps a random assignment is held for in place of the run's own ([`hold`]).
+    pub hold: Option<usize>,
+}
+
+impl AssignmentOverride {
+    /// Applies the rule, then the hold, to `teams` of a run of `config`.
+    pub fn apply(&self, config: &TrainConfig, teams: &mut [Team]) -> Result<(), String> {
+        if let Some(rule) = &self.rule {
+            reassign(config, teams, rule)?;
+        }
+        if let Some(every) = self.hold {
+            hold(teams, every)?;
+        }
+        Ok(())
+    }
+
+    /// Records the override in an evaluation's summary (its `assignment` and
+    /// `assignment_hold`, not written when absent).
+    pub fn record(&self, summary: &mut crate::mappo::evaluate::EvalSummary) {
+        summary.assignment = self.rule.clone();
+        summary.assignment_hold = self.hold;
+    }
 }
 
 /// Holds each random task assignment of `teams` (a `stochastic` or `learned` one) for

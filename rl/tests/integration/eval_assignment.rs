@@ -106,7 +106,8 @@ fn a_held_random_assignment_stays_for_its_steps_and_no_team_to_hold_is_refused()
     let config = common::tiny("team_reach/2_ants", "mlp_hn", 1, &[]);
     let spec = envs::tasks::Scene::from_name("team_reach/2_ants").unwrap().obs_spec;
     let greedy = vec![rl::Team::build(&config, &spec, 0).unwrap()];
-    let mut random = rl::app::eval_assignment::reassign(&config, greedy.clone(), "stochastic").unwrap();
+    let mut random = greedy.clone();
+    rl::app::eval_assignment::reassign(&config, &mut random, "stochastic").unwrap();
     // Drawn at every step, a random assignment of 8 scenes changes within 12 steps.
     let every_step = assignments_played(&random[0], 12);
     assert!(every_step.windows(2).any(|w| w[0] != w[1]), "{every_step:?}");
