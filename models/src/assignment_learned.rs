@@ -72,6 +72,12 @@
 //! family) holds one, its scorer's parameters under `assign.`, and returns the terms with the
 //! policy's output ([`crate::PolicyOutput::assignment_terms`]).
 //!
+//! # Per-scene draws (a hold per episode)
+//! A given assignment may mark whole scenes with [`DRAW_SCENE`]: those scenes are drawn (or
+//! their most likely assignment taken) as if none were given, the others keep theirs. The
+//! trainer's hold per episode (`assignment_hold_episode`) gives back every scene's held
+//! assignment and marks the scenes whose episode has just begun.
+//!
 //! # Cost per step
 //! The scorer runs once over all `B n m` pairs (an MLP on `B n m` rows of 1 or 2 features);
 //! sampling is O(m n) per scene on the host; the log-probability and entropy are O(B k n)
@@ -560,6 +566,11 @@ pub fn entropy_estimate<'t, T: Float>(scores: Var<'t, T>, assignment: &[usize]) 
     Ok(log_prob_and_entropy(scores, assignment)?.1)
 }
 
+/// In an assignment given to [`LearnedAssignment::assign`], every entry of a scene that is
+/// to be drawn (or its most likely assignment taken) as if none were given, while the other
+/// scenes keep the assignment given (module docs, "Per-scene draws").
+pub const DRAW_SCENE: u32 = u32::MAX - 1;
+
 /// How a [`LearnedAssignment`] chooses an assignment when none is given.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum LearnedChoice {
@@ -611,6 +622,15 @@ pub(crate) fn build_graph<'t, T: Float>(
 }
 
 impl LearnedAssignment {
+    /// The assignments of `batch` scenes of scores `[batch, n, m]` into `out`
+    /// (`[batch * m]`), drawn or the most likely as [`LearnedAssignment::choice`] says.
+    fn choose<T: Float>(&mut self, scores: &[T], batch: usize, n: usize, m: usize, out: &mut [usize]) -> Result<()> {
+        match self.choice {
+            LearnedChoice::Sample => self.assigner.sample(scores, batch, n, m, &mut self.rng, out),
+            LearnedChoice::MostLikely => self.assigner.most_likely(scores, batch, n, m, out),
+        }
+    }
+
     /// A learned assignment over the rows and columns of `graph`
     /// ([`crate::GraphBuilder::assignment_entities`]), its scorer's parameters created in
     /// `scope`, `gravity` the unit direction of gravity, its draws seeded by `seed`.
@@ -667,8 +687,9 @@ impl LearnedAssignment {
     /// log-probability `[B]` and chain-rule entropy estimate `[B]` on the tape of `p`
     /// ([`log_prob_and_entropy`]). With `given` (an assignment stored at collection) that
     /// one is scored; otherwise one is drawn or the most likely taken
-    /// ([`LearnedAssignment::choice`]) from the scores' host values. Errors name a given
-    /// assignment of another size or of probability 0.
+    /// ([`LearnedAssignment::choice`]) from the scores' host values; a given assignment's
+    /// scenes marked [`DRAW_SCENE`] are drawn so, in scene order, the others kept. Errors name
+    /// a given assignment of another size, a scene only partly marked, or one of probability 0.
     pub fn assign<'t, T: Float>(
         &mut self,
         p: &Bound<'t, T>,
@@ -693,15 +714,36 @@ impl LearnedAssignment {
                         g.len()
                     )));
                 }
-                g.iter().map(|&i| if i == crate::entity_graph::NO_AGENT { UNASSIGNED } else { i as usize }).collect()
+                let mut out: Vec<usize> = g
+                    .iter()
+                    .map(|&i| if i == crate::entity_graph::NO_AGENT { UNASSIGNED } else { i as usize })
+                    .collect();
+                let marked = |scene: &[u32]| scene.iter().filter(|&&i| i == DRAW_SCENE).count();
+                if let Some(e) = g.chunks(m.max(1)).position(|scene| (1..m).contains(&marked(scene))) {
+                    return Err(ModelError::Input(format!(
+                        "a given learned assignment whose scene {e} is only partly marked to be drawn"
+                    )));
+                }
+                if g.chunks(m.max(1)).any(|scene| marked(scene) == m) {
+                    let host = scores.value().to_host()?;
+                    for (e, scene) in g.chunks(m.max(1)).enumerate() {
+                        if marked(scene) == m {
+                            self.choose(
+                                &host.data()[e * n * m..(e + 1) * n * m],
+                                1,
+                                n,
+                                m,
+                                &mut out[e * m..(e + 1) * m],
+                            )?;
+                        }
+                    }
+                }
+                out
             }
             None => {
                 let host = scores.value().to_host()?;
                 let mut out = vec![UNASSIGNED; b * m];
-                match self.choice {
-                    LearnedChoice::Sample => self.assigner.sample(host.data(), b, n, m, &mut self.rng, &mut out)?,
-                    LearnedChoice::MostLikely => self.assigner.most_likely(host.data(), b, n, m, &mut out)?,
-                }
+                self.choose(host.data(), b, n, m, &mut out)?;
                 out
             }
         };

@@ -42,7 +42,7 @@ pub mod zoo;
 
 pub use assignment::{Assigner, AssignmentMethod, UNASSIGNED, distance_matrix};
 pub use assignment_learned::{
-    AssignmentScorer, LearnedAssignment, LearnedChoice, PairFeatureSet, PairFeatures, PlackettLuceAssigner,
+    AssignmentScorer, DRAW_SCENE, LearnedAssignment, LearnedChoice, PairFeatureSet, PairFeatures, PlackettLuceAssigner,
     ScorerConfig, log_prob_and_entropy,
 };
 pub use body_gnn::{BodyGnn, BodyGnnConfig};

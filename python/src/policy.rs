@@ -51,6 +51,8 @@ struct Acting {
     players: Vec<(Box<dyn models::Policy>, Actor)>,
     /// The observation arrays read from Python (vectors, scalars, heading).
     obs: [Vec<f32>; 3],
+    /// Rows `B` of the last `act` (0 before the first).
+    rows: usize,
 }
 
 /// The observation dict's array `key`.
@@ -149,7 +151,9 @@ impl PyPolicy {
     /// non-finite entry); a call while another thread is acting with this policy raises
     /// `RuntimeError` (each thread needs its own policy). A run whose learned task assignment
     /// is held for `k` steps (`assignment_hold_steps`) draws it at this policy's calls
-    /// `0, k, 2k, ..` since it was loaded, and again whenever `B` changes.
+    /// `0, k, 2k, ..` since it was loaded, and again whenever `B` changes; one held per
+    /// episode (`assignment_hold_episode`) draws each row's at its first call and again
+    /// after `end_episodes` marks the row's episode ended.
     #[pyo3(signature = (obs, deterministic=true))]
     fn act<'py>(&self, py: Python<'py>, obs: &Bound<'py, PyDict>, deterministic: bool) -> PyResult<Bound<'py, PyAny>> {
         let (n, a) = (self.spec.n_nodes, self.spec.n_agents);
@@ -172,7 +176,8 @@ impl PyPolicy {
             ));
         }
         let mut guard = try_lock(&self.acting, POLICY_IN_USE)?;
-        let Acting { players, obs: [vectors, scalars, head] } = &mut *guard;
+        let Acting { players, obs: [vectors, scalars, head], rows } = &mut *guard;
+        *rows = b;
         let (vs, ss, hs) = ([b, n, 3, 3], [b, n, N_SCALARS], [b, a]);
         read_f32(&item(obs, "vectors")?, "obs[\"vectors\"]", &vs, vectors)?;
         read_f32(&item(obs, "scalars")?, "obs[\"scalars\"]", &ss, scalars)?;
@@ -197,6 +202,29 @@ impl PyPolicy {
         .map_err(rl_error)?;
         let actions = joint.actions;
         array(py, &actions, &[b, self.n_actions])
+    }
+
+    /// Marks the rows whose episode ended at the last `act`'s step (`ended`: one bool per row
+    /// of that call, e.g. `terminated | truncated` of a vector environment that resets
+    /// itself): a run whose learned task assignment is held per episode
+    /// (`assignment_hold_episode`) draws those rows' assignments again at the next `act`.
+    /// No effect on other runs. `ended` of another length than the last `act`'s rows (or
+    /// before any) raises `ValueError`; a call while another thread is acting raises
+    /// `RuntimeError`.
+    fn end_episodes(&self, ended: Vec<bool>) -> PyResult<()> {
+        let mut guard = try_lock(&self.acting, POLICY_IN_USE)?;
+        let Acting { players, rows, .. } = &mut *guard;
+        if ended.len() != *rows {
+            return Err(bad_argument(
+                "ended",
+                format!("{} values", ended.len()),
+                &format!("expected one per row of the last act ({rows} rows)"),
+            ));
+        }
+        for (_, actor) in players.iter_mut() {
+            actor.hold.end_episodes(ended.iter().copied());
+        }
+        Ok(())
     }
 
     /// Plays `episodes` evaluation episodes of the run's teams, one per environment, each to
@@ -320,7 +348,7 @@ impl PyPolicy {
             config,
             teams,
             assignment,
-            acting: Mutex::new(Acting { players, obs: Default::default() }),
+            acting: Mutex::new(Acting { players, obs: Default::default(), rows: 0 }),
             spec: scene.obs_spec,
             n_actions: scene.n_actions,
         })

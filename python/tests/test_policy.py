@@ -129,6 +129,32 @@ def test_a_held_learned_assignment_acts_in_python_as_in_the_rust_evaluation(tmp_
     assert python == {k: rust[k] for k in python}, (python, rust)
 
 
+def test_a_learned_assignment_held_per_episode_acts_in_python_as_in_rust(tmp_path, meben_cli):
+    """A learned assignment held per episode (`assignment_hold_episode`): the policy loaded in
+    Python draws at its first `act` and holds, as `meben eval` does from each episode's start
+    (Rust's episodes to the bit); `end_episodes` redraws the rows it marks, and only those."""
+    held = tmp_path / "held"
+    meben.train(out=held, env="team_reach/2_ants", model="mlp_hn:assignment=learned", seed=3,
+                assignment_hold_episode=True, **TINY)
+    assert "assignment_hold_episode = true" in (held / "config.toml").read_text()
+    episodes, seed = 2, 4
+    rust = rust_evaluation(meben_cli, held, episodes, seed, False)
+    python = python_evaluation(meben.Policy.load(held, seed=seed), episodes, seed, False)
+    assert python == {k: rust[k] for k in python}, (python, rust)
+    # Two policies of one seed act alike until one is told that episodes ended.
+    obs = meben.make("team_reach/2_ants", num_envs=8, seed=0).reset()
+    marked, kept = meben.Policy.load(held, seed=5), meben.Policy.load(held, seed=5)
+    assert np.array_equal(marked.act(obs, deterministic=False), kept.act(obs, deterministic=False))
+    ended = np.arange(8) % 2 == 0
+    marked.end_episodes(ended)
+    kept.end_episodes(np.zeros(8, bool))
+    a, b = marked.act(obs, deterministic=False), kept.act(obs, deterministic=False)
+    assert np.array_equal(a[~ended], b[~ended]), "rows not marked kept their assignment"
+    assert not np.array_equal(a[ended], b[ended]), "no marked row drew another assignment"
+    with pytest.raises(ValueError, match=r"bad ended = 3 values: expected one per row of the last act \(8 rows\)"):
+        marked.end_episodes([True, False, True])
+
+
 def test_the_run_names_the_build_that_trained_it(run, meben_cli):
     commit = meben.BUILD_COMMIT
     sha = commit.split("+")[0]

@@ -14,6 +14,7 @@
 #   nice -n 19 rl/sweeps/repro_run.sh K &                                            # issue 79, no assignment bonus
 #   nice -n 19 rl/sweeps/repro_run.sh L &                                            # issue 79, a warm-up
 #   nice -n 19 rl/sweeps/repro_run.sh M &                                            # issue 79, a held draw
+#   nice -n 19 rl/sweeps/repro_run.sh N &                                            # issue 79, a draw per episode
 #   rl/sweeps/repro_run.sh export                             # evidence -> results/, reports
 #   rl/sweeps/repro_run.sh restore                            # finished runs <- results/ (A and B do it first)
 #   rl/sweeps/repro_run.sh status                             # every run's progress and hours left
@@ -35,12 +36,12 @@ BIN=${BIN:-$ROOT/target/release/meben}
 OUT=${OUT:-/tmp/runs/repro}
 THREADS=${THREADS:-1}
 SWEEPS=$ROOT/rl/sweeps
-EXPERIMENTS="reach_1_ant reach_2_ants equivariance sumo reach_2_ants_no_assignment reach_2_ants_per_slot_starts transformer_1_ant centipede reach_2_ants_50m reach_1_ant_50m equivariance_2_ants learned_assignment learned_assignment_prior learned_assignment_sumo learned_assignment_entropy learned_assignment_warmup learned_assignment_hold"
+EXPERIMENTS="reach_1_ant reach_2_ants equivariance sumo reach_2_ants_no_assignment reach_2_ants_per_slot_starts transformer_1_ant centipede reach_2_ants_50m reach_1_ant_50m equivariance_2_ants learned_assignment learned_assignment_prior learned_assignment_sumo learned_assignment_entropy learned_assignment_warmup learned_assignment_hold learned_assignment_episode"
 
 # The sweep file of an experiment: rl/sweeps/repro_<exp>.toml, or rl/sweeps/<exp>.toml for
 # the experiments that are not reproductions (issue 79's learned_assignment,
 # learned_assignment_prior, learned_assignment_sumo, learned_assignment_entropy,
-# learned_assignment_warmup and learned_assignment_hold).
+# learned_assignment_warmup, learned_assignment_hold and learned_assignment_episode).
 sweep_file() {
   if [ -f "$SWEEPS/repro_$1.toml" ]; then echo "$SWEEPS/repro_$1.toml"; else echo "$SWEEPS/$1.toml"; fi
 }
@@ -204,7 +205,20 @@ list_m() {
   done
 }
 
+# Issue 79's fifth follow-up: mlp_hn:assignment=learned with each draw held for its episode
+# (assignment_hold_episode = true, a field binaries before it refuse), 3 seeds at 10M (about
+# half a machine-hour a seed at one thread alone on the machine).
+list_n() {
+  for seed in 0 1 2; do
+    run learned_assignment_episode "/seed$seed"
+  done
+}
+
 case "${1:-}" in
+  N)
+    restore_finished
+    list_n
+    ;;
   I)
     restore_finished
     list_i

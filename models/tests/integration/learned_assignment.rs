@@ -7,8 +7,8 @@ use envs::layout::ObsBatch;
 use envs::tasks::{StartMode, VecEnv};
 use models::assignment_learned::log_prob_host;
 use models::{
-    AssignmentMethod, AssignmentScorer, GraphBuilder, InputProcessor, NO_AGENT, PairFeatureSet, PairFeatures,
-    PlackettLuceAssigner, ScorerConfig, Translation, UNASSIGNED, log_prob_and_entropy,
+    AssignmentMethod, AssignmentScorer, DRAW_SCENE, GraphBuilder, InputProcessor, NO_AGENT, PairFeatureSet,
+    PairFeatures, PlackettLuceAssigner, ScorerConfig, Translation, UNASSIGNED, log_prob_and_entropy,
 };
 use nn::ParamStore;
 use rand::RngExt;
@@ -153,7 +153,37 @@ fn a_learned_assignment_model_draws_scores_and_differentiates_its_assignment() {
         // The same stream draws the same; the draw given back is scored alike.
         assert_eq!(draw(&mut model, 11, None).0, a, "{name}");
         let (a2, lp2, h2, loc2, _) = draw(&mut model, 99, Some(&a));
-        assert_eq!((a2, lp2, h2, loc2), (a.clone(), lp, h, loc), "{name}");
+        assert_eq!((a2, lp2, h2, loc2), (a.clone(), lp.clone(), h, loc), "{name}");
+        // Per-scene draws (a hold per episode): scenes marked `DRAW_SCENE` are drawn from the
+        // stream, the others keep what is given. Every scene marked draws what none given
+        // draws; with the even scenes marked the odd ones keep their given rows, the even ones
+        // get a one-to-one assignment (each agent at most once), the same for the same stream.
+        let all_marked = vec![DRAW_SCENE; B * width];
+        assert_eq!(draw(&mut model, 11, Some(&all_marked)).0, a, "{name}");
+        let other = draw(&mut model, 12, None).0;
+        let mut some_marked = other.clone();
+        for scene in some_marked.chunks_mut(width).step_by(2) {
+            scene.fill(DRAW_SCENE);
+        }
+        let (mixed, lp_mixed, ..) = draw(&mut model, 11, Some(&some_marked));
+        assert_eq!(draw(&mut model, 11, Some(&some_marked)).0, mixed, "{name}");
+        for (e, (got, given)) in mixed.chunks(width).zip(other.chunks(width)).enumerate() {
+            if e % 2 == 1 {
+                assert_eq!(got, given, "{name}, scene {e}");
+            } else {
+                let agents: Vec<u32> = got.iter().copied().filter(|&i| i != NO_AGENT).collect();
+                let distinct: std::collections::BTreeSet<u32> = agents.iter().copied().collect();
+                assert!(!agents.is_empty() && distinct.len() == agents.len(), "{name}, scene {e}: {got:?}");
+            }
+        }
+        assert!(lp_mixed.iter().all(|x| x.is_finite() && *x <= 1e-6), "{name}: {lp_mixed:?}");
+        // A scene marked in part is refused, naming it.
+        let mut partly = a.clone();
+        partly[width] = DRAW_SCENE;
+        model.reseed(11);
+        let tape = Tape::<f32>::new();
+        let err = model.forward_batch_with(&store.bind(&tape), &env.obs().rows(), Some(&partly)).unwrap_err();
+        assert!(err.to_string().contains("scene 1 is only partly marked"), "{name}: {err}");
         // Other streams draw other assignments somewhere in the batch; the most likely one
         // does not depend on the stream.
         let others: Vec<Vec<u32>> = (0..4).map(|s| draw(&mut model, 100 + s, None).0).collect();

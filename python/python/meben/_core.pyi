@@ -111,6 +111,11 @@ class Policy:
         samples. Arrays of the wrong dtype or shape, with no row, or holding NaN or infinity
         raise ``ValueError`` naming the array (and the first non-finite entry); a call while
         another thread is acting with this policy raises ``RuntimeError``."""
+    def end_episodes(self, ended: Union[Sequence[bool], NDArray[np.bool_]]) -> None:
+        """Marks the rows whose episode ended at the last ``act`` (e.g. ``terminated |
+        truncated``): a learned task assignment held per episode (``assignment_hold_episode``)
+        is drawn again for them at the next ``act``. No effect on other runs. Another length
+        than the last ``act``'s rows raises ``ValueError``."""
     def evaluate(
         self,
         episodes: int = 1024,

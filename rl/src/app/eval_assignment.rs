@@ -15,6 +15,7 @@
 
 use models::{AssignmentMethod, ModelDescription};
 
+use crate::mappo::assignment_hold::HoldRule;
 use crate::mappo::config::TrainConfig;
 use crate::mappo::team::Team;
 
@@ -129,7 +130,7 @@ pub fn hold(teams: &mut [Team], every: usize) -> Result<(), String> {
     }
     let mut any = false;
     for t in teams.iter_mut().filter(|t| t.model.assignment_is_random()) {
-        t.actor.hold.set_every(every);
+        t.actor.hold.set_rule(HoldRule::Steps(every));
         any = true;
     }
     if !any {

@@ -68,6 +68,7 @@ impl TrainConfig {
             assignment_entropy_scale: 1.0,
             assignment_warmup_steps: 0,
             assignment_hold_steps: 1,
+            assignment_hold_episode: false,
             learning_rate: 3e-4,
             lr_decay: false,
             grad_clip: 0.1,
@@ -222,6 +223,7 @@ fn parse_override(value: &str) -> toml::Value {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::mappo::assignment_hold::HoldRule;
     use crate::mappo::config::MAX_CONFIG_BYTES;
 
     #[test]
@@ -518,10 +520,10 @@ mod tests {
         let set = paper_with;
         let learned = ("model", "mlp_hn:assignment=learned");
         let c = set(&[("env", "team_reach/2_ants"), learned]).unwrap();
-        assert_eq!((c.assignment_hold_steps, c.assignment_hold_at(0)), (1, 1));
-        assert!(!c.to_toml().contains("assignment_hold_steps"), "the default is left out of config.toml");
+        assert_eq!((c.assignment_hold_steps, c.assignment_hold_at(0)), (1, HoldRule::Steps(1)));
+        assert!(!c.to_toml().contains("assignment_hold"), "the defaults are left out of config.toml");
         let kept = set(&[("env", "team_reach/2_ants"), learned, ("assignment_hold_steps", "5")]).unwrap();
-        assert_eq!((kept.assignment_hold_steps, kept.assignment_hold_at(0)), (5, 5));
+        assert_eq!((kept.assignment_hold_steps, kept.assignment_hold_at(0)), (5, HoldRule::Steps(5)));
         assert!(kept.to_toml().contains("assignment_hold_steps = 5"));
         let back: TrainConfig = toml::from_str(&kept.to_toml()).unwrap();
         assert_eq!(back, kept);
@@ -532,8 +534,29 @@ mod tests {
             ("assignment_warmup_steps", "100"),
         ]);
         let warm = warm.unwrap();
-        assert_eq!((warm.assignment_hold_at(99), warm.assignment_hold_at(100)), (1, 5));
+        assert_eq!(
+            (warm.assignment_hold_at(99), warm.assignment_hold_at(100)),
+            (HoldRule::Steps(1), HoldRule::Steps(5))
+        );
+        // Held per episode: written, read back, Algorithm 1's in a warm-up.
+        let episode = [("env", "team_reach/2_ants"), learned, ("assignment_hold_episode", "true")];
+        let per_episode = set(&episode).unwrap();
+        assert_eq!(per_episode.assignment_hold_at(0), HoldRule::Episode);
+        assert!(per_episode.to_toml().contains("assignment_hold_episode = true"));
+        let back: TrainConfig = toml::from_str(&per_episode.to_toml()).unwrap();
+        assert_eq!(back, per_episode);
+        let warm = set(&[episode[0], learned, episode[2], ("assignment_warmup_steps", "100")]).unwrap();
+        assert_eq!(
+            (warm.assignment_hold_at(99), warm.assignment_hold_at(100)),
+            (HoldRule::Steps(1), HoldRule::Episode)
+        );
         let refused = assert_paper_refuses;
+        refused(&[("assignment_hold_episode", "true")], &["assignment_hold_episode", "true", "`shnn` does not"]);
+        refused(
+            &[learned, ("assignment_hold_episode", "true"), ("assignment_hold_steps", "5")],
+            &["assignment_hold_steps", "5", "must be 1 with assignment_hold_episode"],
+        );
+        refused(&[learned, ("assignment_hold_episode", "sometimes")], &["assignment_hold_episode", "sometimes"]);
         refused(&[("assignment_hold_steps", "5")], &["assignment_hold_steps", "5", "`shnn` does not"]);
         refused(&[learned, ("assignment_hold_steps", "0")], &["assignment_hold_steps", "0", "at least 1"]);
         for bad in ["-1", "1.5", "often"] {

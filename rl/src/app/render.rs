@@ -54,7 +54,7 @@ pub fn record_episode(
         .map(|t| {
             let noise = t.model.agents().iter().map(|&a| stream(seed, "rendnois", t.index as u64, a as u64)).collect();
             let mut actor = Actor::new(mode, noise);
-            actor.hold.set_every(t.actor.hold.every());
+            actor.hold.set_rule(t.actor.hold.rule());
             actor
         })
         .collect();

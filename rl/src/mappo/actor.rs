@@ -8,8 +8,8 @@
 //! MEBEN.md section 8) and its scratch. A policy with a learned task assignment
 //! (`assignment=learned`) draws it in its forward pass; its log-probability `ln π(σ | s)` is
 //! added to the action's (the policy factorises as `π(a, σ | s) = π(σ | s) π(a | s, σ)`). A
-//! drawn assignment held for `k` steps ([`AssignmentHold`]) is given back to the policy at
-//! the steps between draws, and its log-probability added only where it is drawn.
+//! drawn assignment held for `k` steps or an episode ([`AssignmentHold`]) is given back to the
+//! policy at the steps between draws, and its log-probability added only where it is drawn.
 
 use envs::layout::{ObsRows, Observation};
 use models::distribution::{normal_log_prob, std_from_scale};
@@ -47,6 +47,9 @@ pub struct JointAction {
     pub logp: Vec<Vec<f32>>,
     /// Per team, the task assignment it acted on (`[B * Model::assignment_width]`).
     pub assignment: Vec<Vec<u32>>,
+    /// Per team, `[B]` whether the environment's task assignment was drawn at this step
+    /// (true everywhere unless a drawn one is held: [`AssignmentHold`]).
+    pub assignment_drawn: Vec<Vec<bool>>,
 }
 
 impl JointAction {
@@ -58,6 +61,7 @@ impl JointAction {
             pre_squash: vec![0.0; envs * n_actions],
             logp: vec![vec![0.0; envs]; teams],
             assignment: vec![Vec::new(); teams],
+            assignment_drawn: vec![vec![true; envs]; teams],
         }
     }
 
@@ -77,7 +81,7 @@ pub struct Actor {
     /// The normalised observation rows of the last step.
     normalised: Observation,
     /// A task assignment drawn at random, held between draws (1 step by default: drawn at
-    /// every step).
+    /// every step; or `k` steps, or an episode: the trainer marks episode ends).
     pub hold: AssignmentHold,
 }
 
@@ -97,8 +101,9 @@ impl Actor {
     /// observation rows `obs`, through the observation normaliser `norm` and the parameters
     /// `store` (the forward pass runs on their device; from the GPU the means and scales
     /// come back in one transfer): writes their columns of `joint.actions` (`tanh(u)`) and
-    /// `joint.pre_squash` (`u`), `joint.logp[k]` and `joint.assignment[k]`. Errors on a non-finite policy
-    /// output and on a joint action of another shape.
+    /// `joint.pre_squash` (`u`), `joint.logp[k]`, `joint.assignment[k]` and
+    /// `joint.assignment_drawn[k]`. Errors on a non-finite policy output and on a joint action
+    /// of another shape.
     pub fn act(
         &mut self,
         model: &mut dyn Policy,
@@ -122,11 +127,12 @@ impl Actor {
         let tape = Tape::<f32>::on(store.device());
         let _no_grad = tape.no_grad();
         let p = store.bind(&tape);
-        // A held assignment is given back (`assignment_hold`); the others are drawn or solved.
-        let width = b * model.assignment_width();
-        let draws = !model.assignment_is_random() || self.hold.draws_next(width);
-        let given = if draws { None } else { Some(self.hold.held()) };
-        let out = model.forward(&p, &self.normalised.rows(), given, false)?;
+        // A held assignment is given back (`assignment_hold`), the environments that draw
+        // marked in it; the others are drawn or solved.
+        let width = model.assignment_width();
+        let drawn = if model.assignment_is_random() { self.hold.draws_next(b, width) } else { vec![true; b] };
+        let given = if drawn.iter().all(|&d| d) { None } else { Some(self.hold.given(&drawn, width)) };
+        let out = model.forward(&p, &self.normalised.rows(), given.as_deref(), false)?;
         let heads = host_heads(&out.agents)?;
         // A learned task assignment's log-probability `ln π(σ | s)` (`[B]`), the policy's
         // other factor: `π(a, σ | s) = π(σ | s) π(a | s, σ)`.
@@ -181,7 +187,7 @@ impl Actor {
             }
         }
         // A held assignment's `π(σ | s)` was counted at the step that drew it.
-        if let (Some(lp), ActMode::Sample, true) = (&assignment_logp, self.mode, draws) {
+        if let (Some(lp), ActMode::Sample) = (&assignment_logp, self.mode) {
             if lp.numel() != b {
                 return Err(RlError::Model(models::ModelError::Input(format!(
                     "{} assignment log-probabilities for {b} observation rows of team {team}",
@@ -193,12 +199,13 @@ impl Actor {
                     message: format!("task-assignment log-probability of team {team} (scene {i}) is not finite"),
                 });
             }
-            for (l, x) in logp.iter_mut().zip(lp.data()) {
+            for ((l, x), _) in logp.iter_mut().zip(lp.data()).zip(&drawn).filter(|(_, d)| **d) {
                 *l += x;
             }
         }
-        self.hold.record(&out.assignment, draws);
+        self.hold.record(&out.assignment, &drawn);
         joint.assignment[team] = out.assignment;
+        joint.assignment_drawn[team] = drawn;
         Ok(())
     }
 }

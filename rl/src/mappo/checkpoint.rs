@@ -46,6 +46,7 @@ use nn::{Adam, AdamConfig, SavedTensor, StateDict};
 use serde::{Deserialize, Serialize};
 
 use crate::error::{Result, RlError};
+use crate::mappo::assignment_hold::SavedHold;
 use crate::mappo::checksum::sha256_hex;
 use crate::mappo::config::TrainConfig;
 use crate::mappo::evaluate::EvalSummary;
@@ -138,6 +139,10 @@ pub struct TeamState {
     pub noise: Vec<RngState>,
     /// Minibatch shuffling stream.
     pub shuffle: RngState,
+    /// A learned task assignment held per episode: every environment's held assignment
+    /// (absent otherwise, and from checkpoints written before it existed).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub assignment_hold: Option<SavedHold>,
 }
 
 /// Why [`Checkpoint::from_bytes`] failed.
@@ -186,6 +191,8 @@ struct StoredTeam {
     normalizer: ObsNormalizer,
     noise: Vec<RngState>,
     shuffle: RngState,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    assignment_hold: Option<SavedHold>,
 }
 
 /// Adam without its moments.
@@ -322,6 +329,7 @@ impl Checkpoint {
                 normalizer: t.normalizer.clone(),
                 noise: t.noise.clone(),
                 shuffle: t.shuffle.clone(),
+                assignment_hold: t.assignment_hold.clone(),
             });
         }
         let meta = BTreeMap::from([("format".to_string(), format!("meben checkpoint tensors, version {VERSION}"))]);
@@ -520,6 +528,7 @@ impl Checkpoint {
                 normalizer: t.normalizer,
                 noise: t.noise,
                 shuffle: t.shuffle,
+                assignment_hold: t.assignment_hold,
             });
         }
         Ok(Checkpoint {

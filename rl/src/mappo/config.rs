@@ -12,6 +12,7 @@ use std::path::Path;
 use serde::{Deserialize, Serialize};
 
 use crate::error::{Result, RlError};
+use crate::mappo::assignment_hold::HoldRule;
 use crate::mappo::device::ActDevice;
 
 /// The most env steps of one iteration (`batch_size * num_minibatches * unroll_length`):
@@ -180,6 +181,16 @@ pub struct TrainConfig {
     /// written to `config.toml` only when not 1.
     #[serde(default = "one_step", skip_serializing_if = "is_one_step")]
     pub assignment_hold_steps: u64,
+    /// A learned task assignment is drawn at the first step of each environment's episode
+    /// and held to its end (`false`, the default: as `assignment_hold_steps` says), as the
+    /// paper's greedy rule keeps one assignment through an episode when nothing moves.
+    /// `ln π(σ | s)` joins the PPO ratio and `H(σ)` the bonus at the step that draws; the
+    /// held assignments outlive an iteration, so checkpoints keep them. Evaluations draw at
+    /// their episodes' first steps. In a warm-up the assignment is Algorithm 1's at every
+    /// step. Only with a model of `assignment=learned` and `assignment_hold_steps = 1`;
+    /// written to `config.toml` only when set.
+    #[serde(default, skip_serializing_if = "is_false")]
+    pub assignment_hold_episode: bool,
     /// Adam learning rate.
     pub learning_rate: f64,
     /// The learning rate falls linearly to 0 over the run's updates (CleanRL's `anneal_lr`;
@@ -291,6 +302,7 @@ impl TrainConfig {
         table.entry("assignment_entropy_scale").or_insert(toml::Value::Float(self.assignment_entropy_scale));
         table.entry("assignment_warmup_steps").or_insert(toml::Value::Integer(self.assignment_warmup_steps as i64));
         table.entry("assignment_hold_steps").or_insert(toml::Value::Integer(self.assignment_hold_steps as i64));
+        table.entry("assignment_hold_episode").or_insert(toml::Value::Boolean(self.assignment_hold_episode));
         table.entry("device").or_insert_with(|| toml::Value::String(self.device.name().into()));
         table.entry("act_device").or_insert_with(|| toml::Value::String(self.act_device.name().into()));
         table.entry("gpu_matmul_tile").or_insert_with(|| toml::Value::Integer(self.gpu_matmul_tile as i64));
@@ -403,6 +415,17 @@ impl TrainConfig {
                 format!("is a learned task assignment's warm-up, and {} learn one (assignment=learned)", models()),
             ));
         }
+        if self.assignment_hold_episode && !learns_an_assignment {
+            return Err(RlError::config(
+                source,
+                "assignment_hold_episode",
+                self.assignment_hold_episode,
+                format!(
+                    "holds a learned task assignment for an episode, and {} learn one (assignment=learned)",
+                    models()
+                ),
+            ));
+        }
         if self.assignment_hold_steps != 1 && !learns_an_assignment {
             return Err(RlError::config(
                 source,
@@ -417,11 +440,17 @@ impl TrainConfig {
         Ok(())
     }
 
-    /// The steps a learned task assignment is held for at `env_steps`: 1 (drawn at every
-    /// step) in its warm-up, where it is Algorithm 1's, else
-    /// [`TrainConfig::assignment_hold_steps`].
-    pub fn assignment_hold_at(&self, env_steps: u64) -> usize {
-        if self.assignment_warmup_at(env_steps) { 1 } else { self.assignment_hold_steps as usize }
+    /// How long a learned task assignment is held at `env_steps`: 1 step (drawn at every
+    /// step) in its warm-up, where it is Algorithm 1's, else an episode
+    /// ([`TrainConfig::assignment_hold_episode`]) or [`TrainConfig::assignment_hold_steps`].
+    pub fn assignment_hold_at(&self, env_steps: u64) -> HoldRule {
+        if self.assignment_warmup_at(env_steps) {
+            HoldRule::Steps(1)
+        } else if self.assignment_hold_episode {
+            HoldRule::Episode
+        } else {
+            HoldRule::Steps(self.assignment_hold_steps as usize)
+        }
     }
 
     /// Whether a learned task assignment is in its warm-up at `env_steps`
@@ -465,6 +494,13 @@ impl TrainConfig {
                 "assignment_hold_steps",
                 &0,
                 "must be at least 1 (1: a learned assignment drawn at every step)",
+            );
+        }
+        if self.assignment_hold_episode && self.assignment_hold_steps != 1 {
+            return err(
+                "assignment_hold_steps",
+                &self.assignment_hold_steps,
+                "must be 1 with assignment_hold_episode = true (a draw is held for its episode)",
             );
         }
         // TOML integers are signed 64-bit: a larger value is written to config.toml but
@@ -577,6 +613,11 @@ fn one() -> f64 {
 /// Whether a count is its default, 0 (left out of `config.toml`).
 fn is_zero(v: &u64) -> bool {
     *v == 0
+}
+
+/// Whether a switch is off, its default (left out of `config.toml`).
+fn is_false(v: &bool) -> bool {
+    !*v
 }
 
 /// 1: [`TrainConfig::assignment_hold_steps`]'s default.

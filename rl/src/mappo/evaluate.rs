@@ -316,7 +316,7 @@ pub fn evaluation_actors(teams: &[Team], seed: u64, mode: ActMode) -> Vec<(Box<d
             let noise = t.model.agents().iter().map(|&a| stream(seed, "evalnois", t.index as u64, a as u64)).collect();
             let mut actor = Actor::new(mode, noise);
             // A held assignment is held as in training, from each evaluation's first step.
-            actor.hold.set_every(t.actor.hold.every());
+            actor.hold.set_rule(t.actor.hold.rule());
             (model, actor)
         })
         .collect()

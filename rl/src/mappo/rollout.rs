@@ -6,7 +6,8 @@
 //! Transitions `(b, t, e)` are at `(b T + t) E + e`. A transition truncated by the time limit
 //! keeps its final observation (a row of `finals`). A team whose model draws its task
 //! assignment at random keeps the assignment each transition was acted on, so that the
-//! update sees the same entity graph.
+//! update sees the same entity graph, and whether it was drawn there (the update's mask where
+//! a drawn assignment is held: [`crate::mappo::assignment_hold`]).
 //!
 //! The collection writes it through two methods only: [`Rollout::begin`] with the first
 //! observations of the iteration, then [`Rollout::push`] once per control step (the joint
@@ -18,7 +19,6 @@ use envs::layout::{ObsRows, Observation, RowWidths};
 use envs::tasks::StepOutput;
 
 use crate::mappo::actor::JointAction;
-use crate::mappo::assignment_hold::draws_at;
 use crate::mappo::minibatch::{Minibatch, NO_FINAL};
 
 /// One iteration's data (module docs).
@@ -56,9 +56,12 @@ pub struct Rollout {
     assignment_width: Vec<usize>,
     /// Per team, `[U T E, width]` the task assignment each transition was acted on.
     assignment: Vec<Vec<u32>>,
-    /// Per team, the steps its collection held a drawn assignment for (1: drawn at every
-    /// step; [`crate::mappo::assignment_hold`]), set by [`Rollout::begin`].
-    assignment_hold: Vec<usize>,
+    /// Per team, `[U T E]` whether each transition's assignment was drawn there.
+    assignment_drawn: Vec<Vec<bool>>,
+    /// Per team, whether its collection held a drawn assignment (the update then masks the
+    /// assignment's terms to the drawing steps; [`crate::mappo::assignment_hold`]), set by
+    /// [`Rollout::begin`].
+    assignment_held: Vec<bool>,
 }
 
 impl Rollout {
@@ -76,7 +79,7 @@ impl Rollout {
         let tr = blocks.checked_mul(steps)?.checked_mul(envs)?;
         let w = obs.row_widths();
         let per_row = 4 * (w.vectors as u128 + w.scalars as u128 + w.heading as u128);
-        let per_tr = 4 * (n_actions as u128 + 2 * teams as u128) + 2 + 4 + 8 * teams as u128;
+        let per_tr = 4 * (n_actions as u128 + 2 * teams as u128) + 2 + 4 + 9 * teams as u128;
         rows.checked_mul(per_row)?.checked_add(tr.checked_mul(per_tr)?)
     }
 
@@ -117,8 +120,9 @@ impl Rollout {
             final_index: vec![NO_FINAL; tr],
             finals: Observation::empty(nodes, agents),
             assignment: assignment_width.iter().map(|&w| vec![0; tr * w]).collect(),
+            assignment_drawn: assignment_width.iter().map(|&w| vec![true; if w > 0 { tr } else { 0 }]).collect(),
             assignment_width: assignment_width.to_vec(),
-            assignment_hold: vec![1; teams],
+            assignment_held: vec![false; teams],
         }
     }
 
@@ -133,11 +137,11 @@ impl Rollout {
     }
 
     /// Starts an iteration's collection from the environments' current observations `obs`
-    /// (the previous iteration's data is forgotten), each team `k` holding a drawn task
-    /// assignment for `assignment_hold[k]` steps (1: drawn at every step).
-    pub fn begin(&mut self, obs: &Observation, assignment_hold: &[usize]) {
-        assert_eq!(assignment_hold.len(), self.teams, "one assignment hold per team");
-        self.assignment_hold.copy_from_slice(assignment_hold);
+    /// (the previous iteration's data is forgotten), team `k` holding a drawn task
+    /// assignment between draws where `assignment_held[k]` (else drawn at every step).
+    pub fn begin(&mut self, obs: &Observation, assignment_held: &[bool]) {
+        assert_eq!(assignment_held.len(), self.teams, "one assignment hold per team");
+        self.assignment_held.copy_from_slice(assignment_held);
         self.cursor = 0;
         self.finals.clear();
         self.final_index.iter_mut().for_each(|x| *x = NO_FINAL);
@@ -162,6 +166,7 @@ impl Rollout {
             let w = self.assignment_width[k];
             if w > 0 {
                 self.assignment[k][tr * w..(tr + e_n) * w].copy_from_slice(assignment);
+                self.assignment_drawn[k][tr..tr + e_n].copy_from_slice(&joint.assignment_drawn[k]);
             }
         }
         for e in 0..e_n {
@@ -221,8 +226,8 @@ impl Rollout {
         mb.assignment.clear();
         mb.assignment_drawn.clear();
         let w = self.assignment_width[team];
-        // Where a drawn assignment was held, which steps drew it (the act step's rule).
-        let hold = if w > 0 { self.assignment_hold[team] } else { 1 };
+        // Where a drawn assignment was held, which steps drew it (the act step's record).
+        let held = w > 0 && self.assignment_held[team];
         for t in 0..=t_len {
             for &q in ids {
                 let r = self.obs_row(q / e_n, t) + q % e_n;
@@ -239,8 +244,8 @@ impl Rollout {
                 mb.terminated.push(self.terminated[i]);
                 mb.truncated.push(self.truncated[i]);
                 mb.assignment.extend_from_slice(&self.assignment[team][i * w..(i + 1) * w]);
-                if hold > 1 {
-                    mb.assignment_drawn.push(draws_at((q / e_n) * t_len + t, hold));
+                if held {
+                    mb.assignment_drawn.push(self.assignment_drawn[team][i]);
                 }
                 let f = self.final_index[i];
                 if f == NO_FINAL {

@@ -11,6 +11,7 @@ use tensor::Device;
 
 use crate::error::{Result, RlError};
 use crate::mappo::actor::{ActMode, Actor, JointAction};
+use crate::mappo::assignment_hold::HoldRule;
 use crate::mappo::config::TrainConfig;
 use crate::mappo::normalizer::ObsNormalizer;
 use crate::mappo::seeding::{derive_seed, stream};
@@ -129,9 +130,10 @@ impl Team {
     /// trainer all set it here.
     pub fn sync_assignment(&mut self, config: &TrainConfig, env_steps: u64) {
         self.model.set_assignment_warmup(config.assignment_warmup_at(env_steps));
-        let hold = if self.model.assignment_is_random() { config.assignment_hold_at(env_steps) } else { 1 };
-        if hold != self.actor.hold.every() {
-            self.actor.hold.set_every(hold);
+        let hold =
+            if self.model.assignment_is_random() { config.assignment_hold_at(env_steps) } else { HoldRule::Steps(1) };
+        if hold != self.actor.hold.rule() {
+            self.actor.hold.set_rule(hold);
         }
     }
 

@@ -45,6 +45,7 @@ use tensor::Tape;
 
 use crate::error::{Result, RlError};
 use crate::mappo::actor::JointAction;
+use crate::mappo::assignment_hold::HoldRule;
 use crate::mappo::checkpoint::{Checkpoint, TeamState, VERSION};
 use crate::mappo::config::{NormStart, TrainConfig};
 use crate::mappo::config_match;
@@ -403,6 +404,22 @@ impl Trainer {
         t.evals_done = c.evals_done;
         t.episode_returns = c.episode_returns.clone();
         t.sync_assignment_state();
+        // A learned assignment held per episode goes on with the environments' episodes.
+        for (team, s) in t.teams.iter_mut().zip(&c.teams) {
+            match (&s.assignment_hold, team.actor.hold.rule()) {
+                (Some(saved), _) => {
+                    team.actor.hold.restore(saved).map_err(|e| bad(format!("team {}: {e}", team.index)))?
+                }
+                (None, HoldRule::Episode) if c.iteration > 0 => {
+                    return Err(bad(format!(
+                        "team {} holds its learned task assignment per episode, and the checkpoint keeps no held \
+                         assignment",
+                        team.index
+                    )));
+                }
+                (None, _) => {}
+            }
+        }
         Ok(t)
     }
 
@@ -436,6 +453,7 @@ impl Trainer {
                     normalizer: t.norm.clone(),
                     noise: t.actor.noise.iter().map(RngState::of).collect(),
                     shuffle: RngState::of(&t.shuffle),
+                    assignment_hold: t.actor.hold.saved(),
                 })
                 .collect(),
             env: self.env.snapshot(),
@@ -494,16 +512,17 @@ impl Trainer {
     fn collect_timed(&mut self, timings: &mut Timings) -> Result<EpisodeStats> {
         let scale = self.config.reward_scaling as f32;
         let mut stats = EpisodeStats::new(self.spec.n_teams);
-        // Every iteration's collection begins with a draw of each held assignment.
-        let holds: Vec<usize> = self
+        // Every iteration's collection begins with a draw of each assignment held for `k`
+        // steps; one held for an episode goes on with it.
+        let held: Vec<bool> = self
             .teams
             .iter_mut()
             .map(|t| {
                 t.actor.hold.restart();
-                t.actor.hold.every()
+                !t.actor.hold.rule().every_step()
             })
             .collect();
-        self.rollout.begin(self.env.obs(), &holds);
+        self.rollout.begin(self.env.obs(), &held);
         let mut mark = Instant::now();
         while !self.rollout.is_full() {
             for team in self.teams.iter_mut() {
@@ -514,6 +533,10 @@ impl Trainer {
             let out = self.env.step(&self.joint.actions)?;
             lap(&mut mark, &mut timings.simulate_s);
             self.rollout.push(&self.joint, out, scale);
+            for team in self.teams.iter_mut() {
+                let ended = out.terminated.iter().zip(&out.truncated).map(|(&t, &u)| t || u);
+                team.actor.hold.end_episodes(ended);
+            }
             stats.record(out, &mut self.episode_returns);
             lap(&mut mark, &mut timings.store_s);
         }

@@ -11,7 +11,7 @@ use common::metrics;
 use rl::app::policy_file::{export_policy, load_policy};
 use rl::app::run_dir::load_policies;
 use rl::mappo::actor::{ActMode, JointAction};
-use rl::mappo::assignment_hold::draws_at;
+use rl::mappo::assignment_hold::{HoldRule, draws_at};
 use rl::mappo::evaluate::evaluation_actors;
 use rl::mappo::minibatch::Minibatch;
 use rl::mappo::ppo::{self, PpoParams};
@@ -64,7 +64,7 @@ fn per_env_sequences(mb: &Minibatch, envs: usize) -> Vec<Vec<Vec<u32>>> {
 fn a_held_assignment_is_drawn_every_k_steps_and_kept_between() {
     for model in MODELS {
         let mut t = Trainer::new(&config(model, 1, 3)).unwrap();
-        assert_eq!(t.teams[0].actor.hold.every(), 3, "{model}");
+        assert_eq!(t.teams[0].actor.hold.rule(), HoldRule::Steps(3), "{model}");
         t.collect().unwrap();
         let mb = whole_iteration(&t);
         let expected: Vec<bool> =
@@ -128,7 +128,7 @@ fn evaluations_hold_the_draw_from_each_episodes_start() {
             let mut changed = false;
             for seed in 0..4 {
                 let (mut policy, mut actor) = evaluation_actors(&t.teams, seed, mode).remove(0);
-                assert_eq!(actor.hold.every(), 3);
+                assert_eq!(actor.hold.rule(), HoldRule::Steps(3));
                 let mut joint = JointAction::new(8, t.env.n_actions(), 1);
                 let mut acted = Vec::new();
                 for _ in 0..7 {
@@ -178,8 +178,8 @@ fn held_runs_resume_exactly_at_any_thread_count_and_their_files_hold() {
     // Its run directory and policy file hold as it does.
     let file = tmp.0.join("held.safetensors");
     export_policy(&whole, &file).unwrap();
-    assert_eq!(load_policies(&whole).unwrap().1[0].actor.hold.every(), 3);
-    assert_eq!(load_policy(&file).unwrap().teams[0].actor.hold.every(), 3);
+    assert_eq!(load_policies(&whole).unwrap().1[0].actor.hold.rule(), HoldRule::Steps(3));
+    assert_eq!(load_policy(&file).unwrap().teams[0].actor.hold.rule(), HoldRule::Steps(3));
     let written = std::fs::read_to_string(whole.config()).unwrap();
     assert!(written.contains("assignment_hold_steps = 3"), "{written}");
     let other = TrainConfig { assignment_hold_steps: 2, ..config.clone() };
@@ -189,10 +189,10 @@ fn held_runs_resume_exactly_at_any_thread_count_and_their_files_hold() {
     let warm = TrainConfig { assignment_warmup_steps: 2 * config.steps_per_iteration(), ..config.clone() };
     let mut t = Trainer::new(&warm).unwrap();
     for expected in [1, 1, 3] {
-        assert_eq!(t.teams[0].actor.hold.every(), expected, "at {} env steps", t.env_steps);
+        assert_eq!(t.teams[0].actor.hold.rule(), HoldRule::Steps(expected), "at {} env steps", t.env_steps);
         t.iterate().unwrap();
     }
     let in_warmup = RunDir::new(tmp.0.join("in-warmup"));
     train(&warm, &in_warmup, &TrainOptions { stop_after: Some(1), ..Default::default() }).unwrap();
-    assert_eq!(load_policies(&in_warmup).unwrap().1[0].actor.hold.every(), 1);
+    assert_eq!(load_policies(&in_warmup).unwrap().1[0].actor.hold.rule(), HoldRule::Steps(1));
 }

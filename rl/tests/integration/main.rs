@@ -3,6 +3,7 @@
 
 mod assignment_diagnostics;
 mod assignment_hold;
+mod assignment_hold_episode;
 mod assignment_sensitivity;
 mod assignment_warmup;
 mod checkpoint_format;

@@ -196,6 +196,13 @@ mod tests {
             assert_eq!(r.config.assignment_hold_steps as usize, r.config.unroll_length);
             assert_eq!(r.name, l.name.replace("/seed", "+hold_5/seed"));
         }
+        // And with the draw held for each episode.
+        let episode = Sweep::load(&dir.join("learned_assignment_episode.toml")).unwrap().runs().unwrap();
+        assert_eq!(episode.len(), 3);
+        for (r, l) in episode.iter().zip(&learned[..3]) {
+            assert_eq!(r.config, TrainConfig { assignment_hold_episode: true, ..l.config.clone() }, "{}", r.name);
+            assert_eq!(r.name, l.name.replace("/seed", "+hold_episode/seed"));
+        }
         // Its follow-up with a warm-up: the same runs but for the warm-up and a longer budget,
         // whose first 16M env steps are greedy MLP+HN's (the seeds of repro_reach_2_ants.toml).
         let warmup = Sweep::load(&dir.join("learned_assignment_warmup.toml")).unwrap().runs().unwrap();
