@@ -101,21 +101,28 @@ fn the_update_counts_a_held_assignment_where_it_was_drawn() {
         let config = config(model, 1, 3);
         let mut t = Trainer::new(&config).unwrap();
         t.collect().unwrap();
-        let mut mb = whole_iteration(&t);
-        let mut stats = |mb: &Minibatch| {
-            let team = &mut t.teams[0];
-            let tape = Tape::<f32>::new();
-            let p = team.store.bind(&tape);
-            let mut noise = minibatch_stream(config.seed, "entropy", 0, 0, 0, 0);
-            ppo::loss(team.model.as_mut(), &p, mb, &PpoParams::from_config(&config), &mut noise).unwrap().1
-        };
-        let st = stats(&mb);
-        assert!((st.mean_ratio - 1.0).abs() < 1e-4, "{model}: mean ratio {}", st.mean_ratio);
-        assert!(st.clip_fraction == 0.0 && st.approx_kl < 1e-8, "{model}: {st:?}");
-        mb.assignment_drawn.iter_mut().for_each(|d| *d = true);
-        let unmasked = stats(&mb);
-        assert!(unmasked.approx_kl > 1e-4, "{model}: the held steps' ln π(σ | s) changed nothing: {unmasked:?}");
+        let mb = whole_iteration(&t);
+        assert_the_mask_keeps_the_first_ratio_one(&mut t, mb, model);
     }
+}
+
+/// Team 0's first update on `mb` (its iteration just collected, on a frozen normaliser):
+/// with the drawing steps' mask the ratios are 1; with every step counted as drawing, not.
+pub fn assert_the_mask_keeps_the_first_ratio_one(t: &mut Trainer, mut mb: Minibatch, what: &str) {
+    let config = t.config.clone();
+    let mut stats = |mb: &Minibatch| {
+        let team = &mut t.teams[0];
+        let tape = Tape::<f32>::new();
+        let p = team.store.bind(&tape);
+        let mut noise = minibatch_stream(config.seed, "entropy", 0, 0, 0, 0);
+        ppo::loss(team.model.as_mut(), &p, mb, &PpoParams::from_config(&config), &mut noise).unwrap().1
+    };
+    let st = stats(&mb);
+    assert!((st.mean_ratio - 1.0).abs() < 1e-4, "{what}: mean ratio {}", st.mean_ratio);
+    assert!(st.clip_fraction == 0.0 && st.approx_kl < 1e-8, "{what}: {st:?}");
+    mb.assignment_drawn.iter_mut().for_each(|d| *d = true);
+    let unmasked = stats(&mb);
+    assert!(unmasked.approx_kl > 1e-4, "{what}: the held steps' ln π(σ | s) changed nothing: {unmasked:?}");
 }
 
 /// An evaluation's act steps hold their draws from its first step, in sampled and mean mode.
@@ -157,11 +164,7 @@ fn evaluations_hold_the_draw_from_each_episodes_start() {
 fn held_runs_resume_exactly_at_any_thread_count_and_their_files_hold() {
     let tmp = common::TempDir::new("assignment-hold");
     let config = config(MODELS[0], 4, 3);
-    let whole = RunDir::new(tmp.0.join("whole"));
-    train(&config, &whole, &TrainOptions::default()).unwrap();
-    let two = RunDir::new(tmp.0.join("two-threads"));
-    train(&TrainConfig { threads: 2, ..config.clone() }, &two, &TrainOptions::default()).unwrap();
-    assert_eq!(metrics(&two), metrics(&whole), "two threads");
+    let whole = trained_on_one_and_two_threads(&tmp.0, &config);
     let parts = RunDir::new(tmp.0.join("parts"));
     train(&config, &parts, &TrainOptions { stop_after: Some(2), ..Default::default() }).unwrap();
     train(&config, &parts, &TrainOptions::default()).unwrap();
@@ -195,4 +198,15 @@ fn held_runs_resume_exactly_at_any_thread_count_and_their_files_hold() {
     let in_warmup = RunDir::new(tmp.0.join("in-warmup"));
     train(&warm, &in_warmup, &TrainOptions { stop_after: Some(1), ..Default::default() }).unwrap();
     assert_eq!(load_policies(&in_warmup).unwrap().1[0].actor.hold.rule(), HoldRule::Steps(1));
+}
+
+/// `config` trained in `dir/whole` on its one thread and in `dir/two-threads` on two: the
+/// same rows (the run on one thread is returned).
+pub fn trained_on_one_and_two_threads(dir: &std::path::Path, config: &TrainConfig) -> RunDir {
+    let whole = RunDir::new(dir.join("whole"));
+    train(config, &whole, &TrainOptions::default()).unwrap();
+    let two = RunDir::new(dir.join("two-threads"));
+    train(&TrainConfig { threads: 2, ..config.clone() }, &two, &TrainOptions::default()).unwrap();
+    assert_eq!(metrics(&two), metrics(&whole), "two threads");
+    whole
 }

@@ -7,6 +7,7 @@
 
 use crate::common;
 
+use crate::assignment_hold::{assert_the_mask_keeps_the_first_ratio_one, trained_on_one_and_two_threads};
 use common::metrics;
 use envs::tasks::{TaskSpec, VecEnv};
 use rl::app::run_dir::load_policies;
@@ -15,10 +16,7 @@ use rl::mappo::assignment_hold::HoldRule;
 use rl::mappo::checkpoint::Checkpoint;
 use rl::mappo::evaluate::evaluation_actors;
 use rl::mappo::minibatch::Minibatch;
-use rl::mappo::ppo::{self, PpoParams};
-use rl::mappo::seeding::minibatch_stream;
 use rl::{RunDir, TrainConfig, TrainOptions, Trainer, train};
-use tensor::Tape;
 
 /// The learned models.
 const MODELS: [&str; 2] = ["mlp_hn:assignment=learned", "shnn:assignment=learned"];
@@ -121,26 +119,14 @@ fn the_update_counts_an_episodes_assignment_where_it_was_drawn() {
     for model in MODELS {
         let config = config(model, 1);
         let mut t = short_episodes(&config);
-        let (_, mut mb) = collect(&mut t);
+        let (_, mb) = collect(&mut t);
         assert!(mb.assignment_drawn.iter().any(|d| !d), "{model}: every step drew");
-        let mut stats = |mb: &Minibatch| {
-            let team = &mut t.teams[0];
-            let tape = Tape::<f32>::new();
-            let p = team.store.bind(&tape);
-            let mut noise = minibatch_stream(config.seed, "entropy", 0, 0, 0, 0);
-            ppo::loss(team.model.as_mut(), &p, mb, &PpoParams::from_config(&config), &mut noise).unwrap().1
-        };
-        let st = stats(&mb);
-        assert!((st.mean_ratio - 1.0).abs() < 1e-4, "{model}: mean ratio {}", st.mean_ratio);
-        assert!(st.clip_fraction == 0.0 && st.approx_kl < 1e-8, "{model}: {st:?}");
-        mb.assignment_drawn.iter_mut().for_each(|d| *d = true);
-        let unmasked = stats(&mb);
-        assert!(unmasked.approx_kl > 1e-4, "{model}: the held steps' ln π(σ | s) changed nothing: {unmasked:?}");
+        assert_the_mask_keeps_the_first_ratio_one(&mut t, mb, model);
     }
 }
 
 /// An evaluation (its episodes all begin at its first step, no auto-reset) draws once and
-/// holds the draw, in sampled and mean mode; other seeds draw others.
+/// holds the draw (sampled actions and assignments); other seeds draw others.
 #[test]
 fn evaluations_draw_once_an_episode() {
     for model in MODELS {
@@ -173,11 +159,7 @@ fn evaluations_draw_once_an_episode() {
 fn runs_held_per_episode_resume_exactly_at_any_thread_count() {
     let tmp = common::TempDir::new("assignment-hold-episode");
     let config = config(MODELS[0], 4);
-    let whole = RunDir::new(tmp.0.join("whole"));
-    train(&config, &whole, &TrainOptions::default()).unwrap();
-    let two = RunDir::new(tmp.0.join("two-threads"));
-    train(&TrainConfig { threads: 2, ..config.clone() }, &two, &TrainOptions::default()).unwrap();
-    assert_eq!(metrics(&two), metrics(&whole), "two threads");
+    let whole = trained_on_one_and_two_threads(&tmp.0, &config);
     let parts = RunDir::new(tmp.0.join("parts"));
     train(&config, &parts, &TrainOptions { stop_after: Some(2), ..Default::default() }).unwrap();
     let saved = Checkpoint::load(&parts.checkpoint()).unwrap();
