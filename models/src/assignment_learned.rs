@@ -718,24 +718,24 @@ impl LearnedAssignment {
                     .iter()
                     .map(|&i| if i == crate::entity_graph::NO_AGENT { UNASSIGNED } else { i as usize })
                     .collect();
-                let marked = |scene: &[u32]| scene.iter().filter(|&&i| i == DRAW_SCENE).count();
-                if let Some(e) = g.chunks(m.max(1)).position(|scene| (1..m).contains(&marked(scene))) {
-                    return Err(ModelError::Input(format!(
-                        "a given learned assignment whose scene {e} is only partly marked to be drawn"
-                    )));
-                }
-                if g.chunks(m.max(1)).any(|scene| marked(scene) == m) {
-                    let host = scores.value().to_host()?;
-                    for (e, scene) in g.chunks(m.max(1)).enumerate() {
-                        if marked(scene) == m {
-                            self.choose(
-                                &host.data()[e * n * m..(e + 1) * n * m],
-                                1,
-                                n,
-                                m,
-                                &mut out[e * m..(e + 1) * m],
-                            )?;
+                // The scenes marked to be drawn, each wholly.
+                let mut to_draw = Vec::new();
+                for (e, scene) in g.chunks(m.max(1)).enumerate() {
+                    match scene.iter().filter(|&&i| i == DRAW_SCENE).count() {
+                        0 => {}
+                        k if k == m => to_draw.push(e),
+                        _ => {
+                            return Err(ModelError::Input(format!(
+                                "a given learned assignment whose scene {e} is only partly marked to be drawn"
+                            )));
                         }
+                    }
+                }
+                if !to_draw.is_empty() {
+                    let host = scores.value().to_host()?;
+                    for e in to_draw {
+                        let scene = &host.data()[e * n * m..(e + 1) * n * m];
+                        self.choose(scene, 1, n, m, &mut out[e * m..(e + 1) * m])?;
                     }
                 }
                 out

@@ -130,7 +130,14 @@ impl Actor {
         // A held assignment is given back (`assignment_hold`), the environments that draw
         // marked in it; the others are drawn or solved.
         let width = model.assignment_width();
-        let drawn = if model.assignment_is_random() { self.hold.draws_next(b, width) } else { vec![true; b] };
+        // Which environments draw, in the joint action's buffer (no allocation per step).
+        let mut drawn = std::mem::take(&mut joint.assignment_drawn[team]);
+        if model.assignment_is_random() {
+            self.hold.draws_next(b, width, &mut drawn);
+        } else {
+            drawn.clear();
+            drawn.resize(b, true);
+        }
         let given = if drawn.iter().all(|&d| d) { None } else { Some(self.hold.given(&drawn, width)) };
         let out = model.forward(&p, &self.normalised.rows(), given.as_deref(), false)?;
         let heads = host_heads(&out.agents)?;

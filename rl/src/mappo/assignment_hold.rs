@@ -40,14 +40,6 @@ impl HoldRule {
     pub fn every_step(self) -> bool {
         matches!(self, HoldRule::Steps(k) if k <= 1)
     }
-
-    /// The rule as a run's name and summaries write it: `1`, `5`, `episode`.
-    pub fn describe(self) -> String {
-        match self {
-            HoldRule::Steps(k) => k.max(1).to_string(),
-            HoldRule::Episode => "episode".to_string(),
-        }
-    }
 }
 
 /// Whether act step `step` (from 0) of a sequence holding its assignment for `every` steps
@@ -117,23 +109,17 @@ impl AssignmentHold {
         }
     }
 
-    /// Per environment of a batch of `envs` with `width` entries each, whether its next step
-    /// draws: every one at steps `0, k, 2k, ..` of a hold of `k` steps; those whose episode
-    /// has just begun for a hold per episode; and all whenever nothing of this size is held
-    /// (the first step, or a batch of another size).
-    pub fn draws_next(&self, envs: usize, width: usize) -> Vec<bool> {
-        if self.held.len() != envs * width || self.rule.every_step() {
-            return vec![true; envs];
-        }
+    /// Writes to `out`, per environment of a batch of `envs` with `width` entries each,
+    /// whether its next step draws: every one at steps `0, k, 2k, ..` of a hold of `k` steps;
+    /// those whose episode has just begun for a hold per episode; and all whenever nothing of
+    /// this size is held (the first step, or a batch of another size).
+    pub fn draws_next(&self, envs: usize, width: usize, out: &mut Vec<bool>) {
+        out.clear();
+        let all = self.held.len() != envs * width || self.rule.every_step();
         match self.rule {
-            HoldRule::Steps(k) => vec![draws_at(self.step, k); envs],
-            HoldRule::Episode => {
-                if self.pending.len() == envs {
-                    self.pending.clone()
-                } else {
-                    vec![true; envs]
-                }
-            }
+            HoldRule::Episode if !all && self.pending.len() == envs => out.extend_from_slice(&self.pending),
+            HoldRule::Steps(k) if !all => out.resize(envs, draws_at(self.step, k)),
+            _ => out.resize(envs, true),
         }
     }
 
@@ -212,12 +198,19 @@ mod tests {
     /// One act step of a hold on a batch of `envs` of width 1: environment `e` draws
     /// `100 * step + e` where it draws.
     fn act(h: &mut AssignmentHold, step: u32, envs: usize) -> Vec<u32> {
-        let drawn = h.draws_next(envs, 1);
+        let drawn = next(h, envs);
         let given = if drawn.iter().all(|&d| d) { vec![DRAW_SCENE; envs] } else { h.given(&drawn, 1) };
         let a: Vec<u32> =
             given.iter().enumerate().map(|(e, &g)| if g == DRAW_SCENE { 100 * step + e as u32 } else { g }).collect();
         h.record(&a, &drawn);
         a
+    }
+
+    /// [`AssignmentHold::draws_next`] for a batch of `envs` of width 1.
+    fn next(h: &AssignmentHold, envs: usize) -> Vec<bool> {
+        let mut out = vec![false; 7];
+        h.draws_next(envs, 1, &mut out);
+        out
     }
 
     #[test]
@@ -229,11 +222,11 @@ mod tests {
         let acted: Vec<u32> = (0..7).map(|s| act(&mut h, s, 2)[0]).collect();
         assert_eq!(acted, [0, 0, 0, 300, 300, 300, 600]);
         // Another batch size, or a restart, draws at once; episode ends change nothing.
-        assert_eq!(h.draws_next(4, 1), [true; 4]);
+        assert_eq!(next(&h, 4), [true; 4]);
         h.end_episodes([true, true]);
-        assert_eq!(h.draws_next(2, 1), [false; 2]);
+        assert_eq!(next(&h, 2), [false; 2]);
         h.restart();
-        assert_eq!(h.draws_next(2, 1), [true; 2]);
+        assert_eq!(next(&h, 2), [true; 2]);
         assert_eq!(h.saved(), None);
     }
 
@@ -244,7 +237,7 @@ mod tests {
         assert_eq!(act(&mut h, 1, 3), [0, 1, 2]);
         // Environment 1's episode ends: only it draws at its next step.
         h.end_episodes([false, true, false]);
-        assert_eq!(h.draws_next(3, 1), [false, true, false]);
+        assert_eq!(next(&h, 3), [false, true, false]);
         assert_eq!(h.given(&[false, true, false], 1), [0, DRAW_SCENE, 2]);
         assert_eq!(act(&mut h, 2, 3), [0, 201, 2]);
         // A new iteration goes on with the episodes.
@@ -261,6 +254,6 @@ mod tests {
         assert!(back.restore(&bad).unwrap_err().contains("4 entries for 3 environments"));
         assert!(AssignmentHold::new(HoldRule::Steps(5)).restore(&saved).is_err());
         // Another batch size draws everywhere.
-        assert_eq!(h.draws_next(2, 1), [true; 2]);
+        assert_eq!(next(&h, 2), [true; 2]);
     }
 }
