@@ -25,9 +25,10 @@ use crate::kind::ModelKind;
 /// (integer), `head` and `critic_hidden` (hidden widths joined by `x`, e.g. `256x256`; at
 /// most [`MAX_LAYERS`], each at most [`MAX_WIDTH`]), and with `assignment=learned` its
 /// scorer's `assign_hidden` (hidden widths as `head`'s, or `none` for an affine scorer) and
-/// `assign_prior` (`λ`, a number in `[0, MAX_DISTANCE_PRIOR]`). E.g.
-/// `shnn:assignment=hungarian;critic=shared`.
-pub const OPTION_KEYS: [&str; 13] = [
+/// `assign_prior` (`λ`, a number in `[0, MAX_DISTANCE_PRIOR]`), and for `mlp` and `mlp_hn`
+/// `assign_critic` (`none`, `held`: whether the value reads the assignment held into each
+/// step). E.g. `shnn:assignment=hungarian;critic=shared`.
+pub const OPTION_KEYS: [&str; 14] = [
     "assignment",
     "translation",
     "abstraction",
@@ -41,6 +42,7 @@ pub const OPTION_KEYS: [&str; 13] = [
     "critic_hidden",
     "assign_hidden",
     "assign_prior",
+    "assign_critic",
 ];
 
 /// Sizes of the entity-level message passing (paper Table "Hyperparameters of Network").
@@ -174,6 +176,8 @@ pub(crate) struct GivenOptions {
     pub(crate) assign_hidden: Option<Vec<usize>>,
     /// Option `assign_prior`.
     pub(crate) assign_prior: Option<DistancePrior>,
+    /// Option `assign_critic` (`held`: true, `none`: false).
+    pub(crate) assign_critic: Option<bool>,
     /// Option `seed` (default 0), which every model takes.
     pub(crate) seed: u64,
 }
@@ -199,6 +203,7 @@ impl GivenOptions {
             critic_hidden: None,
             assign_hidden: None,
             assign_prior: None,
+            assign_critic: None,
             seed: 0,
         };
         let mut seen: Vec<&str> = Vec::new();
@@ -238,6 +243,17 @@ impl GivenOptions {
                 "critic_hidden" => c.critic_hidden = Some(parse_widths(k, v)?),
                 "assign_hidden" => c.assign_hidden = Some(if v == "none" { Vec::new() } else { parse_widths(k, v)? }),
                 "assign_prior" => c.assign_prior = Some(DistancePrior::parse(v)?),
+                "assign_critic" => {
+                    c.assign_critic = Some(match v {
+                        "held" => true,
+                        "none" => false,
+                        _ => {
+                            return Err(ModelError::Option(format!(
+                                "model option `assign_critic`: `{v}` is not `none` or `held`"
+                            )));
+                        }
+                    });
+                }
                 _ => {
                     return Err(ModelError::Option(format!(
                         "unknown model option `{k}` (known: {})",
@@ -265,6 +281,7 @@ impl GivenOptions {
             ("critic_hidden", self.critic_hidden.is_some()),
             ("assign_hidden", self.assign_hidden.is_some()),
             ("assign_prior", self.assign_prior.is_some()),
+            ("assign_critic", self.assign_critic.is_some()),
         ]
         .into_iter()
         .find_map(|(k, set)| set.then_some(k))

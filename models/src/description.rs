@@ -387,6 +387,9 @@ pub enum MlpNetwork {
         hidden: HiddenWidths,
         /// The scorer of `assignment=learned` (options `assign_hidden`, `assign_prior`).
         scorer: LearnedScorer,
+        /// Whether the value reads the learned assignment held into each step (option
+        /// `assign_critic=held`; default `none`: it reads none), [`crate::mlp::ReleaseMlp`].
+        value_reads_held: bool,
     },
     /// `variant=flat`: this project's earlier baseline on the flat agent view
     /// ([`crate::mlp::FlatMlp`]), no task assignment; its critic reads every node
@@ -496,6 +499,7 @@ impl ModelDescription {
                 assignment: TaskAssignment::default(),
                 hidden: HiddenWidths::default(),
                 scorer: LearnedScorer::default(),
+                value_reads_held: false,
             };
             Self::Mlp(MlpOptions { model, network })
         };
@@ -561,10 +565,19 @@ impl ModelDescription {
                 let network = match g.variant.take().unwrap_or_default() {
                     MlpVariant::Release => {
                         let method = g.assignment.take().unwrap_or(AssignmentMethod::Greedy);
+                        let value_reads_held = g.assign_critic.take().unwrap_or(false);
+                        if value_reads_held && method != AssignmentMethod::Learned {
+                            return Err(ModelError::Option(format!(
+                                "`{}`: the option assign_critic=held gives the value the learned assignment held \
+                                 into each step; give it with assignment=learned",
+                                g.name
+                            )));
+                        }
                         MlpNetwork::Release {
                             assignment: TaskAssignment { method, seed },
                             hidden: take_hidden(&mut g, o.network.hidden().clone()),
                             scorer: take_scorer(&mut g, method)?,
+                            value_reads_held,
                         }
                     }
                     MlpVariant::Flat => {
@@ -602,6 +615,8 @@ impl ModelDescription {
     /// | `gravity` | the SHNN family but `shnn_so3` |
     /// | `variant` | `mlp`, `mlp_hn` |
     /// | `head`, `critic_hidden` | all but the Transformer models |
+    /// | `assign_hidden`, `assign_prior` | the SHNN family, `mlp` and `mlp_hn` ([`MlpNetwork::Release`]) |
+    /// | `assign_critic` | `mlp` and `mlp_hn` ([`MlpNetwork::Release`]) |
     pub fn option_keys(&self) -> Vec<&'static str> {
         let mut keys: Vec<&'static str> = Vec::new();
         let hidden = ["head", "critic_hidden"];
@@ -622,7 +637,7 @@ impl ModelDescription {
             }
             Self::Mlp(o) => {
                 if let MlpNetwork::Release { .. } = o.network {
-                    keys.extend(["assignment", "assign_hidden", "assign_prior"]);
+                    keys.extend(["assignment", "assign_hidden", "assign_prior", "assign_critic"]);
                 }
                 keys.push("variant");
                 keys.extend(hidden);
@@ -744,6 +759,12 @@ impl ModelDescription {
             Self::Mlp(MlpOptions { network: MlpNetwork::Release { scorer, .. }, .. }) => Some(scorer),
             _ => None,
         }
+    }
+
+    /// Whether its value reads the learned task assignment held into each step (option
+    /// `assign_critic=held`, `mlp` and `mlp_hn`; [`crate::mlp::ReleaseMlp`]).
+    pub fn value_reads_held(&self) -> bool {
+        matches!(self, Self::Mlp(MlpOptions { network: MlpNetwork::Release { value_reads_held: true, .. }, .. }))
     }
 
     /// Sets the seed of its task assignment (option `seed`); no effect on a model without one.
@@ -909,6 +930,23 @@ mod tests {
         assert_eq!(DistancePrior::new(-0.0).unwrap().get().to_bits(), 0.0f64.to_bits());
     }
 
+    /// `assign_critic=held`: parsed for the release's MLPs with a learned assignment, refused
+    /// with another assignment, by the flat variant and by the SHNN family, its value checked.
+    #[test]
+    fn the_held_assignment_critic_goes_with_a_learned_assignment_of_an_mlp() {
+        for s in ["mlp_hn:assignment=learned;assign_critic=held", "mlp:assign_critic=held;assignment=learned"] {
+            assert!(ModelDescription::parse(s).unwrap().value_reads_held(), "{s}");
+        }
+        for s in ["mlp_hn:assignment=learned", "mlp_hn:assignment=learned;assign_critic=none", "mlp_hn"] {
+            assert!(!ModelDescription::parse(s).unwrap().value_reads_held(), "{s}");
+        }
+        assert_refused("mlp_hn:assign_critic=held", "assign_critic=held gives the value the learned assignment");
+        assert_refused("mlp_hn:assignment=greedy;assign_critic=held", "give it with assignment=learned");
+        assert_refused("mlp_hn:variant=flat;assign_critic=held", "`mlp_hn` takes no option `assign_critic`");
+        assert_refused("shnn:assignment=learned;assign_critic=held", "`shnn` takes no option `assign_critic`");
+        assert_refused("mlp_hn:assignment=learned;assign_critic=yes", "`assign_critic`: `yes` is not `none` or `held`");
+    }
+
     /// `assignment=learned` is the SHNN family's and the release's MLPs': the HNN family,
     /// which takes `assignment`, refuses the value naming the model; an unknown value lists
     /// `learned` among the others.
@@ -947,6 +985,7 @@ mod tests {
             // The scorer's options go with a learned assignment (a second option, given after).
             "assign_prior" => "2;assignment=learned",
             "assign_hidden" => "7x3;assignment=learned",
+            "assign_critic" => "held;assignment=learned",
             _ => "7x3",
         };
         for kind in ModelKind::ALL {

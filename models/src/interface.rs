@@ -111,6 +111,29 @@ pub trait Policy: std::fmt::Debug + Send + Sync {
         value: bool,
     ) -> Result<PolicyOutput<'t, f32>>;
 
+    /// Whether the value reads the learned task assignment held into each step
+    /// (`assign_critic=held`): the update then asks for the value with
+    /// [`Policy::forward_held`]. Default: no.
+    fn value_reads_held_assignment(&self) -> bool {
+        false
+    }
+
+    /// [`Policy::forward`] with the value and the task assignment `assignment` of every scene
+    /// given, `held[b]` saying whether scene `b`'s was held into it from an earlier step (the
+    /// value reads it: `V(s, σ)`) or drawn there (the value reads none: `V(s)`, before the
+    /// draw). Only for a policy whose [`Policy::value_reads_held_assignment`]; the default is
+    /// an error.
+    fn forward_held<'t>(
+        &mut self,
+        p: &Bound<'t, f32>,
+        obs: &ObsRows<'_, f32>,
+        assignment: &[u32],
+        held: &[bool],
+    ) -> Result<PolicyOutput<'t, f32>> {
+        let _ = (p, obs, assignment, held);
+        Err(ModelError::Input(format!("the value of `{}` reads no held task assignment", self.name())))
+    }
+
     /// Entries per scene of [`PolicyOutput::assignment`] (0, the default, for policies
     /// without a task assignment).
     fn assignment_width(&self) -> usize {

@@ -21,7 +21,14 @@
 //!   positions relative to the mean of the roots, concatenates them (own agents first) and
 //!   applies 256, 256, 1. For `mlp_hn` its vectors are in the heading frame of the team's
 //!   first agent (the release's MLP file has heading normalisation commented out; without
-//!   it the value would not be invariant, which MLP+HN promises).
+//!   it the value would not be invariant, which MLP+HN promises);
+//! - with `assign_critic=held` (and `assignment=learned`) the value also reads the learned
+//!   assignment held into the step: its first layer gains the term `x_σ W_σ`, `x_σ` the
+//!   one-hot `[m n]` of which of the team's `n` agents each of the `m` objects is held by
+//!   (all zero where the step draws its assignment, so the value there is `V(s)`, before the
+//!   draw), `W_σ` (`critic.held.weight`) zero at the start, so that the value begins as
+//!   without it. A held draw's advantage then carries `V(s', σ) - V(s)` past the unroll
+//!   (docs/MODELS.md, "What the value reads").
 //!
 //! # The flat MLP ([`FlatMlp`], `variant=flat`)
 //! This project's earlier baseline: per agent an MLP 256 x 3 on the flat agent view
@@ -29,7 +36,7 @@
 //! components and the scalars per node; world frame for `mlp`, heading frame and positions
 //! relative to its root for `mlp_hn`), the critic 256 x 3 on every node of the scene.
 
-use nn::{Bound, Linear, Mlp, Scope};
+use nn::{Bound, Linear, Mlp, ParamId, Scope};
 use tensor::{Activation, Float, Tensor, Var};
 
 use crate::assignment::{AssignmentMethod, UNASSIGNED};
@@ -37,7 +44,7 @@ use crate::assignment_learned::{LearnedAssignment, ScorerConfig, build_graph};
 use crate::config::layer_sizes;
 use crate::critic::critic_order;
 use crate::description::HiddenWidths;
-use crate::entity_graph::GraphBuilder;
+use crate::entity_graph::{GraphBuilder, NO_AGENT};
 use crate::error::{ModelError, Result};
 use crate::input::{InputProcessor, Translation};
 use crate::interface::{AgentPolicy, PolicyOutput};
@@ -108,8 +115,16 @@ impl NodeEmbedding {
     /// with `W_r^z`, `W_r^h` the rows of the first layer's weight that read row `r`'s
     /// embeddings. The same function and parameters (and gradients, through the products on
     /// the tape), with 19 instead of 128 inputs per row in the large product: the first layer
-    /// of a 1_ant head takes 11 x 19 inputs instead of 11 x 128.
-    fn hidden<'t, T: Float>(&self, p: &Bound<'t, T>, mlp: &Mlp, x: Tensor<T>) -> Result<Var<'t, T>> {
+    /// of a 1_ant head takes 11 x 19 inputs instead of 11 x 128. `extra`, when given, is one
+    /// more term `x_e W_e` of the first layer (the value's held assignment,
+    /// [`ReleaseMlp::forward`]).
+    fn hidden<'t, T: Float>(
+        &self,
+        p: &Bound<'t, T>,
+        mlp: &Mlp,
+        x: Tensor<T>,
+        extra: Option<(Var<'t, T>, Var<'t, T>)>,
+    ) -> Result<Var<'t, T>> {
         let (nb, r) = (x.shape()[0], x.shape()[1]);
         let first = &mlp.layers[0];
         if mlp.layers.len() < 2 || first.fan_in != 2 * EMBED * r {
@@ -141,6 +156,7 @@ impl NodeEmbedding {
             let xk = tape.constant(x.clone()).narrow(2, lo, width)?.reshape(&[nb, r * width])?;
             terms.push((xk, m));
         }
+        terms.extend(extra);
         let mut h = tape.linear_sum(&terms, Some(bias), mlp.activation)?;
         for layer in &mlp.layers[1..mlp.layers.len() - 1] {
             h = layer.forward_act(p, h, mlp.activation)?;
@@ -162,6 +178,8 @@ pub struct ReleaseMlp {
     heads: Vec<Mlp>,
     critic_embed: NodeEmbedding,
     critic: Mlp,
+    /// `assign_critic=held`: `W_σ` `[m n, h]` (`critic.held.weight`, module docs).
+    held: Option<ParamId>,
     order: Vec<usize>,
     /// `assignment=learned`: the scorer (parameters `assign.*`) and its draws, which give
     /// the graph builder its assignment (as in [`crate::shnn`]).
@@ -171,7 +189,9 @@ pub struct ReleaseMlp {
 impl ReleaseMlp {
     /// The model for `agents` (scope `s` holds `actor` and `critic`, then, with `learned`
     /// (`assignment=learned`: the scorer's configuration and the draws' seed), the scorer's
-    /// `assign`, last, so that the other parameters start as without it).
+    /// `assign`, last, so that the other parameters start as without it; with
+    /// `value_reads_held`, `critic.held.weight` after it, zero).
+    #[allow(clippy::too_many_arguments)]
     pub(crate) fn new<T: Float>(
         s: &mut Scope<'_, T>,
         spec: &ObsSpec,
@@ -180,6 +200,7 @@ impl ReleaseMlp {
         heading: bool,
         hidden: &HiddenWidths,
         learned: Option<(ScorerConfig, u64)>,
+        value_reads_held: bool,
     ) -> Result<Self> {
         let (head_hidden, critic_hidden) = (&hidden.head, &hidden.critic);
         let own_root_row = graph.method() != AssignmentMethod::None;
@@ -206,6 +227,18 @@ impl ReleaseMlp {
             .map(|(config, seed)| LearnedAssignment::new(&mut s.sub("assign"), config, &graph, gravity, seed))
             .transpose()?
             .map(Box::new);
+        let held = if value_reads_held {
+            let width = graph.assignment_width() * agents.len();
+            if learned.is_none() || width == 0 {
+                return Err(ModelError::Option(
+                    "assign_critic=held reads a learned assignment (give it with assignment=learned)".into(),
+                ));
+            }
+            let w = Tensor::zeros(&[width, critic.layers[0].fan_out]);
+            Some(s.sub("critic").sub("held").param("weight", w)?)
+        } else {
+            None
+        };
         Ok(Self {
             heading,
             proc: InputProcessor::new(spec, Translation::RootMean)?,
@@ -215,6 +248,7 @@ impl ReleaseMlp {
             heads,
             critic_embed,
             critic,
+            held,
             order: critic_order(spec, agents),
             learned,
         })
@@ -230,7 +264,9 @@ impl ReleaseMlp {
         &self.graph
     }
 
-    /// Policy and (if `with_value`) value (module docs).
+    /// Policy and (if `with_value`) value (module docs). `held`, with the assignment `fixed`
+    /// given, says for each scene whether that assignment was held into it (the value reads
+    /// it, `assign_critic=held`) or drawn there (the value reads none).
     #[allow(clippy::too_many_arguments)]
     pub(crate) fn forward<'t, T: Float, S: ObsElement>(
         &mut self,
@@ -240,9 +276,20 @@ impl ReleaseMlp {
         agents: &[usize],
         spec: &ObsSpec,
         fixed: Option<&[u32]>,
+        held: Option<&[bool]>,
         with_value: bool,
     ) -> Result<PolicyOutput<'t, T>> {
         let nb = obs.batch;
+        if let Some(h) = held
+            && (self.held.is_none() || fixed.is_none() || h.len() != nb)
+        {
+            return Err(ModelError::Input(format!(
+                "held flags of {} scenes for {nb} scenes{}{}",
+                h.len(),
+                if fixed.is_none() { " without their assignment" } else { "" },
+                if self.held.is_none() { ", to a value that reads no assignment (assign_critic=held)" } else { "" }
+            )));
+        }
         let inputs = self.proc.entities::<T, S>(obs)?;
         // A learned assignment is scored on the tape and drawn (or the given one scored)
         // before the graph is built with it.
@@ -268,7 +315,7 @@ impl ReleaseMlp {
                     }
                 }
             }
-            let hidden = self.actor_embed.hidden(p, head, Tensor::new(x, &[nb, rows, NODE_FEATURES])?)?;
+            let hidden = self.actor_embed.hidden(p, head, Tensor::new(x, &[nb, rows, NODE_FEATURES])?, None)?;
             out.push(split_head(head, p, hidden, a, spec.agent_dof[a])?);
         }
         if !with_value {
@@ -283,11 +330,42 @@ impl ReleaseMlp {
                 push_node(&mut x, obs, b, spec.entity_root_node[e], inputs.origin[b], yaw);
             }
         }
-        let hidden = self.critic_embed.hidden(p, &self.critic, Tensor::new(x, &[nb, ne, NODE_FEATURES])?)?;
+        // With assign_critic=held, the term x_σ W_σ where any scene holds its assignment.
+        let extra = match (self.held, held) {
+            (Some(w), Some(h)) if h.iter().any(|&x| x) => {
+                let x = held_one_hot(&graph.assignment, h, agents.len())?;
+                Some((p.tape().constant(x), p.get(w)))
+            }
+            _ => None,
+        };
+        let x = Tensor::new(x, &[nb, ne, NODE_FEATURES])?;
+        let hidden = self.critic_embed.hidden(p, &self.critic, x, extra)?;
         let last = &self.critic.layers[self.critic.layers.len() - 1];
         let value = last.forward(p, hidden)?.reshape(&[nb])?;
         Ok(PolicyOutput { agents: out, value: Some(value), assignment: graph.assignment, assignment_terms })
     }
+}
+
+/// `x_σ` of `assign_critic=held` (module docs), `[B, m n]`: for each scene held into its
+/// step, entry `j n + i` is 1 where object `j` of `assignment` (`[B m]`, for each object the
+/// agent row holding it, [`crate::EntityGraph::assignment`]) is held by agent `i`; the rows
+/// of the scenes that draw are zero.
+pub(crate) fn held_one_hot<T: Float>(assignment: &[u32], held: &[bool], agents: usize) -> Result<Tensor<T>> {
+    let nb = held.len();
+    let width = assignment.len() / nb.max(1);
+    let mut x = vec![T::ZERO; nb * width * agents];
+    for (b, _) in held.iter().enumerate().filter(|(_, h)| **h) {
+        for (j, &i) in assignment[b * width..(b + 1) * width].iter().enumerate() {
+            if i != NO_AGENT {
+                let i = i as usize;
+                if i >= agents {
+                    return Err(ModelError::Input(format!("scene {b}: object {j} held by agent {i} of {agents}")));
+                }
+                x[b * width * agents + j * agents + i] = T::ONE;
+            }
+        }
+    }
+    Ok(Tensor::new(x, &[nb, width * agents])?)
 }
 
 /// The flat baselines and `transformer_hn` (module docs): per agent an MLP on its flat view,

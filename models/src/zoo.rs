@@ -103,11 +103,11 @@ impl Model {
             ModelDescription::Mlp(o) => {
                 let heading = o.model == MlpModel::MlpHn;
                 match &o.network {
-                    MlpNetwork::Release { assignment, hidden, scorer } => {
+                    MlpNetwork::Release { assignment, hidden, scorer, value_reads_held } => {
                         let graph = assignment.graph_builder(spec, team)?;
                         let learned = (assignment.method == AssignmentMethod::Learned)
                             .then(|| (scorer.config(PairFeatureSet::DistanceHeight), assignment.seed));
-                        let m = ReleaseMlp::new(s, spec, &agents, graph, heading, hidden, learned)?;
+                        let m = ReleaseMlp::new(s, spec, &agents, graph, heading, hidden, learned, *value_reads_held)?;
                         Arch::Mlp(Box::new(m))
                     }
                     MlpNetwork::Flat { hidden } => {
@@ -258,7 +258,27 @@ impl Model {
         obs: &ObsRows<'_, S>,
         assignment: Option<&[u32]>,
     ) -> Result<PolicyOutput<'t, T>> {
-        self.forward_parts(p, obs, assignment, true)
+        self.forward_parts(p, obs, assignment, None, true)
+    }
+
+    /// [`Model::forward_batch_with`] with `held[b]` saying whether scene `b`'s given
+    /// assignment was held into it, which a value that reads the held assignment reads
+    /// (`assign_critic=held`, [`Model::value_reads_held`]), or drawn there (it then reads
+    /// none). An error for a model whose value reads no assignment.
+    pub fn forward_batch_held<'t, T: Float, S: ObsElement>(
+        &mut self,
+        p: &Bound<'t, T>,
+        obs: &ObsRows<'_, S>,
+        assignment: &[u32],
+        held: &[bool],
+    ) -> Result<PolicyOutput<'t, T>> {
+        self.forward_parts(p, obs, Some(assignment), Some(held), true)
+    }
+
+    /// Whether its value reads the learned assignment held into each step
+    /// (`assign_critic=held`).
+    pub fn value_reads_held(&self) -> bool {
+        self.description.value_reads_held()
     }
 
     /// [`Model::forward_batch`] without the value network (`PolicyOutput::value` is `None`):
@@ -270,7 +290,7 @@ impl Model {
         p: &Bound<'t, T>,
         obs: &ObsRows<'_, S>,
     ) -> Result<PolicyOutput<'t, T>> {
-        self.forward_parts(p, obs, None, false)
+        self.forward_parts(p, obs, None, None, false)
     }
 
     fn forward_parts<'t, T: Float, S: ObsElement>(
@@ -278,9 +298,16 @@ impl Model {
         p: &Bound<'t, T>,
         rows: &ObsRows<'_, S>,
         assignment: Option<&[u32]>,
+        held: Option<&[bool]>,
         with_value: bool,
     ) -> Result<PolicyOutput<'t, T>> {
         let (nb, heading) = (rows.len(), rows.heading);
+        if held.is_some() && !matches!(self.arch, Arch::Mlp(_)) {
+            return Err(ModelError::Input(format!(
+                "held assignment flags given to `{}`, whose value reads no assignment (assign_critic=held)",
+                self.name()
+            )));
+        }
         if rows.nodes != self.spec.n_nodes || rows.agents != self.spec.n_agents || nb == 0 {
             return Err(ModelError::Input(format!(
                 "observations of {nb} x {} nodes with {} headings for a scene of {} nodes and {} agents",
@@ -305,7 +332,7 @@ impl Model {
         match &mut self.arch {
             Arch::Shnn(m) => m.forward(p, obs, &self.agents, &self.spec, assignment, with_value),
             Arch::Hnn(m) => m.forward(p, obs, heading, &self.agents, &self.spec, assignment, with_value),
-            Arch::Mlp(m) => m.forward(p, obs, heading, &self.agents, &self.spec, assignment, with_value),
+            Arch::Mlp(m) => m.forward(p, obs, heading, &self.agents, &self.spec, assignment, held, with_value),
             Arch::Flat(m) => {
                 no_assignment(assignment)?;
                 m.forward(p, obs, heading, &self.agents, &self.spec, with_value)
@@ -338,7 +365,21 @@ impl Policy for Model {
         assignment: Option<&[u32]>,
         value: bool,
     ) -> Result<PolicyOutput<'t, f32>> {
-        self.forward_parts(p, obs, assignment, value)
+        self.forward_parts(p, obs, assignment, None, value)
+    }
+
+    fn value_reads_held_assignment(&self) -> bool {
+        self.value_reads_held()
+    }
+
+    fn forward_held<'t>(
+        &mut self,
+        p: &Bound<'t, f32>,
+        obs: &ObsRows<'_, f32>,
+        assignment: &[u32],
+        held: &[bool],
+    ) -> Result<PolicyOutput<'t, f32>> {
+        self.forward_batch_held(p, obs, assignment, held)
     }
 
     fn assignment_width(&self) -> usize {

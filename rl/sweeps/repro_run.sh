@@ -15,6 +15,7 @@
 #   nice -n 19 rl/sweeps/repro_run.sh L &                                            # issue 79, a warm-up
 #   nice -n 19 rl/sweeps/repro_run.sh M &                                            # issue 79, a held draw
 #   nice -n 19 rl/sweeps/repro_run.sh N &                                            # issue 79, a draw per episode
+#   nice -n 19 rl/sweeps/repro_run.sh O &                                            # issue 79, a value reading it
 #   rl/sweeps/repro_run.sh export                             # evidence -> results/, reports
 #   rl/sweeps/repro_run.sh restore                            # finished runs <- results/ (A and B do it first)
 #   rl/sweeps/repro_run.sh status                             # every run's progress and hours left
@@ -36,12 +37,13 @@ BIN=${BIN:-$ROOT/target/release/meben}
 OUT=${OUT:-/tmp/runs/repro}
 THREADS=${THREADS:-1}
 SWEEPS=$ROOT/rl/sweeps
-EXPERIMENTS="reach_1_ant reach_2_ants equivariance sumo reach_2_ants_no_assignment reach_2_ants_per_slot_starts transformer_1_ant centipede reach_2_ants_50m reach_1_ant_50m equivariance_2_ants learned_assignment learned_assignment_prior learned_assignment_sumo learned_assignment_entropy learned_assignment_warmup learned_assignment_hold learned_assignment_episode"
+EXPERIMENTS="reach_1_ant reach_2_ants equivariance sumo reach_2_ants_no_assignment reach_2_ants_per_slot_starts transformer_1_ant centipede reach_2_ants_50m reach_1_ant_50m equivariance_2_ants learned_assignment learned_assignment_prior learned_assignment_sumo learned_assignment_entropy learned_assignment_warmup learned_assignment_hold learned_assignment_episode learned_assignment_critic"
 
 # The sweep file of an experiment: rl/sweeps/repro_<exp>.toml, or rl/sweeps/<exp>.toml for
 # the experiments that are not reproductions (issue 79's learned_assignment,
 # learned_assignment_prior, learned_assignment_sumo, learned_assignment_entropy,
-# learned_assignment_warmup, learned_assignment_hold and learned_assignment_episode).
+# learned_assignment_warmup, learned_assignment_hold, learned_assignment_episode and
+# learned_assignment_critic).
 sweep_file() {
   if [ -f "$SWEEPS/repro_$1.toml" ]; then echo "$SWEEPS/repro_$1.toml"; else echo "$SWEEPS/$1.toml"; fi
 }
@@ -214,7 +216,20 @@ list_n() {
   done
 }
 
+# Issue 79's sixth follow-up: held per episode, with a value that reads the held assignment
+# (assign_critic=held, a model option binaries before it refuse), 3 seeds at 10M (about 1
+# machine-hour a seed at one thread beside other runs).
+list_o() {
+  for seed in 0 1 2; do
+    run learned_assignment_critic "/seed$seed"
+  done
+}
+
 case "${1:-}" in
+  O)
+    restore_finished
+    list_o
+    ;;
   N)
     restore_finished
     list_n
@@ -297,7 +312,7 @@ case "${1:-}" in
     du -sh "$ROOT/results"
     ;;
   *)
-    echo "usage: $0 A | B | C | D | E | F | G | H | I | J | K | L | M | export | restore | status" >&2
+    echo "usage: $0 A | B | C | D | E | F | G | H | I | J | K | L | M | N | O | export | restore | status" >&2
     exit 2
     ;;
 esac

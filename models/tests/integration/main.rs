@@ -7,5 +7,6 @@ mod common;
 mod components;
 mod entity_stage;
 mod gpu_models;
+mod held_critic;
 mod learned_assignment;
 mod policies;

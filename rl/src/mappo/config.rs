@@ -390,6 +390,16 @@ impl TrainConfig {
             let d = models::ModelDescription::parse(spec)
                 .map_err(|e| RlError::config(source, field, spec, e.to_string()))?;
             learns_an_assignment |= d.assignment().is_some_and(|a| a.method == models::AssignmentMethod::Learned);
+            // The update tells the value which steps hold their assignment by the episode
+            // ends (Minibatch::held_assignment), which is the hold of a whole episode.
+            if d.value_reads_held() && !self.assignment_hold_episode {
+                return Err(RlError::config(
+                    source,
+                    field,
+                    spec,
+                    "assign_critic=held reads the assignment held for an episode: set assignment_hold_episode = true",
+                ));
+            }
         }
         self.validate_except_models(source)?;
         let models = || {

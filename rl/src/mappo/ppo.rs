@@ -9,7 +9,9 @@
 //!    observations of truncated transitions) in a no-grad pass: their values are constants
 //!    of the loss, so their share of the backward pass would be products with zero gradients
 //!    (1/6 less backward work at the reference's `T = 5`); they draw their own assignment
-//!    (they only give values, and the default critic reads no assignment);
+//!    (they only give values, and the default critic reads no assignment; one that reads
+//!    the assignment held into each step, `assign_critic=held`, is given it,
+//!    [`Minibatch::held_assignment`]);
 //! 2. **GAE** from those values, per minibatch under the current critic as Brax's PPO does
 //!    ([`crate::mappo::gae`]): advantages `A` and value targets, held constant;
 //! 3. **log-probabilities and entropy** of the taken actions: `log pi(u | s)` of the
@@ -246,10 +248,20 @@ fn forward<'t>(model: &mut dyn Policy, p: &Bound<'t, f32>, mb: &Minibatch) -> Re
         .into());
     }
     let assigned = if mb.assignment.is_empty() { None } else { Some(mb.assignment.as_slice()) };
-    let out = model.forward(p, &mb.obs_rows(0..n), assigned, true)?;
+    // A value that reads the assignment held into each step (`assign_critic=held`) is given
+    // it for every row, the bootstrap rows too (their policy then scores it unused).
+    let held = (model.value_reads_held_assignment() && assigned.is_some()).then(|| mb.held_assignment());
+    let out = match &held {
+        Some(h) => model.forward_held(p, &mb.obs_rows(0..n), &mb.assignment, &h.transitions)?,
+        None => model.forward(p, &mb.obs_rows(0..n), assigned, true)?,
+    };
     let bootstrap = {
         let _no_grad = p.tape().no_grad();
-        model.forward(p, &mb.obs_rows(n..rows), None, true)?.team_value()?.value().to_host()?.to_vec()
+        let boot = match &held {
+            Some(h) => model.forward_held(p, &mb.obs_rows(n..rows), &h.bootstrap, &h.bootstrap_held)?,
+            None => model.forward(p, &mb.obs_rows(n..rows), None, true)?,
+        };
+        boot.team_value()?.value().to_host()?.to_vec()
     };
     Ok(Forward { value: out.team_value()?, policy: out.agents, bootstrap, assignment: out.assignment_terms })
 }

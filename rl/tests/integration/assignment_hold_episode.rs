@@ -3,7 +3,8 @@
 //! iterations; the act step records where it drew and the update counts `ln π(σ | s)` there
 //! only (ratio 1 on a frozen normaliser, and not without the mask); evaluations draw once an
 //! episode; a run resumes exactly (the held assignments are checkpointed) and gives the same
-//! bits at any thread count; its files hold per episode.
+//! bits at any thread count; its files hold per episode. A value that reads the held
+//! assignment (`assign_critic=held`) learns from it, and its runs resume exactly too.
 
 use crate::common;
 
@@ -16,10 +17,16 @@ use rl::mappo::assignment_hold::HoldRule;
 use rl::mappo::checkpoint::Checkpoint;
 use rl::mappo::evaluate::evaluation_actors;
 use rl::mappo::minibatch::Minibatch;
+use rl::mappo::ppo::{self, PpoParams};
+use rl::mappo::seeding::minibatch_stream;
 use rl::{RunDir, TrainConfig, TrainOptions, Trainer, train};
+use tensor::Tape;
 
-/// The learned models.
-const MODELS: [&str; 2] = ["mlp_hn:assignment=learned", "shnn:assignment=learned"];
+/// The learned models, and MLP+HN whose value reads the held assignment.
+const MODELS: [&str; 3] = ["mlp_hn:assignment=learned", "shnn:assignment=learned", HELD_CRITIC];
+
+/// MLP+HN whose value reads the assignment held into each step (`assign_critic=held`).
+const HELD_CRITIC: &str = "mlp_hn:assignment=learned;assign_critic=held";
 
 /// Environments of [`config`].
 const ENVS: usize = 8;
@@ -183,4 +190,48 @@ fn runs_held_per_episode_resume_exactly_at_any_thread_count() {
     assert!(written.contains("assignment_hold_episode = true"), "{written}");
     let e = train(&per_step, &whole, &TrainOptions::default()).unwrap_err().to_string();
     assert!(e.contains("assignment_hold_episode"), "{e}");
+}
+
+/// `assign_critic=held`: on an iteration whose episodes end, the update's value reads the
+/// held assignment (the gradient reaches `W_σ`, zero at the start; with every step taken
+/// as drawing it would not); a run trains it, resumes exactly at any thread count and is
+/// another run than the plain critic's; without a hold per episode it is refused.
+#[test]
+fn a_value_reading_the_held_assignment_learns_from_it_and_resumes_exactly() {
+    let config = config(HELD_CRITIC, 1);
+    let mut t = short_episodes(&config);
+    let (_, mb) = collect(&mut t);
+    let held_grad = |t: &mut Trainer, mb: &Minibatch| {
+        let team = &mut t.teams[0];
+        let w = team.store.find("team0.critic.held.weight").expect("W_σ");
+        let tape = Tape::<f32>::new();
+        let p = team.store.bind(&tape);
+        let mut noise = minibatch_stream(config.seed, "entropy", 0, 0, 0, 0);
+        let (loss, _) = ppo::loss(team.model.as_mut(), &p, mb, &PpoParams::from_config(&config), &mut noise).unwrap();
+        let g = p.grads(&tape.backward(loss).unwrap());
+        g[w.0].to_vec().iter().map(|x| x.abs()).sum::<f32>()
+    };
+    assert!(held_grad(&mut t, &mb) > 0.0, "the value read no held assignment");
+    let mut drawing = mb.clone();
+    drawing.assignment_drawn.iter_mut().for_each(|d| *d = true);
+    assert_eq!(held_grad(&mut t, &drawing), 0.0, "every step drew, yet the value read an assignment");
+
+    let tmp = common::TempDir::new("held-critic");
+    let config = self::config(HELD_CRITIC, 3);
+    let whole = trained_on_one_and_two_threads(&tmp.0, &config);
+    let parts = RunDir::new(tmp.0.join("parts"));
+    train(&config, &parts, &TrainOptions { stop_after: Some(1), ..Default::default() }).unwrap();
+    train(&config, &parts, &TrainOptions::default()).unwrap();
+    assert_eq!(metrics(&parts), metrics(&whole), "resumed");
+    let saved = Checkpoint::load(&whole.checkpoint()).unwrap();
+    let w = saved.teams[0].params.tensors.iter().find(|x| x.name == "team0.critic.held.weight").expect("W_σ saved");
+    assert!(w.data.iter().any(|&x| x != 0.0), "W_σ did not train");
+    let plain = RunDir::new(tmp.0.join("plain"));
+    train(&TrainConfig { model: MODELS[0].into(), ..config.clone() }, &plain, &TrainOptions::default()).unwrap();
+    assert_ne!(metrics(&plain), metrics(&whole), "the plain critic's run");
+    let e = TrainConfig { assignment_hold_episode: false, ..config }.validate("held.toml").unwrap_err().to_string();
+    assert!(
+        e.contains("held.toml") && e.contains("assign_critic=held") && e.contains("assignment_hold_episode = true"),
+        "{e}"
+    );
 }

@@ -203,6 +203,14 @@ mod tests {
             assert_eq!(r.config, TrainConfig { assignment_hold_episode: true, ..l.config.clone() }, "{}", r.name);
             assert_eq!(r.name, l.name.replace("/seed", "+hold_episode/seed"));
         }
+        // And with a value that reads the held assignment: the same runs but for the model.
+        let critic = Sweep::load(&dir.join("learned_assignment_critic.toml")).unwrap().runs().unwrap();
+        assert_eq!(critic.len(), 3);
+        for (r, e) in critic.iter().zip(&episode) {
+            let model = "mlp_hn:assignment=learned;assign_critic=held".to_string();
+            assert_eq!(r.config, TrainConfig { model, ..e.config.clone() }, "{}", r.name);
+            assert_eq!(r.name, e.name.replace("learned+", "learned_assign_critic-held+"));
+        }
         // Its follow-up with a warm-up: the same runs but for the warm-up and a longer budget,
         // whose first 16M env steps are greedy MLP+HN's (the seeds of repro_reach_2_ants.toml).
         let warmup = Sweep::load(&dir.join("learned_assignment_warmup.toml")).unwrap().runs().unwrap();
