@@ -41,12 +41,13 @@ fn tiny(model: &str, device: Device) -> TrainConfig {
 
 /// [`tiny`] on `env`.
 fn tiny_on(env: &str, model: &str, device: Device) -> TrainConfig {
-    let mut c = common::tiny(
-        env,
-        model,
-        3,
-        &[("num_envs", "4"), ("num_minibatches", "2"), ("epochs", "1"), ("num_evals", "0"), ("steps", "120")],
-    );
+    let mut options =
+        vec![("num_envs", "4"), ("num_minibatches", "2"), ("epochs", "1"), ("num_evals", "0"), ("steps", "120")];
+    // A value that reads the held assignment trains with a hold per episode.
+    if model.contains("assign_critic=held") {
+        options.push(("assignment_hold_episode", "true"));
+    }
+    let mut c = common::tiny(env, model, 3, &options);
     c.device = device;
     c
 }
@@ -61,13 +62,15 @@ fn close(name: &str, gpu: f64, cpu: f64) -> bool {
 /// trainer acting on the CPU (`act_device = "cpu"`) that does the same iteration: the same
 /// rollout, the update's metrics and the parameters within the tolerance (module docs). A
 /// learned task assignment (two ants, so that there are two assignments to choose from)
-/// enters the update through its log-probability and entropy.
+/// enters the update through its log-probability and entropy, and, with
+/// `assign_critic=held`, through the value's held assignment.
 #[test]
 fn gpu_iterations_follow_the_cpu_from_the_same_state() {
     let cases = [
         ("team_reach/1_ant", "shnn"),
         ("team_reach/1_ant", "mlp_hn"),
         ("team_reach/2_ants", "shnn:assignment=learned"),
+        ("team_reach/2_ants", "mlp_hn:assignment=learned;assign_critic=held"),
     ];
     for (env, model) in cases {
         let mut cpu = Trainer::new(&tiny_on(env, model, Device::Cpu)).unwrap();
