@@ -95,14 +95,79 @@ impl ValueHead {
         })
     }
 
-    /// The value `[B]` of token features `x: [B, N, F]`.
-    pub fn forward<'t, T: Float>(&self, p: &Bound<'t, T>, x: Var<'t, T>) -> Result<Var<'t, T>> {
+    /// The value `[B]` of token features `x: [B, N, F]`; `extra`, when given, is one more
+    /// term `x_σ W_σ` of an MLP's first layer (`assign_critic=held`, `held_one_hot`).
+    pub fn forward<'t, T: Float>(
+        &self,
+        p: &Bound<'t, T>,
+        x: Var<'t, T>,
+        extra: Option<(Var<'t, T>, Var<'t, T>)>,
+    ) -> Result<Var<'t, T>> {
         let s = x.shape();
         let nb = s[0];
-        match self {
-            Self::Mlp(mlp) => Ok(mlp.forward(p, x.reshape(&[nb, s[1] * s[2]])?)?.reshape(&[nb])?),
-            Self::Transformer(head) => Ok(head.forward_all(p, x)?.reshape(&[nb, s[1]])?.mean(1, false)?),
+        let x = match self {
+            Self::Transformer(head) if extra.is_none() => {
+                return Ok(head.forward_all(p, x)?.reshape(&[nb, s[1]])?.mean(1, false)?);
+            }
+            Self::Transformer(_) => {
+                return Err(ModelError::Input("a Transformer value reads no held assignment".into()));
+            }
+            Self::Mlp(_) => x.reshape(&[nb, s[1] * s[2]])?,
+        };
+        let Self::Mlp(mlp) = self else { unreachable!("the Transformer returned above") };
+        let Some(extra) = extra else { return Ok(mlp.forward(p, x)?.reshape(&[nb])?) };
+        // The first layer with the term x_σ W_σ, then the others as Mlp::forward.
+        let (first, last) = (&mlp.layers[0], mlp.layers.len() - 1);
+        let act = if last == 0 { Activation::Identity } else { mlp.activation };
+        let mut h = p.tape().linear_sum(&[(x, p.get(first.weight)), extra], first.bias.map(|b| p.get(b)), act)?;
+        for (i, layer) in mlp.layers.iter().enumerate().skip(1) {
+            h = layer.forward_act(p, h, if i == last { Activation::Identity } else { mlp.activation })?;
         }
+        Ok(h.reshape(&[nb])?)
+    }
+
+    /// The width of an MLP's first layer (the columns of `W_σ`); `None` for a Transformer.
+    pub fn first_width(&self) -> Option<usize> {
+        match self {
+            Self::Mlp(mlp) => Some(mlp.layers[0].fan_out),
+            Self::Transformer(_) => None,
+        }
+    }
+}
+
+/// `x_σ` of `assign_critic=held` (docs/MODELS.md), `[B, m n]`: for each scene held into its
+/// step, entry `j n + i` is 1 where object `j` of `assignment` (`[B m]`, for each object the
+/// agent row holding it, [`crate::EntityGraph::assignment`]) is held by agent `i` of `n`;
+/// the rows of the scenes that draw are zero.
+pub(crate) fn held_one_hot<T: Float>(assignment: &[u32], held: &[bool], agents: usize) -> Result<Tensor<T>> {
+    let nb = held.len();
+    let width = assignment.len() / nb.max(1);
+    let mut x = vec![T::ZERO; nb * width * agents];
+    for (b, _) in held.iter().enumerate().filter(|(_, h)| **h) {
+        for (j, &i) in assignment[b * width..(b + 1) * width].iter().enumerate() {
+            if i != crate::NO_AGENT {
+                let i = i as usize;
+                if i >= agents {
+                    return Err(ModelError::Input(format!("scene {b}: object {j} held by agent {i} of {agents}")));
+                }
+                x[b * width * agents + j * agents + i] = T::ONE;
+            }
+        }
+    }
+    Ok(Tensor::new(x, &[nb, width * agents])?)
+}
+
+/// An error unless `held` flags, when given, come with their assignment (`fixed`), one per
+/// scene of `nb`, to a value that reads them (`reads`).
+pub(crate) fn check_held(held: Option<&[bool]>, reads: bool, fixed: bool, nb: usize) -> Result<()> {
+    match held {
+        Some(h) if !reads || !fixed || h.len() != nb => Err(ModelError::Input(format!(
+            "held flags of {} scenes for {nb} scenes{}{}",
+            h.len(),
+            if fixed { "" } else { " without their assignment" },
+            if reads { "" } else { ", to a value that reads no assignment (assign_critic=held)" }
+        ))),
+        _ => Ok(()),
     }
 }
 
@@ -177,8 +242,18 @@ impl SubeqCritic {
         Ok(Self { proc, mp, head, order: critic_order(spec, agents), kinds: entity_kinds(spec, team) })
     }
 
-    /// The value `[B]` of a batch of observations.
-    pub fn forward<'t, T: Float, S: ObsElement>(&self, p: &Bound<'t, T>, obs: &ObsBatch<'_, S>) -> Result<Var<'t, T>> {
+    /// `σ_V`.
+    pub fn head(&self) -> &ValueHead {
+        &self.head
+    }
+
+    /// The value `[B]` of a batch of observations (`extra`: [`ValueHead::forward`]'s).
+    pub fn forward<'t, T: Float, S: ObsElement>(
+        &self,
+        p: &Bound<'t, T>,
+        obs: &ObsBatch<'_, S>,
+        extra: Option<(Var<'t, T>, Var<'t, T>)>,
+    ) -> Result<Var<'t, T>> {
         let inputs: EntityInputs<T> = self.proc.entities(obs)?;
         let (nb, ne) = (inputs.batch, inputs.entities);
         let edges = EdgeList::fully_connected(nb, ne);
@@ -193,7 +268,7 @@ impl SubeqCritic {
         )?;
         let rows: Vec<usize> = (0..nb).flat_map(|b| self.order.iter().map(move |&e| b * ne + e)).collect();
         let s = f.h.shape()[1];
-        self.head.forward(p, f.h.index_select(0, &rows)?.reshape(&[nb, ne, s])?)
+        self.head.forward(p, f.h.index_select(0, &rows)?.reshape(&[nb, ne, s])?, extra)
     }
 
     /// Radial-basis features and edge types of every edge, `[E, RBF_FEATURES + EDGE_TYPES]`,

@@ -302,6 +302,10 @@ pub struct LearnedScorer {
     pub hidden: Vec<usize>,
     /// `λ` (option `assign_prior`; default 1).
     pub distance_prior: DistancePrior,
+    /// Whether the value reads the assignment held into each step (option
+    /// `assign_critic=held`; default `none`: it reads none): `mlp.rs`, `shnn.rs`, the term
+    /// `x_σ W_σ` of the value's first layer (not for a Transformer value).
+    pub value_reads_held: bool,
 }
 
 impl LearnedScorer {
@@ -318,6 +322,7 @@ impl Default for LearnedScorer {
         Self {
             hidden: d.hidden,
             distance_prior: DistancePrior::new(d.distance_prior).expect("the default λ is in range"),
+            value_reads_held: false,
         }
     }
 }
@@ -385,11 +390,9 @@ pub enum MlpNetwork {
         assignment: TaskAssignment,
         /// The heads' and the critic's hidden widths.
         hidden: HiddenWidths,
-        /// The scorer of `assignment=learned` (options `assign_hidden`, `assign_prior`).
+        /// The scorer of `assignment=learned` (options `assign_hidden`, `assign_prior`,
+        /// `assign_critic`).
         scorer: LearnedScorer,
-        /// Whether the value reads the learned assignment held into each step (option
-        /// `assign_critic=held`; default `none`: it reads none), [`crate::mlp::ReleaseMlp`].
-        value_reads_held: bool,
     },
     /// `variant=flat`: this project's earlier baseline on the flat agent view
     /// ([`crate::mlp::FlatMlp`]), no task assignment; its critic reads every node
@@ -499,7 +502,6 @@ impl ModelDescription {
                 assignment: TaskAssignment::default(),
                 hidden: HiddenWidths::default(),
                 scorer: LearnedScorer::default(),
-                value_reads_held: false,
             };
             Self::Mlp(MlpOptions { model, network })
         };
@@ -554,7 +556,10 @@ impl ModelDescription {
                         hidden: take_hidden(&mut g, hidden),
                     },
                 };
-                let scorer = take_scorer(&mut g, stage.assignment.method)?;
+                // A Transformer value has no first layer for `x_σ W_σ`: its `assign_critic` is
+                // left, and refused as an option it does not take.
+                let held = model.value() != ValueNet::Transformer;
+                let scorer = take_scorer(&mut g, stage.assignment.method, held)?;
                 Self::Shnn(ShnnOptions { model, stage, critic, scorer })
             }
             Self::Hnn(o) => {
@@ -565,19 +570,10 @@ impl ModelDescription {
                 let network = match g.variant.take().unwrap_or_default() {
                     MlpVariant::Release => {
                         let method = g.assignment.take().unwrap_or(AssignmentMethod::Greedy);
-                        let value_reads_held = g.assign_critic.take().unwrap_or(false);
-                        if value_reads_held && method != AssignmentMethod::Learned {
-                            return Err(ModelError::Option(format!(
-                                "`{}`: the option assign_critic=held gives the value the learned assignment held \
-                                 into each step; give it with assignment=learned",
-                                g.name
-                            )));
-                        }
                         MlpNetwork::Release {
                             assignment: TaskAssignment { method, seed },
                             hidden: take_hidden(&mut g, o.network.hidden().clone()),
-                            scorer: take_scorer(&mut g, method)?,
-                            value_reads_held,
+                            scorer: take_scorer(&mut g, method, true)?,
                         }
                     }
                     MlpVariant::Flat => {
@@ -616,7 +612,7 @@ impl ModelDescription {
     /// | `variant` | `mlp`, `mlp_hn` |
     /// | `head`, `critic_hidden` | all but the Transformer models |
     /// | `assign_hidden`, `assign_prior` | the SHNN family, `mlp` and `mlp_hn` ([`MlpNetwork::Release`]) |
-    /// | `assign_critic` | `mlp` and `mlp_hn` ([`MlpNetwork::Release`]) |
+    /// | `assign_critic` | as `assign_hidden` but `shtransformer` (a Transformer value) |
     pub fn option_keys(&self) -> Vec<&'static str> {
         let mut keys: Vec<&'static str> = Vec::new();
         let hidden = ["head", "critic_hidden"];
@@ -624,6 +620,9 @@ impl ModelDescription {
             Self::Shnn(o) => {
                 keys.extend(ENTITY_KEYS);
                 keys.extend(["critic", "assign_hidden", "assign_prior"]);
+                if o.model.value() != ValueNet::Transformer {
+                    keys.push("assign_critic");
+                }
                 if o.model.gravity().is_some() {
                     keys.push("gravity");
                 }
@@ -762,9 +761,9 @@ impl ModelDescription {
     }
 
     /// Whether its value reads the learned task assignment held into each step (option
-    /// `assign_critic=held`, `mlp` and `mlp_hn`; [`crate::mlp::ReleaseMlp`]).
+    /// `assign_critic=held`; [`crate::mlp::ReleaseMlp`], [`crate::shnn`]).
     pub fn value_reads_held(&self) -> bool {
-        matches!(self, Self::Mlp(MlpOptions { network: MlpNetwork::Release { value_reads_held: true, .. }, .. }))
+        self.scorer().is_some_and(|s| s.value_reads_held)
     }
 
     /// Sets the seed of its task assignment (option `seed`); no effect on a model without one.
@@ -804,10 +803,11 @@ fn take_entity_stage(g: &mut GivenOptions) -> EntityStage {
     }
 }
 
-/// The learned assignment's scorer of the options `g` (`assign_hidden`, `assign_prior`),
-/// taking them, else [`LearnedScorer::default`]'s; an error if one is given with another
-/// assignment `method` (it would be ignored).
-fn take_scorer(g: &mut GivenOptions, method: AssignmentMethod) -> Result<LearnedScorer> {
+/// The learned assignment's scorer of the options `g` (`assign_hidden`, `assign_prior` and,
+/// where the value can read the held assignment (`held`), `assign_critic`), taking them,
+/// else [`LearnedScorer::default`]'s; an error if one is given with another assignment
+/// `method` (it would be ignored).
+fn take_scorer(g: &mut GivenOptions, method: AssignmentMethod, held: bool) -> Result<LearnedScorer> {
     if method != AssignmentMethod::Learned && (g.assign_hidden.is_some() || g.assign_prior.is_some()) {
         return Err(ModelError::Option(format!(
             "`{}`: the options assign_hidden and assign_prior set the learned assignment's scorer; give them with \
@@ -815,10 +815,18 @@ fn take_scorer(g: &mut GivenOptions, method: AssignmentMethod) -> Result<Learned
             g.name
         )));
     }
+    if held && method != AssignmentMethod::Learned && g.assign_critic == Some(true) {
+        return Err(ModelError::Option(format!(
+            "`{}`: the option assign_critic=held gives the value the learned assignment held into each step; give \
+             it with assignment=learned",
+            g.name
+        )));
+    }
     let d = LearnedScorer::default();
     Ok(LearnedScorer {
         hidden: g.assign_hidden.take().unwrap_or(d.hidden),
         distance_prior: g.assign_prior.take().unwrap_or(d.distance_prior),
+        value_reads_held: if held { g.assign_critic.take().unwrap_or(false) } else { false },
     })
 }
 
@@ -907,7 +915,12 @@ mod tests {
     fn the_scorer_options_go_with_a_learned_assignment() {
         let d = ModelDescription::parse("shnn:assignment=learned;assign_hidden=16x8;assign_prior=0.5").unwrap();
         let ModelDescription::Shnn(o) = &d else { panic!("{d:?}") };
-        assert_eq!(o.scorer, LearnedScorer { hidden: vec![16, 8], distance_prior: DistancePrior::new(0.5).unwrap() });
+        let expected = LearnedScorer {
+            hidden: vec![16, 8],
+            distance_prior: DistancePrior::new(0.5).unwrap(),
+            value_reads_held: false,
+        };
+        assert_eq!(o.scorer, expected);
         let d = ModelDescription::parse("shgnn:assignment=learned;assign_hidden=none;assign_prior=0").unwrap();
         let ModelDescription::Shnn(o) = &d else { panic!("{d:?}") };
         assert_eq!((o.scorer.hidden.len(), o.scorer.distance_prior.get()), (0, 0.0));
@@ -930,11 +943,17 @@ mod tests {
         assert_eq!(DistancePrior::new(-0.0).unwrap().get().to_bits(), 0.0f64.to_bits());
     }
 
-    /// `assign_critic=held`: parsed for the release's MLPs with a learned assignment, refused
-    /// with another assignment, by the flat variant and by the SHNN family, its value checked.
+    /// `assign_critic=held`: parsed with a learned assignment (the release's MLPs, the SHNN
+    /// family but for its Transformer value), refused with another assignment, by the flat
+    /// variant and by `shtransformer`, its value checked.
     #[test]
-    fn the_held_assignment_critic_goes_with_a_learned_assignment_of_an_mlp() {
-        for s in ["mlp_hn:assignment=learned;assign_critic=held", "mlp:assign_critic=held;assignment=learned"] {
+    fn the_held_assignment_critic_goes_with_a_learned_assignment() {
+        for s in [
+            "mlp_hn:assignment=learned;assign_critic=held",
+            "mlp:assign_critic=held;assignment=learned",
+            "shnn:assignment=learned;assign_critic=held",
+            "shnn:assignment=learned;assign_critic=held;critic=shared",
+        ] {
             assert!(ModelDescription::parse(s).unwrap().value_reads_held(), "{s}");
         }
         for s in ["mlp_hn:assignment=learned", "mlp_hn:assignment=learned;assign_critic=none", "mlp_hn"] {
@@ -943,7 +962,11 @@ mod tests {
         assert_refused("mlp_hn:assign_critic=held", "assign_critic=held gives the value the learned assignment");
         assert_refused("mlp_hn:assignment=greedy;assign_critic=held", "give it with assignment=learned");
         assert_refused("mlp_hn:variant=flat;assign_critic=held", "`mlp_hn` takes no option `assign_critic`");
-        assert_refused("shnn:assignment=learned;assign_critic=held", "`shnn` takes no option `assign_critic`");
+        assert_refused(
+            "shtransformer:assignment=learned;assign_critic=held",
+            "`shtransformer` takes no option `assign_critic`",
+        );
+        assert_refused("shnn:assignment=hungarian;assign_critic=held", "give it with assignment=learned");
         assert_refused("mlp_hn:assignment=learned;assign_critic=yes", "`assign_critic`: `yes` is not `none` or `held`");
     }
 

@@ -42,9 +42,9 @@ use tensor::{Activation, Float, Tensor, Var};
 use crate::assignment::{AssignmentMethod, UNASSIGNED};
 use crate::assignment_learned::{LearnedAssignment, ScorerConfig, build_graph};
 use crate::config::layer_sizes;
-use crate::critic::critic_order;
+use crate::critic::{check_held, critic_order, held_one_hot};
 use crate::description::HiddenWidths;
-use crate::entity_graph::{GraphBuilder, NO_AGENT};
+use crate::entity_graph::GraphBuilder;
 use crate::error::{ModelError, Result};
 use crate::input::{InputProcessor, Translation};
 use crate::interface::{AgentPolicy, PolicyOutput};
@@ -280,16 +280,7 @@ impl ReleaseMlp {
         with_value: bool,
     ) -> Result<PolicyOutput<'t, T>> {
         let nb = obs.batch;
-        if let Some(h) = held
-            && (self.held.is_none() || fixed.is_none() || h.len() != nb)
-        {
-            return Err(ModelError::Input(format!(
-                "held flags of {} scenes for {nb} scenes{}{}",
-                h.len(),
-                if fixed.is_none() { " without their assignment" } else { "" },
-                if self.held.is_none() { ", to a value that reads no assignment (assign_critic=held)" } else { "" }
-            )));
-        }
+        check_held(held, self.held.is_some(), fixed.is_some(), nb)?;
         let inputs = self.proc.entities::<T, S>(obs)?;
         // A learned assignment is scored on the tape and drawn (or the given one scored)
         // before the graph is built with it.
@@ -344,28 +335,6 @@ impl ReleaseMlp {
         let value = last.forward(p, hidden)?.reshape(&[nb])?;
         Ok(PolicyOutput { agents: out, value: Some(value), assignment: graph.assignment, assignment_terms })
     }
-}
-
-/// `x_σ` of `assign_critic=held` (module docs), `[B, m n]`: for each scene held into its
-/// step, entry `j n + i` is 1 where object `j` of `assignment` (`[B m]`, for each object the
-/// agent row holding it, [`crate::EntityGraph::assignment`]) is held by agent `i`; the rows
-/// of the scenes that draw are zero.
-pub(crate) fn held_one_hot<T: Float>(assignment: &[u32], held: &[bool], agents: usize) -> Result<Tensor<T>> {
-    let nb = held.len();
-    let width = assignment.len() / nb.max(1);
-    let mut x = vec![T::ZERO; nb * width * agents];
-    for (b, _) in held.iter().enumerate().filter(|(_, h)| **h) {
-        for (j, &i) in assignment[b * width..(b + 1) * width].iter().enumerate() {
-            if i != NO_AGENT {
-                let i = i as usize;
-                if i >= agents {
-                    return Err(ModelError::Input(format!("scene {b}: object {j} held by agent {i} of {agents}")));
-                }
-                x[b * width * agents + j * agents + i] = T::ONE;
-            }
-        }
-    }
-    Ok(Tensor::new(x, &[nb, width * agents])?)
 }
 
 /// The flat baselines and `transformer_hn` (module docs): per agent an MLP on its flat view,

@@ -20,19 +20,21 @@
 //!
 //! With `assignment=learned` the task assignment is drawn from a Plackett-Luce distribution
 //! over learned pair scores ([`crate::assignment_learned`], parameters `assign.*`) and its
-//! log-probability and entropy come with the output ([`PolicyOutput::assignment_terms`]).
+//! log-probability and entropy come with the output ([`PolicyOutput::assignment_terms`]);
+//! with `assign_critic=held` too, `σ_V`'s first layer also reads the assignment held into
+//! the step (`x_σ W_σ`; docs/MODELS.md).
 //!
 //! `shnn_og3` reads the bodies in `O_i = Z'_i` (`m` channels, no orthogonalisation),
 //! `shnn_so3` has no gravity channel anywhere.
 
-use nn::{Bound, Mlp, Scope, TransformerConfig};
-use tensor::{Activation, Float};
+use nn::{Bound, Mlp, ParamId, Scope, TransformerConfig};
+use tensor::{Activation, Float, Tensor};
 
 use crate::assignment::AssignmentMethod;
 use crate::assignment_learned::{LearnedAssignment, PairFeatureSet, build_graph};
 use crate::body_gnn::{BodyGnn, BodyGnnConfig};
 use crate::config::{GravityMode, NeighbourOffset, layer_sizes};
-use crate::critic::{SubeqCritic, ValueHead, critic_order};
+use crate::critic::{SubeqCritic, ValueHead, check_held, critic_order, held_one_hot};
 use crate::description::{EntityStage, ShnnCritic, ShnnModel, ShnnOptions};
 use crate::entity_graph::GraphBuilder;
 use crate::entity_mp::{EntityMp, EntityMpConfig};
@@ -64,6 +66,16 @@ pub(crate) enum Critic {
     Shared(ValueHead, Vec<usize>),
 }
 
+impl Critic {
+    /// `σ_V`.
+    fn head(&self) -> &ValueHead {
+        match self {
+            Self::Separate(c) => c.head(),
+            Self::Shared(head, _) => head,
+        }
+    }
+}
+
 /// An SHNN-family model (module docs).
 #[derive(Clone, Debug)]
 pub(crate) struct Shnn {
@@ -78,13 +90,17 @@ pub(crate) struct Shnn {
     /// `assignment=learned`: the scorer (parameters `assign.*`) and its draws, which give
     /// the graph builder its assignment.
     pub(crate) learned: Option<Box<LearnedAssignment>>,
+    /// `assign_critic=held`: `W_σ` `[m n, h]` of `σ_V`'s first layer (`critic.held.weight`,
+    /// zero at the start; docs/MODELS.md).
+    held: Option<ParamId>,
 }
 
 impl Shnn {
     /// Builds the model `o` describes (of the SHNN family) for `agents` of `team` under scope
     /// `s`: the actor's entity stage (`entity`), the body-level heads (`actor`), the critic
     /// (`critic`), in that order, then with `assignment=learned` the assignment's scorer
-    /// (`assign`; last, so that the other parameters start as without it). The scorer reads
+    /// (`assign`; last, so that the other parameters start as without it), then with
+    /// `assign_critic=held` `critic.held.weight` (zero). The scorer reads
     /// the pair distances and, but in `shnn_so3` (no gravity anywhere), the heights along
     /// gravity ([`PairFeatureSet`]).
     pub(crate) fn new<T: Float>(
@@ -172,11 +188,26 @@ impl Shnn {
         } else {
             None
         };
-        Ok(Shnn { proc, graph, mp, frame, neighbour: stage.neighbour, heads, critic, learned })
+        let held = match (o.scorer.value_reads_held, &learned, critic.head().first_width()) {
+            (false, ..) => None,
+            (true, Some(_), Some(h)) => {
+                let w = Tensor::zeros(&[graph.assignment_width() * agents.len(), h]);
+                Some(s.sub("critic").sub("held").param("weight", w)?)
+            }
+            _ => {
+                return Err(ModelError::Option(
+                    "assign_critic=held reads a learned assignment with an MLP value (give it with assignment=learned)"
+                        .into(),
+                ));
+            }
+        };
+        Ok(Shnn { proc, graph, mp, frame, neighbour: stage.neighbour, heads, critic, learned, held })
     }
 
     /// Policy and (if `with_value`) value; `fixed` replaces the batch's task assignment
-    /// (module [`crate::entity_graph`]).
+    /// (module [`crate::entity_graph`]); `held`, with it, says for each scene whether that
+    /// assignment was held into it (the value reads it, `assign_critic=held`) or drawn there.
+    #[allow(clippy::too_many_arguments)]
     pub(crate) fn forward<'t, T: Float, S: ObsElement>(
         &mut self,
         p: &Bound<'t, T>,
@@ -184,10 +215,12 @@ impl Shnn {
         agents: &[usize],
         spec: &ObsSpec,
         fixed: Option<&[u32]>,
+        held: Option<&[bool]>,
         with_value: bool,
     ) -> Result<PolicyOutput<'t, T>> {
         let tape = p.tape();
         let nb = obs.batch;
+        check_held(held, self.held.is_some(), fixed.is_some(), nb)?;
         let inputs = self.proc.entities::<T, S>(obs)?;
         // A learned assignment is scored on the tape and drawn (or the given one scored)
         // before the graph is built with it.
@@ -236,15 +269,21 @@ impl Shnn {
                 Heads::Gnn(_) => return Err(ModelError::Input("body GNN head reached the row path".into())),
             }
         }
-        // Eq. (value).
+        // Eq. (value), with assign_critic=held the term x_σ W_σ where a scene holds its σ.
+        let extra = match (self.held, held) {
+            (Some(w), Some(h)) if with_value && h.iter().any(|&x| x) => {
+                Some((tape.constant(held_one_hot(&graph.assignment, h, agents.len())?), p.get(w)))
+            }
+            _ => None,
+        };
         let value = match &self.critic {
             _ if !with_value => None,
-            Critic::Separate(c) => Some(c.forward(p, obs)?),
+            Critic::Separate(c) => Some(c.forward(p, obs, extra)?),
             Critic::Shared(head, order) => {
                 let ne = inputs.entities;
                 let rows: Vec<usize> = (0..nb).flat_map(|b| order.iter().map(move |&e| b * ne + e)).collect();
                 let s = f.h.shape()[1];
-                Some(head.forward(p, f.h.index_select(0, &rows)?.reshape(&[nb, ne, s])?)?)
+                Some(head.forward(p, f.h.index_select(0, &rows)?.reshape(&[nb, ne, s])?, extra)?)
             }
         };
         Ok(PolicyOutput { agents: out, value, assignment: graph.assignment, assignment_terms })

@@ -103,11 +103,20 @@ impl Model {
             ModelDescription::Mlp(o) => {
                 let heading = o.model == MlpModel::MlpHn;
                 match &o.network {
-                    MlpNetwork::Release { assignment, hidden, scorer, value_reads_held } => {
+                    MlpNetwork::Release { assignment, hidden, scorer } => {
                         let graph = assignment.graph_builder(spec, team)?;
                         let learned = (assignment.method == AssignmentMethod::Learned)
                             .then(|| (scorer.config(PairFeatureSet::DistanceHeight), assignment.seed));
-                        let m = ReleaseMlp::new(s, spec, &agents, graph, heading, hidden, learned, *value_reads_held)?;
+                        let m = ReleaseMlp::new(
+                            s,
+                            spec,
+                            &agents,
+                            graph,
+                            heading,
+                            hidden,
+                            learned,
+                            scorer.value_reads_held,
+                        )?;
                         Arch::Mlp(Box::new(m))
                     }
                     MlpNetwork::Flat { hidden } => {
@@ -302,7 +311,7 @@ impl Model {
         with_value: bool,
     ) -> Result<PolicyOutput<'t, T>> {
         let (nb, heading) = (rows.len(), rows.heading);
-        if held.is_some() && !matches!(self.arch, Arch::Mlp(_)) {
+        if held.is_some() && !matches!(self.arch, Arch::Mlp(_) | Arch::Shnn(_)) {
             return Err(ModelError::Input(format!(
                 "held assignment flags given to `{}`, whose value reads no assignment (assign_critic=held)",
                 self.name()
@@ -330,7 +339,7 @@ impl Model {
             obs
         };
         match &mut self.arch {
-            Arch::Shnn(m) => m.forward(p, obs, &self.agents, &self.spec, assignment, with_value),
+            Arch::Shnn(m) => m.forward(p, obs, &self.agents, &self.spec, assignment, held, with_value),
             Arch::Hnn(m) => m.forward(p, obs, heading, &self.agents, &self.spec, assignment, with_value),
             Arch::Mlp(m) => m.forward(p, obs, heading, &self.agents, &self.spec, assignment, held, with_value),
             Arch::Flat(m) => {

@@ -1,14 +1,15 @@
-//! `assign_critic=held` (`models::mlp`, docs/MODELS.md "What the value reads"): the value of
-//! the release's MLPs with a learned assignment reads the assignment held into each step.
-//! Its weight `W_σ` starts at zero, so the model starts as without it; once trained, the
-//! value of a held scene depends on which agent holds which ball and the value of a scene
-//! that draws does not; `mlp_hn`'s value stays invariant under yaw and translation; the
-//! gradient of the value reaches every parameter (checked by finite differences).
+//! `assign_critic=held` (`models::mlp`, `models::shnn`, docs/MODELS.md "What the value
+//! reads"): the value of a model with a learned assignment reads the assignment held into
+//! each step. Its weight `W_σ` starts at zero, so the model starts as without it; once
+//! trained, the value of a held scene depends on which agent holds which ball and the value
+//! of a scene that draws does not; `mlp_hn`'s value stays invariant under yaw and
+//! translation, SHNN's under rotations about gravity and translations; the gradient of the
+//! value reaches every parameter (checked by finite differences).
 
 use crate::common::{self, max_diff, rng};
 use envs::layout::{ObsRows, ObsSpec};
 use envs::tasks::{StartMode, VecEnv};
-use models::{Model, ModelDescription, NO_AGENT};
+use models::{Model, ModelDescription, MpSizes, NO_AGENT};
 use nn::{Bound, ParamStore};
 use rand::RngExt;
 use std::cell::RefCell;
@@ -32,10 +33,13 @@ fn scenes(seed: u64) -> (ObsSpec, Vec<f64>, Vec<f64>, Vec<f64>) {
 }
 
 fn build(s: &str, spec: &ObsSpec) -> (ParamStore<f64>, Model) {
+    build_from(&ModelDescription::parse(s).unwrap(), spec)
+}
+
+fn build_from(d: &ModelDescription, spec: &ObsSpec) -> (ParamStore<f64>, Model) {
     let mut store = ParamStore::<f64>::new();
     let mut init = nn::init_rng(3);
-    let d = ModelDescription::parse(s).unwrap();
-    let model = Model::new(&mut store.scope("team", &mut init), &d, spec, 0).unwrap();
+    let model = Model::new(&mut store.scope("team", &mut init), d, spec, 0).unwrap();
     (store, model)
 }
 
@@ -59,22 +63,30 @@ fn values(
 
 #[test]
 fn the_held_critic_starts_as_the_plain_value_and_reads_the_held_assignment() {
+    for (base, critic) in [("mlp_hn", ""), ("shnn", ""), ("shnn", ";critic=shared")] {
+        held_critic_of(base, critic);
+    }
+}
+
+fn held_critic_of(base: &str, critic: &str) {
+    let case = format!("{base}{critic}");
     let (spec, vectors, scalars, heading) = scenes(17);
     let obs = ObsRows::new(spec.n_nodes, spec.n_agents, &vectors[..], &scalars[..], &heading[..]).unwrap();
-    let (plain_store, mut plain) = build("mlp_hn:assignment=learned", &spec);
-    let (mut store, mut model) = build("mlp_hn:assignment=learned;assign_critic=held", &spec);
+    let (plain_store, mut plain) = build(&format!("{base}:assignment=learned{critic}"), &spec);
+    let (mut store, mut model) = build(&format!("{base}:assignment=learned;assign_critic=held{critic}"), &spec);
     assert!(model.value_reads_held() && !plain.value_reads_held());
     // The same parameters, and W_σ [m n, 256], zero, counted in the critic.
     let width = model.assignment_width();
     let w = store.find("team.critic.held.weight").expect("W_σ");
-    assert_eq!(store.get(w).shape(), &[width * 2, 256]);
+    let columns = store.get(w).shape()[1];
+    assert_eq!(store.get(w).shape(), &[width * 2, columns]);
     assert!(store.get(w).to_vec().iter().all(|&x| x == 0.0));
     let rest: Vec<(&str, Vec<f64>)> =
         store.iter().filter(|(n, _)| !n.contains(".held.")).map(|(n, t)| (n, t.to_vec())).collect();
-    let base: Vec<(&str, Vec<f64>)> = plain_store.iter().map(|(n, t)| (n, t.to_vec())).collect();
-    assert_eq!(rest, base, "the other parameters start as without assign_critic");
+    let plain_params: Vec<(&str, Vec<f64>)> = plain_store.iter().map(|(n, t)| (n, t.to_vec())).collect();
+    assert_eq!(rest, plain_params, "{case}: the other parameters start as without assign_critic");
     let (counts, plain_counts) = (model.param_counts(&store), plain.param_counts(&plain_store));
-    assert_eq!((counts.policy, counts.critic), (plain_counts.policy, plain_counts.critic + width * 2 * 256));
+    assert_eq!((counts.policy, counts.critic), (plain_counts.policy, plain_counts.critic + width * 2 * columns));
 
     // A drawn assignment and its swap (two agents, two balls).
     plain.reseed(5);
@@ -92,22 +104,25 @@ fn the_held_critic_starts_as_the_plain_value_and_reads_the_held_assignment() {
     // Trained (W_σ random), a held scene's value reads which agent holds which ball; a
     // scene that draws reads none, nor does the plain forward pass.
     let mut r = rng(23);
-    let random: Vec<f64> = (0..width * 2 * 256).map(|_| r.random_range(-0.5..0.5)).collect();
-    store.set(w, Tensor::new(random, &[width * 2, 256]).unwrap()).unwrap();
+    let random: Vec<f64> = (0..width * 2 * columns).map(|_| r.random_range(-0.5..0.5)).collect();
+    store.set(w, Tensor::new(random, &[width * 2, columns]).unwrap()).unwrap();
     let v_held = values(&mut model, &store, &obs, &sigma, Some(&held));
     let v_swapped = values(&mut model, &store, &obs, &swapped, Some(&held));
     assert_eq!(values(&mut model, &store, &obs, &sigma, Some(&[false; B])), reference);
     assert_eq!(values(&mut model, &store, &obs, &sigma, None), reference);
     for b in 0..B {
-        assert_eq!(v_held[b] != reference[b], held[b], "scene {b}: {} vs {}", v_held[b], reference[b]);
-        assert_eq!(v_swapped[b] != v_held[b], held[b], "scene {b}");
+        assert_eq!(v_held[b] != reference[b], held[b], "{case}, scene {b}: {} vs {}", v_held[b], reference[b]);
+        // (critic=shared's value reads the actor's features, which read σ, held or not.)
+        if held[b] || critic.is_empty() {
+            assert_eq!(v_swapped[b] != v_held[b], held[b], "{case}, scene {b}");
+        }
     }
 
-    // mlp_hn's value stays invariant under a rotation about gravity and a translation.
+    // The value stays invariant under a rotation about gravity and a translation.
     let (v2, h2) = (common::transform(&vectors, 2.1, [3.0, -1.5]), heading.iter().map(|h| h + 2.1).collect::<Vec<_>>());
     let moved = ObsRows::new(spec.n_nodes, spec.n_agents, &v2[..], &scalars[..], &h2[..]).unwrap();
     let d = max_diff(&values(&mut model, &store, &moved, &sigma, Some(&held)), &v_held);
-    assert!(d < 1e-9, "{d}");
+    assert!(d < 1e-9, "{case}: {d}");
 
     // Held flags for another batch size, or to a value that reads none, are errors.
     let tape = Tape::new();
@@ -115,15 +130,9 @@ fn the_held_critic_starts_as_the_plain_value_and_reads_the_held_assignment() {
     assert!(e.contains("held flags of 3 scenes for 4 scenes"), "{e}");
     let e = plain.forward_batch_held(&plain_store.bind(&tape), &obs, &sigma, &held).unwrap_err().to_string();
     assert!(e.contains("reads no assignment (assign_critic=held)"), "{e}");
-    let e = build_shnn_held(&spec, &obs, &sigma, &held);
-    assert!(e.contains("`shnn`, whose value reads no assignment"), "{e}");
-}
-
-/// The error of held flags given to `shnn:assignment=learned`.
-fn build_shnn_held(spec: &ObsSpec, obs: &ObsRows<'_, f64>, sigma: &[u32], held: &[bool]) -> String {
-    let (store, mut model) = build("shnn:assignment=learned", spec);
-    let tape = Tape::new();
-    model.forward_batch_held(&store.bind(&tape), obs, sigma, held).unwrap_err().to_string()
+    let (hnn_store, mut hnn) = build("hnn", &spec);
+    let e = hnn.forward_batch_held(&hnn_store.bind(&tape), &obs, &sigma, &held).unwrap_err().to_string();
+    assert!(e.contains("given to `hnn`, whose value reads no assignment"), "{e}");
 }
 
 /// The gradient of the value, with some scenes holding their assignment, reaches every
@@ -131,10 +140,22 @@ fn build_shnn_held(spec: &ObsSpec, obs: &ObsRows<'_, f64>, sigma: &[u32], held: 
 /// affine scorer).
 #[test]
 fn the_held_critics_value_differentiates_through_every_parameter() {
+    for base in ["mlp_hn", "shnn"] {
+        let mut d = ModelDescription::parse(&format!(
+            "{base}:assignment=learned;assign_critic=held;head=6;critic_hidden=5;assign_hidden=none"
+        ))
+        .unwrap();
+        if let ModelDescription::Shnn(o) = &mut d {
+            o.stage.sizes = MpSizes { vectors: 3, scalars: 4, hidden: 5, layers: 1, steps: 2 };
+        }
+        held_value_gradients(&d);
+    }
+}
+
+fn held_value_gradients(d: &ModelDescription) {
     let (spec, vectors, scalars, heading) = scenes(29);
     let obs = ObsRows::new(spec.n_nodes, spec.n_agents, &vectors[..], &scalars[..], &heading[..]).unwrap();
-    let (mut store, model) =
-        build("mlp_hn:assignment=learned;assign_critic=held;head=6;critic_hidden=5;assign_hidden=none", &spec);
+    let (mut store, model) = build_from(d, &spec);
     let w = store.find("team.critic.held.weight").unwrap();
     let shape = store.get(w).shape().to_vec();
     let mut r = rng(31);

@@ -355,7 +355,6 @@ fn unknown_names_and_options_are_errors_listing_the_known_ones() {
             assignment: Default::default(),
             hidden: HiddenWidths { head: vec![], critic: vec![8] },
             scorer: Default::default(),
-            value_reads_held: false,
         };
     }
     assert!(err(&empty, 0).contains("hidden"));

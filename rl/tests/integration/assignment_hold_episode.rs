@@ -193,28 +193,31 @@ fn runs_held_per_episode_resume_exactly_at_any_thread_count() {
 }
 
 /// `assign_critic=held`: on an iteration whose episodes end, the update's value reads the
-/// held assignment (the gradient reaches `W_σ`, zero at the start; with every step taken
-/// as drawing it would not); a run trains it, resumes exactly at any thread count and is
+/// held assignment (MLP+HN and SHNN: the gradient reaches `W_σ`, zero at the start; with
+/// every step taken as drawing it would not); an MLP+HN run trains it, resumes exactly at any thread count and is
 /// another run than the plain critic's; without a hold per episode it is refused.
 #[test]
 fn a_value_reading_the_held_assignment_learns_from_it_and_resumes_exactly() {
-    let config = config(HELD_CRITIC, 1);
-    let mut t = short_episodes(&config);
-    let (_, mb) = collect(&mut t);
-    let held_grad = |t: &mut Trainer, mb: &Minibatch| {
-        let team = &mut t.teams[0];
-        let w = team.store.find("team0.critic.held.weight").expect("W_σ");
-        let tape = Tape::<f32>::new();
-        let p = team.store.bind(&tape);
-        let mut noise = minibatch_stream(config.seed, "entropy", 0, 0, 0, 0);
-        let (loss, _) = ppo::loss(team.model.as_mut(), &p, mb, &PpoParams::from_config(&config), &mut noise).unwrap();
-        let g = p.grads(&tape.backward(loss).unwrap());
-        g[w.0].to_vec().iter().map(|x| x.abs()).sum::<f32>()
-    };
-    assert!(held_grad(&mut t, &mb) > 0.0, "the value read no held assignment");
-    let mut drawing = mb.clone();
-    drawing.assignment_drawn.iter_mut().for_each(|d| *d = true);
-    assert_eq!(held_grad(&mut t, &drawing), 0.0, "every step drew, yet the value read an assignment");
+    for model in [HELD_CRITIC, "shnn:assignment=learned;assign_critic=held"] {
+        let config = config(model, 1);
+        let mut t = short_episodes(&config);
+        let (_, mb) = collect(&mut t);
+        let held_grad = |t: &mut Trainer, mb: &Minibatch| {
+            let team = &mut t.teams[0];
+            let w = team.store.find("team0.critic.held.weight").expect("W_σ");
+            let tape = Tape::<f32>::new();
+            let p = team.store.bind(&tape);
+            let mut noise = minibatch_stream(config.seed, "entropy", 0, 0, 0, 0);
+            let hp = PpoParams::from_config(&config);
+            let (loss, _) = ppo::loss(team.model.as_mut(), &p, mb, &hp, &mut noise).unwrap();
+            let g = p.grads(&tape.backward(loss).unwrap());
+            g[w.0].to_vec().iter().map(|x| x.abs()).sum::<f32>()
+        };
+        assert!(held_grad(&mut t, &mb) > 0.0, "{model}: the value read no held assignment");
+        let mut drawing = mb.clone();
+        drawing.assignment_drawn.iter_mut().for_each(|d| *d = true);
+        assert_eq!(held_grad(&mut t, &drawing), 0.0, "{model}: every step drew, yet the value read an assignment");
+    }
 
     let tmp = common::TempDir::new("held-critic");
     let config = self::config(HELD_CRITIC, 3);

@@ -71,6 +71,7 @@ fn gpu_iterations_follow_the_cpu_from_the_same_state() {
         ("team_reach/1_ant", "mlp_hn"),
         ("team_reach/2_ants", "shnn:assignment=learned"),
         ("team_reach/2_ants", "mlp_hn:assignment=learned;assign_critic=held"),
+        ("team_reach/2_ants", "shnn:assignment=learned;assign_critic=held"),
     ];
     for (env, model) in cases {
         let mut cpu = Trainer::new(&tiny_on(env, model, Device::Cpu)).unwrap();
