@@ -20,7 +20,7 @@
 //! the loss). Every input is invariant under rotations about `g` and translations, and the
 //! message passing is subequivariant, so the value is invariant.
 
-use nn::{Aggregation, Bound, EdgeDistance, EdgeList, Mlp, Scope, TransformerConfig};
+use nn::{Aggregation, Bound, EdgeDistance, EdgeList, Mlp, ParamId, Scope, TransformerConfig};
 use tensor::{Activation, Float, Tape, Tensor, Var};
 
 use crate::config::{GravityMode, MpSizes, layer_sizes};
@@ -105,25 +105,25 @@ impl ValueHead {
     ) -> Result<Var<'t, T>> {
         let s = x.shape();
         let nb = s[0];
-        let x = match self {
-            Self::Transformer(head) if extra.is_none() => {
-                return Ok(head.forward_all(p, x)?.reshape(&[nb, s[1]])?.mean(1, false)?);
+        match (self, extra) {
+            (Self::Transformer(head), None) => Ok(head.forward_all(p, x)?.reshape(&[nb, s[1]])?.mean(1, false)?),
+            (Self::Transformer(_), Some(_)) => {
+                Err(ModelError::Input("a Transformer value reads no held assignment".into()))
             }
-            Self::Transformer(_) => {
-                return Err(ModelError::Input("a Transformer value reads no held assignment".into()));
+            (Self::Mlp(mlp), None) => Ok(mlp.forward(p, x.reshape(&[nb, s[1] * s[2]])?)?.reshape(&[nb])?),
+            (Self::Mlp(mlp), Some(extra)) => {
+                // The first layer with the term x_σ W_σ, then the others as Mlp::forward.
+                let x = x.reshape(&[nb, s[1] * s[2]])?;
+                let act = |i: usize| if i + 1 == mlp.layers.len() { Activation::Identity } else { mlp.activation };
+                let first = &mlp.layers[0];
+                let bias = first.bias.map(|b| p.get(b));
+                let mut h = p.tape().linear_sum(&[(x, p.get(first.weight)), extra], bias, act(0))?;
+                for (i, layer) in mlp.layers.iter().enumerate().skip(1) {
+                    h = layer.forward_act(p, h, act(i))?;
+                }
+                Ok(h.reshape(&[nb])?)
             }
-            Self::Mlp(_) => x.reshape(&[nb, s[1] * s[2]])?,
-        };
-        let Self::Mlp(mlp) = self else { unreachable!("the Transformer returned above") };
-        let Some(extra) = extra else { return Ok(mlp.forward(p, x)?.reshape(&[nb])?) };
-        // The first layer with the term x_σ W_σ, then the others as Mlp::forward.
-        let (first, last) = (&mlp.layers[0], mlp.layers.len() - 1);
-        let act = if last == 0 { Activation::Identity } else { mlp.activation };
-        let mut h = p.tape().linear_sum(&[(x, p.get(first.weight)), extra], first.bias.map(|b| p.get(b)), act)?;
-        for (i, layer) in mlp.layers.iter().enumerate().skip(1) {
-            h = layer.forward_act(p, h, if i == last { Activation::Identity } else { mlp.activation })?;
         }
-        Ok(h.reshape(&[nb])?)
     }
 
     /// The width of an MLP's first layer (the columns of `W_σ`); `None` for a Transformer.
@@ -135,11 +135,45 @@ impl ValueHead {
     }
 }
 
+/// `assign_critic=held`'s `W_σ` `[m n, h]` (`critic.held.weight`, zero at the start, so that
+/// a model starts as without it): the term `x_σ W_σ` of a value's first layer
+/// (docs/MODELS.md), the same for the release's MLPs and the SHNN family.
+#[derive(Clone, Debug)]
+pub(crate) struct HeldTerm {
+    weight: ParamId,
+    agents: usize,
+}
+
+impl HeldTerm {
+    /// `W_σ` under `s` (`critic.held.weight`) for `objects` objects, `agents` agents and a
+    /// first layer of `columns` outputs.
+    pub(crate) fn new<T: Float>(s: &mut Scope<'_, T>, objects: usize, agents: usize, columns: usize) -> Result<Self> {
+        let w = Tensor::zeros(&[objects * agents, columns]);
+        Ok(Self { weight: s.sub("critic").sub("held").param("weight", w)?, agents })
+    }
+
+    /// `(x_σ, W_σ)` on the tape of `p` for the scenes' `assignment`, held where `held` says;
+    /// `None` where no scene holds its assignment (the term is zero).
+    pub(crate) fn term<'t, T: Float>(
+        &self,
+        p: &Bound<'t, T>,
+        assignment: &[u32],
+        held: Option<&[bool]>,
+    ) -> Result<Option<(Var<'t, T>, Var<'t, T>)>> {
+        match held {
+            Some(h) if h.iter().any(|&x| x) => {
+                Ok(Some((p.tape().constant(held_one_hot(assignment, h, self.agents)?), p.get(self.weight))))
+            }
+            _ => Ok(None),
+        }
+    }
+}
+
 /// `x_σ` of `assign_critic=held` (docs/MODELS.md), `[B, m n]`: for each scene held into its
 /// step, entry `j n + i` is 1 where object `j` of `assignment` (`[B m]`, for each object the
 /// agent row holding it, [`crate::EntityGraph::assignment`]) is held by agent `i` of `n`;
 /// the rows of the scenes that draw are zero.
-pub(crate) fn held_one_hot<T: Float>(assignment: &[u32], held: &[bool], agents: usize) -> Result<Tensor<T>> {
+fn held_one_hot<T: Float>(assignment: &[u32], held: &[bool], agents: usize) -> Result<Tensor<T>> {
     let nb = held.len();
     let width = assignment.len() / nb.max(1);
     let mut x = vec![T::ZERO; nb * width * agents];

@@ -36,13 +36,13 @@
 //! components and the scalars per node; world frame for `mlp`, heading frame and positions
 //! relative to its root for `mlp_hn`), the critic 256 x 3 on every node of the scene.
 
-use nn::{Bound, Linear, Mlp, ParamId, Scope};
+use nn::{Bound, Linear, Mlp, Scope};
 use tensor::{Activation, Float, Tensor, Var};
 
 use crate::assignment::{AssignmentMethod, UNASSIGNED};
 use crate::assignment_learned::{LearnedAssignment, ScorerConfig, build_graph};
 use crate::config::layer_sizes;
-use crate::critic::{check_held, critic_order, held_one_hot};
+use crate::critic::{HeldTerm, check_held, critic_order};
 use crate::description::HiddenWidths;
 use crate::entity_graph::GraphBuilder;
 use crate::error::{ModelError, Result};
@@ -178,8 +178,8 @@ pub struct ReleaseMlp {
     heads: Vec<Mlp>,
     critic_embed: NodeEmbedding,
     critic: Mlp,
-    /// `assign_critic=held`: `W_σ` `[m n, h]` (`critic.held.weight`, module docs).
-    held: Option<ParamId>,
+    /// `assign_critic=held`: `W_σ` (`critic.held.weight`, module docs).
+    held: Option<HeldTerm>,
     order: Vec<usize>,
     /// `assignment=learned`: the scorer (parameters `assign.*`) and its draws, which give
     /// the graph builder its assignment (as in [`crate::shnn`]).
@@ -227,17 +227,16 @@ impl ReleaseMlp {
             .map(|(config, seed)| LearnedAssignment::new(&mut s.sub("assign"), config, &graph, gravity, seed))
             .transpose()?
             .map(Box::new);
-        let held = if value_reads_held {
-            let width = graph.assignment_width() * agents.len();
-            if learned.is_none() || width == 0 {
+        let held = match (value_reads_held, &learned) {
+            (false, _) => None,
+            (true, Some(_)) => {
+                Some(HeldTerm::new(s, graph.assignment_width(), agents.len(), critic.layers[0].fan_out)?)
+            }
+            (true, None) => {
                 return Err(ModelError::Option(
                     "assign_critic=held reads a learned assignment (give it with assignment=learned)".into(),
                 ));
             }
-            let w = Tensor::zeros(&[width, critic.layers[0].fan_out]);
-            Some(s.sub("critic").sub("held").param("weight", w)?)
-        } else {
-            None
         };
         Ok(Self {
             heading,
@@ -322,12 +321,9 @@ impl ReleaseMlp {
             }
         }
         // With assign_critic=held, the term x_σ W_σ where any scene holds its assignment.
-        let extra = match (self.held, held) {
-            (Some(w), Some(h)) if h.iter().any(|&x| x) => {
-                let x = held_one_hot(&graph.assignment, h, agents.len())?;
-                Some((p.tape().constant(x), p.get(w)))
-            }
-            _ => None,
+        let extra = match &self.held {
+            Some(t) => t.term(p, &graph.assignment, held)?,
+            None => None,
         };
         let x = Tensor::new(x, &[nb, ne, NODE_FEATURES])?;
         let hidden = self.critic_embed.hidden(p, &self.critic, x, extra)?;

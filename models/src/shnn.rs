@@ -27,14 +27,14 @@
 //! `shnn_og3` reads the bodies in `O_i = Z'_i` (`m` channels, no orthogonalisation),
 //! `shnn_so3` has no gravity channel anywhere.
 
-use nn::{Bound, Mlp, ParamId, Scope, TransformerConfig};
-use tensor::{Activation, Float, Tensor};
+use nn::{Bound, Mlp, Scope, TransformerConfig};
+use tensor::{Activation, Float};
 
 use crate::assignment::AssignmentMethod;
 use crate::assignment_learned::{LearnedAssignment, PairFeatureSet, build_graph};
 use crate::body_gnn::{BodyGnn, BodyGnnConfig};
 use crate::config::{GravityMode, NeighbourOffset, layer_sizes};
-use crate::critic::{SubeqCritic, ValueHead, check_held, critic_order, held_one_hot};
+use crate::critic::{HeldTerm, SubeqCritic, ValueHead, check_held, critic_order};
 use crate::description::{EntityStage, ShnnCritic, ShnnModel, ShnnOptions};
 use crate::entity_graph::GraphBuilder;
 use crate::entity_mp::{EntityMp, EntityMpConfig};
@@ -90,9 +90,9 @@ pub(crate) struct Shnn {
     /// `assignment=learned`: the scorer (parameters `assign.*`) and its draws, which give
     /// the graph builder its assignment.
     pub(crate) learned: Option<Box<LearnedAssignment>>,
-    /// `assign_critic=held`: `W_σ` `[m n, h]` of `σ_V`'s first layer (`critic.held.weight`,
-    /// zero at the start; docs/MODELS.md).
-    held: Option<ParamId>,
+    /// `assign_critic=held`: `W_σ` of `σ_V`'s first layer (`critic.held.weight`, zero at the
+    /// start; docs/MODELS.md).
+    held: Option<HeldTerm>,
 }
 
 impl Shnn {
@@ -190,10 +190,7 @@ impl Shnn {
         };
         let held = match (o.scorer.value_reads_held, &learned, critic.head().first_width()) {
             (false, ..) => None,
-            (true, Some(_), Some(h)) => {
-                let w = Tensor::zeros(&[graph.assignment_width() * agents.len(), h]);
-                Some(s.sub("critic").sub("held").param("weight", w)?)
-            }
+            (true, Some(_), Some(columns)) => Some(HeldTerm::new(s, graph.assignment_width(), agents.len(), columns)?),
             _ => {
                 return Err(ModelError::Option(
                     "assign_critic=held reads a learned assignment with an MLP value (give it with assignment=learned)"
@@ -270,10 +267,8 @@ impl Shnn {
             }
         }
         // Eq. (value), with assign_critic=held the term x_σ W_σ where a scene holds its σ.
-        let extra = match (self.held, held) {
-            (Some(w), Some(h)) if with_value && h.iter().any(|&x| x) => {
-                Some((tape.constant(held_one_hot(&graph.assignment, h, agents.len())?), p.get(w)))
-            }
+        let extra = match &self.held {
+            Some(t) if with_value => t.term(p, &graph.assignment, held)?,
             _ => None,
         };
         let value = match &self.critic {
