@@ -571,6 +571,30 @@ pub fn entropy_estimate<'t, T: Float>(scores: Var<'t, T>, assignment: &[usize]) 
 /// scenes keep the assignment given (module docs, "Per-scene draws").
 pub const DRAW_SCENE: u32 = u32::MAX - 1;
 
+/// Every assignment of positive probability under the distribution of `n` agents and `m`
+/// objects (module docs): the injective maps of objects `0..min(n, m)` to agents, later
+/// objects [`UNASSIGNED`], in lexicographic order; `n! / (n - min(n, m))!` of them.
+pub fn all_assignments(n: usize, m: usize) -> Vec<Vec<usize>> {
+    fn extend(prefix: &mut Vec<usize>, n: usize, k: usize, m: usize, out: &mut Vec<Vec<usize>>) {
+        if prefix.len() == k {
+            let mut a = prefix.clone();
+            a.resize(m, UNASSIGNED);
+            out.push(a);
+            return;
+        }
+        for i in 0..n {
+            if !prefix.contains(&i) {
+                prefix.push(i);
+                extend(prefix, n, k, m, out);
+                prefix.pop();
+            }
+        }
+    }
+    let mut out = Vec::new();
+    extend(&mut Vec::new(), n, n.min(m), m, &mut out);
+    out
+}
+
 /// How a [`LearnedAssignment`] chooses an assignment when none is given.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum LearnedChoice {
@@ -682,6 +706,18 @@ impl LearnedAssignment {
         self.warmup = warmup;
     }
 
+    /// Every assignment of positive probability ([`all_assignments`] of this scene's agents
+    /// and objects), in the format of [`LearnedAssignment::assign`]'s output (object -> agent,
+    /// [`crate::NO_AGENT`] for none).
+    pub fn support(&self) -> Vec<Vec<u32>> {
+        all_assignments(self.agents.len(), self.objects.len())
+            .into_iter()
+            .map(|a| {
+                a.into_iter().map(|i| if i == UNASSIGNED { crate::entity_graph::NO_AGENT } else { i as u32 }).collect()
+            })
+            .collect()
+    }
+
     /// The assignment of every scene of `inputs` (`[B * m]`, object -> agent index, as
     /// [`crate::EntityGraph::assignment`]: [`crate::NO_AGENT`] for none), with its
     /// log-probability `[B]` and chain-rule entropy estimate `[B]` on the tape of `p`
@@ -768,29 +804,6 @@ mod tests {
 
     fn random_scores(r: &mut ChaCha8Rng, len: usize, spread: f64) -> Vec<f64> {
         (0..len).map(|_| r.random_range(-spread..spread)).collect()
-    }
-
-    /// Every assignment of positive probability: injective maps of objects `0..min(n, m)` to
-    /// agents, later objects unassigned.
-    fn all_assignments(n: usize, m: usize) -> Vec<Vec<usize>> {
-        fn extend(prefix: &mut Vec<usize>, n: usize, k: usize, m: usize, out: &mut Vec<Vec<usize>>) {
-            if prefix.len() == k {
-                let mut a = prefix.clone();
-                a.resize(m, UNASSIGNED);
-                out.push(a);
-                return;
-            }
-            for i in 0..n {
-                if !prefix.contains(&i) {
-                    prefix.push(i);
-                    extend(prefix, n, k, m, out);
-                    prefix.pop();
-                }
-            }
-        }
-        let mut out = Vec::new();
-        extend(&mut Vec::new(), n, n.min(m), m, &mut out);
-        out
     }
 
     /// `P(σ)` straight from the definition (products of softmax ratios, no logs).

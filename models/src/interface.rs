@@ -146,6 +146,14 @@ pub trait Policy: std::fmt::Debug + Send + Sync {
         false
     }
 
+    /// A learned task assignment's support: every assignment it can draw (each
+    /// [`Policy::assignment_width`] entries, as [`PolicyOutput::assignment`]), which the
+    /// update's expected assignment gradient sums over; empty (the default) for a policy
+    /// that draws none, or none now (a warm-up).
+    fn learned_assignment_support(&self) -> Vec<Vec<u32>> {
+        Vec::new()
+    }
+
     /// Restarts the policy's own random stream, if it has one, from `seed` (default: no
     /// stream, nothing to do). The trainer reseeds every iteration so that resumed runs are
     /// exact.

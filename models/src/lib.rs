@@ -43,7 +43,7 @@ pub mod zoo;
 pub use assignment::{Assigner, AssignmentMethod, UNASSIGNED, distance_matrix};
 pub use assignment_learned::{
     AssignmentScorer, DRAW_SCENE, LearnedAssignment, LearnedChoice, PairFeatureSet, PairFeatures, PlackettLuceAssigner,
-    ScorerConfig, log_prob_and_entropy,
+    ScorerConfig, all_assignments, log_prob_and_entropy,
 };
 pub use body_gnn::{BodyGnn, BodyGnnConfig};
 pub use config::{DistancePrior, GravityMode, MAX_DISTANCE_PRIOR, MlpVariant, MpSizes, NeighbourOffset, OPTION_KEYS};

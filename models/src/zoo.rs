@@ -199,6 +199,22 @@ impl Model {
         }
     }
 
+    /// The learned task assignment, if the model has one (`assignment=learned`).
+    fn learned(&self) -> Option<&LearnedAssignment> {
+        match &self.arch {
+            Arch::Shnn(m) => m.learned.as_deref(),
+            Arch::Mlp(m) => m.learned.as_deref(),
+            _ => None,
+        }
+    }
+
+    /// Every task assignment a learned assignment can draw (its support,
+    /// [`LearnedAssignment::support`]); empty for the other methods and for a learned
+    /// assignment in its warm-up (Algorithm 1's, nothing drawn).
+    pub fn learned_assignment_support(&self) -> Vec<Vec<u32>> {
+        self.learned().filter(|l| !l.in_warmup()).map_or_else(Vec::new, LearnedAssignment::support)
+    }
+
     /// The task-assignment graph builder, if the model has one.
     fn graph(&self) -> Option<&GraphBuilder> {
         match &self.arch {
@@ -397,6 +413,10 @@ impl Policy for Model {
 
     fn assignment_is_random(&self) -> bool {
         Model::assignment_is_random(self)
+    }
+
+    fn learned_assignment_support(&self) -> Vec<Vec<u32>> {
+        Model::learned_assignment_support(self)
     }
 
     fn reseed(&mut self, seed: u64) {

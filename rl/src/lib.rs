@@ -27,7 +27,7 @@ pub use app::run_dir::{RunDir, RunStatus};
 pub use app::sweep::{RunSelection, Shard, Sweep, SweepOutcome, SweepRun, run_sweep};
 pub use app::{lock::RunLock, plot::LinePlot};
 pub use error::{Result, RlError};
-pub use mappo::config::{EntropyKind, NormStart, ObsNormKind, TrainConfig, TrainStarts};
+pub use mappo::config::{AssignmentGradient, EntropyKind, NormStart, ObsNormKind, TrainConfig, TrainStarts};
 pub use mappo::evaluate::{EvalOptions, EvalRequest, EvalSummary, evaluate};
 pub use mappo::team::Team;
 pub use mappo::trainer::Trainer;

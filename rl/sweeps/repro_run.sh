@@ -16,6 +16,7 @@
 #   nice -n 19 rl/sweeps/repro_run.sh M &                                            # issue 79, a held draw
 #   nice -n 19 rl/sweeps/repro_run.sh N &                                            # issue 79, a draw per episode
 #   nice -n 19 rl/sweeps/repro_run.sh O &                                            # issue 79, a value reading it
+#   nice -n 19 rl/sweeps/repro_run.sh P &                                            # issue 79, the expected gradient
 #   rl/sweeps/repro_run.sh export                             # evidence -> results/, reports
 #   rl/sweeps/repro_run.sh restore                            # finished runs <- results/ (A and B do it first)
 #   rl/sweeps/repro_run.sh status                             # every run's progress and hours left
@@ -37,13 +38,13 @@ BIN=${BIN:-$ROOT/target/release/meben}
 OUT=${OUT:-/tmp/runs/repro}
 THREADS=${THREADS:-1}
 SWEEPS=$ROOT/rl/sweeps
-EXPERIMENTS="reach_1_ant reach_2_ants equivariance sumo reach_2_ants_no_assignment reach_2_ants_per_slot_starts transformer_1_ant centipede reach_2_ants_50m reach_1_ant_50m equivariance_2_ants learned_assignment learned_assignment_prior learned_assignment_sumo learned_assignment_entropy learned_assignment_warmup learned_assignment_hold learned_assignment_episode learned_assignment_critic"
+EXPERIMENTS="reach_1_ant reach_2_ants equivariance sumo reach_2_ants_no_assignment reach_2_ants_per_slot_starts transformer_1_ant centipede reach_2_ants_50m reach_1_ant_50m equivariance_2_ants learned_assignment learned_assignment_prior learned_assignment_sumo learned_assignment_entropy learned_assignment_warmup learned_assignment_hold learned_assignment_episode learned_assignment_critic learned_assignment_expected"
 
 # The sweep file of an experiment: rl/sweeps/repro_<exp>.toml, or rl/sweeps/<exp>.toml for
 # the experiments that are not reproductions (issue 79's learned_assignment,
 # learned_assignment_prior, learned_assignment_sumo, learned_assignment_entropy,
-# learned_assignment_warmup, learned_assignment_hold, learned_assignment_episode and
-# learned_assignment_critic).
+# learned_assignment_warmup, learned_assignment_hold, learned_assignment_episode,
+# learned_assignment_critic and learned_assignment_expected).
 sweep_file() {
   if [ -f "$SWEEPS/repro_$1.toml" ]; then echo "$SWEEPS/repro_$1.toml"; else echo "$SWEEPS/$1.toml"; fi
 }
@@ -225,7 +226,20 @@ list_o() {
   done
 }
 
+# Issue 79's seventh follow-up: as the sixth, with the expected assignment gradient
+# (assignment_gradient = "expected", a field binaries before it refuse), 3 seeds at 10M
+# (about 2 machine-hours a seed at one thread beside other runs).
+list_p() {
+  for seed in 0 1 2; do
+    run learned_assignment_expected "/seed$seed"
+  done
+}
+
 case "${1:-}" in
+  P)
+    restore_finished
+    list_p
+    ;;
   O)
     restore_finished
     list_o

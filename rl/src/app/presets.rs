@@ -69,6 +69,7 @@ impl TrainConfig {
             assignment_warmup_steps: 0,
             assignment_hold_steps: 1,
             assignment_hold_episode: false,
+            assignment_gradient: crate::AssignmentGradient::Sampled,
             learning_rate: 3e-4,
             lr_decay: false,
             grad_clip: 0.1,

@@ -65,6 +65,22 @@ pub enum EntropyKind {
     Normal,
 }
 
+/// How the update's policy gradient reaches a learned task assignment's scorer (module
+/// [`crate::mappo::ppo`], [`TrainConfig::assignment_gradient`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum AssignmentGradient {
+    /// Issue 79's formulation: `ln π(σ | s)` of the drawn `σ` joins the action's in the PPO
+    /// ratio, a one-sample (score-function) estimate.
+    #[default]
+    Sampled,
+    /// At each step that draws, the exact expectation over every assignment `σ'` the scorer
+    /// can draw, `Σ_σ' π(σ' | s) (V(s, σ') − b(s))`, with the values of a critic that reads
+    /// the held assignment (`assign_critic=held`); the drawn `σ`'s factor stays in the
+    /// ratio without a gradient. No sampling noise in `σ`.
+    Expected,
+}
+
 /// Where the observation normaliser's statistics start (module [`crate::mappo::normalizer`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -191,6 +207,14 @@ pub struct TrainConfig {
     /// written to `config.toml` only when set.
     #[serde(default, skip_serializing_if = "is_false")]
     pub assignment_hold_episode: bool,
+    /// How the policy gradient reaches a learned task assignment's scorer: `sampled` (the
+    /// default, issue 79's formulation: the drawn assignment's log-probability in the PPO
+    /// ratio) or `expected` (the exact expectation over every assignment at each step that
+    /// draws, valued by a critic that reads the held assignment: docs/TRAINING.md). Only with
+    /// a model of `assignment=learned;assign_critic=held`; written to `config.toml` only
+    /// when set.
+    #[serde(default, skip_serializing_if = "is_sampled")]
+    pub assignment_gradient: AssignmentGradient,
     /// Adam learning rate.
     pub learning_rate: f64,
     /// The learning rate falls linearly to 0 over the run's updates (CleanRL's `anneal_lr`;
@@ -303,6 +327,7 @@ impl TrainConfig {
         table.entry("assignment_warmup_steps").or_insert(toml::Value::Integer(self.assignment_warmup_steps as i64));
         table.entry("assignment_hold_steps").or_insert(toml::Value::Integer(self.assignment_hold_steps as i64));
         table.entry("assignment_hold_episode").or_insert(toml::Value::Boolean(self.assignment_hold_episode));
+        table.entry("assignment_gradient").or_insert_with(|| toml::Value::String("sampled".into()));
         table.entry("device").or_insert_with(|| toml::Value::String(self.device.name().into()));
         table.entry("act_device").or_insert_with(|| toml::Value::String(self.act_device.name().into()));
         table.entry("gpu_matmul_tile").or_insert_with(|| toml::Value::Integer(self.gpu_matmul_tile as i64));
@@ -382,6 +407,7 @@ impl TrainConfig {
     /// Checks every value; errors name `source`, the field and the value.
     pub fn validate(&self, source: &str) -> Result<()> {
         let mut learns_an_assignment = false;
+        let mut value_reads_held = false;
         for (field, spec) in [("model", &self.model), ("opponent", &self.opponent)] {
             if field == "opponent" && spec.is_empty() {
                 continue;
@@ -390,6 +416,7 @@ impl TrainConfig {
             let d = models::ModelDescription::parse(spec)
                 .map_err(|e| RlError::config(source, field, spec, e.to_string()))?;
             learns_an_assignment |= d.assignment().is_some_and(|a| a.method == models::AssignmentMethod::Learned);
+            value_reads_held |= d.value_reads_held();
             // The update tells the value which steps hold their assignment by the episode
             // ends (Minibatch::held_assignment), which is the hold of a whole episode.
             if d.value_reads_held() && !self.assignment_hold_episode {
@@ -423,6 +450,18 @@ impl TrainConfig {
                 "assignment_warmup_steps",
                 self.assignment_warmup_steps,
                 format!("is a learned task assignment's warm-up, and {} learn one (assignment=learned)", models()),
+            ));
+        }
+        if self.assignment_gradient == AssignmentGradient::Expected && !value_reads_held {
+            return Err(RlError::config(
+                source,
+                "assignment_gradient",
+                "expected",
+                format!(
+                    "values every assignment with a critic that reads the held assignment, and {} have one \
+                     (assignment=learned;assign_critic=held)",
+                    models()
+                ),
             ));
         }
         if self.assignment_hold_episode && !learns_an_assignment {
@@ -626,6 +665,11 @@ fn is_zero(v: &u64) -> bool {
 }
 
 /// Whether a switch is off, its default (left out of `config.toml`).
+/// [`TrainConfig::assignment_gradient`]'s default, left out of `config.toml`.
+fn is_sampled(v: &AssignmentGradient) -> bool {
+    *v == AssignmentGradient::Sampled
+}
+
 fn is_false(v: &bool) -> bool {
     !*v
 }

@@ -30,7 +30,12 @@
 //!    `L = -mean(min(rho A, clip(rho, 1 - eps, 1 + eps) A)) + c_v mean((V - v_target)^2)
 //!         - c_H mean(H)`, with `rho = exp(log pi(u | s) - log pi_old(u | s))`; with a
 //!    learned assignment the bonus is `c_H (H(u) + s H(sigma))`, `s` the configuration's
-//!    `assignment_entropy_scale` (1 by default: `H` above);
+//!    `assignment_entropy_scale` (1 by default: `H` above); with
+//!    `assignment_gradient = expected` the drawn `σ`'s factor stays in `rho` as a constant
+//!    and the surrogate gains the exact expectation over every assignment `σ'` at the steps
+//!    that draw, `(1 / T M) Σ_draws Σ_σ' π(σ' | s) (V(s, σ') - b(s))`, `V(s, σ')` the value of
+//!    a critic that reads the held assignment and `b(s) = Σ_σ' π(σ' | s) V(s, σ')` (constants:
+//!    [`expected_assignment_term`]);
 //! 5. **statistics** ([`LossStats`]), in f64 from the same tensors.
 
 use envs::layout::ObsSpec;
@@ -41,7 +46,7 @@ use rand_chacha::ChaCha8Rng;
 use tensor::{Tensor, Var};
 
 use crate::error::Result;
-use crate::mappo::config::EntropyKind;
+use crate::mappo::config::{AssignmentGradient, EntropyKind};
 use crate::mappo::gae::gae;
 use crate::mappo::minibatch::Minibatch;
 use crate::mappo::seeding::standard_normal;
@@ -60,6 +65,9 @@ pub struct PpoParams {
     /// The weight `s` of a learned assignment's entropy in the bonus, relative to the
     /// action's ([`crate::TrainConfig::assignment_entropy_scale`]).
     pub assignment_entropy_scale: f64,
+    /// How the policy gradient reaches a learned assignment's scorer
+    /// ([`crate::TrainConfig::assignment_gradient`]).
+    pub assignment_gradient: AssignmentGradient,
     /// Discount.
     pub discount: f64,
     /// GAE lambda.
@@ -75,6 +83,7 @@ impl PpoParams {
             entropy_coef: c.entropy_coef,
             entropy: c.entropy,
             assignment_entropy_scale: c.assignment_entropy_scale,
+            assignment_gradient: c.assignment_gradient,
             discount: c.discount,
             gae_lambda: c.gae_lambda,
         }
@@ -179,6 +188,7 @@ pub fn loss<'t>(
     // H = H(u) + H(sigma), the bonus H(u) + s H(sigma) (the same tensor when s = 1).
     // Held for k steps, the assignment is the policy's factor only where it was drawn: the
     // terms of the held steps are masked out, and H(sigma) is averaged over every transition.
+    let mut expected = None;
     if let Some(mut a) = fwd.assignment {
         if !mb.assignment_drawn.is_empty() {
             let drawn: Vec<f32> = mb.assignment_drawn.iter().map(|&d| if d { 1.0 } else { 0.0 }).collect();
@@ -186,7 +196,15 @@ pub fn loss<'t>(
             a.log_prob = a.log_prob.mul(mask)?;
             a.entropy = a.entropy.mul(mask)?;
         }
-        logp = logp.add(a.log_prob)?;
+        // The expected gradient: the drawn σ's factor stays in the ratio without a gradient,
+        // and the scorer learns from the expectation over every σ' instead.
+        logp = match hp.assignment_gradient {
+            AssignmentGradient::Sampled => logp.add(a.log_prob)?,
+            AssignmentGradient::Expected => {
+                expected = Some(expected_assignment_term(model, p, mb)?);
+                logp.add(a.log_prob.detach())?
+            }
+        };
         let assignment_entropy = a.entropy.mean_all()?;
         let action_entropy = entropy;
         entropy = action_entropy.add(assignment_entropy)?;
@@ -212,11 +230,73 @@ pub fn loss<'t>(
     let eps = hp.clip_epsilon;
     let unclipped = ratio.mul(t.advantages)?;
     let clipped = ratio.clamp(1.0 - eps, 1.0 + eps).mul(t.advantages)?;
-    let policy_loss = unclipped.minimum(clipped)?.mean_all()?.neg();
+    let mut policy_loss = unclipped.minimum(clipped)?.mean_all()?.neg();
+    if let Some(e) = expected {
+        policy_loss = policy_loss.sub(e)?;
+    }
     let total = policy_loss.add(value_loss.scale(hp.value_coef))?.sub(t.bonus.scale(hp.entropy_coef))?;
     // 5. Statistics.
     let stats = statistics(&t, [total, policy_loss, value_loss, ratio], hp)?;
     Ok((total, stats))
+}
+
+/// The expected assignment term of step 4 (`assignment_gradient = expected`) on the tape of
+/// `p`: over the transitions of `mb` that drew their assignment (`D`),
+///
+/// `(1 / T M) Σ_{t ∈ D} Σ_σ' π(σ' | s_t) (V(s_t, σ') - b(s_t))`,  `b(s) = Σ_σ' π(σ' | s) V(s, σ')`,
+///
+/// `σ'` over the model's support ([`Policy::learned_assignment_support`]), `V(s, σ')` the
+/// value with `σ'` held ([`Policy::forward_held`]) and `V` and `b` constants, so that its
+/// gradient is `(1 / T M) Σ_t Σ_σ' ∇π(σ' | s_t) V(s_t, σ')`, the policy gradient of the draw
+/// summed over every assignment instead of sampled (no sampling noise in `σ`; `b` changes
+/// only its value, which is 0 at the current parameters, not its gradient). `V(s_t, σ')` is
+/// read at a drawing step, where the critic is trained without `σ` (it drew there): it
+/// extrapolates from the next steps, which hold `σ`. The `K |D|` rows (`K` the support's
+/// size) go through the model in one forward pass. 0 (a constant) where nothing drew.
+pub fn expected_assignment_term<'t>(
+    model: &mut dyn Policy,
+    p: &Bound<'t, f32>,
+    mb: &Minibatch,
+) -> Result<Var<'t, f32>> {
+    let tape = p.tape();
+    let n = mb.transitions();
+    let support = model.learned_assignment_support();
+    let draws: Vec<usize> = if mb.assignment_drawn.is_empty() {
+        (0..n).collect()
+    } else {
+        (0..n).filter(|&i| mb.assignment_drawn[i]).collect()
+    };
+    if support.is_empty() || draws.is_empty() {
+        return Ok(tape.constant(Tensor::new(vec![0.0], &[1])?).sum_all());
+    }
+    let (k, d) = (support.len(), draws.len());
+    // The drawing rows once per σ' (block `a` holds σ'_a), every one held.
+    let mut obs = envs::layout::Observation::empty(mb.obs.nodes, mb.obs.agents);
+    let mut assignment = Vec::with_capacity(k * d * model.assignment_width());
+    for sigma in &support {
+        for &i in &draws {
+            obs.push_rows(mb.obs_rows(i..i + 1));
+            assignment.extend_from_slice(sigma);
+        }
+    }
+    let out = model.forward_held(p, &obs.rows(), &assignment, &vec![true; k * d])?;
+    let terms = out.assignment_terms.ok_or_else(|| {
+        models::ModelError::Input(format!("`{}` gave no learned assignment's log-probability", model.name()))
+    })?;
+    // `V(s_t, σ'_a)` and `π(σ'_a | s_t)` on the host (one transfer each), for the baseline.
+    let values = out.team_value()?.value().to_host()?.to_vec();
+    let probs: Vec<f32> = terms.log_prob.value().to_host()?.data().iter().map(|l| l.exp()).collect();
+    let mut weight = vec![0.0f32; k * d];
+    for t in 0..d {
+        // The probabilities' mean of the values (divided by their sum, 1 up to rounding).
+        let mass: f64 = (0..k).map(|a| f64::from(probs[a * d + t])).sum();
+        let b: f64 = (0..k).map(|a| f64::from(probs[a * d + t]) * f64::from(values[a * d + t])).sum::<f64>() / mass;
+        for a in 0..k {
+            weight[a * d + t] = ((f64::from(values[a * d + t]) - b) / n as f64) as f32;
+        }
+    }
+    let weight = tape.constant(Tensor::new(weight, &[k * d])?);
+    Ok(terms.log_prob.exp().mul(weight)?.sum_all())
 }
 
 /// The model's outputs on one minibatch: the policy and value of the `T M` transitions on

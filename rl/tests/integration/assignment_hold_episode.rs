@@ -26,7 +26,7 @@ use tensor::Tape;
 const MODELS: [&str; 3] = ["mlp_hn:assignment=learned", "shnn:assignment=learned", HELD_CRITIC];
 
 /// MLP+HN whose value reads the assignment held into each step (`assign_critic=held`).
-const HELD_CRITIC: &str = "mlp_hn:assignment=learned;assign_critic=held";
+pub(crate) const HELD_CRITIC: &str = "mlp_hn:assignment=learned;assign_critic=held";
 
 /// Environments of [`config`].
 const ENVS: usize = 8;
@@ -36,7 +36,7 @@ const STEPS_PER_ENV: usize = 10;
 
 /// `iterations` of 10 steps of 8 environments of Team Reach with two ants, each draw held
 /// for its episode.
-fn config(model: &str, iterations: u64) -> TrainConfig {
+pub(crate) fn config(model: &str, iterations: u64) -> TrainConfig {
     let mut c = common::tiny("team_reach/2_ants", model, iterations, &[("assignment_hold_episode", "true")]);
     c.threads = 1;
     assert_eq!(c.steps_per_iteration() as usize, STEPS_PER_ENV * ENVS);
@@ -45,7 +45,7 @@ fn config(model: &str, iterations: u64) -> TrainConfig {
 
 /// A trainer of `config` whose environments' episodes last 3 steps, so that an iteration
 /// sees episodes end (MeBen's last 1000).
-fn short_episodes(config: &TrainConfig) -> Trainer {
+pub(crate) fn short_episodes(config: &TrainConfig) -> Trainer {
     let mut t = Trainer::new(config).unwrap();
     let spec = TaskSpec { episode_steps: 3, ..TaskSpec::from_name(&config.env).unwrap() };
     t.env = VecEnv::new(&spec, ENVS, 5, t.env.start_mode()).unwrap();
@@ -54,7 +54,7 @@ fn short_episodes(config: &TrainConfig) -> Trainer {
 
 /// One iteration of team 0 per environment and step: the assignment acted on, whether it
 /// was drawn there, whether the episode ended there.
-struct Steps {
+pub(crate) struct Steps {
     assignment: Vec<Vec<Vec<u32>>>,
     drawn: Vec<Vec<bool>>,
     ended: Vec<Vec<bool>>,
@@ -62,7 +62,7 @@ struct Steps {
 
 /// Collects one iteration of `t` and reads it back through the update's minibatch of every
 /// unroll (unroll `q` is block `q / E`, environment `q % E`; time-major).
-fn collect(t: &mut Trainer) -> (Steps, Minibatch) {
+pub(crate) fn collect(t: &mut Trainer) -> (Steps, Minibatch) {
     t.collect().unwrap();
     let ids: Vec<usize> = (0..t.rollout().unrolls()).collect();
     let mut mb = Minibatch::default();

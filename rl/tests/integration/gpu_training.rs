@@ -39,10 +39,18 @@ fn tiny(model: &str, device: Device) -> TrainConfig {
     tiny_on("team_reach/1_ant", model, device)
 }
 
-/// [`tiny`] on `env`.
+/// [`tiny`] on `env`; a model ending in `+expected` trains with the expected assignment
+/// gradient (`assignment_gradient = "expected"`).
 fn tiny_on(env: &str, model: &str, device: Device) -> TrainConfig {
     let mut options =
         vec![("num_envs", "4"), ("num_minibatches", "2"), ("epochs", "1"), ("num_evals", "0"), ("steps", "120")];
+    let model = match model.strip_suffix("+expected") {
+        Some(m) => {
+            options.push(("assignment_gradient", "\"expected\""));
+            m
+        }
+        None => model,
+    };
     // A value that reads the held assignment trains with a hold per episode.
     if model.contains("assign_critic=held") {
         options.push(("assignment_hold_episode", "true"));
@@ -63,7 +71,8 @@ fn close(name: &str, gpu: f64, cpu: f64) -> bool {
 /// rollout, the update's metrics and the parameters within the tolerance (module docs). A
 /// learned task assignment (two ants, so that there are two assignments to choose from)
 /// enters the update through its log-probability and entropy, and, with
-/// `assign_critic=held`, through the value's held assignment.
+/// `assign_critic=held`, through the value's held assignment (and with the expected gradient
+/// through the values and probabilities of every assignment).
 #[test]
 fn gpu_iterations_follow_the_cpu_from_the_same_state() {
     let cases = [
@@ -72,6 +81,7 @@ fn gpu_iterations_follow_the_cpu_from_the_same_state() {
         ("team_reach/2_ants", "shnn:assignment=learned"),
         ("team_reach/2_ants", "mlp_hn:assignment=learned;assign_critic=held"),
         ("team_reach/2_ants", "shnn:assignment=learned;assign_critic=held"),
+        ("team_reach/2_ants", "mlp_hn:assignment=learned;assign_critic=held+expected"),
     ];
     for (env, model) in cases {
         let mut cpu = Trainer::new(&tiny_on(env, model, Device::Cpu)).unwrap();

@@ -211,6 +211,14 @@ mod tests {
             assert_eq!(r.config, TrainConfig { model, ..e.config.clone() }, "{}", r.name);
             assert_eq!(r.name, e.name.replace("learned+", "learned_assign_critic-held+"));
         }
+        // And with the expected assignment gradient: the same runs but for the gradient.
+        let expected = Sweep::load(&dir.join("learned_assignment_expected.toml")).unwrap().runs().unwrap();
+        assert_eq!(expected.len(), 3);
+        for (r, c) in expected.iter().zip(&critic) {
+            let gradient = crate::AssignmentGradient::Expected;
+            assert_eq!(r.config, TrainConfig { assignment_gradient: gradient, ..c.config.clone() }, "{}", r.name);
+            assert_eq!(r.name, c.name.replace("+hold_episode/", "+hold_episode_expected/"));
+        }
         // Its follow-up with a warm-up: the same runs but for the warm-up and a longer budget,
         // whose first 16M env steps are greedy MLP+HN's (the seeds of repro_reach_2_ants.toml).
         let warmup = Sweep::load(&dir.join("learned_assignment_warmup.toml")).unwrap().runs().unwrap();
