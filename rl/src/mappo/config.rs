@@ -417,6 +417,17 @@ impl TrainConfig {
                 .map_err(|e| RlError::config(source, field, spec, e.to_string()))?;
             learns_an_assignment |= d.assignment().is_some_and(|a| a.method == models::AssignmentMethod::Learned);
             value_reads_held |= d.value_reads_held();
+            // Every team that learns its assignment values the support with its held critic.
+            let learns = d.assignment().is_some_and(|a| a.method == models::AssignmentMethod::Learned);
+            if self.assignment_gradient == AssignmentGradient::Expected && learns && !d.value_reads_held() {
+                return Err(RlError::config(
+                    source,
+                    field,
+                    spec,
+                    "assignment_gradient = \"expected\" values every assignment with a critic that reads the held \
+                     assignment: add assign_critic=held",
+                ));
+            }
             // The update tells the value which steps hold their assignment by the episode
             // ends (Minibatch::held_assignment), which is the hold of a whole episode.
             if d.value_reads_held() && !self.assignment_hold_episode {

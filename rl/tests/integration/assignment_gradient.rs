@@ -164,6 +164,15 @@ fn the_expected_gradient_needs_a_critic_that_reads_the_held_assignment() {
             "{model}: {e}"
         );
     }
+    // Team Sumo: each team that learns its assignment needs the held critic.
+    let sumo = |opponent: &str| {
+        let mut c = common::tiny("team_sumo/2_ants", SHNN_HELD_CRITIC, 1, &[("assignment_hold_episode", "true")]);
+        c.opponent = opponent.into();
+        TrainConfig { assignment_gradient: AssignmentGradient::Expected, ..c }
+    };
+    let e = sumo("shnn:assignment=learned").validate("sumo.toml").unwrap_err().to_string();
+    assert!(e.contains("sumo.toml") && e.contains("opponent") && e.contains("assign_critic=held"), "{e}");
+    assert!(sumo("mlp_hn").validate("sumo.toml").is_ok());
     for model in [HELD_CRITIC, SHNN_HELD_CRITIC, "shnn:assignment=learned;assign_critic=held;critic=shared"] {
         assert!(expected(model, 1).validate("expected.toml").is_ok(), "{model}");
     }
