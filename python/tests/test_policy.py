@@ -155,6 +155,24 @@ def test_a_learned_assignment_held_per_episode_acts_in_python_as_in_rust(tmp_pat
         marked.end_episodes([True, False, True])
 
 
+def test_the_expected_assignment_gradient_trains_from_python_and_its_policy_acts_as_in_rust(tmp_path, meben_cli):
+    """`assignment_gradient="expected"` (TRAINING.md) is a keyword of `train`, written to the
+    run's `config.toml`; a model without the held critic is refused naming the field and the
+    option it lacks; the trained policy acts in Python as `meben eval` does."""
+    with pytest.raises(ValueError, match=r'field `model` = "mlp_hn:assignment=learned".*add assign_critic=held'):
+        meben.train(out=tmp_path / "refused", env="team_reach/2_ants", model="mlp_hn:assignment=learned",
+                    assignment_hold_episode=True, assignment_gradient="expected", **TINY)
+    assert not (tmp_path / "refused" / "checkpoint.json").exists()
+    out = tmp_path / "expected"
+    meben.train(out=out, env="team_reach/2_ants", model="mlp_hn:assignment=learned;assign_critic=held", seed=3,
+                assignment_hold_episode=True, assignment_gradient="expected", **TINY)
+    assert 'assignment_gradient = "expected"' in (out / "config.toml").read_text()
+    episodes, seed = 2, 4
+    rust = rust_evaluation(meben_cli, out, episodes, seed, False)
+    python = python_evaluation(meben.Policy.load(out, seed=seed), episodes, seed, False)
+    assert python == {k: rust[k] for k in python}, (python, rust)
+
+
 def test_the_run_names_the_build_that_trained_it(run, meben_cli):
     commit = meben.BUILD_COMMIT
     sha = commit.split("+")[0]
