@@ -191,10 +191,29 @@ fn wrong_type(source: &str, base: &toml::Table, given: &toml::Table, e: toml::de
                     "out of range: at most 9223372036854775807 (TOML integers are signed 64-bit)",
                 );
             }
+            // A choice given as a number, a boolean or an array: serde says only "invalid
+            // type: unit variant, expected string only"; the choices are named instead.
+            if let (Some(toml::Value::String(_)), false) = (base.get(k), v.is_str()) {
+                return RlError::config(source, k, value_text(v), expected_string(base, k));
+            }
             return RlError::config(source, k, value_text(v), e.message());
         }
     }
     RlError::config(source, "(several)", "", e.message())
+}
+
+/// "expected a string" for field `k` of `base`, with the values it takes when it is a choice
+/// (an enum): those serde lists for a string that is none of them.
+fn expected_string(base: &toml::Table, k: &str) -> String {
+    let mut probe = base.clone();
+    probe.insert(k.to_string(), toml::Value::String("\u{1}".into()));
+    match toml::Value::Table(probe).try_into::<TrainConfig>() {
+        Err(e) => match e.message().split_once("expected ") {
+            Some((_, choices)) => format!("expected a string: {choices}"),
+            None => "expected a string".into(),
+        },
+        Ok(_) => "expected a string".into(),
+    }
 }
 
 /// Whether `s` is an integer in decimal (an optional sign, then digits), of any size.
@@ -253,6 +272,18 @@ mod tests {
             let e = TrainConfig::resolve(None, None, &ov).unwrap_err().to_string();
             assert!(e.starts_with(&format!("built-in + command line: {named}: ")), "{e}");
             assert!(e.contains(expected), "{e}");
+        }
+        // A choice given as another type names its choices (serde said "invalid type: unit
+        // variant, expected string only").
+        for (field, value, choices) in [
+            ("entropy", "5", "`tanh_normal` or `normal`"),
+            ("assignment_gradient", "true", "`sampled` or `expected`"),
+            ("train_starts", "[1]", "`fresh` or `per_slot`"),
+        ] {
+            let ov = vec![(field.to_string(), value.to_string())];
+            let e = TrainConfig::resolve(None, None, &ov).unwrap_err().to_string();
+            let named = format!("built-in + command line: field `{field}` = \"{value}\": expected a string: {choices}");
+            assert_eq!(e, named);
         }
         // So does a bad `env` or `preset`, which are read before the rest.
         let e = TrainConfig::resolve(None, None, &[("env".to_string(), "[1]".to_string())]).unwrap_err().to_string();
