@@ -25,8 +25,8 @@ use crate::kind::ModelKind;
 /// (integer), `head` and `critic_hidden` (hidden widths joined by `x`, e.g. `256x256`; at
 /// most [`MAX_LAYERS`], each at most [`MAX_WIDTH`]), and with `assignment=learned` its
 /// scorer's `assign_hidden` (hidden widths as `head`'s, or `none` for an affine scorer) and
-/// `assign_prior` (`λ`, a number in `[0, MAX_DISTANCE_PRIOR]`), and but for `shtransformer`
-/// `assign_critic` (`none`, `held`: whether the value reads the assignment held into each
+/// `assign_prior` (`λ`, a number in `[0, MAX_DISTANCE_PRIOR]`), and for every model but
+/// `shtransformer` `assign_critic` (`none`, `held`: whether the value reads the assignment held into each
 /// step). E.g. `shnn:assignment=hungarian;critic=shared`.
 pub const OPTION_KEYS: [&str; 14] = [
     "assignment",

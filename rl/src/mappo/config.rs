@@ -415,10 +415,10 @@ impl TrainConfig {
             // Parsed and resolved: an option the model does not take fails here, not at build.
             let d = models::ModelDescription::parse(spec)
                 .map_err(|e| RlError::config(source, field, spec, e.to_string()))?;
-            learns_an_assignment |= d.assignment().is_some_and(|a| a.method == models::AssignmentMethod::Learned);
+            let learns = d.assignment().is_some_and(|a| a.method == models::AssignmentMethod::Learned);
+            learns_an_assignment |= learns;
             value_reads_held |= d.value_reads_held();
             // Every team that learns its assignment values the support with its held critic.
-            let learns = d.assignment().is_some_and(|a| a.method == models::AssignmentMethod::Learned);
             if self.assignment_gradient == AssignmentGradient::Expected && learns && !d.value_reads_held() {
                 return Err(RlError::config(
                     source,
@@ -675,12 +675,12 @@ fn is_zero(v: &u64) -> bool {
     *v == 0
 }
 
-/// Whether a switch is off, its default (left out of `config.toml`).
 /// [`TrainConfig::assignment_gradient`]'s default, left out of `config.toml`.
 fn is_sampled(v: &AssignmentGradient) -> bool {
     *v == AssignmentGradient::Sampled
 }
 
+/// Whether a switch is off, its default (left out of `config.toml`).
 fn is_false(v: &bool) -> bool {
     !*v
 }

@@ -271,11 +271,15 @@ pub fn expected_assignment_term<'t>(
     }
     let (k, d) = (support.len(), draws.len());
     // The drawing rows once per σ' (block `a` holds σ'_a), every one held.
+    let mut rows = envs::layout::Observation::empty(mb.obs.nodes, mb.obs.agents);
+    for &i in &draws {
+        rows.push_rows(mb.obs_rows(i..i + 1));
+    }
     let mut obs = envs::layout::Observation::empty(mb.obs.nodes, mb.obs.agents);
     let mut assignment = Vec::with_capacity(k * d * model.assignment_width());
     for sigma in &support {
-        for &i in &draws {
-            obs.push_rows(mb.obs_rows(i..i + 1));
+        obs.push_rows(rows.rows());
+        for _ in 0..d {
             assignment.extend_from_slice(sigma);
         }
     }
