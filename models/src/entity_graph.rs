@@ -33,6 +33,7 @@ use rand_chacha::ChaCha8Rng;
 use tensor::Float;
 
 use crate::assignment::{Assigner, AssignmentMethod, UNASSIGNED};
+use crate::assignment_learned::DRAW_SCENE;
 use crate::error::{ModelError, Result};
 use crate::input::EntityInputs;
 use envs::layout::{ENTITY_CENTRE, ENTITY_GOAL, ObsSpec};
@@ -242,7 +243,10 @@ impl GraphBuilder {
 
     /// [`GraphBuilder::build_with`], solving the assignment when none is given whatever the
     /// method: the method `learned` then takes Algorithm 1's (its warm-up,
-    /// [`crate::assignment_learned::LearnedAssignment::in_warmup`]).
+    /// [`crate::assignment_learned::LearnedAssignment::in_warmup`], and `meben eval
+    /// --assignment greedy` of a learned policy). Scenes of a given assignment marked wholly
+    /// [`DRAW_SCENE`] are solved so too, the others kept: a held Algorithm 1 assignment drawn
+    /// at an episode's first step.
     pub(crate) fn build_solving<T: Float>(
         &mut self,
         entities: &EntityInputs<T>,
@@ -259,6 +263,15 @@ impl GraphBuilder {
                 )));
             }
             for (b, scene) in f.chunks(width.max(1)).enumerate() {
+                match scene.iter().filter(|&&i| i == DRAW_SCENE).count() {
+                    0 => {}
+                    k if k == scene.len() => continue,
+                    _ => {
+                        return Err(ModelError::Input(format!(
+                            "given assignment of scene {b}: only partly marked to be solved"
+                        )));
+                    }
+                }
                 for (j, &i) in scene.iter().enumerate() {
                     let repeated = scene[..j].contains(&i);
                     if i != NO_AGENT && (i as usize >= n || repeated) {
@@ -308,13 +321,13 @@ impl GraphBuilder {
                         self.dist[i * m + j] = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
                     }
                 }
-                match fixed {
-                    Some(f) => {
-                        for (o, &i) in self.out.iter_mut().zip(&f[b * m..(b + 1) * m]) {
+                match fixed.map(|f| &f[b * m..(b + 1) * m]) {
+                    Some(f) if m == 0 || f[0] != DRAW_SCENE => {
+                        for (o, &i) in self.out.iter_mut().zip(f) {
                             *o = if i == NO_AGENT { UNASSIGNED } else { i as usize };
                         }
                     }
-                    None => self.assigner.assign(self.method, &self.dist, n, m, &mut self.out, &mut self.rng),
+                    _ => self.assigner.assign(self.method, &self.dist, n, m, &mut self.out, &mut self.rng),
                 }
                 graph.assignment.extend(self.out.iter().map(|&i| if i == UNASSIGNED { NO_AGENT } else { i as u32 }));
                 for (j, &i) in self.out.iter().enumerate() {

@@ -70,7 +70,9 @@ impl PyPolicy {
     /// eval --seed` does. A damaged, truncated or foreign file raises `ValueError` naming it.
     /// `assignment` (`"greedy"`, `"hungarian"` or `"stochastic"`) acts and evaluates with
     /// that task-assignment rule in place of the run's own, on the same parameters (`meben
-    /// eval --assignment`); one the run's models cannot take raises `ValueError` saying why.
+    /// eval --assignment`; a run that learned its assignment takes `"greedy"` only, Algorithm
+    /// 1 in place of its scorer's draws); one the run's models cannot take raises
+    /// `ValueError` saying why.
     /// `assignment_hold=k` holds each random assignment (`"stochastic"`, or a learned one)
     /// for `k` steps in place of the run's own hold (`meben eval --assignment-hold`).
     #[staticmethod]

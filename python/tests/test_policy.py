@@ -115,6 +115,29 @@ def test_a_learned_assignment_in_its_warmup_acts_as_the_greedy_policy(tmp_path):
         assert episodes[0] == episodes[1], (deterministic, episodes)
 
 
+def test_a_learned_policy_given_greedy_acts_and_evaluates_as_meben_eval_assignment_greedy(learned_run, meben_cli):
+    """`assignment="greedy"` on a run that learned its assignment is `meben eval --assignment
+    greedy`: Algorithm 1 in place of its scorer's draws, the same episodes in Python's replay,
+    in `Policy.evaluate` and in Rust; the other rules are refused naming the argument."""
+    episodes, seed = 2, 4
+    subprocess.run(
+        [meben_cli, "eval", "--run", learned_run, "--episodes", str(episodes), "--seed", str(seed), "--stochastic",
+         "--assignment", "greedy"],
+        check=True,
+        capture_output=True,
+    )
+    rust = json.loads((learned_run / "eval_assignment-greedy.json").read_text())
+    assert rust["assignment"] == "greedy"
+    policy = meben.Policy.load(learned_run, seed=seed, assignment="greedy")
+    python = python_evaluation(policy, episodes, seed, False)
+    assert python == {k: rust[k] for k in python}, (python, rust)
+    own = python_evaluation(meben.Policy.load(learned_run, seed=seed), episodes, seed, False)
+    assert own != python, "the scorer's own draws played Algorithm 1's episodes"
+    for rule in ("hungarian", "stochastic"):
+        with pytest.raises(ValueError, match=rf'bad assignment = "{rule}".*only greedy'):
+            meben.Policy.load(learned_run, assignment=rule)
+
+
 def test_a_held_learned_assignment_acts_in_python_as_in_the_rust_evaluation(tmp_path, meben_cli):
     """A learned assignment held for 3 steps (`assignment_hold_steps`): the policy loaded in
     Python holds its draws from its first `act` as `meben eval` does from each episode's

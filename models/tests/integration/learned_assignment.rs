@@ -184,6 +184,27 @@ fn a_learned_assignment_model_draws_scores_and_differentiates_its_assignment() {
         let tape = Tape::<f32>::new();
         let err = model.forward_batch_with(&store.bind(&tape), &env.obs().rows(), Some(&partly)).unwrap_err();
         assert!(err.to_string().contains("scene 1 is only partly marked"), "{name}: {err}");
+        // In its warm-up (Algorithm 1, as `meben eval --assignment greedy` plays a learned
+        // policy) the scenes marked are solved as with none given, the others keep theirs, a
+        // scene marked in part is refused.
+        model.set_assignment_warmup(true);
+        let solve = |model: &mut Model, given: Option<&[u32]>| {
+            let tape = Tape::<f32>::new();
+            let out = model.forward_batch_with(&store.bind(&tape), &env.obs().rows(), given);
+            out.map(|o| (o.assignment, o.assignment_terms.is_none()))
+        };
+        let (greedy, no_terms) = solve(&mut model, None).unwrap();
+        assert!(no_terms, "{name}: scorer terms in the warm-up");
+        assert_eq!(solve(&mut model, Some(&all_marked)).unwrap().0, greedy, "{name}");
+        let (held, _) = solve(&mut model, Some(&some_marked)).unwrap();
+        for (e, ((got, given), solved)) in
+            held.chunks(width).zip(other.chunks(width)).zip(greedy.chunks(width)).enumerate()
+        {
+            assert_eq!(got, if e % 2 == 1 { given } else { solved }, "{name}, warm-up scene {e}");
+        }
+        let err = solve(&mut model, Some(&partly)).unwrap_err();
+        assert!(err.to_string().contains("scene 1: only partly marked"), "{name}: {err}");
+        model.set_assignment_warmup(false);
         // Other streams draw other assignments somewhere in the batch; the most likely one
         // does not depend on the stream.
         let others: Vec<Vec<u32>> = (0..4).map(|s| draw(&mut model, 100 + s, None).0).collect();

@@ -203,7 +203,8 @@ struct EvalArgs {
     /// Evaluate with this task-assignment rule in place of the one the policy was trained
     /// with, on the same parameters: greedy (Algorithm 1), hungarian (least total distance)
     /// or stochastic (a random one-to-one assignment at every step). Models with a greedy,
-    /// hungarian or stochastic assignment only; with --run the summary goes to
+    /// hungarian or stochastic assignment; a policy that learned its assignment takes greedy
+    /// only (Algorithm 1 in place of its scorer's draws); with --run the summary goes to
     /// eval[...]_assignment-<rule>.json, beside the run's own.
     #[arg(long, value_name = "RULE")]
     assignment: Option<String>,

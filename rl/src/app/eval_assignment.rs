@@ -10,8 +10,11 @@
 //! Only the one-to-one rules that change nothing but the links are offered: `greedy`,
 //! `hungarian` and `stochastic`. `none` is refused (it changes the graph and the model's
 //! translation default, not only the links) and so is `learned` (its scorer is parameters
-//! a policy trained without it does not have); a policy trained with `learned` is refused
-//! too, as its parameters include the scorer.
+//! a policy trained without it does not have). A policy trained with `learned` takes
+//! `greedy` only: Algorithm 1 in place of its scorer's draws, as in its warm-up (the scorer
+//! kept, unused), which asks whether what its scorer learned helps the actions it learned
+//! with; with [`hold`], Algorithm 1's assignment at the drawing steps, held (per episode as
+//! a run that held its draws per episode acted).
 
 use models::{AssignmentMethod, ModelDescription};
 
@@ -54,30 +57,56 @@ pub fn with_assignment(model: &str, rule: &str) -> Result<Option<String>, String
     Ok(Some(format!("{name}:{}", kept.join(";"))))
 }
 
+/// Whether `model` (a model string) learns its task assignment (`assignment=learned`).
+fn learns(model: &str) -> Result<bool, String> {
+    let d = ModelDescription::parse(model).map_err(|e| format!("model `{model}`: {e}"))?;
+    Ok(d.assignment().is_some_and(|a| a.method == AssignmentMethod::Learned))
+}
+
 /// `teams` (of a run or policy file of `config`) with the assignment rule `rule` in place of
 /// their own: only each team's model is rebuilt; its parameters (checked to fit the new
-/// model), normaliser and streams stay. Teams without a task assignment are kept as they
-/// are; errors name the flag, the rule and the model.
+/// model), normaliser and streams stay. A team that learned its assignment takes `greedy`
+/// only, by its warm-up (Algorithm 1 at every step, its scorer unused; module docs). Teams
+/// without a task assignment are kept as they are; errors name the flag, the rule and the
+/// model.
 pub fn reassign(config: &TrainConfig, teams: &mut [Team], rule: &str) -> Result<(), String> {
     check_rule(rule)?;
     let mut swapped = config.clone();
     let mut any = false;
-    if let Some(m) = with_assignment(&config.model, rule)? {
-        swapped.model = m;
-        any = true;
+    let mut learned = Vec::new();
+    let mut fields = vec![(&config.model, &mut swapped.model)];
+    if !config.opponent.is_empty() {
+        fields.push((&config.opponent, &mut swapped.opponent));
     }
-    if !config.opponent.is_empty()
-        && let Some(m) = with_assignment(&config.opponent, rule)?
-    {
-        swapped.opponent = m;
-        any = true;
+    for (own, new) in fields {
+        if learns(own)? {
+            if rule != "greedy" {
+                return Err(format!(
+                    "--assignment {rule}: model `{own}` learned its assignment; only greedy (Algorithm 1, \
+                     as in its warm-up) takes the place of its scorer's draws"
+                ));
+            }
+            learned.push(own.clone());
+            any = true;
+        } else if let Some(m) = with_assignment(own, rule)? {
+            *new = m;
+            any = true;
+        }
     }
     if !any {
         return Err(format!("--assignment {rule}: no team's model (`{}`) has a task assignment", config.model));
     }
     let spec = envs::tasks::Scene::from_name(&config.env).map_err(|e| e.to_string())?.obs_spec;
-    for team in teams.iter_mut().filter(|t| swapped.team_model(t.index) != config.team_model(t.index)) {
+    for team in teams.iter_mut() {
         let k = team.index;
+        if learned.iter().any(|m| m == config.team_model(k)) {
+            team.model.set_assignment_warmup(true);
+            team.actor.hold.set_rule(HoldRule::Steps(1));
+            continue;
+        }
+        if swapped.team_model(k) == config.team_model(k) {
+            continue;
+        }
         let mut fresh = Team::build(&swapped, &spec, k).map_err(|e| e.to_string())?;
         let state = nn::StateDict::from_store(&team.store).map_err(|e| e.to_string())?;
         state.load_into(&mut fresh.store).map_err(|e| {
@@ -163,6 +192,7 @@ mod tests {
 
     #[test]
     fn a_model_without_an_assignment_or_with_a_learned_one_is_not_swapped() {
+        // (A learned one takes `greedy` by its warm-up instead, [`reassign`].)
         assert_eq!(with_assignment("transformer_hn", "greedy").unwrap(), None);
         let e = with_assignment("mlp_hn:assignment=learned", "greedy").unwrap_err();
         assert!(

@@ -2,8 +2,9 @@
 //! with another task-assignment rule on its own parameters and normaliser. With its own rule
 //! it plays exactly as without the flag (so the parameters and the normaliser are carried
 //! over whole); another rule plays other episodes; the summary says which rule acted and
-//! goes beside the run's own; the rules that would change more than the links, a learned
-//! assignment and a model without one are refused by name.
+//! goes beside the run's own; the rules that would change more than the links, and a model
+//! without one, are refused by name. A policy that learned its assignment takes Algorithm 1
+//! (`greedy`) only, and then plays as the greedy model with its parameters.
 
 use crate::common;
 
@@ -70,10 +71,19 @@ fn rules_that_change_more_than_the_links_and_models_without_one_are_refused() {
     }
     let learned = tmp.0.join("learned");
     common::train_2_ants("mlp_hn:assignment=learned", &learned);
-    refused(
-        &["eval", "--run", learned.to_str().unwrap(), "--episodes", "2", "--assignment", "greedy"],
-        &["--assignment greedy", "mlp_hn:assignment=learned", "scorer"],
-    );
+    for rule in ["hungarian", "stochastic"] {
+        refused(
+            &["eval", "--run", learned.to_str().unwrap(), "--episodes", "2", "--assignment", rule],
+            &[&format!("--assignment {rule}"), "mlp_hn:assignment=learned", "only greedy"],
+        );
+        assert!(!learned.join(format!("eval_assignment-{rule}.json")).exists());
+    }
+    // Algorithm 1 in place of its scorer's draws plays other episodes than its own draws.
+    let own = eval(&learned, None, &tmp.0.join("learned-own.json"));
+    let greedy = eval(&learned, Some("greedy"), &tmp.0.join("learned-greedy.json"));
+    assert_eq!(greedy["assignment"], "greedy");
+    assert_ne!(own["mean_return"], greedy["mean_return"]);
+    assert!(learned.join("eval_assignment-greedy.json").is_file());
     let flat = tmp.0.join("flat");
     common::train_2_ants("mlp_hn:variant=flat", &flat);
     refused(
@@ -130,4 +140,42 @@ fn a_held_random_assignment_stays_for_its_steps_and_no_team_to_hold_is_refused()
     assert!(e.contains("--assignment-hold 5") && e.contains("mlp_hn") && e.contains("stochastic"), "{e}");
     let e = rl::app::eval_assignment::hold(&mut random, 0).unwrap_err();
     assert!(e.contains("--assignment-hold 0"), "{e}");
+}
+
+/// A policy that learned its assignment, given `greedy`, plays as the greedy model with the
+/// same parameters but its scorer's (Algorithm 1 at every step, as in its warm-up), sampled
+/// and mean actions alike; held for an episode, it acts on Algorithm 1's assignment of the
+/// episode's first step throughout. Its scorer's own draws play otherwise.
+#[test]
+fn a_learned_policy_given_greedy_plays_as_the_greedy_model() {
+    use rl::app::eval_assignment::{hold, reassign};
+    use rl::mappo::evaluate::{EvalOptions, evaluate};
+    let spec = envs::tasks::Scene::from_name("team_reach/2_ants").unwrap().obs_spec;
+    for (learned, greedy) in [("mlp_hn:assignment=learned", "mlp_hn"), ("shnn:assignment=learned", "shnn")] {
+        let lc = common::tiny("team_reach/2_ants", learned, 1, &[]);
+        let gc = common::tiny("team_reach/2_ants", greedy, 1, &[]);
+        let mut l = vec![rl::Team::build(&lc, &spec, 0).unwrap()];
+        let g = vec![rl::Team::build(&gc, &spec, 0).unwrap()];
+        let own = assignments_played(&l[0], 12);
+        reassign(&lc, &mut l, "greedy").unwrap();
+        let per_step = assignments_played(&l[0], 12);
+        assert_eq!(per_step, assignments_played(&g[0], 12), "{learned}: not Algorithm 1's assignments");
+        assert_ne!(own, per_step, "{learned}: its own draws played Algorithm 1's");
+        for deterministic in [false, true] {
+            let options = EvalOptions::new(4, deterministic, 9, lc.start_mode());
+            let (el, eg) = (evaluate(&lc.env, &l, &options).unwrap(), evaluate(&gc.env, &g, &options).unwrap());
+            assert_eq!(el, eg, "{learned}, deterministic {deterministic}: not the greedy model's episodes");
+        }
+        hold(&mut l, 1000).unwrap();
+        let held = assignments_played(&l[0], 12);
+        assert!(held.iter().all(|a| *a == per_step[0]), "{learned}: {held:?} against {:?}", per_step[0]);
+        for rule in ["hungarian", "stochastic"] {
+            let mut again = vec![rl::Team::build(&lc, &spec, 0).unwrap()];
+            let e = reassign(&lc, &mut again, rule).unwrap_err();
+            assert!(
+                e.contains(&format!("--assignment {rule}")) && e.contains(learned) && e.contains("only greedy"),
+                "{e}"
+            );
+        }
+    }
 }
