@@ -5,6 +5,8 @@
 //! own Algorithm 1 on every step, and the most likely one equal to the least-distance
 //! matching; a run without a learned assignment, and bad input (a missing run or program, a
 //! cut checkpoint, no episodes), are refused by name, with no partial table.
+//! `rl/sweeps/assignment_substitution.py` evaluates a learned run with its own draws and with
+//! Algorithm 1 in their place: where the draws are Algorithm 1's, the same episodes.
 
 use crate::common;
 
@@ -165,4 +167,84 @@ fn the_sensitivity_trace_appends_one_row_per_new_checkpoint() {
     let missing = tmp.0.join("no_run");
     let (ok, _, err) = run(&["--bin", meben, "--out", out.to_str().unwrap(), missing.to_str().unwrap()]);
     assert!(!ok && err.contains("no_run: not a run directory"), "{err}");
+}
+
+fn substitution_script() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("sweeps/assignment_substitution.py")
+}
+
+/// Runs `assignment_substitution.py` with `args`.
+fn substitute(args: &[&str]) -> (bool, String, String) {
+    let script = substitution_script();
+    common::outcome(Command::new("python3").arg(script).args(args).output().expect("python3 runs the script"))
+}
+
+/// The numeric cells of the row of `run` (success, interval, return per evaluation).
+fn substitution_row<'a>(stdout: &'a str, run: &str) -> Vec<&'a str> {
+    let name = format!("`{run}`");
+    stdout
+        .lines()
+        .map(|l| l.split('|').map(str::trim).filter(|c| !c.is_empty()).collect::<Vec<_>>())
+        .find(|cells| cells.first() == Some(&name.as_str()))
+        .unwrap_or_else(|| panic!("no row of {run} in:\n{stdout}"))
+}
+
+#[test]
+fn the_substitution_plays_the_same_episodes_where_the_draws_are_algorithm_1s() {
+    let tmp = common::TempDir::new("assignment_substitution");
+    let meben = env!("CARGO_BIN_EXE_meben");
+    // λ = 1000, drawn every step: the draws are Algorithm 1's, so Algorithm 1 in their place
+    // plays the same episodes (the same success and mean return, to the printed digit).
+    let sharp = tmp.0.join("sharp");
+    common::train_2_ants("mlp_hn:assignment=learned;assign_prior=1000", &sharp);
+    // λ = 1, held per episode: other episodes, and the third evaluation (Algorithm 1 held).
+    let held = tmp.0.join("held");
+    let (ok, _, err) = common::meben(&[
+        "train",
+        "--env",
+        "team_reach/2_ants",
+        "--model",
+        "mlp_hn:assignment=learned",
+        "--steps",
+        "2560",
+        "--num-envs",
+        "16",
+        "--seed",
+        "3",
+        "--threads",
+        "1",
+        "--set",
+        "batch_size=8",
+        "--set",
+        "num_evals=0",
+        "--set",
+        "assignment_hold_episode=true",
+        "--quiet",
+        "--out",
+        held.to_str().unwrap(),
+    ]);
+    assert!(ok, "{err}");
+    let runs = [sharp.to_str().unwrap(), held.to_str().unwrap()];
+    let (ok, stdout, stderr) = substitute(&["--bin", meben, "--episodes", "3", runs[0], runs[1]]);
+    assert!(ok, "{stdout}{stderr}");
+    let s = substitution_row(&stdout, runs[0]);
+    assert_eq!(s.len(), 11, "{s:?}");
+    assert_eq!(s[1], "1.00", "P(nearer) of λ = 1000: {s:?}");
+    assert_eq!(s[2..5], s[5..8], "the draws were Algorithm 1's: {s:?}");
+    assert_eq!(s[8..], ["–", "–", "–"], "a run drawn every step has no held evaluation: {s:?}");
+    let h = substitution_row(&stdout, runs[1]);
+    assert_ne!(h[4], h[7], "the scorer's draws played Algorithm 1's episodes: {h:?}");
+    assert!(h[8..].iter().all(|c| *c != "–"), "{h:?}");
+    for rates in [&h[2], &h[5], &h[8]] {
+        let r: f64 = rates.parse().unwrap();
+        assert!((0.0..=100.0).contains(&r), "{h:?}");
+    }
+    // Bad input is refused by name, with no partial table.
+    assert_refused(substitute(&["--bin", meben, "--episodes", "0", runs[0]]), "--episodes 0: at least 1");
+    let greedy = tmp.0.join("greedy");
+    common::train_2_ants("mlp_hn", &greedy);
+    let refused = substitute(&["--bin", meben, runs[0], greedy.to_str().unwrap()]);
+    assert_refused(refused, "/greedy: no team0.assign.* parameters");
+    let missing = tmp.0.join("no_run");
+    assert_refused(substitute(&["--bin", meben, missing.to_str().unwrap()]), "no_run: not a run directory");
 }

@@ -20,14 +20,16 @@
 //!   report (`report.csv`, also at a matched budget: mean, s.e., s.d., IQM, intervals), a
 //!   figure of `results/paper.toml`, a value of a `metrics.csv` column the paragraph
 //!   names in backticks (`entropy_t0`), or a number in a table of the experiment's
-//!   generated `diagnostics.md` (`rl/sweeps/assignment_diagnostics.py`; a `%` cell counts as
-//!   its number). A retyped per-seed figure that no longer matches any of them fails; one
-//!   edited into another value of the same evidence does not.
+//!   generated `diagnostics.md` or `substitution.md` (`rl/sweeps/assignment_diagnostics.py`,
+//!   `assignment_substitution.py`; a `%` cell counts as its number). A retyped per-seed
+//!   figure that no longer matches any of them fails; one edited into another value of the
+//!   same evidence does not.
 //!
-//! A section's experiments are the `results/<experiment>/report.md` and `diagnostics.md`
-//! files it links (a section that links none: those its `## ` part links). A figure
-//! matches when it equals the evidence rounded to the decimals it is written with (either
-//! way at an exact tie, since `{:.2}` and Python's rounding differ there).
+//! A section's experiments are the `results/<experiment>/report.md`, `diagnostics.md` and
+//! `substitution.md` files it links (a section that links none: those its `## ` part
+//! links). A figure matches when it equals the evidence rounded to the decimals it is
+//! written with (either way at an exact tie, since `{:.2}` and Python's rounding differ
+//! there).
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -89,11 +91,16 @@ fn reproduction(doc: &str) -> (HashMap<String, String>, Vec<Table>) {
     (sections, tables)
 }
 
-/// The experiments a section's text links: `results/<experiment>/report.md`.
+/// The generated tables an experiment may hold beside its report, whose numbers the prose
+/// may quote: `rl/sweeps/assignment_diagnostics.py`'s and `assignment_substitution.py`'s.
+const GENERATED_TABLES: [&str; 2] = ["diagnostics.md", "substitution.md"];
+
+/// The experiments a section's text links: `results/<experiment>/report.md` (or one of its
+/// [`GENERATED_TABLES`]).
 fn linked_experiments(text: &str) -> Vec<String> {
     let mut out: Vec<String> = Vec::new();
     for piece in text.split("results/").skip(1) {
-        let named = ["/report.md", "/diagnostics.md"]
+        let named = ["/report.md", "/diagnostics.md", "/substitution.md"]
             .iter()
             .filter_map(|file| piece.split_once(file).map(|(name, _)| name))
             .find(|name| !name.is_empty() && !name.contains(['/', ' ', '(', ')', '`']));
@@ -338,6 +345,7 @@ fn a_figure_matches_only_to_its_decimals() {
         ),
         ["swap", "sumo"]
     );
+    assert_eq!(linked_experiments("[s](../results/critic/substitution.md)"), ["critic"]);
 }
 
 /// Every experiment's generated paper-versus-here table (`results/<experiment>/paper.md`,
@@ -436,8 +444,10 @@ fn evidence(experiments: &[String], named: &[String]) -> Vec<f64> {
                 values.push(r["se_pct"].parse::<f64>().unwrap() * seeds.sqrt());
             }
         }
-        if let Ok(text) = std::fs::read_to_string(dir.join("diagnostics.md")) {
-            values.extend(table_numbers(&text));
+        for generated in GENERATED_TABLES {
+            if let Ok(text) = std::fs::read_to_string(dir.join(generated)) {
+                values.extend(table_numbers(&text));
+            }
         }
         for run in runs_of(std::slice::from_ref(exp)) {
             for row in read_metrics(&run) {
