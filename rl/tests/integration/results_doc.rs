@@ -471,12 +471,17 @@ fn evidence(experiments: &[String], named: &[String]) -> Vec<f64> {
     values
 }
 
-/// Every number in a cell of a Markdown table of `text` (`| 8.57 |`, `| 96.9% |`).
+/// Every number in a cell of a Markdown table of `text` (`| 8.57 |`, `| 96.9% |`), and both
+/// ends of an interval cell (`| [44.03, 50.13] |`).
 fn table_numbers(text: &str) -> Vec<f64> {
+    let number = |c: &str| c.trim().trim_end_matches('%').parse::<f64>().ok();
     text.lines()
         .filter(|l| l.starts_with('|'))
         .flat_map(|l| l.split('|'))
-        .filter_map(|c| c.trim().trim_end_matches('%').parse::<f64>().ok())
+        .flat_map(|c| match c.trim().strip_prefix('[').and_then(|c| c.strip_suffix(']')) {
+            Some(interval) => interval.split(',').map(number).collect::<Option<Vec<f64>>>().unwrap_or_default(),
+            None => number(c).into_iter().collect(),
+        })
         .collect()
 }
 
@@ -484,6 +489,9 @@ fn table_numbers(text: &str) -> Vec<f64> {
 fn a_diagnostics_table_gives_its_cells_numbers() {
     let text = "Scores at 2 m: 1.25.\n\n| run | P | steps | share |\n|---|---:|---:|---:|\n| `a/seed0` | 0.93 | 8008 | 97.8% |\n";
     assert_eq!(table_numbers(text), vec![0.93, 8008.0, 97.8]);
+    let intervals = "| run | own | 95% |\n|---|---:|---:|\n| `a` | 47.07 | [44.03, 50.13] |\n| `b` | 1 | [x, 2] |\n";
+    // (A header that is a number, `95%`, counts too; an interval that is not two numbers does not.)
+    assert_eq!(table_numbers(intervals), vec![95.0, 47.07, 44.03, 50.13, 1.0]);
 }
 
 /// The names in backticks in `text` (`entropy_t0`).
