@@ -214,21 +214,30 @@ def export_policy(meben, run, policy):
     return f"exit status {done.returncode}:\n{done.stderr.strip() or 'no message'}"
 
 
+def eval_policy(meben, run, policy, args, summary):
+    """The summary (JSON) of `meben eval --policy <policy> <args> --out <summary>`; a failure
+    is refused naming `run` (the policy's run) and the flags `args`."""
+    cmd = [meben, "eval", "--policy", policy] + args + ["--out", summary]
+    done = subprocess.run(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    if done.returncode != 0:
+        said = done.stderr.strip() or "no message"
+        refuse(f"{run}: `meben eval {' '.join(args)}` failed with exit status {done.returncode}:\n{said}")
+    try:
+        return json.load(open(summary))
+    except (OSError, ValueError) as err:
+        refuse(f"{run}: the evaluation summary {summary} is not readable JSON ({err!r})")
+
+
 def policy_sensitivity(meben, run, policy, episodes, summary):
     """The success rate and team 0's `assignment_sensitivity` entry of `meben eval --policy
     <policy> --episodes <episodes> --stochastic --assignment-sensitivity` (its summary
     written to the file `summary`); `run` names the policy's run in a refusal."""
-    cmd = [meben, "eval", "--policy", policy, "--episodes", str(episodes), "--stochastic", "--assignment-sensitivity",
-           "--out", summary]
-    done = subprocess.run(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-    if done.returncode != 0:
-        said = done.stderr.strip() or "no message"
-        refuse(f"{run}: `meben eval --assignment-sensitivity` failed with exit status {done.returncode}:\n{said}")
+    args = ["--episodes", str(episodes), "--stochastic", "--assignment-sensitivity"]
+    e = eval_policy(meben, run, policy, args, summary)
     try:
-        e = json.load(open(summary))
         s = next(x for x in e["assignment_sensitivity"] if x["team"] == 0)
         return e["success_rate"], s
-    except (OSError, ValueError, KeyError, StopIteration) as err:
+    except (KeyError, TypeError, StopIteration) as err:
         refuse(f"{run}: the evaluation summary holds no assignment sensitivity of team 0 ({err!r})")
 
 

@@ -24,15 +24,13 @@ on than on the paper's rule.
 """
 
 import argparse
-import json
 import math
 import os
-import subprocess
 import sys
 import tempfile
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from assignment_diagnostics import export_policy, load_scorer, p_nearer, refuse  # noqa: E402
+from assignment_diagnostics import eval_policy, export_policy, load_scorer, p_nearer, refuse  # noqa: E402
 
 # Team Reach's episode in steps: a hold this long draws once an episode.
 EPISODE = 1000
@@ -49,18 +47,13 @@ def wilson(successes, n):
 
 def evaluate(meben, run, policy, episodes, seed, extra, summary):
     """`meben eval --policy <policy> --episodes <episodes> --seed <seed> --stochastic <extra>`;
-    (success rate, episodes, team 0's mean return) of its summary (written to the file `summary`)."""
-    cmd = [meben, "eval", "--policy", policy, "--episodes", str(episodes), "--seed", str(seed), "--stochastic"]
-    cmd += extra + ["--out", summary]
-    done = subprocess.run(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-    if done.returncode != 0:
-        said = done.stderr.strip() or "no message"
-        refuse(f"{run}: `meben eval {' '.join(extra)}` failed with exit status {done.returncode}:\n{said}")
+    (success rate, episodes, team 0's mean return) of its summary (written to `summary`)."""
+    args = ["--episodes", str(episodes), "--seed", str(seed), "--stochastic"] + extra
+    e = eval_policy(meben, run, policy, args, summary)
     try:
-        e = json.load(open(summary))
         return e["success_rate"], e["episodes"], e["mean_return"][0]
-    except (OSError, ValueError, KeyError) as err:
-        refuse(f"{run}: the evaluation summary has no success rate ({err!r})")
+    except (KeyError, TypeError, IndexError) as err:
+        refuse(f"{run}: the evaluation summary has no success rate or mean return ({err!r})")
 
 
 def held_per_episode(run):

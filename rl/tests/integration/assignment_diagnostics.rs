@@ -199,31 +199,7 @@ fn the_substitution_plays_the_same_episodes_where_the_draws_are_algorithm_1s() {
     common::train_2_ants("mlp_hn:assignment=learned;assign_prior=1000", &sharp);
     // λ = 1, held per episode: other episodes, and the third evaluation (Algorithm 1 held).
     let held = tmp.0.join("held");
-    let (ok, _, err) = common::meben(&[
-        "train",
-        "--env",
-        "team_reach/2_ants",
-        "--model",
-        "mlp_hn:assignment=learned",
-        "--steps",
-        "2560",
-        "--num-envs",
-        "16",
-        "--seed",
-        "3",
-        "--threads",
-        "1",
-        "--set",
-        "batch_size=8",
-        "--set",
-        "num_evals=0",
-        "--set",
-        "assignment_hold_episode=true",
-        "--quiet",
-        "--out",
-        held.to_str().unwrap(),
-    ]);
-    assert!(ok, "{err}");
+    common::train_2_ants_with("mlp_hn:assignment=learned", &held, &["assignment_hold_episode=true"]);
     let runs = [sharp.to_str().unwrap(), held.to_str().unwrap()];
     let (ok, stdout, stderr) = substitute(&["--bin", meben, "--episodes", "3", runs[0], runs[1]]);
     assert!(ok, "{stdout}{stderr}");

@@ -80,7 +80,12 @@ pub fn outcome(out: std::process::Output) -> (bool, String, String) {
 /// Trains a short `team_reach/2_ants` run of `model` into `out` with the `meben` program
 /// (2560 env steps in 8 iterations, no evaluation).
 pub fn train_2_ants(model: &str, out: &Path) {
-    let args = [
+    train_2_ants_with(model, out, &[]);
+}
+
+/// [`train_2_ants`] with the training fields `sets` (`key=value`, each given to `--set`).
+pub fn train_2_ants_with(model: &str, out: &Path, sets: &[&str]) {
+    let mut args = vec![
         "train",
         "--env",
         "team_reach/2_ants",
@@ -102,6 +107,9 @@ pub fn train_2_ants(model: &str, out: &Path) {
         "--out",
         out.to_str().unwrap(),
     ];
+    for set in sets {
+        args.extend(["--set", set]);
+    }
     let (ok, _, err) = meben(&args);
-    assert!(ok, "train {model} failed: {err}");
+    assert!(ok, "train {model} {sets:?} failed: {err}");
 }
