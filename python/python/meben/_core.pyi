@@ -96,7 +96,9 @@ class Policy:
         foreign file raises ``ValueError`` naming it. ``assignment`` (``"greedy"``,
         ``"hungarian"`` or ``"stochastic"``) acts and evaluates with that task-assignment
         rule in place of the run's own, on the same parameters (``meben eval
-        --assignment``); one the run's models cannot take raises ``ValueError``.
+        --assignment``; a run that learned its assignment takes ``"greedy"`` only, Algorithm 1
+        in place of its scorer's draws); one the run's models cannot take raises
+        ``ValueError``.
         ``assignment_hold=k`` holds each random assignment for ``k`` steps (``meben eval
         --assignment-hold``)."""
     @staticmethod
