@@ -70,6 +70,7 @@ impl TrainConfig {
             assignment_hold_steps: 1,
             assignment_hold_episode: false,
             assignment_gradient: crate::AssignmentGradient::Sampled,
+            assignment_value_at_draw: false,
             learning_rate: 3e-4,
             lr_decay: false,
             grad_clip: 0.1,

@@ -215,6 +215,14 @@ pub struct TrainConfig {
     /// when set.
     #[serde(default, skip_serializing_if = "is_sampled")]
     pub assignment_gradient: AssignmentGradient,
+    /// The value that reads the held assignment (`assign_critic=held`) reads it at the
+    /// steps that draw too, as the drawn `σ` (`false`, the default: it reads none there,
+    /// `V(s_t)`), so that `V(s_t, σ)` is fitted to the drawn `σ`'s return where the expected
+    /// assignment gradient reads `V(s_t, σ')` (docs/TRAINING.md). Only with
+    /// `assignment_gradient = "expected"`: the sampled gradient's advantage of a draw would
+    /// subtract the drawn `σ`'s own value. Written to `config.toml` only when set.
+    #[serde(default, skip_serializing_if = "is_false")]
+    pub assignment_value_at_draw: bool,
     /// Adam learning rate.
     pub learning_rate: f64,
     /// The learning rate falls linearly to 0 over the run's updates (CleanRL's `anneal_lr`;
@@ -328,6 +336,7 @@ impl TrainConfig {
         table.entry("assignment_hold_steps").or_insert(toml::Value::Integer(self.assignment_hold_steps as i64));
         table.entry("assignment_hold_episode").or_insert(toml::Value::Boolean(self.assignment_hold_episode));
         table.entry("assignment_gradient").or_insert_with(|| toml::Value::String("sampled".into()));
+        table.entry("assignment_value_at_draw").or_insert(toml::Value::Boolean(self.assignment_value_at_draw));
         table.entry("device").or_insert_with(|| toml::Value::String(self.device.name().into()));
         table.entry("act_device").or_insert_with(|| toml::Value::String(self.act_device.name().into()));
         table.entry("gpu_matmul_tile").or_insert_with(|| toml::Value::Integer(self.gpu_matmul_tile as i64));
@@ -473,6 +482,16 @@ impl TrainConfig {
                      (assignment=learned;assign_critic=held)",
                     models()
                 ),
+            ));
+        }
+        if self.assignment_value_at_draw && self.assignment_gradient != AssignmentGradient::Expected {
+            return Err(RlError::config(
+                source,
+                "assignment_value_at_draw",
+                "true",
+                "fits the held critic at the drawing steps for the expected assignment gradient: set \
+                 assignment_gradient = \"expected\" (the sampled gradient's advantage of a draw would subtract its \
+                 own value)",
             ));
         }
         if self.assignment_hold_episode && !learns_an_assignment {

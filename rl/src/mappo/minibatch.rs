@@ -86,13 +86,16 @@ impl Minibatch {
     /// of the unroll's last transition unless that transition ended its episode (the next
     /// step draws: [`crate::mappo::assignment_hold`]); a truncated transition's final
     /// observation holds the transition's. Where every step draws (`assignment_drawn` empty:
-    /// no hold, or a warm-up) nothing is held.
-    pub fn held_assignment(&self) -> HeldAssignment {
+    /// no hold, or a warm-up) nothing is held. With `at_draw`
+    /// ([`crate::TrainConfig::assignment_value_at_draw`]) a transition that drew reads its
+    /// drawn assignment too: every transition of a hold is marked held.
+    pub fn held_assignment(&self, at_draw: bool) -> HeldAssignment {
         let n = self.transitions();
         let boot = self.obs.batch.saturating_sub(n);
         let width = self.assignment.len().checked_div(n).unwrap_or(0);
         let hold = !self.assignment_drawn.is_empty();
-        let transitions = if hold { self.assignment_drawn.iter().map(|&d| !d).collect() } else { vec![false; n] };
+        let transitions =
+            if hold { self.assignment_drawn.iter().map(|&d| at_draw || !d).collect() } else { vec![false; n] };
         let mut bootstrap = vec![0u32; boot * width];
         let mut bootstrap_held = vec![false; boot];
         let of = |i: usize| &self.assignment[i * width..(i + 1) * width];
@@ -163,12 +166,16 @@ mod tests {
     #[test]
     fn the_bootstrap_rows_hold_the_last_assignment_of_an_episode_that_goes_on() {
         let mb = minibatch(vec![true, true, false, false, true, false], vec![false, false, false, true, false, false]);
-        let h = mb.held_assignment();
+        let h = mb.held_assignment(false);
         assert_eq!(h.transitions, [false, false, true, true, false, true]);
+        // Read at the drawing steps too: every transition holds, the bootstrap rows as before.
+        let at_draw = mb.held_assignment(true);
+        assert_eq!(at_draw.transitions, [true; 6]);
+        assert_eq!((&at_draw.bootstrap, &at_draw.bootstrap_held), (&h.bootstrap, &h.bootstrap_held));
         assert_eq!(h.bootstrap, [3, 13, 4, 14, 5, 15, 5, 15]);
         assert_eq!(h.bootstrap_held, [false, true, false, true]);
         // Drawn at every step (no record), nothing is held.
-        let every = minibatch(Vec::new(), vec![false; 6]).held_assignment();
+        let every = minibatch(Vec::new(), vec![false; 6]).held_assignment(true);
         assert_eq!((every.transitions, every.bootstrap_held), (vec![false; 6], vec![false; 4]));
         assert_eq!(every.bootstrap, h.bootstrap);
     }

@@ -68,6 +68,9 @@ pub struct PpoParams {
     /// How the policy gradient reaches a learned assignment's scorer
     /// ([`crate::TrainConfig::assignment_gradient`]).
     pub assignment_gradient: AssignmentGradient,
+    /// Whether a value that reads the held assignment reads the drawn one at the steps that
+    /// draw ([`crate::TrainConfig::assignment_value_at_draw`]).
+    pub assignment_value_at_draw: bool,
     /// Discount.
     pub discount: f64,
     /// GAE lambda.
@@ -84,6 +87,7 @@ impl PpoParams {
             entropy: c.entropy,
             assignment_entropy_scale: c.assignment_entropy_scale,
             assignment_gradient: c.assignment_gradient,
+            assignment_value_at_draw: c.assignment_value_at_draw,
             discount: c.discount,
             gae_lambda: c.gae_lambda,
         }
@@ -175,7 +179,7 @@ pub fn loss<'t>(
     let tape = p.tape();
     let n = mb.transitions();
     // 1. Forward: the transitions on the tape, the bootstrap rows without it.
-    let fwd = forward(model, p, mb)?;
+    let fwd = forward(model, p, mb, hp.assignment_value_at_draw)?;
     // 2. GAE from the values of every row (constants of the loss).
     // (On a device the values come back in one explicit transfer.)
     let values: Vec<f32> = fwd.value.value().to_host()?.data().iter().chain(&fwd.bootstrap).copied().collect();
@@ -319,8 +323,10 @@ struct Forward<'t> {
 }
 
 /// Step 1 (module docs): the transitions on the tape of `p`, with the task assignment they
-/// were acted on when the minibatch carries it; the bootstrap rows in a no-grad pass.
-fn forward<'t>(model: &mut dyn Policy, p: &Bound<'t, f32>, mb: &Minibatch) -> Result<Forward<'t>> {
+/// were acted on when the minibatch carries it; the bootstrap rows in a no-grad pass. A
+/// value that reads the held assignment reads the drawn one at the drawing steps too where
+/// `value_at_draw` ([`Minibatch::held_assignment`]).
+fn forward<'t>(model: &mut dyn Policy, p: &Bound<'t, f32>, mb: &Minibatch, value_at_draw: bool) -> Result<Forward<'t>> {
     let spec = model.spec();
     let (n, rows) = (mb.transitions(), mb.obs.batch);
     if rows <= n || mb.obs.nodes != spec.n_nodes || mb.obs.agents != spec.n_agents {
@@ -334,7 +340,7 @@ fn forward<'t>(model: &mut dyn Policy, p: &Bound<'t, f32>, mb: &Minibatch) -> Re
     let assigned = if mb.assignment.is_empty() { None } else { Some(mb.assignment.as_slice()) };
     // A value that reads the assignment held into each step (`assign_critic=held`) is given
     // it for every row, the bootstrap rows too (their policy then scores it unused).
-    let held = (model.value_reads_held_assignment() && assigned.is_some()).then(|| mb.held_assignment());
+    let held = (model.value_reads_held_assignment() && assigned.is_some()).then(|| mb.held_assignment(value_at_draw));
     let out = match &held {
         Some(h) => model.forward_held(p, &mb.obs_rows(0..n), &mb.assignment, &h.transitions)?,
         None => model.forward(p, &mb.obs_rows(0..n), assigned, true)?,

@@ -5,7 +5,9 @@
 //! (`W_σ` zero, as at the start) the scorer gets no gradient, where the sampled one gets one;
 //! where it does, a step along the gradient raises that expected value as the gradient
 //! predicts; runs resume exactly at any thread count, and the option is refused without a
-//! critic that reads the held assignment.
+//! critic that reads the held assignment. `assignment_value_at_draw` fits that critic at the
+//! drawing steps too, on the drawn assignment: it changes the value's loss only where the
+//! value reads the assignment, and is refused without the expected gradient.
 
 use crate::assignment_hold::trained_on_one_and_two_threads;
 use crate::assignment_hold_episode::{HELD_CRITIC, collect, config, short_episodes};
@@ -176,4 +178,46 @@ fn the_expected_gradient_needs_a_critic_that_reads_the_held_assignment() {
     for model in [HELD_CRITIC, SHNN_HELD_CRITIC, "shnn:assignment=learned;assign_critic=held;critic=shared"] {
         assert!(expected(model, 1).validate("expected.toml").is_ok(), "{model}");
     }
+}
+
+/// The loss statistics of team 0's PPO loss of `config` on `mb` at the trainer's parameters.
+fn loss_stats(t: &mut Trainer, config: &TrainConfig, mb: &Minibatch) -> ppo::LossStats {
+    let team = &mut t.teams[0];
+    let tape = Tape::<f32>::new();
+    let p = team.store.bind(&tape);
+    let mut noise = minibatch_stream(config.seed, "entropy", 0, 0, 0, 0);
+    ppo::loss(team.model.as_mut(), &p, mb, &PpoParams::from_config(config), &mut noise).unwrap().1
+}
+
+#[test]
+fn the_value_at_the_drawing_steps_reads_the_drawn_assignment_where_asked() {
+    let config = expected(HELD_CRITIC, 1);
+    let at_draw = TrainConfig { assignment_value_at_draw: true, ..config.clone() };
+    let mut t = short_episodes(&config);
+    let (_, mb) = collect(&mut t);
+    assert!(mb.assignment_drawn.iter().any(|&d| d), "no drawing step in the minibatch");
+    // W_σ = 0 (the start): reading the drawn σ or none gives the same values, the same loss.
+    assert_eq!(loss_stats(&mut t, &config, &mb), loss_stats(&mut t, &at_draw, &mb));
+    // A W_σ that tells the assignments apart: the drawing steps' values, so the value loss
+    // and the advantages, change.
+    randomise_held_weight(&mut t.teams[0].store, 7);
+    let (off, on) = (loss_stats(&mut t, &config, &mb), loss_stats(&mut t, &at_draw, &mb));
+    assert_ne!(off.value_loss, on.value_loss);
+    // Written to config.toml only when set; a run with it resumes exactly.
+    let tmp = common::TempDir::new("assignment-value-at-draw");
+    let run = RunDir::new(tmp.0.join("run"));
+    let two = TrainConfig { assignment_value_at_draw: true, ..expected(HELD_CRITIC, 2) };
+    train(&two, &run, &TrainOptions { stop_after: Some(1), ..Default::default() }).unwrap();
+    train(&two, &run, &TrainOptions::default()).unwrap();
+    let whole = RunDir::new(tmp.0.join("whole"));
+    train(&two, &whole, &TrainOptions::default()).unwrap();
+    assert_eq!(metrics(&run), metrics(&whole), "resumed");
+    assert!(std::fs::read_to_string(run.config()).unwrap().contains("assignment_value_at_draw = true"));
+    // Refused with the sampled gradient, naming the file, the field and what to set.
+    let sampled = TrainConfig { assignment_gradient: AssignmentGradient::Sampled, ..at_draw };
+    let e = sampled.validate("at_draw.toml").unwrap_err().to_string();
+    assert!(
+        e.contains("at_draw.toml") && e.contains("assignment_value_at_draw") && e.contains("assignment_gradient"),
+        "{e}"
+    );
 }

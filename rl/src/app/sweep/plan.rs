@@ -219,6 +219,13 @@ mod tests {
             assert_eq!(r.config, TrainConfig { assignment_gradient: gradient, ..c.config.clone() }, "{}", r.name);
             assert_eq!(r.name, c.name.replace("+hold_episode/", "+hold_episode_expected/"));
         }
+        // And with the value fitted at the drawing steps: the same runs but for that field.
+        let at_draw = Sweep::load(&dir.join("learned_assignment_value_at_draw.toml")).unwrap().runs().unwrap();
+        assert_eq!(at_draw.len(), 3);
+        for (r, e) in at_draw.iter().zip(&expected) {
+            assert_eq!(r.config, TrainConfig { assignment_value_at_draw: true, ..e.config.clone() }, "{}", r.name);
+            assert_eq!(r.name, e.name.replace("_expected/", "_expected_at_draw/"));
+        }
         // Its follow-up with a warm-up: the same runs but for the warm-up and a longer budget,
         // whose first 16M env steps are greedy MLP+HN's (the seeds of repro_reach_2_ants.toml).
         let warmup = Sweep::load(&dir.join("learned_assignment_warmup.toml")).unwrap().runs().unwrap();
