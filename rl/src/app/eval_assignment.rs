@@ -73,7 +73,6 @@ pub fn reassign(config: &TrainConfig, teams: &mut [Team], rule: &str) -> Result<
     check_rule(rule)?;
     let mut swapped = config.clone();
     let mut any = false;
-    let mut learned = Vec::new();
     let mut fields = vec![(&config.model, &mut swapped.model)];
     if !config.opponent.is_empty() {
         fields.push((&config.opponent, &mut swapped.opponent));
@@ -86,7 +85,6 @@ pub fn reassign(config: &TrainConfig, teams: &mut [Team], rule: &str) -> Result<
                      as in its warm-up) takes the place of its scorer's draws"
                 ));
             }
-            learned.push(own.clone());
             any = true;
         } else if let Some(m) = with_assignment(own, rule)? {
             *new = m;
@@ -99,7 +97,7 @@ pub fn reassign(config: &TrainConfig, teams: &mut [Team], rule: &str) -> Result<
     let spec = envs::tasks::Scene::from_name(&config.env).map_err(|e| e.to_string())?.obs_spec;
     for team in teams.iter_mut() {
         let k = team.index;
-        if learned.iter().any(|m| m == config.team_model(k)) {
+        if learns(config.team_model(k))? {
             team.model.set_assignment_warmup(true);
             team.actor.hold.set_rule(HoldRule::Steps(1));
             continue;
