@@ -200,6 +200,13 @@ struct EvalArgs {
     /// without; the summary gains `assignment_sensitivity`). Models with an assignment only.
     #[arg(long)]
     assignment_sensitivity: bool,
+    /// Also read, at every episode's first step, the value V(s0, σ) and probability π(σ|s0)
+    /// of each assignment a learned scorer draws from, beside the episode's discounted
+    /// return in the value's units (the episodes play as without; the summary gains
+    /// `assignment_values`, per episode). Models with assignment=learned;assign_critic=held,
+    /// with --run (a policy file holds no value network).
+    #[arg(long)]
+    assignment_values: bool,
     /// Evaluate with this task-assignment rule in place of the one the policy was trained
     /// with, on the same parameters: greedy (Algorithm 1), hungarian (least total distance)
     /// or stochastic (a random one-to-one assignment at every step). Models with a greedy,
@@ -543,6 +550,11 @@ fn cmd_eval(a: EvalArgs) -> Result<(), String> {
     if let Some(rule) = &a.assignment {
         check_rule(rule)?;
     }
+    if a.assignment_values && a.policy.is_some() {
+        return Err("--assignment-values reads the value network, which a policy file does not hold \
+                    (export-policy keeps what acting needs): evaluate the run with --run"
+            .into());
+    }
     let in_run = a
         .run
         .as_ref()
@@ -586,7 +598,15 @@ fn cmd_eval(a: EvalArgs) -> Result<(), String> {
         translation: a.translate,
     }
     .options(&config);
-    let options = EvalOptions { assignment_sensitivity: a.assignment_sensitivity, ..options };
+    let units = crate::mappo::assignment_values::ReturnUnits {
+        discount: config.discount,
+        reward_scaling: config.reward_scaling,
+    };
+    let options = EvalOptions {
+        assignment_sensitivity: a.assignment_sensitivity,
+        assignment_values: a.assignment_values.then_some(units),
+        ..options
+    };
     let mut e = evaluate_on_device(&config.env, &mut teams, &options, device)?;
     assignment.record(&mut e);
     if let Some(rule) = &e.assignment {
@@ -611,6 +631,15 @@ fn cmd_eval(a: EvalArgs) -> Result<(), String> {
             s.alternatives,
             crate::mappo::assignment_sensitivity::EARLY_STEPS,
             s.early_mean_kl
+        );
+    }
+    for v in &e.assignment_values {
+        let (value, g, r) = v.acted_value_and_return();
+        outln!(
+            "team {} assignment values at the episodes' first step: V(s0, σ acted) mean {value:.4}, the discounted return's mean {g:.4}, their correlation {r:.3}; the value ranks the acted σ first in {:.1}% of {} episodes",
+            v.team,
+            100.0 * v.acted_ranked_first(),
+            v.episodes.len()
         );
     }
     let text = serde_json::to_string_pretty(&e).map_err(|e| e.to_string())?;

@@ -21,6 +21,7 @@ use serde::{Deserialize, Serialize};
 use crate::error::Result;
 use crate::mappo::actor::{ActMode, Actor, JointAction};
 use crate::mappo::assignment_sensitivity::{AssignmentSensitivity, SensitivityProbe};
+use crate::mappo::assignment_values::{AssignmentValues, ReturnUnits, ValueProbe};
 use crate::mappo::config::TrainConfig;
 use crate::mappo::seeding::stream;
 use crate::mappo::team::Team;
@@ -55,6 +56,11 @@ pub struct EvalSummary {
     /// [`EvalOptions::assignment_sensitivity`] asks (empty otherwise, and then not written).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub assignment_sensitivity: Vec<AssignmentSensitivity>,
+    /// Each learned assignment's values at every episode's first step beside the episode's
+    /// discounted return ([`crate::mappo::assignment_values`]); measured only when
+    /// [`EvalOptions::assignment_values`] asks (empty otherwise, and then not written).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub assignment_values: Vec<AssignmentValues>,
     /// The task-assignment rule the teams acted with in place of their own (`meben eval
     /// --assignment`, [`crate::app::eval_assignment`]); `None`, and not written, for their own.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -85,6 +91,10 @@ pub struct EvalOptions {
     /// Also measure, at every step, how much each team's actions depend on its task
     /// assignment ([`EvalSummary::assignment_sensitivity`]; the episodes play as without).
     pub assignment_sensitivity: bool,
+    /// Also read, at every episode's first step, the value of each assignment a learned
+    /// scorer draws from, and sum each episode's return discounted and scaled by these units
+    /// ([`EvalSummary::assignment_values`]; the episodes play as without).
+    pub assignment_values: Option<ReturnUnits>,
 }
 
 impl EvalOptions {
@@ -98,6 +108,7 @@ impl EvalOptions {
             rotation_deg: 0.0,
             translation: [0.0, 0.0],
             assignment_sensitivity: false,
+            assignment_values: None,
         }
     }
 
@@ -244,6 +255,22 @@ fn play(
             models.join(", ")
         ))));
     }
+    // The teams whose assignments' values are asked for: every one whose value reads its
+    // learned assignment (an error naming the models where none does).
+    let mut values: Vec<Option<ValueProbe>> = Vec::new();
+    if let Some(units) = options.assignment_values {
+        for (k, team) in teams.iter().enumerate() {
+            values.push(ValueProbe::new(k, team.model.as_ref(), units).ok());
+        }
+        if values.iter().all(Option::is_none) {
+            let models: Vec<&str> = teams.iter().map(|t| t.model.name()).collect();
+            return Err(crate::RlError::Model(models::ModelError::Input(format!(
+                "assignment values: no team's model learns its assignment with a value that reads it \
+                 (assignment=learned;assign_critic=held): {}",
+                models.join(", ")
+            ))));
+        }
+    }
     let mut joint = JointAction::new(b, na, nt);
     let mut alive = vec![true; b];
     let mut returns = vec![0.0f64; b * nt];
@@ -274,7 +301,19 @@ fn play(
                 )?;
             }
         }
+        if step == 0 {
+            for (k, probe) in values.iter_mut().enumerate() {
+                if let Some(probe) = probe {
+                    probe.first_step(stores[k], players[k].1.normalised().rows(), &joint.assignment[k])?;
+                }
+            }
+        }
         let out = venv.step(&joint.actions)?;
+        for (k, probe) in values.iter_mut().enumerate() {
+            if let Some(probe) = probe {
+                probe.rewards(|e| out.reward[e * nt + k] as f64, &alive);
+            }
+        }
         for e in 0..b {
             if !alive[e] {
                 continue;
@@ -295,6 +334,7 @@ fn play(
         rotation_deg: options.rotation_deg,
         translation: options.translation,
         assignment_sensitivity: probes.iter().flatten().map(SensitivityProbe::summary).collect(),
+        assignment_values: values.into_iter().flatten().map(ValueProbe::summary).collect(),
         ..summarise(&outcome, &returns, &length, nt)
     }))
 }

@@ -14,7 +14,8 @@
 //!   and entropy, the loss, its statistics);
 //! - [`normalizer`]: observation statistics; [`seeding`]: the random streams;
 //! - [`evaluate`](mod@evaluate): episodes of the trained teams, and
-//!   [`assignment_sensitivity`]: how much their actions depend on their task assignment;
+//!   [`assignment_sensitivity`]: how much their actions depend on their task assignment,
+//!   and [`assignment_values`]: the value of each assignment beside the returns;
 //! - [`checkpoint`] (the exact training state) with its [`checksum`] and its tensors'
 //!   [`tensor_file`] (safetensors), and [`memory`] (whether an iteration's buffers fit);
 //! - [`device`]: where the updates run (`device = "cpu" | "gpu"`) and whether this build and
@@ -26,6 +27,7 @@
 pub mod actor;
 pub mod assignment_hold;
 pub mod assignment_sensitivity;
+pub mod assignment_values;
 pub mod checkpoint;
 pub mod checksum;
 pub mod config;

@@ -224,3 +224,44 @@ fn the_substitution_plays_the_same_episodes_where_the_draws_are_algorithm_1s() {
     let missing = tmp.0.join("no_run");
     assert_refused(substitute(&["--bin", meben, missing.to_str().unwrap()]), "no_run: not a run directory");
 }
+
+/// Runs `assignment_values.py` with `args`.
+fn values_script(args: &[&str]) -> (bool, String, String) {
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("sweeps/assignment_values.py");
+    common::outcome(Command::new("python3").arg(script).args(args).output().expect("python3 runs the script"))
+}
+
+#[test]
+fn the_values_pair_each_episode_with_algorithm_1_held_and_replay_it_where_the_draw_was_its_own() {
+    let tmp = common::TempDir::new("assignment_values_script");
+    let meben = env!("CARGO_BIN_EXE_meben");
+    let held = tmp.0.join("held");
+    let hold = ["assignment_hold_episode=true"];
+    common::train_2_ants_with("mlp_hn:assignment=learned;assign_critic=held", &held, &hold);
+    let run = held.to_str().unwrap();
+    let before: Vec<_> = std::fs::read_dir(&held).unwrap().map(|e| e.unwrap().file_name()).collect();
+    let (ok, stdout, stderr) = values_script(&["--bin", meben, "--episodes", "24", run]);
+    assert!(ok, "{stdout}{stderr}");
+    let after: Vec<_> = std::fs::read_dir(&held).unwrap().map(|e| e.unwrap().file_name()).collect();
+    assert_eq!(before, after, "nothing is written to the run");
+    let s = substitution_row(&stdout, run);
+    assert_eq!(s.len(), 15, "{s:?}");
+    let (other, same): (usize, usize) = (s[1].parse().unwrap(), s[6].parse().unwrap());
+    assert_eq!(other + same, 24, "every episode is one or the other: {s:?}");
+    assert!(other > 0 && same > 0, "both kinds of episode at this seed: {s:?}");
+    // Where the draw was Algorithm 1's, the two evaluations played the same episode.
+    assert_eq!(s[7..9], ["0.00", "±0.00"], "{s:?}");
+    for share in [s[2], s[9]] {
+        let p: f64 = share.trim_end_matches('%').parse().unwrap();
+        assert!((0.0..=100.0).contains(&p), "{s:?}");
+    }
+    // Bad input is refused by name, with no partial table: no episodes; a run that drew at
+    // every step; a value that reads no assignment.
+    assert_refused(values_script(&["--bin", meben, "--episodes", "0", run]), "--episodes 0: at least 1");
+    let every = tmp.0.join("every");
+    common::train_2_ants("mlp_hn:assignment=learned", &every);
+    assert_refused(values_script(&["--bin", meben, every.to_str().unwrap()]), "not held per episode");
+    let plain = tmp.0.join("plain");
+    common::train_2_ants_with("mlp_hn:assignment=learned", &plain, &hold);
+    assert_refused(values_script(&["--bin", meben, "--episodes", "2", plain.to_str().unwrap()]), "assign_critic=held");
+}

@@ -72,7 +72,7 @@ fn expected_value(t: &mut Trainer, mb: &Minibatch) -> f64 {
 
 /// `W_σ` (`team0.critic.held.weight`) set to draws from `[-1, 1)`, so that the value tells
 /// the assignments apart.
-fn randomise_held_weight(store: &mut ParamStore<f32>, seed: u64) {
+pub(crate) fn randomise_held_weight(store: &mut ParamStore<f32>, seed: u64) {
     let id = store.find("team0.critic.held.weight").expect("W_σ");
     let shape = store.get(id).shape().to_vec();
     let mut r = ChaCha8Rng::seed_from_u64(seed);

@@ -6,6 +6,7 @@ mod assignment_gradient;
 mod assignment_hold;
 mod assignment_hold_episode;
 mod assignment_sensitivity;
+mod assignment_values;
 mod assignment_warmup;
 mod checkpoint_format;
 mod checkpoint_trust;

@@ -20,13 +20,14 @@
 //!   report (`report.csv`, also at a matched budget: mean, s.e., s.d., IQM, intervals), a
 //!   figure of `results/paper.toml`, a value of a `metrics.csv` column the paragraph
 //!   names in backticks (`entropy_t0`), or a number in a table of the experiment's
-//!   generated `diagnostics.md` or `substitution.md` (`rl/sweeps/assignment_diagnostics.py`,
-//!   `assignment_substitution.py`; a `%` cell counts as its number). A retyped per-seed
+//!   generated `diagnostics.md`, `substitution.md` or `values.md`
+//!   (`rl/sweeps/assignment_diagnostics.py`, `assignment_substitution.py`,
+//!   `assignment_values.py`; a `%` cell counts as its number). A retyped per-seed
 //!   figure that no longer matches any of them fails; one edited into another value of the
 //!   same evidence does not.
 //!
-//! A section's experiments are the `results/<experiment>/report.md`, `diagnostics.md` and
-//! `substitution.md` files it links (a section that links none: those its `## ` part
+//! A section's experiments are the `results/<experiment>/report.md`, `diagnostics.md`,
+//! `substitution.md` and `values.md` files it links (a section that links none: those its `## ` part
 //! links). A figure matches when it equals the evidence rounded to the decimals it is
 //! written with (either way at an exact tie, since `{:.2}` and Python's rounding differ
 //! there).
@@ -92,15 +93,16 @@ fn reproduction(doc: &str) -> (HashMap<String, String>, Vec<Table>) {
 }
 
 /// The generated tables an experiment may hold beside its report, whose numbers the prose
-/// may quote: `rl/sweeps/assignment_diagnostics.py`'s and `assignment_substitution.py`'s.
-const GENERATED_TABLES: [&str; 2] = ["diagnostics.md", "substitution.md"];
+/// may quote: `rl/sweeps/assignment_diagnostics.py`'s, `assignment_substitution.py`'s and
+/// `assignment_values.py`'s.
+const GENERATED_TABLES: [&str; 3] = ["diagnostics.md", "substitution.md", "values.md"];
 
 /// The experiments a section's text links: `results/<experiment>/report.md` (or one of its
 /// [`GENERATED_TABLES`]).
 fn linked_experiments(text: &str) -> Vec<String> {
     let mut out: Vec<String> = Vec::new();
     for piece in text.split("results/").skip(1) {
-        let named = ["/report.md", "/diagnostics.md", "/substitution.md"]
+        let named = ["/report.md", "/diagnostics.md", "/substitution.md", "/values.md"]
             .iter()
             .filter_map(|file| piece.split_once(file).map(|(name, _)| name))
             .find(|name| !name.is_empty() && !name.contains(['/', ' ', '(', ')', '`']));
@@ -471,10 +473,10 @@ fn evidence(experiments: &[String], named: &[String]) -> Vec<f64> {
     values
 }
 
-/// Every number in a cell of a Markdown table of `text` (`| 8.57 |`, `| 96.9% |`), and both
-/// ends of an interval cell (`| [44.03, 50.13] |`).
+/// Every number in a cell of a Markdown table of `text` (`| 8.57 |`, `| 96.9% |`, a
+/// half-width `| ±1.50 |`), and both ends of an interval cell (`| [44.03, 50.13] |`).
 fn table_numbers(text: &str) -> Vec<f64> {
-    let number = |c: &str| c.trim().trim_end_matches('%').parse::<f64>().ok();
+    let number = |c: &str| c.trim().trim_start_matches('±').trim_end_matches('%').parse::<f64>().ok();
     text.lines()
         .filter(|l| l.starts_with('|'))
         .flat_map(|l| l.split('|'))
@@ -492,6 +494,7 @@ fn a_diagnostics_table_gives_its_cells_numbers() {
     let intervals = "| run | own | 95% |\n|---|---:|---:|\n| `a` | 47.07 | [44.03, 50.13] |\n| `b` | 1 | [x, 2] |\n";
     // (A header that is a number, `95%`, counts too; an interval that is not two numbers does not.)
     assert_eq!(table_numbers(intervals), vec![95.0, 47.07, 44.03, 50.13, 1.0]);
+    assert_eq!(table_numbers("| `a` | -0.37 | ±116.00 | – |\n"), vec![-0.37, 116.0]);
 }
 
 /// The names in backticks in `text` (`entropy_t0`).
