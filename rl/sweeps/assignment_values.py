@@ -21,7 +21,8 @@ units (`rl::mappo::assignment_values`). Paired by episode:
 - where the scorer drew another assignment than Algorithm 1's: how many; the value's mean
   difference `V(s_0, drawn) - V(s_0, Algorithm 1's)` (what the expected gradient follows),
   and the realised mean difference `G(drawn) - G(Algorithm 1's)` with its 95% interval (the
-  normal one of a mean of paired differences);
+  normal one of a mean of paired differences), and the same of the undiscounted return and of
+  success (in points);
 - where it drew Algorithm 1's: how many, and the realised mean difference (a control: the
   two evaluations play the same action noise, so such an episode may replay exactly);
 - over every episode: the share where the value ranks Algorithm 1's assignment first, the
@@ -102,28 +103,36 @@ def correlation(xs, ys):
 
 
 def compare(own, greedy):
-    """The row's figures (module doc) from the two evaluations' `assignment_values`."""
+    """The run's figures (module doc) from the two evaluations' `assignment_values`."""
     if own["support"] != greedy["support"]:
         refuse("the two evaluations' scorers have different supports")
     other, same = [], []
     for o, g in zip(own["episodes"], greedy["episodes"]):
         a1, drawn = g["acted"], o["acted"]
-        realised = o["discounted_return"] - g["discounted_return"]
         if drawn == a1:
-            same.append(realised)
+            same.append(o["discounted_return"] - g["discounted_return"])
         else:
             # The value read in the own evaluation's s_0 (the same state as the other's).
-            other.append((o["value"][drawn] - o["value"][a1], realised))
-    first = sum(1 for g in greedy["episodes"] if max(g["value"]) <= g["value"][g["acted"]])
+            other.append(
+                (
+                    o["value"][drawn] - o["value"][a1],
+                    o["discounted_return"] - g["discounted_return"],
+                    o["return"] - g["return"],
+                    100.0 * (int(o["success"]) - int(g["success"])),
+                )
+            )
     episodes = greedy["episodes"]
+    first = sum(1 for g in episodes if max(g["value"]) <= g["value"][g["acted"]])
     v = [g["value"][g["acted"]] for g in episodes]
     ret = [g["discounted_return"] for g in episodes]
     n = len(episodes)
     return {
         "n": n,
         "other": len(other),
-        "value_gap": sum(d for d, _ in other) / len(other) if other else float("nan"),
-        "realised": mean_and_interval([r for _, r in other]),
+        "value_gap": sum(x[0] for x in other) / len(other) if other else float("nan"),
+        "discounted": mean_and_interval([x[1] for x in other]),
+        "return": mean_and_interval([x[2] for x in other]),
+        "success": mean_and_interval([x[3] for x in other]),
         "same": len(same),
         "control": mean_and_interval(same),
         "value_prefers_a1": first / n,
@@ -135,15 +144,25 @@ def compare(own, greedy):
     }
 
 
-def row(run, f):
-    """One Markdown row of `run`'s figures `f`."""
-    realised, control = f["realised"], f["control"]
-    interval = lambda m: f"{m[0]:.2f} | ±{m[1]:.2f}" if not math.isnan(m[0]) else "– | –"  # noqa: E731
+def interval(m, digits=2):
+    """A mean and its 95% half-width as two cells (dashes where there is none)."""
+    return f"{m[0]:.{digits}f} | ±{m[1]:.{digits}f}" if not math.isnan(m[0]) else "– | –"
+
+
+def paired_row(run, f):
+    """The row of `run`'s paired figures `f` (the first table)."""
     gap = f"{f['value_gap']:.2f}" if not math.isnan(f["value_gap"]) else "–"
     return (
-        f"| `{run}` | {f['other']} | {100 * f['other'] / f['n']:.1f}% | {gap} | {interval(realised)} "
-        f"| {f['same']} | {interval(control)} | {100 * f['value_prefers_a1']:.1f}% | {f['pi_a1']:.2f} "
-        f"| {f['value_a1']:.2f} | {f['return_a1']:.2f} | {f['correlation']:.2f} | {f['unheld']:.2f} |"
+        f"| `{run}` | {f['other']} | {100 * f['other'] / f['n']:.1f}% | {gap} | {interval(f['discounted'])} "
+        f"| {interval(f['return'], 1)} | {interval(f['success'], 1)} | {f['same']} | {interval(f['control'])} |"
+    )
+
+
+def value_row(run, f):
+    """The row of `run`'s figures over every episode `f` (the second table)."""
+    return (
+        f"| `{run}` | {100 * f['value_prefers_a1']:.1f}% | {f['pi_a1']:.2f} | {f['value_a1']:.2f} "
+        f"| {f['return_a1']:.2f} | {f['correlation']:.2f} | {f['unheld']:.2f} |"
     )
 
 
@@ -171,20 +190,28 @@ def main():
             ev = lambda extra: values_of(a.bin, run, copy, a.episodes, a.seed, extra, summary)  # noqa: E731
             own = ev([])
             greedy = ev(["--assignment", "greedy", "--assignment-hold", str(EPISODE)])
-            rows.append(row(run, compare(own, greedy)))
+            rows.append((run, compare(own, greedy)))
             print(f"{run}: done", file=sys.stderr, flush=True)
     print(f"Over {a.episodes} episodes (`meben eval --stochastic --seed {a.seed} --assignment-values`), paired by")
     print("episode: the scorer's own draws against Algorithm 1's assignment of each episode's first step held")
     print(f"(`--assignment greedy --assignment-hold {EPISODE}`). Values and discounted returns `G` are in the")
-    print("value's units (the run's discount and reward scaling); intervals are 95% normal ones of paired means.\n")
+    print("value's units (the run's discount and reward scaling); returns are undiscounted; intervals are 95%")
+    print("normal ones of paired means. Where the scorer drew otherwise than Algorithm 1, and where it drew as it:\n")
     print(
-        "| run | episodes drawn otherwise | share | value: V(drawn) - V(Alg. 1) | realised: G(drawn) - G(Alg. 1) | 95% "
-        "| episodes drawn as Alg. 1 | realised difference there | 95% | the value ranks Alg. 1 first "
-        "| π(Alg. 1) | V(s0, Alg. 1) | G, Alg. 1 held | their correlation | V(s0), no assignment |"
+        "| run | episodes drawn otherwise | share | value: V(drawn) - V(Alg. 1) | G(drawn) - G(Alg. 1) | 95% "
+        "| return(drawn) - return(Alg. 1) | 95% | success(drawn) - success(Alg. 1), points | 95% "
+        "| episodes drawn as Alg. 1 | G difference there | 95% |"
     )
-    print("|---|" + "---:|" * 14)
-    for r in rows:
-        print(r)
+    print("|---|" + "---:|" * 12)
+    for run, f in rows:
+        print(paired_row(run, f))
+    print("\nOver every episode, at its first step: the share where the value ranks Algorithm 1's assignment")
+    print("first, the scorer's mean probability of it, and under Algorithm 1 held the mean value, the mean")
+    print("discounted return, their correlation over episodes, and the mean value read without an assignment.\n")
+    print("| run | the value ranks Alg. 1 first | π(Alg. 1) | V(s0, Alg. 1) | G, Alg. 1 held | their correlation | V(s0), no assignment |")
+    print("|---|" + "---:|" * 6)
+    for run, f in rows:
+        print(value_row(run, f))
 
 
 if __name__ == "__main__":

@@ -14,7 +14,7 @@
 //!   (unless `assignment_value_at_draw`);
 //! - which `σ'` the scene acted on at step 0;
 //!
-//! and, over the episode, its discounted return `G = Σ_t γ^t c r_t` (`γ` the run's discount,
+//! and, over the episode, its return, its success, and its discounted return `G = Σ_t γ^t c r_t` (`γ` the run's discount,
 //! `c` its reward scaling: the units of the value's targets; `γ^1000` is below `1e-13` at the
 //! paper's `γ = 0.97`, so an episode cut at its time limit loses nothing the value would
 //! bootstrap).
@@ -32,6 +32,7 @@
 //! without it.
 
 use envs::layout::{ObsRows, Observation};
+use envs::tasks::Outcome;
 use models::Policy;
 use nn::ParamStore;
 use serde::{Deserialize, Serialize};
@@ -62,6 +63,11 @@ pub struct EpisodeValues {
     pub unheld_value: f64,
     /// `Σ_t γ^t c r_t` over the episode.
     pub discounted_return: f64,
+    /// `Σ_t r_t` over the episode (undiscounted and unscaled, as the summary's mean return).
+    #[serde(rename = "return")]
+    pub episode_return: f64,
+    /// Whether the episode ended in success (Team Reach: every ball covered).
+    pub success: bool,
 }
 
 /// One team's figures over an evaluation.
@@ -175,7 +181,7 @@ impl ValueProbe {
                 value: (0..k).map(|a| at(&values, a)).collect(),
                 probability: (0..k).map(|a| at(&log_prob, a).exp()).collect(),
                 unheld_value: f64::from(unheld[s]),
-                discounted_return: 0.0,
+                ..EpisodeValues::default()
             };
             if let Some(i) = episode.value.iter().chain(&episode.probability).position(|x| !x.is_finite()) {
                 return Err(RlError::NonFinite {
@@ -191,14 +197,19 @@ impl ValueProbe {
     pub fn rewards(&mut self, reward: impl Fn(usize) -> f64, alive: &[bool]) {
         for (e, episode) in self.figures.episodes.iter_mut().enumerate() {
             if alive[e] {
-                episode.discounted_return += self.weight * self.units.reward_scaling * reward(e);
+                let r = reward(e);
+                episode.discounted_return += self.weight * self.units.reward_scaling * r;
+                episode.episode_return += r;
             }
         }
         self.weight *= self.units.discount;
     }
 
-    /// The figures.
-    pub fn summary(self) -> AssignmentValues {
+    /// The figures, each episode's `success` read from `outcome` (one per episode).
+    pub fn summary(mut self, outcome: &[Outcome]) -> AssignmentValues {
+        for (episode, o) in self.figures.episodes.iter_mut().zip(outcome) {
+            episode.success = *o == Outcome::Success;
+        }
         self.figures
     }
 }
@@ -217,8 +228,8 @@ mod tests {
             acted,
             value: value.to_vec(),
             probability: vec![0.5, 0.5],
-            unheld_value: 0.0,
             discounted_return: g,
+            ..Default::default()
         }
     }
 

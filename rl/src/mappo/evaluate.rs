@@ -334,7 +334,7 @@ fn play(
         rotation_deg: options.rotation_deg,
         translation: options.translation,
         assignment_sensitivity: probes.iter().flatten().map(SensitivityProbe::summary).collect(),
-        assignment_values: values.into_iter().flatten().map(ValueProbe::summary).collect(),
+        assignment_values: values.into_iter().flatten().map(|p| p.summary(&outcome)).collect(),
         ..summarise(&outcome, &returns, &length, nt)
     }))
 }

@@ -244,17 +244,22 @@ fn the_values_pair_each_episode_with_algorithm_1_held_and_replay_it_where_the_dr
     assert!(ok, "{stdout}{stderr}");
     let after: Vec<_> = std::fs::read_dir(&held).unwrap().map(|e| e.unwrap().file_name()).collect();
     assert_eq!(before, after, "nothing is written to the run");
+    // The first table (paired by episode), then the second (every episode).
     let s = substitution_row(&stdout, run);
-    assert_eq!(s.len(), 15, "{s:?}");
-    let (other, same): (usize, usize) = (s[1].parse().unwrap(), s[6].parse().unwrap());
+    assert_eq!(s.len(), 13, "{s:?}");
+    let (other, same): (usize, usize) = (s[1].parse().unwrap(), s[10].parse().unwrap());
     assert_eq!(other + same, 24, "every episode is one or the other: {s:?}");
     assert!(other > 0 && same > 0, "both kinds of episode at this seed: {s:?}");
     // Where the draw was Algorithm 1's, the two evaluations played the same episode.
-    assert_eq!(s[7..9], ["0.00", "±0.00"], "{s:?}");
-    for share in [s[2], s[9]] {
-        let p: f64 = share.trim_end_matches('%').parse().unwrap();
-        assert!((0.0..=100.0).contains(&p), "{s:?}");
-    }
+    assert_eq!(s[11..13], ["0.00", "±0.00"], "{s:?}");
+    // Success differences lie in ±100 points.
+    let points: f64 = s[8].parse().unwrap();
+    assert!((-100.0..=100.0).contains(&points), "{s:?}");
+    let second = stdout.split("Over every episode").nth(1).expect("the second table");
+    let v = substitution_row(second, run);
+    assert_eq!(v.len(), 7, "{v:?}");
+    let (first, pi): (f64, f64) = (v[1].trim_end_matches('%').parse().unwrap(), v[2].parse().unwrap());
+    assert!((0.0..=100.0).contains(&first) && (0.0..=1.0).contains(&pi), "{v:?}");
     // Bad input is refused by name, with no partial table: no episodes; a run that drew at
     // every step; a value that reads no assignment.
     assert_refused(values_script(&["--bin", meben, "--episodes", "0", run]), "--episodes 0: at least 1");

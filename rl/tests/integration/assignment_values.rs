@@ -46,6 +46,12 @@ fn every_assignments_value_is_read_at_the_first_step_beside_the_discounted_retur
     // Undiscounted and unscaled, an episode's return is its return: their mean the summary's.
     let mean = v.episodes.iter().map(|e| e.discounted_return).sum::<f64>() / 6.0;
     assert!((mean - summary.mean_return[0]).abs() <= 1e-9 * mean.abs().max(1.0), "{mean} {:?}", summary.mean_return);
+    // Each episode's return and success are the summary's.
+    for e in &v.episodes {
+        assert_eq!(e.episode_return, e.discounted_return, "γ = c = 1");
+    }
+    let successes = v.episodes.iter().filter(|e| e.success).count() as f64;
+    assert_eq!(successes / 6.0, summary.success_rate);
     // Scaled by 2: twice each, exactly; discounted: another figure.
     let scaled = evaluate(&config.env, &teams, &with_values(plain, 1.0, 2.0)).unwrap();
     let discounted = evaluate(&config.env, &teams, &with_values(plain, 0.9, 1.0)).unwrap();
@@ -54,6 +60,11 @@ fn every_assignments_value_is_read_at_the_first_step_beside_the_discounted_retur
     {
         assert_eq!(s.discounted_return, 2.0 * e.discounted_return);
         assert_ne!(d.discounted_return, e.discounted_return);
+        assert_eq!(
+            (d.episode_return, d.success),
+            (e.episode_return, e.success),
+            "the return does not depend on the units"
+        );
         assert_eq!((&d.value, d.unheld_value), (&e.value, e.unheld_value), "the values do not depend on the units");
     }
     // With W_σ = 0 the two assignments' values are one, and the value read without an
