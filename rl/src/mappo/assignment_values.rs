@@ -248,10 +248,10 @@ mod tests {
         };
         // Ranked first: episodes 0 and 2 (a tie counts).
         assert_eq!(figures.acted_ranked_first(), 0.5);
-        // V(acted) = 2, 1, 1, 0 (mean 1); G = 3, 1, 2, 0 (mean 1.5); r = 2.5 / sqrt(2 * 5).
+        // V(acted) = 2, 1, 1, 0 (mean 1); G = 3, 1, 2, 0 (mean 1.5); r = 3 / sqrt(2 * 5).
         let (v, g, r) = figures.acted_value_and_return();
         assert_eq!((v, g), (1.0, 1.5));
-        assert!((r - 2.5 / 10f64.sqrt()).abs() < 1e-15, "{r}");
+        assert!((r - 3.0 / 10f64.sqrt()).abs() < 1e-15, "{r}");
         let flat = AssignmentValues { episodes: vec![episode(0, [1.0, 0.0], 1.0); 3], ..figures };
         assert_eq!(flat.acted_value_and_return().2, 0.0);
     }
