@@ -383,8 +383,9 @@ fn every_generated_paper_table_is_quoted_verbatim() {
 }
 
 /// The figures written with two decimals in `line` (`93.95`), leaving out env steps
-/// (`20.15M`, `81.92k`) and figures with more decimals (`1.759M`, `5.538`).
-fn two_decimal_figures(line: &str) -> Vec<&str> {
+/// (`20.15M`, `81.92k`) and figures with more decimals (`1.759M`, `5.538`); a minus sign
+/// written before one (`−3.19`, `-3.19`, after a space or an opening bracket) is its sign.
+fn two_decimal_figures(line: &str) -> Vec<String> {
     let bytes = line.as_bytes();
     let mut out = Vec::new();
     let mut i = 0;
@@ -405,7 +406,12 @@ fn two_decimal_figures(line: &str) -> Vec<&str> {
             }
             let unit = bytes.get(i).copied();
             if i - point == 3 && !matches!(unit, Some(b'M' | b'k' | b'G')) {
-                out.push(&line[start..i]);
+                let before = &line[..start];
+                let sign = ["−", "-"]
+                    .iter()
+                    .find_map(|m| before.strip_suffix(m))
+                    .is_some_and(|rest| rest.is_empty() || rest.ends_with([' ', '(', '[']));
+                out.push(format!("{}{}", if sign { "-" } else { "" }, &line[start..i]));
             }
         }
     }
@@ -580,7 +586,7 @@ fn the_reproduction_prose_quotes_the_committed_evidence() {
                 }
                 for shown in two_decimal_figures(line) {
                     checked += 1;
-                    if !values.iter().any(|&v| quotes(shown, v)) {
+                    if !values.iter().any(|&v| quotes(&shown, v)) {
                         wrong.push(format!(
                             "RESULTS.md line {n} ({section}): {shown} is no value of the evidence of {experiments:?}"
                         ));
@@ -600,5 +606,7 @@ fn two_decimal_figures_leave_out_env_steps_and_longer_figures() {
         two_decimal_figures("93.95, 7.91% at 20.15M and 81.92k; 1.759M, 5.538 h, 12.5, (99.71)"),
         ["93.95", "7.91", "99.71"]
     );
+    // A minus sign after a space or bracket is the figure's; a hyphen inside a word is not.
+    assert_eq!(two_decimal_figures("(−3.19, -16.78 and x-2.53)"), ["-3.19", "-16.78", "2.53"]);
     assert_eq!(backticked("the `entropy_t0` and `approx_kl_t0` columns"), ["entropy_t0", "approx_kl_t0"]);
 }
