@@ -214,10 +214,11 @@ def export_policy(meben, run, policy):
     return f"exit status {done.returncode}:\n{done.stderr.strip() or 'no message'}"
 
 
-def eval_policy(meben, run, policy, args, summary):
-    """The summary (JSON) of `meben eval --policy <policy> <args> --out <summary>`; a failure
-    is refused naming `run` (the policy's run) and the flags `args`."""
-    cmd = [meben, "eval", "--policy", policy] + args + ["--out", summary]
+def eval_summary(meben, run, source, args, summary):
+    """The summary (JSON) of `meben eval <source> <args> --out <summary>` (`source` the flags
+    naming what is evaluated: `--policy <file>` or `--run <dir>`); a failure is refused naming
+    `run` (the evaluated run) and the flags `args`."""
+    cmd = [meben, "eval"] + source + args + ["--out", summary]
     done = subprocess.run(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     if done.returncode != 0:
         said = done.stderr.strip() or "no message"
@@ -226,6 +227,11 @@ def eval_policy(meben, run, policy, args, summary):
         return json.load(open(summary))
     except (OSError, ValueError) as err:
         refuse(f"{run}: the evaluation summary {summary} is not readable JSON ({err!r})")
+
+
+def eval_policy(meben, run, policy, args, summary):
+    """`eval_summary` of the policy file `policy` (written from `run`)."""
+    return eval_summary(meben, run, ["--policy", policy], args, summary)
 
 
 def policy_sensitivity(meben, run, policy, episodes, summary):

@@ -73,17 +73,24 @@ def cells(rate, n, mean_return):
     return f"{100 * rate:.2f} | [{100 * low:.2f}, {100 * high:.2f}] | {mean_return:.1f}"
 
 
-def main():
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+def evaluation_arguments(description, runs_help):
+    """The command line of a script that evaluates learned runs (`--bin`, `--episodes`,
+    `--seed`, the run directories), checked: `--episodes` at least 1, `--bin` executable."""
+    ap = argparse.ArgumentParser(description=description)
     ap.add_argument("--bin", default="target/release/meben", help="the meben program")
     ap.add_argument("--episodes", type=int, default=1024, help="episodes of each evaluation")
     ap.add_argument("--seed", type=int, default=12345, help="the evaluations' seed (starts and noise)")
-    ap.add_argument("runs", nargs="+", help="run directories of assignment=learned with their checkpoints")
+    ap.add_argument("runs", nargs="+", help=runs_help)
     a = ap.parse_args()
     if a.episodes < 1:
         ap.error(f"--episodes {a.episodes}: at least 1")
     if not (os.path.isfile(a.bin) and os.access(a.bin, os.X_OK)):
         refuse(f"--bin {a.bin}: not an executable file (build it: cargo build --release -p rl)")
+    return a
+
+
+def main():
+    a = evaluation_arguments(__doc__.split("\n\n")[0], "run directories of assignment=learned with their checkpoints")
     # Every run is read before anything is evaluated: bad input stops with its message.
     scorers = [load_scorer(run) for run in a.runs]
     rows = []

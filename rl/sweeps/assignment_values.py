@@ -33,18 +33,15 @@ units (`rl::mappo::assignment_values`). Paired by episode:
     rl/sweeps/assignment_values.py --bin target/release/meben [--episodes 1024] <run dir>...
 """
 
-import argparse
-import json
 import math
 import os
 import shutil
-import subprocess
 import sys
 import tempfile
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from assignment_diagnostics import load_scorer, refuse  # noqa: E402
-from assignment_substitution import EPISODE, held_per_episode  # noqa: E402
+from assignment_diagnostics import eval_summary, load_scorer, refuse  # noqa: E402
+from assignment_substitution import EPISODE, evaluation_arguments, held_per_episode  # noqa: E402
 
 
 def scratch_copy(run, to):
@@ -66,18 +63,13 @@ def values_of(meben, run, copy, episodes, seed, extra, summary):
     """Team 0's `assignment_values` entry of `meben eval --run <copy> --episodes <episodes>
     --seed <seed> --stochastic --assignment-values <extra>` (`copy` a scratch copy of `run`)."""
     args = ["--episodes", str(episodes), "--seed", str(seed), "--stochastic", "--assignment-values"] + extra
-    cmd = [meben, "eval", "--run", copy] + args + ["--out", summary]
-    done = subprocess.run(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-    if done.returncode != 0:
-        said = done.stderr.strip() or "no message"
-        refuse(f"{run}: `meben eval {' '.join(args)}` failed with exit status {done.returncode}:\n{said}")
+    e = eval_summary(meben, run, ["--run", copy], args, summary)
     try:
-        e = json.load(open(summary))
         v = next(x for x in e["assignment_values"] if x["team"] == 0)
         if len(v["episodes"]) != episodes:
             raise ValueError(f"{len(v['episodes'])} episodes, not {episodes}")
         return v
-    except (OSError, KeyError, TypeError, StopIteration, ValueError) as err:
+    except (KeyError, TypeError, StopIteration, ValueError) as err:
         refuse(f"{run}: the evaluation summary holds no assignment values of team 0's {episodes} episodes ({err!r})")
 
 
@@ -167,16 +159,9 @@ def value_row(run, f):
 
 
 def main():
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--bin", default="target/release/meben", help="the meben program")
-    ap.add_argument("--episodes", type=int, default=1024, help="episodes of each evaluation")
-    ap.add_argument("--seed", type=int, default=12345, help="the evaluations' seed (starts and noise)")
-    ap.add_argument("runs", nargs="+", help="run directories of assignment=learned;assign_critic=held, held per episode")
-    a = ap.parse_args()
-    if a.episodes < 1:
-        ap.error(f"--episodes {a.episodes}: at least 1")
-    if not (os.path.isfile(a.bin) and os.access(a.bin, os.X_OK)):
-        refuse(f"--bin {a.bin}: not an executable file (build it: cargo build --release -p rl)")
+    a = evaluation_arguments(
+        __doc__.split("\n\n")[0], "run directories of assignment=learned;assign_critic=held, held per episode"
+    )
     # Every run is read before anything is evaluated: bad input stops with its message.
     for run in a.runs:
         load_scorer(run)
