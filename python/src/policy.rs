@@ -237,10 +237,13 @@ impl PyPolicy {
     /// the fixed start of the run's seed, moved (the paper's equivariance test).
     /// `assignment_sensitivity=True` also measures how much each team's actions depend on
     /// its task assignment (`meben eval --assignment-sensitivity`; the summary's
-    /// `assignment_sensitivity`). The policy's own noise streams (`act`) are untouched. The
+    /// `assignment_sensitivity`). `assignment_values=True` also reads, at each episode's first
+    /// step, the value of every assignment of a learned one beside the episode's returns
+    /// (`meben eval --assignment-values`; the summary's `assignment_values`; a run directory
+    /// only: a policy file holds no value network). The policy's own noise streams (`act`) are untouched. The
     /// GIL is released while playing; a `KeyboardInterrupt` abandons the evaluation and is
     /// raised.
-    #[pyo3(signature = (episodes=1024, seed=rl::mappo::evaluate::DEFAULT_EVAL_SEED as i128, deterministic=None, fixed=false, rotation_deg=None, translation=None, assignment_sensitivity=false))]
+    #[pyo3(signature = (episodes=1024, seed=rl::mappo::evaluate::DEFAULT_EVAL_SEED as i128, deterministic=None, fixed=false, rotation_deg=None, translation=None, assignment_sensitivity=false, assignment_values=false))]
     #[allow(clippy::too_many_arguments)]
     fn evaluate<'py>(
         &self,
@@ -252,8 +255,16 @@ impl PyPolicy {
         rotation_deg: Option<f64>,
         translation: Option<(f64, f64)>,
         assignment_sensitivity: bool,
+        assignment_values: bool,
     ) -> PyResult<Bound<'py, PyAny>> {
         let seed = crate::seed::seed("seed", seed, u64::MAX)?;
+        if assignment_values && self.run.is_file() {
+            return Err(pyo3::exceptions::PyValueError::new_err(format!(
+                "Policy.evaluate: assignment_values=True reads the value network, which the policy file {} does not \
+                 hold (export-policy keeps what acting needs): load the run directory",
+                self.run.display()
+            )));
+        }
         let request = EvalRequest {
             episodes,
             seed,
@@ -262,7 +273,15 @@ impl PyPolicy {
             rotation_deg,
             translation: translation.map(|(x, y)| [x, y]),
         };
-        let options = rl::mappo::evaluate::EvalOptions { assignment_sensitivity, ..request.options(&self.config) };
+        let units = rl::mappo::assignment_values::ReturnUnits {
+            discount: self.config.discount,
+            reward_scaling: self.config.reward_scaling,
+        };
+        let options = rl::mappo::evaluate::EvalOptions {
+            assignment_sensitivity,
+            assignment_values: assignment_values.then_some(units),
+            ..request.options(&self.config)
+        };
         let (env, teams) = (&self.config.env, &self.teams);
         let stop = StopFlag::new();
         let stopping = "Policy.evaluate: interrupted: abandoning the evaluation";

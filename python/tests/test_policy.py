@@ -194,6 +194,21 @@ def test_the_expected_assignment_gradient_trains_from_python_and_its_policy_acts
     rust = rust_evaluation(meben_cli, out, episodes, seed, False)
     python = python_evaluation(meben.Policy.load(out, seed=seed), episodes, seed, False)
     assert python == {k: rust[k] for k in python}, (python, rust)
+    # The values of both assignments at each episode's start, as `meben eval --assignment-values`.
+    summary = tmp_path / "values.json"
+    flags = ["--episodes", "2", "--seed", "4", "--stochastic", "--assignment-values", "--out", str(summary)]
+    subprocess.run([meben_cli, "eval", "--run", str(out), *flags], check=True, capture_output=True)
+    values = meben.Policy.load(out).evaluate(episodes=2, seed=4, deterministic=False, assignment_values=True)
+    assert values == json.loads(summary.read_text())
+    (v,) = values["assignment_values"]
+    assert len(v["support"]) == 2 and len(v["episodes"]) == 2
+    assert all(abs(sum(e["probability"]) - 1.0) < 1e-5 for e in v["episodes"])
+    # A policy file holds no value network: refused, naming the file.
+    policy_file = tmp_path / "policy.safetensors"
+    subprocess.run([meben_cli, "export-policy", "--run", str(out), "--out", str(policy_file)], check=True,
+                   capture_output=True)
+    with pytest.raises(ValueError, match=r"assignment_values=True reads the value network.*policy.safetensors"):
+        meben.Policy.load(policy_file).evaluate(episodes=2, assignment_values=True)
 
 
 def test_the_run_names_the_build_that_trained_it(run, meben_cli):

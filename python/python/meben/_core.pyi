@@ -127,6 +127,7 @@ class Policy:
         rotation_deg: Optional[float] = None,
         translation: Optional[Tuple[float, float]] = None,
         assignment_sensitivity: bool = False,
+        assignment_values: bool = False,
     ) -> EvalSummary: ...
     @property
     def run(self) -> pathlib.Path:
