@@ -273,13 +273,9 @@ impl PyPolicy {
             rotation_deg,
             translation: translation.map(|(x, y)| [x, y]),
         };
-        let units = rl::mappo::assignment_values::ReturnUnits {
-            discount: self.config.discount,
-            reward_scaling: self.config.reward_scaling,
-        };
         let options = rl::mappo::evaluate::EvalOptions {
             assignment_sensitivity,
-            assignment_values: assignment_values.then_some(units),
+            assignment_values: assignment_values.then(|| rl::mappo::assignment_values::ReturnUnits::of(&self.config)),
             ..request.options(&self.config)
         };
         let (env, teams) = (&self.config.env, &self.teams);

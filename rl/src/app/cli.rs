@@ -598,13 +598,9 @@ fn cmd_eval(a: EvalArgs) -> Result<(), String> {
         translation: a.translate,
     }
     .options(&config);
-    let units = crate::mappo::assignment_values::ReturnUnits {
-        discount: config.discount,
-        reward_scaling: config.reward_scaling,
-    };
     let options = EvalOptions {
         assignment_sensitivity: a.assignment_sensitivity,
-        assignment_values: a.assignment_values.then_some(units),
+        assignment_values: a.assignment_values.then(|| crate::mappo::assignment_values::ReturnUnits::of(&config)),
         ..options
     };
     let mut e = evaluate_on_device(&config.env, &mut teams, &options, device)?;

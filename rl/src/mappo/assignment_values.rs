@@ -24,7 +24,7 @@
 //! greedy --assignment-hold 1000`) pair episode by episode: where the draw was not Algorithm
 //! 1's, the difference of the two returns is what the draw brought from that state, beside
 //! the value's difference of the same two assignments there
-//! (`rl/sweeps/assignment_substitution.py --values`).
+//! (`rl/sweeps/assignment_values.py`).
 //!
 //! The probe reads the scorer and the value of a copy of the team's model with its warm-up
 //! off (so that a policy acting with Algorithm 1 in place of its draws is read as trained),
@@ -39,15 +39,24 @@ use serde::{Deserialize, Serialize};
 use tensor::Tape;
 
 use crate::error::{Result, RlError};
+use crate::mappo::config::TrainConfig;
 
 /// The units of the values' targets: what an episode's rewards are discounted and scaled
 /// by to be compared with them.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct ReturnUnits {
     /// The discount `γ`.
     pub discount: f64,
     /// The reward scaling `c`.
     pub reward_scaling: f64,
+}
+
+impl ReturnUnits {
+    /// The units of the values of a run trained with `config`: its discount and reward
+    /// scaling.
+    pub fn of(config: &TrainConfig) -> Self {
+        Self { discount: config.discount, reward_scaling: config.reward_scaling }
+    }
 }
 
 /// One episode's figures (module docs).
@@ -78,7 +87,7 @@ pub struct AssignmentValues {
     /// Every assignment `σ'` the scorer draws from (its support), each `[objects]`.
     pub support: Vec<Vec<u32>>,
     /// The units of [`EpisodeValues::discounted_return`].
-    pub units: Option<ReturnUnits>,
+    pub units: ReturnUnits,
     /// Per episode, in the evaluation's order.
     pub episodes: Vec<EpisodeValues>,
 }
@@ -103,13 +112,19 @@ impl AssignmentValues {
         let r = if sv > 0.0 && sg > 0.0 { cov / (sv * sg).sqrt() } else { 0.0 };
         (mv, mg, r)
     }
+
+    /// Marks each episode's `success` from its `outcome` (one per episode, in order).
+    pub fn record_outcomes(&mut self, outcome: &[Outcome]) {
+        for (episode, o) in self.episodes.iter_mut().zip(outcome) {
+            episode.success = *o == Outcome::Success;
+        }
+    }
 }
 
 /// Reads one team's values at its episodes' first step and sums their discounted returns.
 #[derive(Debug)]
 pub struct ValueProbe {
     model: Box<dyn Policy>,
-    units: ReturnUnits,
     figures: AssignmentValues,
     /// `γ^t` of the next step's rewards.
     weight: f64,
@@ -129,8 +144,8 @@ impl ValueProbe {
                 model.name()
             )));
         }
-        let figures = AssignmentValues { team, support, units: Some(units), episodes: Vec::new() };
-        Ok(Self { model, units, figures, weight: 1.0 })
+        let figures = AssignmentValues { team, support, units, episodes: Vec::new() };
+        Ok(Self { model, figures, weight: 1.0 })
     }
 
     /// Reads step 0 of every scene: `obs` the team's normalised observation rows of the `B`
@@ -195,21 +210,20 @@ impl ValueProbe {
 
     /// Adds one control step's rewards (`reward[e]` the team's, counted where `alive[e]`).
     pub fn rewards(&mut self, reward: impl Fn(usize) -> f64, alive: &[bool]) {
+        let units = self.figures.units;
         for (e, episode) in self.figures.episodes.iter_mut().enumerate() {
             if alive[e] {
                 let r = reward(e);
-                episode.discounted_return += self.weight * self.units.reward_scaling * r;
+                episode.discounted_return += self.weight * units.reward_scaling * r;
                 episode.episode_return += r;
             }
         }
-        self.weight *= self.units.discount;
+        self.weight *= units.discount;
     }
 
     /// The figures, each episode's `success` read from `outcome` (one per episode).
     pub fn summary(mut self, outcome: &[Outcome]) -> AssignmentValues {
-        for (episode, o) in self.figures.episodes.iter_mut().zip(outcome) {
-            episode.success = *o == Outcome::Success;
-        }
+        self.figures.record_outcomes(outcome);
         self.figures
     }
 }
@@ -238,7 +252,7 @@ mod tests {
         let figures = AssignmentValues {
             team: 0,
             support: vec![vec![0, 1], vec![1, 0]],
-            units: None,
+            units: ReturnUnits::default(),
             episodes: vec![
                 episode(0, [2.0, 1.0], 3.0),
                 episode(1, [2.0, 1.0], 1.0),
@@ -254,5 +268,13 @@ mod tests {
         assert!((r - 3.0 / 10f64.sqrt()).abs() < 1e-15, "{r}");
         let flat = AssignmentValues { episodes: vec![episode(0, [1.0, 0.0], 1.0); 3], ..figures };
         assert_eq!(flat.acted_value_and_return().2, 0.0);
+    }
+
+    #[test]
+    fn only_a_success_marks_an_episode_successful() {
+        let mut figures = AssignmentValues { episodes: vec![episode(0, [0.0, 0.0], 0.0); 4], ..Default::default() };
+        figures.record_outcomes(&[Outcome::TimeLimit, Outcome::Success, Outcome::Win(0), Outcome::Success]);
+        let marked: Vec<bool> = figures.episodes.iter().map(|e| e.success).collect();
+        assert_eq!(marked, [false, true, false, true]);
     }
 }

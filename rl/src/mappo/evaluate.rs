@@ -256,20 +256,16 @@ fn play(
         ))));
     }
     // The teams whose assignments' values are asked for: every one whose value reads its
-    // learned assignment (an error naming the models where none does).
+    // learned assignment (the first team's refusal where none does).
     let mut values: Vec<Option<ValueProbe>> = Vec::new();
     if let Some(units) = options.assignment_values {
-        for (k, team) in teams.iter().enumerate() {
-            values.push(ValueProbe::new(k, team.model.as_ref(), units).ok());
+        let probes: Vec<Result<ValueProbe>> =
+            teams.iter().enumerate().map(|(k, t)| ValueProbe::new(k, t.model.as_ref(), units)).collect();
+        if probes.iter().all(|p| p.is_err()) {
+            let no_team = || crate::RlError::Model(models::ModelError::Input("assignment values: no team".into()));
+            return Err(probes.into_iter().find_map(Result::err).unwrap_or_else(no_team));
         }
-        if values.iter().all(Option::is_none) {
-            let models: Vec<&str> = teams.iter().map(|t| t.model.name()).collect();
-            return Err(crate::RlError::Model(models::ModelError::Input(format!(
-                "assignment values: no team's model learns its assignment with a value that reads it \
-                 (assignment=learned;assign_critic=held): {}",
-                models.join(", ")
-            ))));
-        }
+        values = probes.into_iter().map(Result::ok).collect();
     }
     let mut joint = JointAction::new(b, na, nt);
     let mut alive = vec![true; b];
