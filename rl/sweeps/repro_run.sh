@@ -18,6 +18,7 @@
 #   nice -n 19 rl/sweeps/repro_run.sh O &                                            # issue 79, a value reading it
 #   nice -n 19 rl/sweeps/repro_run.sh P &                                            # issue 79, the expected gradient
 #   nice -n 19 rl/sweeps/repro_run.sh Q &                                            # issue 79, its value fitted at the draw
+#   nice -n 19 rl/sweeps/repro_run.sh R &                                            # issue 79, a draw credited per episode
 #   rl/sweeps/repro_run.sh export                             # evidence -> results/, reports
 #   rl/sweeps/repro_run.sh restore                            # finished runs <- results/ (A and B do it first)
 #   rl/sweeps/repro_run.sh status                             # every run's progress and hours left
@@ -39,13 +40,14 @@ BIN=${BIN:-$ROOT/target/release/meben}
 OUT=${OUT:-/tmp/runs/repro}
 THREADS=${THREADS:-1}
 SWEEPS=$ROOT/rl/sweeps
-EXPERIMENTS="reach_1_ant reach_2_ants equivariance sumo reach_2_ants_no_assignment reach_2_ants_per_slot_starts transformer_1_ant centipede reach_2_ants_50m reach_1_ant_50m equivariance_2_ants learned_assignment learned_assignment_prior learned_assignment_sumo learned_assignment_entropy learned_assignment_warmup learned_assignment_hold learned_assignment_episode learned_assignment_critic learned_assignment_expected learned_assignment_value_at_draw"
+EXPERIMENTS="reach_1_ant reach_2_ants equivariance sumo reach_2_ants_no_assignment reach_2_ants_per_slot_starts transformer_1_ant centipede reach_2_ants_50m reach_1_ant_50m equivariance_2_ants learned_assignment learned_assignment_prior learned_assignment_sumo learned_assignment_entropy learned_assignment_warmup learned_assignment_hold learned_assignment_episode learned_assignment_critic learned_assignment_expected learned_assignment_value_at_draw learned_assignment_episode_credit"
 
 # The sweep file of an experiment: rl/sweeps/repro_<exp>.toml, or rl/sweeps/<exp>.toml for
 # the experiments that are not reproductions (issue 79's learned_assignment,
 # learned_assignment_prior, learned_assignment_sumo, learned_assignment_entropy,
 # learned_assignment_warmup, learned_assignment_hold, learned_assignment_episode,
-# learned_assignment_critic, learned_assignment_expected and learned_assignment_value_at_draw).
+# learned_assignment_critic, learned_assignment_expected, learned_assignment_value_at_draw and
+# learned_assignment_episode_credit).
 sweep_file() {
   if [ -f "$SWEEPS/repro_$1.toml" ]; then echo "$SWEEPS/repro_$1.toml"; else echo "$SWEEPS/$1.toml"; fi
 }
@@ -245,7 +247,21 @@ list_q() {
   done
 }
 
+# Issue 79's ninth follow-up: the runs held per episode with each draw credited with its
+# episode's return (assignment_gradient = "episode", a value binaries before it refuse), 3
+# seeds at 10M (about 1 machine-hour a seed at one thread beside other runs). Two workers
+# share the seeds (a run the other is training is refused by its lock).
+list_r() {
+  for seed in 0 1 2; do
+    run learned_assignment_episode_credit "/seed$seed"
+  done
+}
+
 case "${1:-}" in
+  R)
+    restore_finished
+    list_r
+    ;;
   Q)
     restore_finished
     list_q
@@ -340,7 +356,7 @@ case "${1:-}" in
     du -sh "$ROOT/results"
     ;;
   *)
-    echo "usage: $0 A | B | C | D | E | F | G | H | I | J | K | L | M | N | O | P | Q | export | restore | status" >&2
+    echo "usage: $0 A | B | C | D | E | F | G | H | I | J | K | L | M | N | O | P | Q | R | export | restore | status" >&2
     exit 2
     ;;
 esac

@@ -278,7 +278,7 @@ mod tests {
         // variant, expected string only").
         for (field, value, choices) in [
             ("entropy", "5", "`tanh_normal` or `normal`"),
-            ("assignment_gradient", "true", "`sampled` or `expected`"),
+            ("assignment_gradient", "true", "one of `sampled`, `expected`, `episode`"),
             ("train_starts", "[1]", "`fresh` or `per_slot`"),
         ] {
             let ov = vec![(field.to_string(), value.to_string())];

@@ -49,6 +49,7 @@ use crate::error::{Result, RlError};
 use crate::mappo::assignment_hold::SavedHold;
 use crate::mappo::checksum::sha256_hex;
 use crate::mappo::config::TrainConfig;
+use crate::mappo::episode_credit::SavedDraws;
 use crate::mappo::evaluate::EvalSummary;
 use crate::mappo::normalizer::ObsNormalizer;
 use crate::mappo::seeding::RngState;
@@ -143,6 +144,10 @@ pub struct TeamState {
     /// (absent otherwise, and from checkpoints written before it existed).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub assignment_hold: Option<SavedHold>,
+    /// `assignment_gradient = "episode"`: the running episodes' draws, credited when their
+    /// episodes end (absent otherwise, and from checkpoints written before it existed).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub episode_draws: Option<SavedDraws>,
 }
 
 /// Why [`Checkpoint::from_bytes`] failed.
@@ -193,6 +198,26 @@ struct StoredTeam {
     shuffle: RngState,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     assignment_hold: Option<SavedHold>,
+    /// The running episodes' draws but for their observations (in the tensors file,
+    /// [`draw_tensor_name`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    episode_draws: Option<StoredDraws>,
+}
+
+/// [`SavedDraws`] without its observations.
+#[derive(Serialize, Deserialize)]
+struct StoredDraws {
+    sigma: Vec<u32>,
+    recorded: Vec<bool>,
+}
+
+/// The parts of the observations of [`SavedDraws`], each a tensor of the tensors file.
+const DRAW_PARTS: [&str; 3] = ["vectors", "scalars", "heading"];
+
+/// The tensors-file name of part `part` of team `k`'s running episodes' draws (outside the
+/// parameters' `team<k>.` names).
+fn draw_tensor_name(k: usize, part: &str) -> String {
+    format!("episode_draws.team{k}.{part}")
 }
 
 /// Adam without its moments.
@@ -323,6 +348,11 @@ impl Checkpoint {
                 entries.push(Entry::exact(mn, &[m.len()], m));
                 entries.push(Entry::exact(vn, &[v.len()], v));
             }
+            if let Some(d) = &t.episode_draws {
+                for (part, values) in DRAW_PARTS.iter().zip([&d.vectors, &d.scalars, &d.heading]) {
+                    entries.push(Entry::f32(draw_tensor_name(k, part), &[values.len()], values.iter().copied()));
+                }
+            }
             teams.push(StoredTeam {
                 params: t.params.tensors.iter().map(|p| p.name.clone()).collect(),
                 adam: StoredAdam { config: t.adam.config, t: t.adam.t },
@@ -330,6 +360,10 @@ impl Checkpoint {
                 noise: t.noise.clone(),
                 shuffle: t.shuffle.clone(),
                 assignment_hold: t.assignment_hold.clone(),
+                episode_draws: t
+                    .episode_draws
+                    .as_ref()
+                    .map(|d| StoredDraws { sigma: d.sigma.clone(), recorded: d.recorded.clone() }),
             });
         }
         let meta = BTreeMap::from([("format".to_string(), format!("meben checkpoint tensors, version {VERSION}"))]);
@@ -500,12 +534,24 @@ impl Checkpoint {
             )));
         }
         let (file, _) = tensor_file::read(&bytes).map_err(bad)?;
-        let expected: usize = s.teams.iter().map(|t| 3 * t.params.len()).sum();
+        let expected: usize =
+            s.teams.iter().map(|t| 3 * t.params.len() + if t.episode_draws.is_some() { 3 } else { 0 }).sum();
         if file.len() != expected {
             return Err(bad(format!("{} tensors, the checkpoint names {expected}", file.len())));
         }
         let mut teams = Vec::with_capacity(s.teams.len());
-        for t in s.teams {
+        for (k, t) in s.teams.into_iter().enumerate() {
+            let episode_draws = match t.episode_draws {
+                None => None,
+                Some(d) => {
+                    let mut parts = Vec::with_capacity(3);
+                    for part in DRAW_PARTS {
+                        parts.push(tensor_file::f32_values(&file, &draw_tensor_name(k, part)).map_err(bad)?.1);
+                    }
+                    let [vectors, scalars, heading]: [Vec<f32>; 3] = parts.try_into().expect("three parts");
+                    Some(SavedDraws { vectors, scalars, heading, sigma: d.sigma, recorded: d.recorded })
+                }
+            };
             let mut params = Vec::with_capacity(t.params.len());
             let (mut m, mut v) = (Vec::with_capacity(t.params.len()), Vec::with_capacity(t.params.len()));
             for name in t.params {
@@ -529,6 +575,7 @@ impl Checkpoint {
                 noise: t.noise,
                 shuffle: t.shuffle,
                 assignment_hold: t.assignment_hold,
+                episode_draws,
             });
         }
         Ok(Checkpoint {

@@ -79,6 +79,13 @@ pub enum AssignmentGradient {
     /// the held assignment (`assign_critic=held`); the drawn `σ`'s factor stays in the
     /// ratio without a gradient. No sampling noise in `σ`.
     Expected,
+    /// A draw held for an episode is credited with the episode's undiscounted return: when
+    /// the episode ends (iterations after its draw), `ln π(σ | s_0)` of its draw joins a
+    /// clipped surrogate of its own, its advantage the return's standard score among the
+    /// episodes that ended in the same iteration ([`crate::mappo::episode_credit`]); the
+    /// drawn `σ`'s factor stays in the per-step ratio without a gradient. Only with
+    /// `assignment_hold_episode = true`.
+    Episode,
 }
 
 /// Where the observation normaliser's statistics start (module [`crate::mappo::normalizer`]).
@@ -211,8 +218,9 @@ pub struct TrainConfig {
     /// default, issue 79's formulation: the drawn assignment's log-probability in the PPO
     /// ratio) or `expected` (the exact expectation over every assignment at each step that
     /// draws, valued by a critic that reads the held assignment: docs/TRAINING.md). Only with
-    /// a model of `assignment=learned;assign_critic=held`; written to `config.toml` only
-    /// when set.
+    /// a model of `assignment=learned;assign_critic=held`; or `episode` (each draw held for
+    /// an episode credited with that episode's undiscounted return: docs/TRAINING.md; only
+    /// with `assignment_hold_episode = true`). Written to `config.toml` only when set.
     #[serde(default, skip_serializing_if = "is_sampled")]
     pub assignment_gradient: AssignmentGradient,
     /// The value that reads the held assignment (`assign_critic=held`) reads it at the
@@ -581,6 +589,23 @@ impl TrainConfig {
                 &self.assignment_hold_steps,
                 "must be 1 with assignment_hold_episode = true (a draw is held for its episode)",
             );
+        }
+        if self.assignment_gradient == AssignmentGradient::Episode {
+            if !self.assignment_hold_episode {
+                return err(
+                    "assignment_gradient",
+                    &"episode",
+                    "credits a draw held for an episode with its return: set assignment_hold_episode = true",
+                );
+            }
+            if self.assignment_warmup_steps != 0 {
+                return err(
+                    "assignment_warmup_steps",
+                    &self.assignment_warmup_steps,
+                    "must be 0 with assignment_gradient = \"episode\" (a warm-up's draws are Algorithm 1's, \
+                     not the scorer's, and an episode may span its end)",
+                );
+            }
         }
         // TOML integers are signed 64-bit: a larger value is written to config.toml but
         // cannot be read back, and the run could then neither resume nor be evaluated.

@@ -6,7 +6,8 @@
 //!   collect, normalise, update);
 //! - [`actor`]: a team's act step (normalise, policy, sample, log-probability), used by
 //!   collection, evaluation, rendering and the Python policy, and [`assignment_hold`]: a
-//!   task assignment drawn every `k` steps;
+//!   task assignment drawn every `k` steps, and [`episode_credit`]: a draw held for an
+//!   episode credited with its return;
 //! - [`team`]: one team's learner (model, parameters, Adam, normaliser, actor);
 //! - [`rollout`]: an iteration's data, written once per step, from which the update gathers
 //!   its [`minibatch`]es;
@@ -33,6 +34,7 @@ pub mod checksum;
 pub mod config;
 pub mod config_match;
 pub mod device;
+pub mod episode_credit;
 pub mod evaluate;
 pub mod gae;
 pub mod memory;

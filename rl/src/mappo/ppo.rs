@@ -35,7 +35,9 @@
 //!    and the surrogate gains the exact expectation over every assignment `σ'` at the steps
 //!    that draw, `(1 / T M) Σ_draws Σ_σ' π(σ' | s) (V(s, σ') - b(s))`, `V(s, σ')` the value of
 //!    a critic that reads the held assignment and `b(s) = Σ_σ' π(σ' | s) V(s, σ')` (constants:
-//!    [`expected_assignment_term`]);
+//!    [`expected_assignment_term`]); with `assignment_gradient = episode` the drawn `σ`'s
+//!    factor stays in `rho` as a constant, and the trainer adds the draws' own surrogate,
+//!    credited with their episodes' returns ([`episode_assignment_term`]);
 //! 5. **statistics** ([`LossStats`]), in f64 from the same tensors.
 
 use envs::layout::ObsSpec;
@@ -47,6 +49,7 @@ use tensor::{Tensor, Var};
 
 use crate::error::Result;
 use crate::mappo::config::{AssignmentGradient, EntropyKind};
+use crate::mappo::episode_credit::EpisodeBatch;
 use crate::mappo::gae::gae;
 use crate::mappo::minibatch::Minibatch;
 use crate::mappo::seeding::standard_normal;
@@ -208,6 +211,9 @@ pub fn loss<'t>(
                 expected = Some(expected_assignment_term(model, p, mb)?);
                 logp.add(a.log_prob.detach())?
             }
+            // The draw's credit is its episode's return, a term of its own
+            // ([`episode_assignment_term`], added by the trainer).
+            AssignmentGradient::Episode => logp.add(a.log_prob.detach())?,
         };
         let assignment_entropy = a.entropy.mean_all()?;
         let action_entropy = entropy;
@@ -305,6 +311,48 @@ pub fn expected_assignment_term<'t>(
     }
     let weight = tape.constant(Tensor::new(weight, &[k * d])?);
     Ok(terms.log_prob.exp().mul(weight)?.sum_all())
+}
+
+/// `ln π(σ_e | s_e)` of the draws `range` of `batch` (their normalised observations and
+/// assignments) on the tape of `p`, `[|range|]`: the policy only, the assignment given.
+pub fn assignment_log_prob<'t>(
+    model: &mut dyn Policy,
+    p: &Bound<'t, f32>,
+    batch: &EpisodeBatch,
+    range: std::ops::Range<usize>,
+) -> Result<Var<'t, f32>> {
+    let sigma = batch.sigma_of(range.clone());
+    let out = model.forward(p, &batch.obs.rows().slice(range), Some(sigma), false)?;
+    let terms = out.assignment_terms.ok_or_else(|| {
+        models::ModelError::Input(format!("`{}` gave no learned assignment's log-probability", model.name()))
+    })?;
+    Ok(terms.log_prob)
+}
+
+/// The episode-credited assignment term (`assignment_gradient = episode`, module
+/// [`crate::mappo::episode_credit`], step 4) of the draws `range` of `batch` on the tape of
+/// `p`: `−(1 / |range|) Σ_e min(ρ_e A_e, clip(ρ_e, 1 − ε, 1 + ε) A_e)` with
+/// `ρ_e = exp(ln π(σ_e | s_e) − ln π_old(σ_e | s_e))` and `ε` the clip. `None` for an empty
+/// range.
+pub fn episode_assignment_term<'t>(
+    model: &mut dyn Policy,
+    p: &Bound<'t, f32>,
+    batch: &EpisodeBatch,
+    range: std::ops::Range<usize>,
+    clip_epsilon: f64,
+) -> Result<Option<Var<'t, f32>>> {
+    let d = range.len();
+    if d == 0 {
+        return Ok(None);
+    }
+    let tape = p.tape();
+    let logp = assignment_log_prob(model, p, batch, range.clone())?;
+    let logp_old = tape.constant(Tensor::new(batch.logp_old[range.clone()].to_vec(), &[d])?);
+    let advantages = tape.constant(Tensor::new(batch.advantages[range].to_vec(), &[d])?);
+    let ratio = logp.sub(logp_old)?.exp();
+    let unclipped = ratio.mul(advantages)?;
+    let clipped = ratio.clamp(1.0 - clip_epsilon, 1.0 + clip_epsilon).mul(advantages)?;
+    Ok(Some(unclipped.minimum(clipped)?.mean_all()?.neg()))
 }
 
 /// The model's outputs on one minibatch: the policy and value of the `T M` transitions on

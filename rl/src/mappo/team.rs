@@ -13,6 +13,7 @@ use crate::error::{Result, RlError};
 use crate::mappo::actor::{ActMode, Actor, JointAction};
 use crate::mappo::assignment_hold::HoldRule;
 use crate::mappo::config::TrainConfig;
+use crate::mappo::episode_credit::EpisodeDraws;
 use crate::mappo::normalizer::ObsNormalizer;
 use crate::mappo::seeding::{derive_seed, stream};
 
@@ -40,6 +41,10 @@ pub struct Team {
     pub actor: Actor,
     /// Minibatch shuffling.
     pub shuffle: ChaCha8Rng,
+    /// With `assignment_gradient = "episode"` and a learned assignment, the draws of the
+    /// running episodes and of those that ended in the iteration (set by the trainer, which
+    /// knows the environments); `None` otherwise.
+    pub episode_draws: Option<EpisodeDraws>,
 }
 
 impl Team {
@@ -88,7 +93,7 @@ impl Team {
         let noise = model.agents().iter().map(|&a| stream(config.seed, "noise", team as u64, a as u64)).collect();
         let shuffle = stream(config.seed, "shuffle", team as u64, 0);
         let actor = Actor::new(ActMode::Sample, noise);
-        Ok(Team { index: team, model, store, act_mirror: None, adam, norm, actor, shuffle })
+        Ok(Team { index: team, model, store, act_mirror: None, adam, norm, actor, shuffle, episode_draws: None })
     }
 
     /// The parameters the act step reads: the mirror where it runs apart from the updates,

@@ -47,9 +47,10 @@ use crate::error::{Result, RlError};
 use crate::mappo::actor::JointAction;
 use crate::mappo::assignment_hold::HoldRule;
 use crate::mappo::checkpoint::{Checkpoint, TeamState, VERSION};
-use crate::mappo::config::{NormStart, TrainConfig};
+use crate::mappo::config::{AssignmentGradient, NormStart, TrainConfig};
 use crate::mappo::config_match;
 use crate::mappo::device::check_device;
+use crate::mappo::episode_credit::{EpisodeBatch, EpisodeDraws};
 use crate::mappo::evaluate::{EvalOptions, EvalSummary, evaluate};
 use crate::mappo::minibatch::Minibatch;
 use crate::mappo::ppo::{self, LossStats, PpoParams};
@@ -289,6 +290,15 @@ impl Trainer {
         );
         let na = env.n_actions();
         place_teams(config, &mut teams)?;
+        // A draw held for an episode credited with its return: every learning team keeps its
+        // draws across iterations (`episode_credit`).
+        if config.assignment_gradient == AssignmentGradient::Episode {
+            for t in &mut teams {
+                if !t.model.learned_assignment_support().is_empty() {
+                    t.episode_draws = Some(EpisodeDraws::new(env.obs(), t.model.assignment_width()));
+                }
+            }
+        }
         let mut trainer = Trainer {
             config: config.clone(),
             spec: obs_spec,
@@ -419,6 +429,20 @@ impl Trainer {
                 }
                 (None, _) => {}
             }
+            // So do the draws credited with their episodes' returns.
+            match (&s.episode_draws, team.episode_draws.as_mut()) {
+                (Some(saved), Some(draws)) => {
+                    draws.restore(saved).map_err(|e| bad(format!("team {}: {e}", team.index)))?
+                }
+                (None, Some(_)) if c.iteration > 0 => {
+                    return Err(bad(format!(
+                        "team {} credits its learned task assignment with its episodes' returns, and the checkpoint \
+                         keeps none of its running episodes' draws",
+                        team.index
+                    )));
+                }
+                _ => {}
+            }
         }
         Ok(t)
     }
@@ -454,6 +478,7 @@ impl Trainer {
                     noise: t.actor.noise.iter().map(RngState::of).collect(),
                     shuffle: RngState::of(&t.shuffle),
                     assignment_hold: t.actor.hold.saved(),
+                    episode_draws: t.episode_draws.as_ref().map(EpisodeDraws::saved),
                 })
                 .collect(),
             env: self.env.snapshot(),
@@ -529,13 +554,27 @@ impl Trainer {
                 // The parameters where the act step runs (`Team::acting_store`).
                 team.act(self.env.obs().rows(), &mut self.joint)?;
             }
+            // The draws credited with their episodes' returns: where each was drawn.
+            for team in self.teams.iter_mut() {
+                if let Some(d) = team.episode_draws.as_mut() {
+                    let k = team.index;
+                    d.record_draws(self.env.obs(), &self.joint.assignment[k], &self.joint.assignment_drawn[k]);
+                }
+            }
             lap(&mut mark, &mut timings.act_s);
             let out = self.env.step(&self.joint.actions)?;
             lap(&mut mark, &mut timings.simulate_s);
             self.rollout.push(&self.joint, out, scale);
+            let ended: Vec<bool> = out.terminated.iter().zip(&out.truncated).map(|(&t, &u)| t || u).collect();
+            let nt = self.spec.n_teams;
             for team in self.teams.iter_mut() {
-                let ended = out.terminated.iter().zip(&out.truncated).map(|(&t, &u)| t || u);
-                team.actor.hold.end_episodes(ended);
+                team.actor.hold.end_episodes(ended.iter().copied());
+                if let Some(d) = team.episode_draws.as_mut() {
+                    // The ended episode's return: its running sum and this step's reward.
+                    let k = team.index;
+                    let returns = &self.episode_returns;
+                    d.end_episodes(&ended, |e| returns[e * nt + k] + out.reward[e * nt + k] as f64);
+                }
             }
             stats.record(out, &mut self.episode_returns);
             lap(&mut mark, &mut timings.store_s);
@@ -559,6 +598,17 @@ impl Trainer {
             let store = &mut team.store;
             let mut sum = LossStats::default();
             let mut count = 0.0;
+            // The draws whose episodes ended in this iteration, credited with their returns
+            // (`episode_credit`): their advantages, and `ln π_old` before the first step.
+            let mut episodes =
+                team.episode_draws.as_mut().and_then(|d| EpisodeBatch::new(&d.take_finished(), &team.norm));
+            if let Some(batch) = episodes.as_mut() {
+                let tape = Tape::<f32>::on(c.device);
+                let _no_grad = tape.no_grad();
+                let p = store.bind(&tape);
+                let logp = ppo::assignment_log_prob(team.model.as_mut(), &p, batch, 0..batch.len())?;
+                batch.logp_old = logp.value().to_host()?.to_vec();
+            }
             for epoch in 0..c.epochs {
                 let perm = permutation(self.rollout.unrolls(), &mut team.shuffle);
                 for (k, ids) in perm.chunks_exact(c.batch_size).enumerate() {
@@ -576,7 +626,16 @@ impl Trainer {
                     let p = store.bind(&tape);
                     let mut noise =
                         minibatch_stream(c.seed, "entropy", at.team as u64, at.iteration, epoch as u64, k as u64);
-                    let (loss, stats) = ppo::loss(team.model.as_mut(), &p, &self.mb, &hp, &mut noise)?;
+                    let (mut loss, stats) = ppo::loss(team.model.as_mut(), &p, &self.mb, &hp, &mut noise)?;
+                    // Minibatch k's share of the episode-credited draws.
+                    if let Some(batch) = &episodes {
+                        let share = batch.share(k, c.num_minibatches);
+                        if let Some(term) =
+                            ppo::episode_assignment_term(team.model.as_mut(), &p, batch, share, c.clip_epsilon)?
+                        {
+                            loss = loss.add(term)?;
+                        }
+                    }
                     if !stats.loss.is_finite() {
                         return Err(RlError::NonFinite {
                             message: format!("loss {} of {}", stats.loss, at.describe(&stats)),

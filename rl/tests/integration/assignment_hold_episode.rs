@@ -29,7 +29,7 @@ const MODELS: [&str; 3] = ["mlp_hn:assignment=learned", "shnn:assignment=learned
 pub(crate) const HELD_CRITIC: &str = "mlp_hn:assignment=learned;assign_critic=held";
 
 /// Environments of [`config`].
-const ENVS: usize = 8;
+pub(crate) const ENVS: usize = 8;
 
 /// Steps of one environment in one iteration of [`config`]: 2 blocks of unrolls of 5 steps.
 const STEPS_PER_ENV: usize = 10;

@@ -2,6 +2,7 @@
 //! one module per subject, each with its own doc comment.
 
 mod assignment_diagnostics;
+mod assignment_episode_credit;
 mod assignment_gradient;
 mod assignment_hold;
 mod assignment_hold_episode;

@@ -226,6 +226,15 @@ mod tests {
             assert_eq!(r.config, TrainConfig { assignment_value_at_draw: true, ..e.config.clone() }, "{}", r.name);
             assert_eq!(r.name, e.name.replace("_expected/", "_expected_at_draw/"));
         }
+        // And with each draw credited with its episode's return: the runs held per episode
+        // but for the gradient.
+        let credit = Sweep::load(&dir.join("learned_assignment_episode_credit.toml")).unwrap().runs().unwrap();
+        assert_eq!(credit.len(), 3);
+        for (r, e) in credit.iter().zip(&episode) {
+            let gradient = crate::AssignmentGradient::Episode;
+            assert_eq!(r.config, TrainConfig { assignment_gradient: gradient, ..e.config.clone() }, "{}", r.name);
+            assert_eq!(r.name, e.name.replace("+hold_episode/", "+hold_episode_credit/"));
+        }
         // Its follow-up with a warm-up: the same runs but for the warm-up and a longer budget,
         // whose first 16M env steps are greedy MLP+HN's (the seeds of repro_reach_2_ants.toml).
         let warmup = Sweep::load(&dir.join("learned_assignment_warmup.toml")).unwrap().runs().unwrap();
