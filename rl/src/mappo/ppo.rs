@@ -237,10 +237,7 @@ pub fn loss<'t>(
     //        - c_H (H(u) + s H(sigma)).
     let value_loss = t.value.sub(t.value_target)?.square().mean_all()?;
     let ratio = t.logp.sub(t.logp_old)?.exp();
-    let eps = hp.clip_epsilon;
-    let unclipped = ratio.mul(t.advantages)?;
-    let clipped = ratio.clamp(1.0 - eps, 1.0 + eps).mul(t.advantages)?;
-    let mut policy_loss = unclipped.minimum(clipped)?.mean_all()?.neg();
+    let mut policy_loss = clipped_surrogate(ratio, t.advantages, hp.clip_epsilon)?;
     if let Some(e) = expected {
         policy_loss = policy_loss.sub(e)?;
     }
@@ -349,10 +346,15 @@ pub fn episode_assignment_term<'t>(
     let logp = assignment_log_prob(model, p, batch, range.clone())?;
     let logp_old = tape.constant(Tensor::new(batch.logp_old[range.clone()].to_vec(), &[d])?);
     let advantages = tape.constant(Tensor::new(batch.advantages[range].to_vec(), &[d])?);
-    let ratio = logp.sub(logp_old)?.exp();
+    Ok(Some(clipped_surrogate(logp.sub(logp_old)?.exp(), advantages, clip_epsilon)?))
+}
+
+/// PPO's clipped surrogate, `-mean(min(rho A, clip(rho, 1 - eps, 1 + eps) A))`, of the ratios
+/// `ratio` and advantages `advantages` (the same shape).
+fn clipped_surrogate<'t>(ratio: Var<'t, f32>, advantages: Var<'t, f32>, eps: f64) -> Result<Var<'t, f32>> {
     let unclipped = ratio.mul(advantages)?;
-    let clipped = ratio.clamp(1.0 - clip_epsilon, 1.0 + clip_epsilon).mul(advantages)?;
-    Ok(Some(unclipped.minimum(clipped)?.mean_all()?.neg()))
+    let clipped = ratio.clamp(1.0 - eps, 1.0 + eps).mul(advantages)?;
+    Ok(unclipped.minimum(clipped)?.mean_all()?.neg())
 }
 
 /// The model's outputs on one minibatch: the policy and value of the `T M` transitions on
